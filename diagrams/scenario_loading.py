@@ -1,0 +1,173 @@
+"""Loading scenario files: named scenarios, `--set key=value` overrides, typed schemas.
+
+A scenario file is YAML whose top level names its `task` and whose remaining keys are the
+fields of that task's scenario dataclass. Loading is two passes: an untyped read (which keeps
+Drake's YAML tags such as `!Rpy`) to apply the command-line overrides and find the task, then
+`yaml_load_typed` against the task's dataclass, which rejects unknown keys and wrong types.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import re
+import types
+import typing
+from pathlib import Path
+from typing import Any, TypeVar
+
+from pydrake.common.yaml import yaml_dump, yaml_load_data, yaml_load_file, yaml_load_typed
+
+from guidedarm.systems.errors import ConfigurationError
+
+SCENARIO_DIR = Path(__file__).resolve().parent / "scenarios"
+
+T = TypeVar("T")
+
+
+class ScenarioError(ConfigurationError):
+    """A scenario file or override is malformed; the message names the file and the key."""
+
+
+def resolve_scenario_path(name_or_path: str) -> Path:
+    """Returns the YAML file for a named scenario (diagrams/scenarios/NAME.yaml) or a path."""
+    path = Path(name_or_path)
+    if path.suffix in (".yaml", ".yml"):
+        if not path.is_file():
+            raise ScenarioError(f"scenario file not found: {path}")
+        return path
+    named = SCENARIO_DIR / f"{name_or_path}.yaml"
+    if not named.is_file():
+        known = ", ".join(list_named_scenarios())
+        raise ScenarioError(f"unknown scenario '{name_or_path}' (known: {known})")
+    return named
+
+
+def list_named_scenarios() -> list[str]:
+    """Names of the scenarios shipped in diagrams/scenarios/."""
+    return sorted(p.stem for p in SCENARIO_DIR.glob("*.yaml"))
+
+
+def parse_overrides(items: list[str]) -> dict[str, Any]:
+    """Parses `key=value` strings; values are read as YAML scalars or flow collections."""
+    overrides: dict[str, Any] = {}
+    for item in items:
+        key, sep, value = item.partition("=")
+        if not sep or not re.fullmatch(r"[A-Za-z_][\w]*(\.[A-Za-z_][\w]*)*", key):
+            raise ScenarioError(f"--set expects key=value (dotted keys allowed), got '{item}'")
+        try:
+            overrides[key] = yaml_load_data(f"value: {value}")["value"]
+        except Exception as e:  # the YAML parser's own message is the useful part
+            raise ScenarioError(f"--set {key}: cannot parse value '{value}': {e}") from None
+    return overrides
+
+
+def apply_overrides(raw: dict[str, Any], overrides: dict[str, Any]) -> dict[str, Any]:
+    """Returns a copy of the untyped scenario with each dotted key set to its value."""
+    result = dict(raw)
+    for dotted, value in overrides.items():
+        node = result
+        parts = dotted.split(".")
+        for part in parts[:-1]:
+            child = node.get(part)
+            child = dict(child) if isinstance(child, dict) else {}
+            node[part] = child
+            node = child
+        node[parts[-1]] = value
+    return result
+
+
+def read_raw_scenario(path: Path) -> dict[str, Any]:
+    """Reads a scenario file without a schema; fails with a one-line message if malformed."""
+    try:
+        raw = yaml_load_file(str(path))
+    except Exception as e:
+        raise ScenarioError(f"{path}: malformed YAML: {_first_line(e)}") from None
+    if not isinstance(raw, dict):
+        raise ScenarioError(f"{path}: the top level must be a mapping of scenario keys")
+    return raw
+
+
+def load_typed(schema: type[T], raw: dict[str, Any], source: str) -> T:
+    """Loads `raw` into the dataclass `schema`, naming the offending key on failure."""
+    _check_node(schema, raw, "", source)
+    try:
+        return yaml_load_typed(schema=schema, data=yaml_dump(raw))
+    except Exception as e:
+        raise ScenarioError(f"{source}: {_first_line(e)}") from None
+
+
+def _check_node(schema: Any, value: Any, key: str, source: str) -> None:
+    """Walks `value` against `schema` so that errors name the dotted key (Drake's don't)."""
+
+    def fail(why: str) -> None:
+        raise ScenarioError(f"{source}: key '{key or '<top>'}': {why}")
+
+    origin = typing.get_origin(schema)
+    if origin in (typing.Union, types.UnionType):
+        members = typing.get_args(schema)
+        if value is None and type(None) in members:
+            return
+        errors = []
+        for member in (m for m in members if m is not type(None)):
+            try:
+                _check_node(member, value, key, source)
+                return
+            except ScenarioError as e:
+                errors.append(str(e))
+        fail(f"matches none of {[getattr(m, '__name__', str(m)) for m in members]}")
+    if origin is list:
+        if not isinstance(value, list):
+            fail(f"expected a list, got {value!r}")
+        (item_schema,) = typing.get_args(schema) or (Any,)
+        for i, item in enumerate(value):
+            _check_node(item_schema, item, f"{key}[{i}]", source)
+        return
+    if origin is dict:
+        if not isinstance(value, dict):
+            fail(f"expected a mapping, got {value!r}")
+        _, item_schema = typing.get_args(schema) or (str, Any)
+        for name, item in value.items():
+            _check_node(item_schema, item, _join(key, str(name)), source)
+        return
+    if dataclasses.is_dataclass(schema):
+        if not isinstance(value, dict):
+            fail(f"expected a mapping of {schema.__name__} fields, got {value!r}")
+        hints = typing.get_type_hints(schema)
+        known = {f.name for f in dataclasses.fields(schema)}
+        for name, item in value.items():
+            if name not in known:
+                raise ScenarioError(
+                    f"{source}: unknown key '{_join(key, name)}' "
+                    f"(known keys: {', '.join(sorted(known))})"
+                )
+            _check_node(hints[name], item, _join(key, name), source)
+        return
+    if schema is bool:
+        if not isinstance(value, bool):
+            fail(f"expected true or false, got {value!r}")
+    elif schema is float:
+        if isinstance(value, bool) or not isinstance(value, int | float):
+            fail(f"expected a number, got {value!r}")
+    elif schema is int:
+        if isinstance(value, bool) or not isinstance(value, int):
+            fail(f"expected an integer, got {value!r}")
+    elif schema is str:
+        if not isinstance(value, str):
+            fail(f"expected a string, got {value!r}")
+    elif hasattr(schema, "__fields__"):
+        try:
+            yaml_load_typed(schema=schema, data=yaml_dump({"node": value}), child_name="node")
+        except Exception as e:
+            text = _first_line(e)
+            if "incompatible function arguments" in text:
+                text = f"wrong shape or type for a {schema.__name__}: {value!r}"
+            fail(text)
+
+
+def _join(prefix: str, name: str) -> str:
+    return f"{prefix}.{name}" if prefix else name
+
+
+def _first_line(error: Exception) -> str:
+    lines = [line.strip() for line in str(error).splitlines() if line.strip()]
+    return lines[0] if lines else type(error).__name__
