@@ -32,7 +32,11 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     parser.add_argument("--meshcat", action="store_true", help="serve Meshcat live and wait")
     parser.add_argument("--hardware", action="store_true", help="drive the real hardware")
     parser.add_argument(
-        "--set", dest="overrides", action="append", default=[], metavar="KEY=VALUE",
+        "--set",
+        dest="overrides",
+        action="append",
+        default=[],
+        metavar="KEY=VALUE",
         help="override a scenario key (dotted keys reach nested fields)",
     )
     parser.set_defaults(func=run_command)

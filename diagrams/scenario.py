@@ -1,6 +1,5 @@
 """Scenario schemas of the station, loaded with `yaml_load_typed` (see scenario_loading)."""
 
-
 from dataclasses import dataclass, field
 
 from pydrake.multibody.parsing import ModelDirective
@@ -8,6 +7,8 @@ from pydrake.multibody.plant import MultibodyPlantConfig
 from pydrake.systems.analysis import SimulatorConfig
 from pydrake.systems.sensors import CameraConfig
 from pydrake.visualization import VisualizationConfig
+
+from guidedarm.diagrams.hardware_config import HardwareConfig
 
 
 @dataclass
@@ -44,6 +45,7 @@ class StationScenario:
         `<name>.position_commanded`, `<name>.position_measured`, `<name>.velocity_estimated`
         and `<name>.state_estimated`.
     cameras: Drake CameraConfig per camera; each exports `<name>.rgb_image`.
+    hardware: drivers used by `MakeStation(..., hardware=True)` (diagrams/hardware_config).
     """
 
     directives: list[ModelDirective] = field(default_factory=list)
@@ -52,3 +54,4 @@ class StationScenario:
     plant_config: MultibodyPlantConfig = field(default_factory=_default_plant_config)
     simulator_config: SimulatorConfig = field(default_factory=SimulatorConfig)
     visualization: VisualizationConfig = field(default_factory=_default_visualization)
+    hardware: HardwareConfig = field(default_factory=HardwareConfig)

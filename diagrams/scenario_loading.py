@@ -155,13 +155,32 @@ def _check_node(schema: Any, value: Any, key: str, source: str) -> None:
         if not isinstance(value, str):
             fail(f"expected a string, got {value!r}")
     elif hasattr(schema, "__fields__"):
+        _check_bound_struct(schema, value, key, source)
+
+
+def _check_bound_struct(schema: Any, value: Any, key: str, source: str) -> None:
+    """Drake's C++ structs (CameraConfig, Transform, ...): check field by field."""
+    if not isinstance(value, dict):
+        raise ScenarioError(f"{source}: key '{key}': expected a mapping of {schema.__name__}")
+    fields = {f.name: f.type for f in schema.__fields__}
+    for name, item in value.items():
+        if name == "_tag":
+            continue
+        if name not in fields:
+            raise ScenarioError(
+                f"{source}: unknown key '{_join(key, name)}' "
+                f"(known keys: {', '.join(sorted(fields))})"
+            )
+        if hasattr(fields[name], "__fields__"):
+            _check_bound_struct(fields[name], item, _join(key, name), source)
+            continue
         try:
-            yaml_load_typed(schema=schema, data=yaml_dump({"node": value}), child_name="node")
+            yaml_load_typed(schema=schema, data=yaml_dump({name: item}))
         except Exception as e:
             text = _first_line(e)
             if "incompatible function arguments" in text:
-                text = f"wrong shape or type for a {schema.__name__}: {value!r}"
-            fail(text)
+                text = f"wrong shape or type: {item!r}"
+            raise ScenarioError(f"{source}: key '{_join(key, name)}': {text}") from None
 
 
 def _join(prefix: str, name: str) -> str:

@@ -10,7 +10,7 @@ the sim/hardware contract.
 from __future__ import annotations
 
 import numpy as np
-from pydrake.geometry import Meshcat, MakeRenderEngineVtk, RenderEngineVtkParams, SceneGraph
+from pydrake.geometry import MakeRenderEngineVtk, Meshcat, RenderEngineVtkParams, SceneGraph
 from pydrake.multibody.parsing import ModelDirectives, ProcessModelDirectives
 from pydrake.multibody.plant import AddMultibodyPlant, MultibodyPlant
 from pydrake.multibody.tree import ModelInstanceIndex
@@ -70,7 +70,7 @@ def SetInitialPositions(scenario: StationScenario, plant: MultibodyPlant) -> Non
     """Sets each arm's default joint positions (finalized plant) from the scenario."""
     for name, arm in scenario.arms.items():
         instance = GetArmInstance(plant, name)
-        if arm.initial_position:
+        if len(arm.initial_position) > 0:
             if len(arm.initial_position) != plant.num_positions(instance):
                 raise ConfigurationError(
                     f"arms.{name}.initial_position has {len(arm.initial_position)} values, "
@@ -100,6 +100,8 @@ def _AddArm(builder: DiagramBuilder, plant: MultibodyPlant, name: str, arm: ArmC
         )
     if arm.control_period <= 0:
         raise ConfigurationError(f"arms.{name}.control_period must be positive")
+    if arm.kp <= 0:
+        raise ConfigurationError(f"arms.{name}: servo gains must be positive, got kp={arm.kp}")
     kd = arm.kd if arm.kd > 0 else 2.0 * np.sqrt(arm.kp)
     servo = builder.AddNamedSystem(
         f"{name}.servo", JointServo(ComputedTorqueLaw(plant, instance, arm.kp, kd))

@@ -5,7 +5,7 @@ joint exceeds the given speed, feeds `<arm>.position_commanded`; the run reports
 closely the simulated servo tracked it.
 """
 
-
+import itertools
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -46,14 +46,14 @@ def MakeTourTrajectory(
         raise ConfigurationError(f"max_speed must be positive, got {max_speed}")
     knots = [np.asarray(start, float)] + [np.asarray(w, float) for w in waypoints]
     times = [0.0]
-    for a, b in zip(knots[:-1], knots[1:], strict=True):
+    for a, b in itertools.pairwise(knots):
         times.append(times[-1] + max(1.5 * np.max(np.abs(b - a)) / max_speed, 1e-3))
     samples = np.column_stack(knots)
     zero = np.zeros_like(knots[0])
-    return PiecewisePolynomial.CubicWithContinuousSecondDerivatives(
-        times, samples, zero, zero
-    ) if len(knots) > 2 else PiecewisePolynomial.CubicHermite(
-        times, samples, np.column_stack([zero, zero])
+    return (
+        PiecewisePolynomial.CubicWithContinuousSecondDerivatives(times, samples, zero, zero)
+        if len(knots) > 2
+        else PiecewisePolynomial.CubicHermite(times, samples, np.column_stack([zero, zero]))
     )
 
 
@@ -68,7 +68,8 @@ def RunJointTour(scenario: JointTourScenario, context: RunContext) -> dict[str, 
     for i, w in enumerate(scenario.waypoints):
         if len(w) != n:
             raise ConfigurationError(f"waypoints[{i}] has {len(w)} values, the arm has {n}")
-    start = np.asarray(arms[scenario.arm].initial_position or np.zeros(n), float)
+    initial = arms[scenario.arm].initial_position
+    start = np.asarray(initial if len(initial) > 0 else np.zeros(n), float)
     trajectory = MakeTourTrajectory(start, scenario.waypoints, scenario.max_speed)
     source = builder.AddNamedSystem("tour", TrajectorySource(trajectory))
     builder.Connect(

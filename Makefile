@@ -1,0 +1,40 @@
+# The two commands of the README: `make demo` (main job) and `make test` (test suite).
+# Each creates the virtual environment on first use.
+
+PYTHON ?= python3.11
+VENV := .venv
+BIN := $(VENV)/bin
+STAMP := $(VENV)/.installed
+DEMO_SCENARIOS ?= ur10e_joint_tour
+
+.PHONY: demo test lint bench picture clean
+
+$(STAMP): pyproject.toml
+	test -x $(BIN)/python || $(PYTHON) -m venv $(VENV)
+	$(BIN)/pip install --quiet --upgrade pip
+	$(BIN)/pip install --quiet -e '.[test]'
+	touch $(STAMP)
+
+demo: $(STAMP)
+	@set -e; for s in $(DEMO_SCENARIOS); do \
+		$(BIN)/guidedarm run $$s --out runs/$$s; \
+	done; \
+	echo "make demo: wrote summary.json, plots and replay.html for each scenario under runs/"
+
+test: $(STAMP)
+	sh tests/setup_browser.sh
+	$(BIN)/ruff check .
+	$(BIN)/ruff format --check .
+	$(BIN)/pytest
+
+lint: $(STAMP)
+	$(BIN)/ruff check . && $(BIN)/ruff format --check .
+
+bench: $(STAMP)
+	@for b in tests/benchmarks/bench_*.py; do echo "== $$b"; $(BIN)/python $$b; done
+
+picture: $(STAMP)
+	$(BIN)/guidedarm picture docs/guidedarm.png
+
+clean:
+	rm -rf $(VENV) runs .pytest_cache

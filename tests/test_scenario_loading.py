@@ -1,0 +1,93 @@
+"""Scenario files: typed loading, errors naming the key, `--set` overrides."""
+
+from __future__ import annotations
+
+import pytest
+
+from guidedarm.diagrams.command_run import LoadScenario
+from guidedarm.diagrams.scenario_loading import ScenarioError, parse_overrides
+from guidedarm.systems.errors import ConfigurationError
+
+GOOD = """\
+task: joint_tour
+arm: ur10e
+waypoints: [[0, 0, 0, 0, 0, 0]]
+station:
+  directives:
+  - add_directives: {file: package://guidedarm/directives/ur10e.dmd.yaml}
+  arms:
+    ur10e: {kp: 900}
+  cameras:
+    top:
+      width: 64
+      height: 48
+      X_PB:
+        translation: [0, 0, 2]
+        rotation: !Rpy { deg: [180, 0, 0] }
+"""
+
+
+def write(tmp_path, text: str):
+    path = tmp_path / "scenario.yaml"
+    path.write_text(text)
+    return str(path)
+
+
+def test_good_scenario_loads_typed(tmp_path):
+    task, scenario, name = LoadScenario(write(tmp_path, GOOD), [])
+    assert task.name == "joint_tour" and name == "scenario"
+    assert scenario.station.arms["ur10e"].kp == 900.0
+    assert scenario.station.cameras["top"].width == 64
+    X_PB = scenario.station.cameras["top"].X_PB.GetDeterministicValue()
+    assert X_PB.translation()[2] == pytest.approx(2.0)
+    assert X_PB.rotation().matrix()[2, 2] == pytest.approx(-1.0)
+
+
+@pytest.mark.parametrize(
+    "text, expected",
+    [
+        (GOOD + "colour: red\n", "unknown key 'colour'"),
+        (GOOD.replace("kp: 900", "kp: 900, kq: 1"), "unknown key 'station.arms.ur10e.kq'"),
+        (GOOD.replace("kp: 900", "kp: fast"), "key 'station.arms.ur10e.kp': expected a number"),
+        (GOOD.replace("width: 64", "width: 6.4"), "station.cameras.top"),
+        (GOOD.replace("waypoints: [[0, 0, 0, 0, 0, 0]]", "waypoints: 3"), "key 'waypoints'"),
+        (GOOD.replace("[0, 0, 2]", "[0, 2]"), "station.cameras.top.X_PB"),
+        (GOOD.replace("task: joint_tour", "task: juggling"), "unknown task 'juggling'"),
+        (GOOD.replace("task: joint_tour\n", ""), "missing key 'task'"),
+        ("task: [joint_tour\n", "malformed YAML"),
+    ],
+)
+def test_bad_scenario_names_the_cause(tmp_path, text, expected):
+    with pytest.raises(ConfigurationError, match=expected.replace("[", r"\[").replace(".", r"\.")):
+        LoadScenario(write(tmp_path, text), [])
+
+
+def test_overrides_reach_nested_keys_and_are_typed(tmp_path):
+    _, scenario, _ = LoadScenario(
+        write(tmp_path, GOOD), ["max_speed=0.25", "station.arms.ur10e.kp=400"]
+    )
+    assert scenario.max_speed == 0.25
+    assert scenario.station.arms["ur10e"].kp == 400.0
+    with pytest.raises(ScenarioError, match=r"unknown key 'station\.arms\.ur10e\.gain'"):
+        LoadScenario(write(tmp_path, GOOD), ["station.arms.ur10e.gain=1"])
+    with pytest.raises(ScenarioError, match="key 'max_speed': expected a number"):
+        LoadScenario(write(tmp_path, GOOD), ["max_speed=fast"])
+
+
+def test_override_syntax_errors():
+    assert parse_overrides(["limits=velocity,acceleration"]) == {"limits": "velocity,acceleration"}
+    with pytest.raises(ScenarioError, match="key=value"):
+        parse_overrides(["limits"])
+
+
+def test_unknown_named_scenario_lists_the_known_ones():
+    with pytest.raises(ScenarioError, match=r"unknown scenario 'nope'.*ur10e_joint_tour"):
+        LoadScenario("nope", [])
+
+
+def test_cli_reports_bad_scenario_in_one_line(tmp_path, run_cli):
+    code, _, err = run_cli("run", write(tmp_path, GOOD + "colour: red\n"), "--out", tmp_path)
+    assert code == 2
+    lines = err.strip().splitlines()
+    assert len(lines) == 1 and "unknown key 'colour'" in lines[0]
+    assert "Traceback" not in err

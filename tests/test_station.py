@@ -1,0 +1,108 @@
+"""The simulated station: exported ports, position servo, cameras, configuration errors."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from pydrake.common.schema import Transform
+from pydrake.systems.analysis import Simulator
+from pydrake.systems.sensors import CameraConfig
+
+from guidedarm.diagrams.scenario import ArmConfig, StationScenario
+from guidedarm.diagrams.scene_views import SceneDirectives
+from guidedarm.diagrams.station import MakeStation
+from guidedarm.systems.errors import ConfigurationError
+
+HOME = {
+    "ur10e": [-np.pi / 2, -np.pi / 2, -3 * np.pi / 4, -np.pi / 4, np.pi / 2, np.pi / 4],
+    "mz04d": [0.0, np.pi / 2, 0.0, 0.0, -np.pi / 2, 0.0],
+    "rover_arm": [0.0, -np.pi / 2, np.pi / 2, 0.0, 0.0, 0.0],
+}
+
+
+def station_for(arm: str, **arm_config) -> StationScenario:
+    return StationScenario(
+        directives=SceneDirectives(arm),
+        arms={arm: ArmConfig(initial_position=HOME[arm], **arm_config)},
+    )
+
+
+def port_names(system, kind: str) -> dict[str, int]:
+    count = getattr(system, f"num_{kind}_ports")()
+    ports = [getattr(system, f"get_{kind}_port")(i) for i in range(count)]
+    return {p.get_name(): p.size() for p in ports}
+
+
+@pytest.mark.parametrize("arm", sorted(HOME))
+def test_each_arm_exports_the_station_ports(arm):
+    station = MakeStation(station_for(arm))
+    assert port_names(station, "input") == {f"{arm}.position_commanded": 6}
+    outputs = port_names(station, "output")
+    for suffix, size in [("position_measured", 6), ("velocity_estimated", 6)]:
+        assert outputs[f"{arm}.{suffix}"] == size
+    assert outputs[f"{arm}.state_estimated"] == 12
+    assert {"sim.query_object", "sim.body_poses", "sim.plant_state"} <= set(outputs)
+
+
+@pytest.mark.parametrize("arm", sorted(HOME))
+def test_servo_holds_the_commanded_pose_against_gravity(arm):
+    station = MakeStation(station_for(arm))
+    simulator = Simulator(station)
+    context = simulator.get_mutable_context()
+    station.GetInputPort(f"{arm}.position_commanded").FixValue(context, HOME[arm])
+    simulator.AdvanceTo(1.0)
+    q = station.GetOutputPort(f"{arm}.position_measured").Eval(context)
+    v = station.GetOutputPort(f"{arm}.velocity_estimated").Eval(context)
+    np.testing.assert_allclose(q, HOME[arm], atol=1e-6)
+    assert np.max(np.abs(v)) < 1e-5
+
+
+def test_servo_settles_on_a_step_command():
+    target = np.array(HOME["ur10e"]) + [0.1, -0.1, 0.1, -0.1, 0.1, -0.1]
+    station = MakeStation(station_for("ur10e"))
+    simulator = Simulator(station)
+    context = simulator.get_mutable_context()
+    station.GetInputPort("ur10e.position_commanded").FixValue(context, target)
+    simulator.AdvanceTo(0.5)
+    q = station.GetOutputPort("ur10e.position_measured").Eval(context)
+    np.testing.assert_allclose(q, target, atol=1e-4)
+
+
+def test_camera_renders_the_arm_from_above():
+    camera = CameraConfig(width=80, height=60, name="top")
+    camera.X_PB = Transform()
+    camera.X_PB.translation = [0.0, -0.3, 2.5]
+    camera.X_PB.set_rotation_rpy_deg([180.0, 0.0, 0.0])
+    scenario = station_for("ur10e")
+    scenario.cameras = {"top": camera}
+    station = MakeStation(scenario)
+    image = station.GetOutputPort("top.rgb_image").Eval(station.CreateDefaultContext())
+    rgb = image.data[:, :, :3].astype(float)
+    background = rgb[0, 0]
+    differs = np.linalg.norm(rgb - background, axis=2) > 30
+    # The arm covers part of the view, not all of it and not none of it.
+    assert 0.005 < differs.mean() < 0.6
+
+
+def test_unknown_arm_and_bad_initial_position_are_configuration_errors():
+    scenario = station_for("ur10e")
+    scenario.arms = {"ur5": ArmConfig()}
+    with pytest.raises(ConfigurationError, match="no model instance 'ur5'"):
+        MakeStation(scenario)
+    scenario.arms = {"ur10e": ArmConfig(initial_position=[0.0, 1.0])}
+    with pytest.raises(ConfigurationError, match="initial_position has 2 values"):
+        MakeStation(scenario)
+    scenario.arms = {"ur10e": ArmConfig(kp=-1.0)}
+    with pytest.raises(ConfigurationError, match="gains must be positive"):
+        MakeStation(scenario)
+
+
+def test_bad_model_file_is_a_configuration_error():
+    from pydrake.multibody.parsing import AddModel, ModelDirective
+
+    directive = ModelDirective()
+    directive.add_model = AddModel()
+    directive.add_model.name = "ghost"
+    directive.add_model.file = "package://guidedarm/nowhere/ghost.urdf"
+    with pytest.raises(ConfigurationError, match="model directives"):
+        MakeStation(StationScenario(directives=[directive]))
