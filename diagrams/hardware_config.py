@@ -1,0 +1,68 @@
+"""Scenario schema of the hardware branch: which driver serves each arm, camera and the ToF
+tool, and where to reach it. Loaded with `yaml_load_typed` as `StationScenario.hardware`.
+"""
+
+from dataclasses import dataclass, field
+
+
+@dataclass
+class ArmDriverConfig:
+    """One arm's controller link.
+
+    driver: `ur_rtde` (UR RTDE, servoJ) or `nachi_tcp` (Nachi CFD User Task line protocol).
+    host, port: controller address; port 0 = the driver's default (RTDE 30004, Nachi 48000).
+    period: servo period (s); 0.002 = 500 Hz.
+    watchdog: a measurement older than this (s) stops the arm and fails the run.
+    stale_after: a measurement older than this (s) is not acted on (no command sent).
+    acceleration_limits: rad/s^2 per joint, used where the model has none.
+    lookahead_time, gain: servoJ parameters (UR only; s, 1/s).
+    """
+
+    driver: str = "ur_rtde"
+    host: str = "127.0.0.1"
+    port: int = 0
+    period: float = 0.002
+    watchdog: float = 0.1
+    stale_after: float = 0.02
+    acceleration_limits: list[float] = field(default_factory=list)
+    lookahead_time: float = 0.1
+    gain: float = 300.0
+
+
+@dataclass
+class CameraDriverConfig:
+    """An OpenCV VideoCapture source: a device index ("0"), a video file or a stream URL.
+    Image size comes from the scenario's CameraConfig; frames of another size fail the run.
+
+    watchdog: no new frame for this long (s) fails the run.
+    """
+
+    source: str = "0"
+    watchdog: float = 2.0
+
+
+@dataclass
+class TofDriverConfig:
+    """The ToF tool's microcontroller link.
+
+    transport: `serial` (USB or classic-Bluetooth serial port) or `ble` (BLE UART).
+    device: serial device path (e.g. /dev/rfcomm0) or BLE address.
+    baudrate: serial only.
+    period: how often the station samples the latest reading (s).
+    watchdog: no valid line for this long (s) stops the arms and fails the run.
+    """
+
+    transport: str = "serial"
+    device: str = ""
+    baudrate: int = 115200
+    period: float = 0.02
+    watchdog: float = 0.5
+
+
+@dataclass
+class HardwareConfig:
+    """Drivers of the hardware station, keyed like StationScenario.arms and .cameras."""
+
+    arms: dict[str, ArmDriverConfig] = field(default_factory=dict)
+    cameras: dict[str, CameraDriverConfig] = field(default_factory=dict)
+    tof: TofDriverConfig | None = None

@@ -1,0 +1,105 @@
+"""ArmDriver: the hardware counterpart of a simulated arm's ports, on any ArmLink.
+
+Every `period` seconds it takes the link's latest measured sample and streams the commanded
+joint positions, with three safety rules:
+- a sample older than `watchdog` (host seconds) means the link is lost: the arm is stopped
+  and the run fails with LinkLostError;
+- a sample older than `stale_after` is not acted on: no command is sent from it;
+- every command passes CheckCommand (position, velocity, acceleration limits) before it is
+  sent; a refused command stops the arm and fails the run.
+"""
+
+from __future__ import annotations
+
+import time
+
+import numpy as np
+from pydrake.systems.framework import BasicVector, Context, DiscreteValues, LeafSystem
+
+from guidedarm.systems.hardware.arm_link import ArmLink, JointSample, LinkLostError
+from guidedarm.systems.hardware.command_guard import CheckCommand, CommandRefusedError, JointLimits
+
+
+def SampleAge(sample: JointSample | None, now: float) -> float:
+    """Seconds since `sample` was received (infinite if nothing arrived yet)."""
+    return np.inf if sample is None else now - sample.host_time
+
+
+class ArmDriver(LeafSystem):
+    """Input `position_commanded` (rad); outputs `position_measured` (rad),
+    `velocity_estimated` (rad/s), `state_estimated` ([q; v]). Joint order = the model's."""
+
+    def __init__(
+        self,
+        link: ArmLink,
+        limits: JointLimits,
+        period: float,
+        watchdog: float,
+        stale_after: float,
+    ) -> None:
+        super().__init__()
+        self._link = link
+        self._limits = limits
+        self._period = period
+        self._watchdog = watchdog
+        self._stale_after = stale_after
+        self.stale_skips = 0
+        self.commands_sent = 0
+        n = limits.lower.size
+        self._n = n
+        # State: measured q, v and the last sent command q, implied v.
+        self._state = self.DeclareDiscreteState(4 * n)
+        self.DeclareVectorInputPort("position_commanded", n)
+        self.DeclareVectorOutputPort("position_measured", n, self._CalcSlice(0, n))
+        self.DeclareVectorOutputPort("velocity_estimated", n, self._CalcSlice(n, 2 * n))
+        self.DeclareVectorOutputPort("state_estimated", 2 * n, self._CalcSlice(0, 2 * n))
+        self.DeclareInitializationDiscreteUpdateEvent(self._Initialize)
+        self.DeclarePeriodicDiscreteUpdateEvent(period, 0.0, self._Update)
+
+    def _CalcSlice(self, start: int, stop: int):
+        def calc(context: Context, output: BasicVector) -> None:
+            output.SetFromVector(context.get_discrete_state(self._state).value()[start:stop])
+
+        return calc
+
+    def _Initialize(self, context: Context, state: DiscreteValues) -> None:
+        deadline = time.monotonic() + self._watchdog
+        sample = self._link.latest()
+        while sample is None and time.monotonic() < deadline:
+            time.sleep(0.001)
+            sample = self._link.latest()
+        if sample is None:
+            self._Fail(f"{self._link.name}: no measurement within the watchdog {self._watchdog} s")
+        zeros = np.zeros(self._n)
+        state.set_value(self._state, np.concatenate([sample.q, sample.v, sample.q, zeros]))
+
+    def _Update(self, context: Context, state: DiscreteValues) -> None:
+        n = self._n
+        x = context.get_discrete_state(self._state).value().copy()
+        sample = self._link.latest()
+        age = SampleAge(sample, time.monotonic())
+        if age > self._watchdog:
+            self._Fail(
+                f"{self._link.name}: link quiet for {age:.3f} s (watchdog {self._watchdog} s); "
+                "robot stopped"
+            )
+        x[: 2 * n] = np.concatenate([sample.q, sample.v])
+        if age > self._stale_after:
+            self.stale_skips += 1
+        else:
+            q_command = self.get_input_port().Eval(context)
+            try:
+                v = CheckCommand(
+                    self._limits, q_command, x[2 * n : 3 * n], x[3 * n :], self._period
+                )
+            except CommandRefusedError as e:
+                self._link.stop()
+                raise CommandRefusedError(f"{self._link.name}: {e}; robot stopped") from None
+            self._link.send_position(q_command, self._period)
+            self.commands_sent += 1
+            x[2 * n :] = np.concatenate([q_command, v])
+        state.set_value(self._state, x)
+
+    def _Fail(self, message: str) -> None:
+        self._link.stop()
+        raise LinkLostError(message)

@@ -1,0 +1,117 @@
+"""Safety rules of ArmDriver and CheckCommand: limits from the MZ04D model, staleness."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from hardware_doubles import ScriptedArmLink
+from pydrake.multibody.plant import MultibodyPlant
+from pydrake.systems.analysis import Simulator
+
+from guidedarm.diagrams.model_paths import MakeParser
+from guidedarm.systems.errors import ConfigurationError
+from guidedarm.systems.hardware.arm_driver import ArmDriver
+from guidedarm.systems.hardware.arm_link import LinkLostError
+from guidedarm.systems.hardware.command_guard import (
+    CheckCommand,
+    CommandRefusedError,
+    JointLimits,
+)
+
+DT = 0.002
+ACCELERATION = [20.0, 20.0, 25.0, 30.0, 30.0, 40.0]
+
+
+@pytest.fixture(scope="module")
+def limits() -> JointLimits:
+    plant = MultibodyPlant(0.0)
+    (instance,) = MakeParser(plant).AddModelsFromUrl("package://guidedarm/mz04d/mz04d.urdf")
+    plant.Finalize()
+    return JointLimits.FromPlant(plant, instance, ACCELERATION)
+
+
+def test_limits_come_from_the_model(limits):
+    assert limits.names == [f"joint{i}" for i in range(1, 7)]
+    np.testing.assert_allclose(limits.upper[:2], np.deg2rad([170.0, 180.0]))
+    np.testing.assert_allclose(limits.velocity[0], np.deg2rad(450.0))
+    np.testing.assert_allclose(limits.acceleration, ACCELERATION)
+
+
+def test_missing_acceleration_limits_are_a_configuration_error():
+    plant = MultibodyPlant(0.0)
+    (instance,) = MakeParser(plant).AddModelsFromUrl("package://guidedarm/mz04d/mz04d.urdf")
+    plant.Finalize()
+    with pytest.raises(ConfigurationError, match="no finite acceleration limit"):
+        JointLimits.FromPlant(plant, instance)
+
+
+@pytest.mark.parametrize(
+    "joint, q_step, v_previous, kind",
+    [
+        (1, 3.2, 0.0, "position"),  # beyond joint2's upper limit pi
+        (0, 0.0158, 7.9, "velocity"),  # 7.9 rad/s > 7.854 rad/s on joint1
+        (2, 0.0004, 0.0, "acceleration"),  # 0.2 rad/s in one period: 100 rad/s^2 > 25
+    ],
+)
+def test_each_limit_refuses_the_command(limits, joint, q_step, v_previous, kind):
+    q_previous = np.zeros(6)
+    v = np.zeros(6)
+    v[joint] = v_previous
+    q = q_previous.copy()
+    q[joint] = q_step
+    with pytest.raises(CommandRefusedError, match=f"joint{joint + 1} {kind}"):
+        CheckCommand(limits, q, q_previous, v, DT)
+
+
+def test_command_at_the_limits_passes_and_returns_its_velocity(limits):
+    q_previous = np.zeros(6)
+    v_previous = np.full(6, 1.0)
+    q = q_previous + DT * (v_previous + 0.99 * DT * limits.acceleration)
+    v = CheckCommand(limits, q, q_previous, v_previous, DT)
+    np.testing.assert_allclose(v, v_previous + 0.99 * DT * limits.acceleration)
+
+
+def test_nan_command_is_refused(limits):
+    q = np.zeros(6)
+    q[3] = np.nan
+    with pytest.raises(CommandRefusedError, match="finite"):
+        CheckCommand(limits, q, np.zeros(6), np.zeros(6), DT)
+
+
+def _Simulate(link, limits, command, t_final, watchdog=0.1):
+    driver = ArmDriver(link, limits, period=DT, watchdog=watchdog, stale_after=0.02)
+    simulator = Simulator(driver)
+    port = driver.get_input_port()
+    port.FixValue(simulator.get_mutable_context(), command)
+    simulator.Initialize()
+    simulator.AdvanceTo(t_final)
+    return driver
+
+
+def test_refused_command_is_never_sent_and_stops_the_robot(limits):
+    link = ScriptedArmLink(np.zeros(6))
+    command = np.zeros(6)
+    command[1] = 0.1  # 50 rad/s implied on joint2 in the first period
+    with pytest.raises(CommandRefusedError, match=r"joint2 velocity .* robot stopped"):
+        _Simulate(link, limits, command, 0.01)
+    assert link.sent == []
+    assert link.stops == 1
+
+
+def test_stale_measurements_command_no_motion(limits):
+    link = ScriptedArmLink(np.zeros(6))
+    link.age = 0.05  # older than stale_after (0.02 s), younger than the watchdog (0.1 s)
+    driver = _Simulate(link, limits, np.zeros(6), 0.1)
+    assert link.sent == []
+    assert driver.stale_skips == 50  # events at t = 0, 2, ..., 98 ms
+    link.age = 0.0
+    _Simulate(link, limits, np.zeros(6), 0.1)
+    assert len(link.sent) == 50
+
+
+def test_quiet_link_fails_with_the_watchdog_message(limits):
+    link = ScriptedArmLink(np.zeros(6))
+    link.age = 0.2
+    with pytest.raises(LinkLostError, match=r"scripted: link quiet for 0.2\d* s"):
+        _Simulate(link, limits, np.zeros(6), 0.1)
+    assert link.stops == 1 and link.sent == []

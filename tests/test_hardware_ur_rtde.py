@@ -1,0 +1,92 @@
+"""UR RTDE link: the vendor receive interface against the loopback RTDE double (a separate
+process on 127.0.0.1:30004), the control side against a recording fake."""
+
+from __future__ import annotations
+
+import time
+
+import numpy as np
+import pytest
+from hardware_doubles import RecordingRtdeControl, StartServer, StopServer
+from pydrake.multibody.plant import MultibodyPlant
+from pydrake.systems.analysis import Simulator
+
+from guidedarm.diagrams.model_paths import MakeParser
+from guidedarm.systems.hardware.arm_driver import ArmDriver
+from guidedarm.systems.hardware.arm_link import LinkLostError
+from guidedarm.systems.hardware.command_guard import JointLimits
+from guidedarm.systems.hardware.ur_rtde_link import RTDE_FREQUENCY, UrRtdeLink
+
+rtde_receive = pytest.importorskip("rtde_receive")
+
+Q_DOUBLE = [-1.5708, -1.5708, -2.3562, -0.7854, 1.5708, 0.7854]
+
+
+def _Limits() -> JointLimits:
+    plant = MultibodyPlant(0.0)
+    (instance,) = MakeParser(plant).AddModelsFromUrl("package://guidedarm/ur10e/ur10e.urdf")
+    plant.Finalize()
+    return JointLimits.FromPlant(plant, instance, [10.0] * 6)
+
+
+def _Connect(*double_args: str):
+    process, _ = StartServer(
+        "guidedarm.systems.hardware.rtde_double", "--q", *map(str, Q_DOUBLE), *double_args
+    )
+    receive = rtde_receive.RTDEReceiveInterface(
+        "127.0.0.1", RTDE_FREQUENCY, ["timestamp", "actual_q", "actual_qd"]
+    )
+    control = RecordingRtdeControl()
+    return process, receive, control, UrRtdeLink("ur10e", receive, control)
+
+
+def _RunDriver(link, t_final: float, watchdog: float = 0.1) -> tuple[ArmDriver, Simulator]:
+    driver = ArmDriver(link, _Limits(), period=0.002, watchdog=watchdog, stale_after=0.02)
+    simulator = Simulator(driver)
+    driver.get_input_port().FixValue(simulator.get_mutable_context(), Q_DOUBLE)
+    simulator.set_target_realtime_rate(1.0)
+    simulator.Initialize()
+    simulator.AdvanceTo(t_final)
+    return driver, simulator
+
+
+def test_receive_side_reads_the_double_at_500_hz_and_streams_servoj():
+    process, receive, control, link = _Connect()
+    try:
+        deadline = time.monotonic() + 2.0
+        while link.latest() is None and time.monotonic() < deadline:
+            time.sleep(0.01)
+        np.testing.assert_allclose(link.latest().q, Q_DOUBLE, atol=1e-12)
+        t0 = receive.getTimestamp()
+        time.sleep(0.5)
+        rate = (receive.getTimestamp() - t0) / 0.5
+        assert 0.9 < rate < 1.1  # controller seconds per host second
+        driver, simulator = _RunDriver(link, 0.3)
+        measured = driver.GetOutputPort("state_estimated").Eval(simulator.get_context())
+        np.testing.assert_allclose(measured, Q_DOUBLE + [0.0] * 6, atol=1e-12)
+        servo = [c for c in control.calls if c[0] == "servoJ"]
+        assert 140 <= len(servo) <= 151  # 0.3 s at 500 Hz, minus at most 10 stale skips
+        assert servo[-1][1][0] == pytest.approx(Q_DOUBLE)
+        assert servo[-1][1][1] == pytest.approx(0.002)
+    finally:
+        link.close()
+        StopServer(process)
+    assert control.Count("stopScript") == 1
+
+
+def test_quiet_link_stops_the_robot_and_fails_the_run():
+    process, _, control, link = _Connect("--quiet-after", "0.3")
+    try:
+        start = time.monotonic()
+        with pytest.raises(LinkLostError, match=r"ur10e: link quiet for .* \(watchdog 0.1 s\)"):
+            _RunDriver(link, 5.0)
+        assert time.monotonic() - start < 1.5
+        assert control.Count("servoStop") == 1
+        assert control.calls[-1][0] == "servoStop"
+        # No command followed the last fresh sample by more than the staleness bound.
+        last_sample = link.latest().host_time
+        late = [c for c in control.calls if c[0] == "servoJ" and c[2] > last_sample + 0.025]
+        assert late == []
+    finally:
+        link.close()
+        StopServer(process)
