@@ -1,0 +1,53 @@
+"""TofDriver: the ToF tool's latest reading as the station's `ranges` and `valid` ports.
+
+Every `period` seconds it copies the newest reading of a TofLineCollector (fed by a serial or
+BLE transport). No reading for longer than `watchdog` stops every arm and fails the run.
+"""
+
+from __future__ import annotations
+
+import time
+
+import numpy as np
+from pydrake.systems.framework import BasicVector, Context, DiscreteValues, LeafSystem
+
+from guidedarm.systems.hardware.arm_link import LinkLostError, StopAllArms
+from guidedarm.systems.hardware.tof_protocol import NUM_SENSORS, TofLineCollector
+
+
+class TofDriver(LeafSystem):
+    """Outputs `ranges` (m, per sensor along its line of sight) and `valid` (1 where the
+    VL6180X status is 0, else 0). Before the first reading: ranges 0, valid 0."""
+
+    def __init__(self, collector: TofLineCollector, period: float, watchdog: float) -> None:
+        super().__init__()
+        self._collector = collector
+        self._watchdog = watchdog
+        self._start: float | None = None
+        n = NUM_SENSORS
+        self._state = self.DeclareDiscreteState(2 * n)
+        self.DeclareVectorOutputPort("ranges", n, self._CalcSlice(0, n))
+        self.DeclareVectorOutputPort("valid", n, self._CalcSlice(n, 2 * n))
+        self.DeclarePeriodicDiscreteUpdateEvent(period, 0.0, self._Update)
+
+    def _CalcSlice(self, start: int, stop: int):
+        def calc(context: Context, output: BasicVector) -> None:
+            output.SetFromVector(context.get_discrete_state(self._state).value()[start:stop])
+
+        return calc
+
+    def _Update(self, context: Context, state: DiscreteValues) -> None:
+        now = time.monotonic()
+        self._start = self._start or now
+        latest = self._collector.latest()
+        last_time = latest[1] if latest else self._start
+        if now - last_time > self._watchdog:
+            StopAllArms()
+            raise LinkLostError(
+                f"{self._collector.name}: no valid line for {now - last_time:.2f} s "
+                f"(watchdog {self._watchdog} s, {self._collector.rejected} rejected); "
+                "arms stopped"
+            )
+        if latest is not None:
+            reading = latest[0]
+            state.set_value(self._state, np.concatenate([reading.ranges, reading.valid]))

@@ -1,0 +1,56 @@
+"""A ToF tool emulator: streams protocol lines of simulated readings into a pseudo-terminal,
+so the serial transport reads them through a real tty device."""
+
+from __future__ import annotations
+
+import os
+import threading
+import time
+import tty
+from collections.abc import Callable
+
+import numpy as np
+
+from guidedarm.systems.hardware.tof_protocol import FormatTofLine
+
+# Returns (ranges m, VL6180X status codes) of the six sensors at the moment of the call.
+ReadingSource = Callable[[], tuple[np.ndarray, np.ndarray]]
+
+
+class TofEmulator:
+    """Writes one line per `period` s; `device` is the tty path a driver opens.
+    `corrupt_every` > 0 truncates every n-th line (for malformed-line tests)."""
+
+    def __init__(self, source: ReadingSource, period: float, corrupt_every: int = 0) -> None:
+        self._master, slave = os.openpty()
+        tty.setraw(slave)  # no echo, no CR/LF translation: the bytes pass as the MCU sent them
+        self.device = os.ttyname(slave)
+        self._slave = slave
+        self._source = source
+        self._period = period
+        self._corrupt_every = corrupt_every
+        self.lines = 0
+        self._closing = threading.Event()
+        self._thread = threading.Thread(target=self._Run, name="tof-emulator", daemon=True)
+        self._thread.start()
+
+    def _Run(self) -> None:
+        next_time = time.monotonic()
+        while not self._closing.wait(max(0.0, next_time - time.monotonic())):
+            next_time += self._period
+            ranges, status = self._source()
+            ranges_mm = np.clip(np.round(1e3 * np.asarray(ranges)), 0, 255)
+            line = FormatTofLine(self.lines, ranges_mm, np.asarray(status)) + "\r\n"
+            self.lines += 1
+            if self._corrupt_every and self.lines % self._corrupt_every == 0:
+                line = line[: len(line) // 2]
+            try:
+                os.write(self._master, line.encode("ascii"))
+            except OSError:
+                return
+
+    def close(self) -> None:
+        self._closing.set()
+        self._thread.join(timeout=1.0)
+        os.close(self._master)
+        os.close(self._slave)

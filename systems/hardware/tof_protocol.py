@@ -1,0 +1,140 @@
+"""The ToF tool's line protocol: six VL6180X ranges and their range-status codes per line.
+
+    $TOF,<seq>,<r1>,<s1>,<r2>,<s2>,<r3>,<s3>,<r4>,<s4>,<r5>,<s5>,<r6>,<s6>*<CS>\\r\\n
+
+r: range in mm (0..255, the sensor's 8-bit result); s: the VL6180X RESULT__RANGE_STATUS
+error code (0 = valid); seq: 0..65535, wraps; CS: two hex digits, XOR of the characters
+between `$` and `*` (NMEA style). `TofLineCollector` turns a byte stream, however it is
+fragmented (serial reads, BLE notifications of <= 20 bytes), into readings.
+"""
+
+from __future__ import annotations
+
+import threading
+import time
+from dataclasses import dataclass
+
+import numpy as np
+
+from guidedarm.systems.errors import GuidedArmError
+
+NUM_SENSORS = 6
+MAX_LINE = 128
+
+# VL6180X range error codes (datasheet, RESULT__RANGE_STATUS bits 7:4).
+RANGE_STATUS = {
+    0: "no error",
+    1: "VCSEL continuity test",
+    2: "VCSEL watchdog test",
+    3: "VCSEL watchdog",
+    4: "PLL1 lock",
+    5: "PLL2 lock",
+    6: "early convergence estimate",
+    7: "max convergence",
+    8: "no target ignore",
+    11: "max signal to noise ratio",
+    12: "raw ranging algo underflow",
+    13: "raw ranging algo overflow",
+    14: "ranging algo underflow",
+    15: "ranging algo overflow",
+}
+
+
+class TofLineError(GuidedArmError):
+    """A ToF line that is truncated, corrupted or out of range."""
+
+
+@dataclass(frozen=True)
+class TofReading:
+    """One line: sequence number, ranges (m) and status codes per sensor (0 = valid)."""
+
+    seq: int
+    ranges: np.ndarray
+    status: np.ndarray
+
+    @property
+    def valid(self) -> np.ndarray:
+        return (self.status == 0).astype(float)
+
+
+def Checksum(body: str) -> int:
+    value = 0
+    for character in body.encode("ascii"):
+        value ^= character
+    return value
+
+
+def FormatTofLine(seq: int, ranges_mm: np.ndarray, status: np.ndarray) -> str:
+    """The line the microcontroller sends (without CR LF)."""
+    fields = [f"{int(r)},{int(s)}" for r, s in zip(ranges_mm, status, strict=True)]
+    body = f"TOF,{seq % 65536}," + ",".join(fields)
+    return f"${body}*{Checksum(body):02X}"
+
+
+def ParseTofLine(line: str) -> TofReading:
+    """Parses one line (CR LF stripped or not); raises TofLineError naming the defect."""
+    line = line.strip()
+    if not line.startswith("$TOF,") or "*" not in line:
+        raise TofLineError(f"not a ToF line: {line[:40]!r}")
+    body, _, checksum = line[1:].rpartition("*")
+    try:
+        if int(checksum, 16) != Checksum(body):
+            raise TofLineError(f"checksum mismatch in {line[:40]!r}")
+        numbers = [int(f) for f in body.split(",")[1:]]
+    except (ValueError, UnicodeEncodeError):
+        raise TofLineError(f"not an integer field in {line[:40]!r}") from None
+    if len(numbers) != 1 + 2 * NUM_SENSORS:
+        raise TofLineError(f"{len(numbers)} fields, expected {1 + 2 * NUM_SENSORS}")
+    ranges, status = np.array(numbers[1::2]), np.array(numbers[2::2])
+    if np.any((ranges < 0) | (ranges > 255)):
+        raise TofLineError(f"range outside 0..255 mm in {line[:40]!r}")
+    unknown = [s for s in status if s not in RANGE_STATUS]
+    if unknown:
+        raise TofLineError(f"unknown VL6180X status code {unknown[0]}")
+    return TofReading(numbers[0], 1e-3 * ranges, status)
+
+
+class TofLineCollector:
+    """Assembles lines from byte chunks; keeps the newest reading and its host time, and
+    counts (and prints) rejected lines."""
+
+    def __init__(self, name: str = "tof") -> None:
+        self.name = name
+        self.rejected = 0
+        self.accepted = 0
+        self._buffer = bytearray()
+        self._lock = threading.Lock()
+        self._latest: tuple[TofReading, float] | None = None
+
+    def Feed(self, chunk: bytes) -> None:
+        self._buffer += chunk
+        while (end := self._buffer.find(b"\n")) >= 0 or len(self._buffer) > MAX_LINE:
+            cut = end if end >= 0 else len(self._buffer)
+            line = bytes(self._buffer[:cut])
+            del self._buffer[: cut + 1]
+            # A `$` inside a line means the line before it was cut short: reject the
+            # fragment and resynchronise on the newest start.
+            *fragments, last = line.decode("ascii", "replace").split("$")
+            for fragment in fragments:
+                if fragment.strip():
+                    self._Reject(f"truncated line {fragment[:40]!r}")
+            if last.strip():
+                self._Accept("$" + last)
+
+    def _Reject(self, why: str) -> None:
+        self.rejected += 1
+        print(f"{self.name}: rejected line #{self.rejected}: {why}", flush=True)
+
+    def _Accept(self, line: str) -> None:
+        try:
+            reading = ParseTofLine(line)
+        except TofLineError as e:
+            self._Reject(str(e))
+            return
+        with self._lock:
+            self._latest = (reading, time.monotonic())
+            self.accepted += 1
+
+    def latest(self) -> tuple[TofReading, float] | None:
+        with self._lock:
+            return self._latest

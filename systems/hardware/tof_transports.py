@@ -1,0 +1,75 @@
+"""Byte transports of the ToF tool, each feeding a TofLineCollector from its own thread:
+pyserial (USB or classic-Bluetooth SPP serial ports) and bleak (BLE UART notifications)."""
+
+from __future__ import annotations
+
+import asyncio
+import threading
+
+import serial
+
+from guidedarm.systems.errors import ConfigurationError
+from guidedarm.systems.hardware.tof_protocol import TofLineCollector
+
+# Nordic UART Service TX characteristic: the tool notifies its lines on it.
+BLE_UART_TX = "6e400003-b5a3-f393-e0a9-e50e24dcca9e"
+
+
+class SerialTransport:
+    """Reads `device` (e.g. /dev/ttyACM0, /dev/rfcomm0) at `baudrate` into `collector`."""
+
+    def __init__(self, collector: TofLineCollector, device: str, baudrate: int) -> None:
+        try:
+            self._port = serial.Serial(device, baudrate, timeout=0.05)
+        except serial.SerialException as e:
+            raise ConfigurationError(f"tof: cannot open serial device {device!r}: {e}") from None
+        self._collector = collector
+        self._closing = threading.Event()
+        self._thread = threading.Thread(target=self._Run, name="tof-serial", daemon=True)
+        self._thread.start()
+
+    def _Run(self) -> None:
+        while not self._closing.is_set():
+            try:
+                chunk = self._port.read(256)
+            except (serial.SerialException, OSError):
+                return  # device gone: the driver's watchdog reports it
+            if chunk:
+                self._collector.Feed(chunk)
+
+    def close(self) -> None:
+        self._closing.set()
+        self._thread.join(timeout=1.0)
+        self._port.close()
+
+
+class BleTransport:
+    """Subscribes to the tool's BLE UART TX notifications at `address` (bleak, own event
+    loop thread); each notification payload is fed to `collector` as it arrives."""
+
+    def __init__(self, collector: TofLineCollector, address: str) -> None:
+        self._collector = collector
+        self._address = address
+        self._loop = asyncio.new_event_loop()
+        self._done: asyncio.Future | None = None
+        self._thread = threading.Thread(target=self._loop.run_forever, daemon=True)
+        self._thread.start()
+        connected = asyncio.run_coroutine_threadsafe(self._Connect(), self._loop)
+        try:
+            connected.result(timeout=20.0)
+        except Exception as e:
+            raise ConfigurationError(f"tof: cannot connect BLE device {address!r}: {e}") from None
+
+    def OnNotify(self, _characteristic: object, data: bytearray) -> None:
+        self._collector.Feed(bytes(data))
+
+    async def _Connect(self) -> None:
+        from bleak import BleakClient
+
+        self._client = BleakClient(self._address)
+        await self._client.connect()
+        await self._client.start_notify(BLE_UART_TX, self.OnNotify)
+
+    def close(self) -> None:
+        asyncio.run_coroutine_threadsafe(self._client.disconnect(), self._loop).result(5.0)
+        self._loop.call_soon_threadsafe(self._loop.stop)

@@ -1,0 +1,113 @@
+"""ToF tool driver: the line parser, byte-stream assembly (serial reads, BLE notifications),
+and the whole path through a pseudo-terminal fed by the emulator."""
+
+from __future__ import annotations
+
+import time
+
+import numpy as np
+import pytest
+from pydrake.systems.analysis import Simulator
+
+from guidedarm.systems.errors import ConfigurationError
+from guidedarm.systems.hardware.arm_link import LinkLostError
+from guidedarm.systems.hardware.tof_driver import TofDriver
+from guidedarm.systems.hardware.tof_emulator import TofEmulator
+from guidedarm.systems.hardware.tof_protocol import (
+    Checksum,
+    FormatTofLine,
+    ParseTofLine,
+    TofLineCollector,
+    TofLineError,
+)
+from guidedarm.systems.hardware.tof_transports import BleTransport, SerialTransport
+
+RANGES_MM = np.array([12, 40, 100, 255, 0, 73])
+STATUS = np.array([0, 0, 0, 15, 12, 0])
+GOOD = FormatTofLine(7, RANGES_MM, STATUS)
+
+
+def test_line_round_trip_and_validity():
+    reading = ParseTofLine(GOOD + "\r\n")
+    assert reading.seq == 7
+    np.testing.assert_allclose(reading.ranges, 1e-3 * RANGES_MM)
+    np.testing.assert_array_equal(reading.valid, [1, 1, 1, 0, 0, 1])
+
+
+@pytest.mark.parametrize(
+    "line, message",
+    [
+        (GOOD[:30], "not a ToF line"),
+        (GOOD[:-2] + "00", "checksum mismatch"),
+        (FormatTofLine(1, [300, 0, 0, 0, 0, 0], [0] * 6), "range outside"),
+        (FormatTofLine(1, [1] * 6, [9, 0, 0, 0, 0, 0]), "unknown VL6180X status code 9"),
+        (FormatTofLine(1, [1] * 5, [0] * 5), "11 fields, expected 13"),
+        (f"$TOF,1,a*{Checksum('TOF,1,a'):02X}", "not an integer"),
+    ],
+)
+def test_malformed_lines_are_rejected_with_the_cause(line, message):
+    with pytest.raises(TofLineError, match=message):
+        ParseTofLine(line)
+
+
+def test_collector_assembles_ble_sized_chunks_and_counts_rejects(capsys):
+    lines = [FormatTofLine(i, RANGES_MM, STATUS) + "\r\n" for i in range(10)]
+    lines[3] = lines[3][:25]  # cut short: the next line starts right after it
+    lines[6] = lines[6].replace(",40,", ",41,")  # corrupted: checksum no longer matches
+    stream = "".join(lines).encode()
+    collector = TofLineCollector()
+    for i in range(0, len(stream), 20):  # BLE notifications carry at most 20 bytes
+        collector.Feed(stream[i : i + 20])
+    assert (collector.accepted, collector.rejected) == (8, 2)
+    assert collector.latest()[0].seq == 9
+    assert "truncated line" in capsys.readouterr().out
+
+
+def test_ble_transport_without_adapter_fails_with_one_line():
+    with pytest.raises(ConfigurationError, match="tof: cannot connect BLE device"):
+        BleTransport(TofLineCollector(), "00:11:22:33:44:55")
+
+
+def _Source():
+    return 1e-3 * RANGES_MM, STATUS
+
+
+def test_driver_reads_the_emulator_through_a_pty_and_survives_bad_lines():
+    emulator = TofEmulator(_Source, period=0.01, corrupt_every=5)
+    collector = TofLineCollector()
+    transport = SerialTransport(collector, emulator.device, 115200)
+    try:
+        driver = TofDriver(collector, period=0.02, watchdog=0.2)
+        simulator = Simulator(driver)
+        simulator.set_target_realtime_rate(1.0)
+        simulator.AdvanceTo(0.5)
+        context = simulator.get_context()
+        np.testing.assert_allclose(driver.GetOutputPort("ranges").Eval(context), 1e-3 * RANGES_MM)
+        np.testing.assert_array_equal(driver.GetOutputPort("valid").Eval(context), STATUS == 0)
+    finally:
+        emulator.close()
+        time.sleep(0.05)
+        transport.close()
+    # Opening the port flushes what the emulator wrote before (a line or two), and the last
+    # truncated line may still wait for the next start to be rejected.
+    corrupted = emulator.lines // 5
+    assert corrupted - 2 <= collector.rejected <= corrupted
+    assert emulator.lines - corrupted - 4 <= collector.accepted <= emulator.lines - corrupted
+
+
+def test_silent_tool_fails_the_run_after_its_watchdog():
+    emulator = TofEmulator(_Source, period=0.01)
+    collector = TofLineCollector()
+    transport = SerialTransport(collector, emulator.device, 115200)
+    driver = TofDriver(collector, period=0.02, watchdog=0.15)
+    simulator = Simulator(driver)
+    simulator.set_target_realtime_rate(1.0)
+    try:
+        simulator.AdvanceTo(0.2)
+        emulator.close()
+        start = time.monotonic()
+        with pytest.raises(LinkLostError, match=r"tof: no valid line for 0.1[5-9]\d* s"):
+            simulator.AdvanceTo(2.0)
+        assert time.monotonic() - start < 0.3
+    finally:
+        transport.close()
