@@ -338,9 +338,7 @@ def test_nothing_intrudes_into_the_detection_field():
     X_WT = plant.CalcRelativeTransform(
         plant_context, plant.world_frame(), plant.GetFrameByName("tof_tool")
     )
-    query = scene_graph.get_query_output_port().Eval(
-        scene_graph.GetMyContextFromRoot(context)
-    )
+    query = scene_graph.get_query_output_port().Eval(scene_graph.GetMyContextFromRoot(context))
     # sanity: a point inside the stem is reported
     inside = query.ComputeSignedDistanceToPoint(X_WT @ np.array([0.0, 0.0, 0.1]), 0.0)
     assert len(inside) > 0
@@ -357,9 +355,7 @@ def test_rover_gripper_camera_frame():
     plant_context = plant.GetMyContextFromRoot(context)
     tool0 = plant.GetFrameByName("tool0")
     X_tc = plant.CalcRelativeTransform(plant_context, tool0, plant.GetFrameByName("camera"))
-    X_tt = plant.CalcRelativeTransform(
-        plant_context, tool0, plant.GetFrameByName("gripper_tip")
-    )
+    X_tt = plant.CalcRelativeTransform(plant_context, tool0, plant.GetFrameByName("gripper_tip"))
     # camera looks along the gripper +z (Drake convention: camera +Z forward)
     np.testing.assert_allclose(X_tc.rotation().col(2), [0.0, 0.0, 1.0], atol=1e-12)
     assert np.hypot(*X_tc.translation()[:2]) == pytest.approx(0.05)
