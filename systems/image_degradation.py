@@ -1,0 +1,100 @@
+"""ImageDegradation: pixel integration, lighting, lens blur and sensor noise on a render.
+
+Rendered images are perfect; a webcam's are not. The model, applied in this order to the
+RGB channels (alpha untouched):
+  pixels    a renderer samples each pixel at its centre, so edges are aliased (an edge's
+            position is quantised to whole pixels); a sensor pixel integrates light over
+            its area. With `supersampling` k the input is rendered at k times the
+            resolution and each k x k block is averaged (cv2.INTER_AREA) into one pixel,
+  lighting  pixel values scaled by `lighting` (1 = as rendered; 0.3 = a dim room),
+  blur      Gaussian blur of standard deviation `blur_sigma_px` (defocus, pixels),
+  noise     additive Gaussian noise of standard deviation `noise_std` (grey levels of 255),
+then rounded and clipped to uint8. Noise is seeded: the same seed, image and time give the
+same result, so studies are repeatable.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import cv2
+import numpy as np
+from pydrake.common.value import AbstractValue
+from pydrake.systems.framework import Context, LeafSystem
+from pydrake.systems.sensors import ImageRgba8U
+
+from guidedarm.systems.errors import ConfigurationError
+
+
+@dataclass
+class DegradationParams:
+    """supersampling (integer >= 1), lighting (scale, > 0), blur_sigma_px (>= 0, output
+    pixels), noise_std (grey levels, >= 0), seed."""
+
+    supersampling: int = 1
+    lighting: float = 1.0
+    blur_sigma_px: float = 0.0
+    noise_std: float = 0.0
+    seed: int = 0
+
+    def check(self) -> None:
+        if (
+            self.supersampling < 1
+            or self.lighting <= 0
+            or self.blur_sigma_px < 0
+            or self.noise_std < 0
+        ):
+            raise ConfigurationError(
+                "image degradation needs supersampling >= 1, lighting > 0, blur_sigma_px >= 0"
+                f", noise_std >= 0, got {self}"
+            )
+
+
+def DegradeImage(image: np.ndarray, params: DegradationParams, stream: int = 0) -> np.ndarray:
+    """A degraded copy of a (kH) x (kW) x (3|4) uint8 image, H x W; `stream` varies the
+    noise draw."""
+    params.check()
+    k = params.supersampling
+    if image.shape[0] % k or image.shape[1] % k:
+        raise ConfigurationError(f"image size {image.shape[:2]} is not a multiple of {k}")
+    if k > 1:
+        size = (image.shape[1] // k, image.shape[0] // k)
+        image = cv2.resize(image, size, interpolation=cv2.INTER_AREA)
+    rgb = image[..., :3].astype(np.float32) * params.lighting
+    if params.blur_sigma_px > 0:
+        rgb = cv2.GaussianBlur(rgb, (0, 0), params.blur_sigma_px)
+    if params.noise_std > 0:
+        rng = np.random.default_rng([params.seed, stream])
+        rgb += rng.normal(0.0, params.noise_std, rgb.shape).astype(np.float32)
+    out = image.copy()
+    out[..., :3] = np.clip(np.rint(rgb), 0, 255).astype(np.uint8)
+    return out
+
+
+class ImageDegradation(LeafSystem):
+    """Input `color_image` (ImageRgba8U, supersampling x the output size) -> output
+    `color_image` (ImageRgba8U), degraded as in DegradeImage; the noise stream is the
+    context time in microseconds."""
+
+    def __init__(self, params: DegradationParams) -> None:
+        super().__init__()
+        params.check()
+        self._params = params
+        self._input = self.DeclareAbstractInputPort(
+            "color_image", AbstractValue.Make(ImageRgba8U())
+        )
+        self.DeclareAbstractOutputPort(
+            "color_image",
+            lambda: AbstractValue.Make(ImageRgba8U()),
+            self.CalcImage,
+            prerequisites_of_calc={self._input.ticket(), self.time_ticket()},
+        )
+
+    def CalcImage(self, context: Context, value: AbstractValue) -> None:
+        source = self._input.Eval(context)
+        degraded = DegradeImage(
+            np.asarray(source.data), self._params, round(context.get_time() * 1e6)
+        )
+        image = ImageRgba8U(degraded.shape[1], degraded.shape[0])
+        image.mutable_data[:] = degraded
+        value.set_value(image)
