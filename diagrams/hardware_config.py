@@ -11,7 +11,6 @@ class ArmDriverConfig:
 
     driver: `ur_rtde` (UR RTDE, servoJ) or `nachi_tcp` (Nachi CFD User Task line protocol).
     host, port: controller address; port 0 = the driver's default (RTDE 30004, Nachi 48000).
-    period: servo period (s); 0.002 = 500 Hz.
     watchdog: a measurement older than this (s) stops the arm and fails the run.
     stale_after: a measurement older than this (s) is not acted on (no command sent).
     acceleration_limits: rad/s^2 per joint, used where the model has none.
@@ -21,7 +20,6 @@ class ArmDriverConfig:
     driver: str = "ur_rtde"
     host: str = "127.0.0.1"
     port: int = 0
-    period: float = 0.002
     watchdog: float = 0.1
     stale_after: float = 0.02
     acceleration_limits: list[float] = field(default_factory=list)
@@ -43,26 +41,25 @@ class CameraDriverConfig:
 
 @dataclass
 class TofDriverConfig:
-    """The ToF tool's microcontroller link.
+    """A ToF tool's microcontroller link (keyed like StationScenario.tof_tools).
 
     transport: `serial` (USB or classic-Bluetooth serial port) or `ble` (BLE UART).
     device: serial device path (e.g. /dev/rfcomm0) or BLE address.
     baudrate: serial only.
-    period: how often the station samples the latest reading (s).
     watchdog: no valid line for this long (s) stops the arms and fails the run.
     """
 
     transport: str = "serial"
     device: str = ""
     baudrate: int = 115200
-    period: float = 0.02
     watchdog: float = 0.5
 
 
 @dataclass
 class HardwareConfig:
-    """Drivers of the hardware station, keyed like StationScenario.arms and .cameras."""
+    """Drivers of the hardware station, keyed like StationScenario.arms, .cameras and
+    .tof_tools."""
 
     arms: dict[str, ArmDriverConfig] = field(default_factory=dict)
     cameras: dict[str, CameraDriverConfig] = field(default_factory=dict)
-    tof: TofDriverConfig | None = None
+    tof_tools: dict[str, TofDriverConfig] = field(default_factory=dict)

@@ -72,3 +72,28 @@ def StartServer(module: str, *args: str) -> tuple[subprocess.Popen, int]:
 def StopServer(process: subprocess.Popen) -> None:
     process.terminate()
     process.wait(timeout=5)
+
+
+def Mz04dScenario(**fields):
+    """The seed-000 cell (MZ04D, gripper, ToF tool) as a StationScenario."""
+    from pydrake.multibody.parsing import LoadModelDirectives
+
+    from guidedarm.diagrams.model_paths import MODELS_DIR
+    from guidedarm.diagrams.scenario import ArmConfig, StationScenario
+
+    directives = LoadModelDirectives(str(MODELS_DIR / "directives/mz04d_cell.dmd.yaml"))
+    return StationScenario(directives=directives.directives, arms={"mz04d": ArmConfig()}, **fields)
+
+
+def WriteTestVideo(path, width: int, height: int, fps: float, frames: int) -> list:
+    """A video whose frame k is filled with the colour COLOURS[k % len] (BGR)."""
+    import cv2
+
+    writer = cv2.VideoWriter(str(path), cv2.VideoWriter_fourcc(*"MJPG"), fps, (width, height))
+    for k in range(frames):
+        writer.write(np.full((height, width, 3), VIDEO_COLOURS_BGR[k % 3], np.uint8))
+    writer.release()
+    return VIDEO_COLOURS_BGR
+
+
+VIDEO_COLOURS_BGR = [(255, 0, 0), (0, 255, 0), (0, 0, 255)]

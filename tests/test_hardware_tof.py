@@ -77,12 +77,13 @@ def test_driver_reads_the_emulator_through_a_pty_and_survives_bad_lines():
     collector = TofLineCollector()
     transport = SerialTransport(collector, emulator.device, 115200)
     try:
-        driver = TofDriver(collector, period=0.02, watchdog=0.2)
+        driver = TofDriver(collector, period=0.02, watchdog=0.2, no_return_range=0.1)
         simulator = Simulator(driver)
         simulator.set_target_realtime_rate(1.0)
         simulator.AdvanceTo(0.5)
         context = simulator.get_context()
-        np.testing.assert_allclose(driver.GetOutputPort("ranges").Eval(context), 1e-3 * RANGES_MM)
+        expected = np.where(STATUS == 0, 1e-3 * RANGES_MM, 0.1)  # as the simulated sensor
+        np.testing.assert_allclose(driver.GetOutputPort("ranges").Eval(context), expected)
         np.testing.assert_array_equal(driver.GetOutputPort("valid").Eval(context), STATUS == 0)
     finally:
         emulator.close()

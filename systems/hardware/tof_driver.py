@@ -16,16 +16,24 @@ from guidedarm.systems.hardware.tof_protocol import NUM_SENSORS, TofLineCollecto
 
 
 class TofDriver(LeafSystem):
-    """Outputs `ranges` (m, per sensor along its line of sight) and `valid` (1 where the
-    VL6180X status is 0, else 0). Before the first reading: ranges 0, valid 0."""
+    """Outputs `ranges` (m, per sensor along its line of sight; `no_return_range` where the
+    reading is not valid, as the simulated sensor does) and `valid` (1 where the VL6180X
+    status is 0, else 0). Before the first reading: no_return_range, valid 0."""
 
-    def __init__(self, collector: TofLineCollector, period: float, watchdog: float) -> None:
+    def __init__(
+        self,
+        collector: TofLineCollector,
+        period: float,
+        watchdog: float,
+        no_return_range: float = 0.1,
+    ) -> None:
         super().__init__()
         self._collector = collector
         self._watchdog = watchdog
         self._start: float | None = None
+        self._no_return_range = no_return_range
         n = NUM_SENSORS
-        self._state = self.DeclareDiscreteState(2 * n)
+        self._state = self.DeclareDiscreteState(np.r_[np.full(n, no_return_range), np.zeros(n)])
         self.DeclareVectorOutputPort("ranges", n, self._CalcSlice(0, n))
         self.DeclareVectorOutputPort("valid", n, self._CalcSlice(n, 2 * n))
         self.DeclarePeriodicDiscreteUpdateEvent(period, 0.0, self._Update)
@@ -49,5 +57,6 @@ class TofDriver(LeafSystem):
                 "arms stopped"
             )
         if latest is not None:
-            reading = latest[0]
-            state.set_value(self._state, np.concatenate([reading.ranges, reading.valid]))
+            valid = latest[0].valid
+            ranges = np.where(valid > 0, latest[0].ranges, self._no_return_range)
+            state.set_value(self._state, np.concatenate([ranges, valid]))

@@ -1,0 +1,91 @@
+"""MakeStation(hardware=True) exports the same ports as the simulated station."""
+
+from __future__ import annotations
+
+import threading
+
+import numpy as np
+import pytest
+from hardware_doubles import Mz04dScenario, WriteTestVideo
+from pydrake.common.value import AbstractValue
+from pydrake.systems.sensors import CameraConfig
+
+from guidedarm.diagrams.hardware_config import (
+    ArmDriverConfig,
+    CameraDriverConfig,
+    HardwareConfig,
+    TofDriverConfig,
+)
+from guidedarm.diagrams.station import MakeStation
+from guidedarm.systems.errors import ConfigurationError
+from guidedarm.systems.hardware.nachi_emulator import NachiEmulator
+from guidedarm.systems.hardware.tof_emulator import TofEmulator
+from guidedarm.systems.tof_tool_sensor import ToFToolConfig
+
+
+def _Ports(diagram) -> dict[str, object]:
+    """Port name -> vector size, or image width x height for image ports."""
+
+    def describe(port):
+        if port.get_data_type().name == "kVectorValued":
+            return port.size()
+        value = port.Allocate() if hasattr(port, "Allocate") else None
+        image = value.get_value() if isinstance(value, AbstractValue) else None
+        return (image.width(), image.height()) if image is not None else "abstract"
+
+    ports = {}
+    for i in range(diagram.num_input_ports()):
+        port = diagram.get_input_port(i)
+        ports[f"in:{port.get_name()}"] = describe(port)
+    for i in range(diagram.num_output_ports()):
+        port = diagram.get_output_port(i)
+        if not port.get_name().startswith("sim."):
+            ports[f"out:{port.get_name()}"] = describe(port)
+    return ports
+
+
+@pytest.fixture
+def devices(tmp_path):
+    emulator = NachiEmulator(MakeStation(Mz04dScenario()), "mz04d", port=0)
+    thread = threading.Thread(target=emulator.Run, kwargs={"duration": 30.0}, daemon=True)
+    thread.start()
+    tof = TofEmulator(lambda: (np.full(6, 0.05), np.zeros(6, int)), period=0.02)
+    video = tmp_path / "camera.avi"
+    WriteTestVideo(video, 64, 48, 30.0, 10)
+    yield emulator.port, tof.device, str(video)
+    emulator.Close()
+    tof.close()
+
+
+def test_sim_and_hardware_stations_export_the_same_ports(devices):
+    nachi_port, tof_device, video = devices
+    camera = CameraConfig(width=64, height=48, fps=10.0)
+    hardware = HardwareConfig(
+        arms={
+            "mz04d": ArmDriverConfig(
+                driver="nachi_tcp", port=nachi_port, acceleration_limits=[20.0] * 6
+            )
+        },
+        cameras={"camera": CameraDriverConfig(source=video)},
+        tof_tools={"tof": TofDriverConfig(device=tof_device)},
+    )
+    scenario = Mz04dScenario(
+        cameras={"camera": camera}, tof_tools={"tof": ToFToolConfig()}, hardware=hardware
+    )
+    sim = _Ports(MakeStation(scenario))
+    real = _Ports(MakeStation(scenario, hardware=True))
+    assert real == sim
+    assert real["out:mz04d.state_estimated"] == 12
+    assert real["out:camera.rgb_image"] == (64, 48)
+    assert real["out:tof.ranges"] == 6 and real["out:tof.valid"] == 6
+
+
+def test_station_without_a_driver_for_an_arm_fails_before_connecting():
+    with pytest.raises(ConfigurationError, match=r"hardware.arms: no driver for \['mz04d'\]"):
+        MakeStation(Mz04dScenario(), hardware=True)
+
+
+def test_unknown_driver_is_named():
+    hardware = HardwareConfig(arms={"mz04d": ArmDriverConfig(driver="kuka_rsi")})
+    with pytest.raises(ConfigurationError, match=r"hardware\.arms\.mz04d\.driver: 'kuka_rsi'"):
+        MakeStation(Mz04dScenario(hardware=hardware), hardware=True)
