@@ -1,0 +1,107 @@
+"""`guidedarm estimate-marker-pose`: JSON on a rendered image; one-line errors on bad input."""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+
+import cv2
+import numpy as np
+import pytest
+from pydrake.common.yaml import yaml_load_typed
+from pydrake.systems.sensors import CameraConfig
+
+from guidedarm.diagrams.panel_camera_rig import LookAt, PanelCameraRig
+from guidedarm.diagrams.panel_files import DEFAULT_CAMERA_FILE, DEFAULT_PANEL_FILE
+
+C920 = "{width: 1920, height: 1080, focal: !FocalLength {x: 1360.2, y: 1360.2}}"
+X_PC = LookAt([0.02, -0.01, 0.28], [0.06, 0.0, 0.0])
+
+
+@pytest.fixture(scope="module")
+def files(tmp_path_factory):
+    """A rendered panel image, the camera file that matches it, and a blank image."""
+    root = tmp_path_factory.mktemp("cli")
+    rig = PanelCameraRig(yaml_load_typed(schema=CameraConfig, data=C920))
+    rgba = rig.Render(X_PC)
+    cv2.imwrite(str(root / "panel.png"), cv2.cvtColor(rgba, cv2.COLOR_RGBA2BGR))
+    cv2.imwrite(str(root / "blank.png"), np.full((1080, 1920, 3), 220, np.uint8))
+    cv2.imwrite(str(root / "small.png"), np.full((480, 640, 3), 220, np.uint8))
+    camera = dataclasses.asdict(rig.intrinsics)
+    (root / "camera.yaml").write_text("".join(f"{k}: {v}\n" for k, v in camera.items()))
+    (root / "not_an_image.png").write_text("hello")
+    return root
+
+
+def test_prints_pose_of_rendered_panel(run_cli, files):
+    code, out, err = run_cli(
+        "estimate-marker-pose",
+        files / "panel.png",
+        "--camera",
+        files / "camera.yaml",
+        "--panel",
+        DEFAULT_PANEL_FILE,
+    )
+    assert code == 0, err
+    result = json.loads(out)
+    assert set(result) == {"X_CP", "ids", "reprojection_error_px", "valid"}
+    assert result["ids"] == [7, 42] and result["valid"] is True
+    X_CP = np.array(result["X_CP"])
+    assert X_CP.shape == (4, 4)
+    truth = X_PC.inverse().GetAsMatrix4()
+    assert np.max(np.abs(X_CP[:3, 3] - truth[:3, 3])) < 1e-3
+    assert np.max(np.abs(X_CP[:3, :3] - truth[:3, :3])) < 0.01
+    assert 0 < result["reprojection_error_px"] < 1
+
+
+def _bad_panel(tmp_path, text):
+    path = tmp_path / "panel.yaml"
+    path.write_text(text)
+    return path
+
+
+@pytest.mark.parametrize(
+    "case, message",
+    [
+        ("unreadable", "cannot read image"),
+        ("size", "is 640 x 480 px, the camera file"),
+        ("no_marker", "no marker of the panel"),
+        ("dictionary", "unknown marker dictionary 'DICT_FOO'"),
+        ("malformed", "malformed YAML"),
+        ("unknown_key", "unknown key 'markers[0].sise_m'"),
+        ("missing_camera", "file not found"),
+    ],
+)
+def test_bad_input_is_one_line_and_nonzero(run_cli, files, tmp_path, case, message):
+    image, camera, panel = files / "panel.png", files / "camera.yaml", DEFAULT_PANEL_FILE
+    if case == "unreadable":
+        image = files / "not_an_image.png"
+    elif case == "size":
+        image = files / "small.png"
+    elif case == "no_marker":
+        image = files / "blank.png"
+    elif case == "dictionary":
+        panel = _bad_panel(tmp_path, "dictionary: DICT_FOO\nmarkers: [{id: 7, size_m: 0.05}]\n")
+    elif case == "malformed":
+        panel = _bad_panel(tmp_path, "dictionary: [DICT_ARUCO_ORIGINAL\nmarkers: {\n")
+    elif case == "unknown_key":
+        panel = _bad_panel(tmp_path, "markers: [{id: 7, sise_m: 0.05}]\n")
+    elif case == "missing_camera":
+        camera = tmp_path / "nope.yaml"
+    code, out, err = run_cli("estimate-marker-pose", image, "--camera", camera, "--panel", panel)
+    assert code == 2
+    assert out == ""
+    lines = err.strip().splitlines()
+    assert len(lines) == 1 and message in lines[0], err
+
+
+def test_example_camera_file_is_accepted(run_cli, files):
+    code, out, _ = run_cli(
+        "estimate-marker-pose",
+        files / "panel.png",
+        "--camera",
+        DEFAULT_CAMERA_FILE,
+        "--panel",
+        DEFAULT_PANEL_FILE,
+    )
+    assert code == 0 and json.loads(out)["valid"]
