@@ -1,7 +1,8 @@
 """Nachi CFD controllers through the User Task line protocol, behind the ArmLink interface.
 
-One I/O thread owns the socket: every `poll_period` it sends the newest pending joint
-target (SET_TARGET + MOVE) and reads the joints (READ_JOINTS). Velocities are differences of
+One I/O thread owns the socket: as soon as a joint target is pending (and at least every
+`poll_period`) it sends the newest target (SET_TARGET + MOVE) and reads the joints
+(READ_JOINTS). Velocities are differences of
 successive joint readings over the controller's clock. Malformed reply lines are printed,
 counted in `rejected_lines`, and skipped; the ArmDriver's watchdog covers a link that keeps
 failing.
@@ -40,6 +41,7 @@ class NachiLink:
         self._latest = LatestSample()
         self._previous: tuple[float, np.ndarray] | None = None
         self._closing = threading.Event()
+        self._wake = threading.Event()
         self._thread = threading.Thread(target=self._Run, name=f"{name}-nachi", daemon=True)
         self._thread.start()
         RegisterArmLink(self)
@@ -51,7 +53,9 @@ class NachiLink:
             return [self._socket.ReadLine() for _ in lines]
 
     def _Run(self) -> None:
-        while not self._closing.wait(self._poll_period):
+        while not self._closing.is_set():
+            self._wake.wait(self._poll_period)
+            self._wake.clear()
             target, self._pending = self._pending, None
             try:
                 if target is not None:
@@ -87,6 +91,7 @@ class NachiLink:
 
     def send_position(self, q: np.ndarray, period: float) -> None:
         self._pending = np.array(q, float)
+        self._wake.set()
 
     def stop(self) -> None:
         self._pending = None
@@ -95,5 +100,6 @@ class NachiLink:
 
     def close(self) -> None:
         self._closing.set()
+        self._wake.set()
         self._thread.join(timeout=1.0)
         self._socket.connection.close()

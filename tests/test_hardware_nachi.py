@@ -1,0 +1,177 @@
+"""Nachi MZ04D: the User Task protocol, the emulator (Drake simulation of the cell) and the
+client link through a real TCP socket on 127.0.0.1."""
+
+from __future__ import annotations
+
+import signal
+import socket
+import subprocess
+import sys
+import threading
+import time
+from pathlib import Path
+
+import numpy as np
+import pytest
+from hardware_doubles import Mz04dScenario
+from pydrake.systems.analysis import Simulator
+from pydrake.systems.framework import DiagramBuilder
+from pydrake.systems.primitives import ConstantVectorSource, TrajectorySource
+from pydrake.trajectories import PiecewisePolynomial
+
+from guidedarm.diagrams.hardware_config import ArmDriverConfig, HardwareConfig
+from guidedarm.diagrams.station import MakeStation
+from guidedarm.systems.hardware import nachi_protocol as nachi
+from guidedarm.systems.hardware.arm_link import LinkLostError
+from guidedarm.systems.hardware.nachi_emulator import NachiControllerLogic, NachiEmulator
+from guidedarm.systems.hardware.nachi_link import NachiLink
+
+HOME = np.array([0.0, np.pi / 2, 0.0, 0.0, -np.pi / 2, 0.0])
+ACCELERATION = [20.0] * 6
+
+
+def _Logic() -> NachiControllerLogic:
+    return NachiControllerLogic(np.full(6, -1.0), np.full(6, 1.0), np.zeros(6))
+
+
+@pytest.mark.parametrize(
+    "requests, last_reply",
+    [
+        (["READ_JOINTS"], "JOINTS 0.0000 0.000000 0.000000 0.000000 0.000000 0.000000 0.000000"),
+        (["MOVE"], "NG E04 MOVE without SET_TARGET"),
+        (["SET_TARGET 0 0 0 0 0 60"], "NG E03 joint6 target beyond its limits"),
+        (["SET_TARGET 1 2"], "NG E02 expected 6 numbers, got 2: 'SET_TARGET 1 2'"),
+        (["SET_TARGET 1 2 3 4 5 x"], "NG E02 not a number in 'SET_TARGET 1 2 3 4 5 x'"),
+        (["SET_TARGET 1 2 3 4 5 nan"], "NG E02 non-finite number in 'SET_TARGET 1 2 3 4 5 nan'"),
+        (["JUMP"], "NG E01 unknown request 'JUMP'"),
+        (["x" * 300], "NG E02 line longer than 256 bytes"),
+        (["SET_TARGET 10 0 0 0 0 0", "MOVE", "STATUS"], "STATUS MOVING 1 0"),
+        (["SET_TARGET 10 0 0 0 0 0", "STOP", "MOVE"], "NG E05 stopped; send RESET before MOVE"),
+        (["STOP", "RESET", "STATUS"], "STATUS IDLE 0 0"),
+        (["JUMP", "MOVE", "ERRORS"], "ERRORS 2 E04 MOVE without SET_TARGET"),
+    ],
+)
+def test_controller_logic_replies(requests, last_reply):
+    logic = _Logic()
+    replies = [logic.Handle(r) for r in requests]
+    assert replies[-1] == last_reply
+
+
+def test_set_target_moves_the_command_in_radians():
+    logic = _Logic()
+    logic.Handle("SET_TARGET 10 0 0 0 0 -20")
+    logic.Handle("MOVE")
+    np.testing.assert_allclose(logic.commanded, np.deg2rad([10, 0, 0, 0, 0, -20]))
+
+
+@pytest.fixture
+def emulator():
+    emulator = NachiEmulator(MakeStation(Mz04dScenario()), "mz04d", port=0)
+    thread = threading.Thread(target=emulator.Run, kwargs={"duration": 30.0}, daemon=True)
+    thread.start()
+    yield emulator
+    emulator.Close()
+    thread.join(timeout=2.0)
+
+
+def _Hardware(port: int, watchdog: float = 0.1):
+    arm = ArmDriverConfig(
+        driver="nachi_tcp", port=port, watchdog=watchdog, acceleration_limits=ACCELERATION
+    )
+    return Mz04dScenario(hardware=HardwareConfig(arms={"mz04d": arm}))
+
+
+def _Diagram(scenario, source):
+    builder = DiagramBuilder()
+    station = builder.AddNamedSystem("station", MakeStation(scenario, hardware=True))
+    builder.AddSystem(source)
+    builder.Connect(source.get_output_port(), station.GetInputPort("mz04d.position_commanded"))
+    simulator = Simulator(builder.Build())
+    simulator.set_target_realtime_rate(1.0)
+    return station, simulator
+
+
+def test_pose_reply_matches_forward_kinematics(emulator):
+    link = NachiLink("mz04d", "127.0.0.1", emulator.port)
+    time.sleep(0.05)
+    (reply,) = link.Request(nachi.READ_POSE)
+    xyz, rpy = nachi.ParsePose(reply)
+    # Home pose of models/mz04d/home.yaml: flange straight down at (0.280, 0, 0.553) m.
+    np.testing.assert_allclose(xyz, [0.280, 0.0, 0.553], atol=2e-3)
+    np.testing.assert_allclose(np.abs(rpy[0]), np.pi, atol=2e-3)
+    link.close()
+
+
+def test_hardware_station_moves_the_emulated_arm(emulator):
+    # joint1 by 0.1 rad in 0.4 s (cubic): at most 0.375 rad/s and 3.75 rad/s^2.
+    goal = HOME + np.array([0.1, 0, 0, 0, 0, 0])
+    motion = PiecewisePolynomial.CubicWithContinuousSecondDerivatives(
+        [0.0, 0.4], np.column_stack([HOME, goal]), np.zeros(6), np.zeros(6)
+    )
+    station, simulator = _Diagram(_Hardware(emulator.port), TrajectorySource(motion))
+    simulator.AdvanceTo(0.8)
+    context = station.GetMyContextFromRoot(simulator.get_context())
+    np.testing.assert_allclose(emulator.logic.commanded, goal, atol=1e-9)
+    np.testing.assert_allclose(emulator.logic.measured, goal, atol=1e-3)
+    measured = station.GetOutputPort("mz04d.position_measured").Eval(context)
+    np.testing.assert_allclose(measured, goal, atol=1e-3)
+    assert emulator.logic.moves > 300  # a target per 2 ms period, minus stale periods
+
+
+def test_frozen_controller_trips_the_watchdog_and_is_stopped(emulator):
+    _, simulator = _Diagram(_Hardware(emulator.port), ConstantVectorSource(HOME))
+    simulator.AdvanceTo(0.2)
+    emulator.Close()  # the simulation stops; the open connection answers with frozen joints
+    with pytest.raises(LinkLostError, match=r"mz04d: link quiet for 0.1\d* s"):
+        simulator.AdvanceTo(5.0)
+    assert emulator.logic.stops == 1 and emulator.logic.State() == "STOPPED"
+
+
+def test_malformed_replies_are_counted_and_the_link_keeps_reading():
+    server = socket.create_server(("127.0.0.1", 0))
+    replies = ["JOINTS 1.0 a b c d e f", "JOINTS 2.0 1 2 3", "BANANA"]
+
+    def controller():
+        connection, _ = server.accept()
+        with connection, connection.makefile("rw", newline="\n") as stream:
+            for k, _ in enumerate(stream):
+                good = f"JOINTS {k * 0.002:.4f} 1 2 3 4 5 6"
+                stream.write((replies[k] if k < len(replies) else good) + "\n")
+                stream.flush()
+
+    threading.Thread(target=controller, daemon=True).start()
+    link = NachiLink("mz04d", "127.0.0.1", server.getsockname()[1])
+    time.sleep(0.1)
+    assert link.rejected_lines == 3
+    np.testing.assert_allclose(link.latest().q, np.deg2rad([1, 2, 3, 4, 5, 6]))
+    assert time.monotonic() - link.latest().host_time < 0.02
+    link.close()
+    server.close()
+
+
+HOLD_SCRIPT = """
+import sys
+sys.path.insert(0, {tests!r})
+from pydrake.systems.primitives import ConstantVectorSource
+from test_hardware_nachi import HOME, _Diagram, _Hardware
+station, simulator = _Diagram(_Hardware({port}), ConstantVectorSource(HOME))
+simulator.AdvanceTo(0.1)
+print("running", flush=True)
+simulator.AdvanceTo(60.0)
+"""
+
+
+def test_ctrl_c_stops_the_robot(emulator, tmp_path):
+    script = tmp_path / "hold.py"
+    script.write_text(HOLD_SCRIPT.format(tests=str(Path(__file__).parent), port=emulator.port))
+    process = subprocess.Popen(
+        [sys.executable, str(script)], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True
+    )
+    assert process.stdout.readline().strip() == "running"
+    moves_before = emulator.logic.moves
+    time.sleep(0.2)
+    assert emulator.logic.moves > moves_before  # it is streaming
+    process.send_signal(signal.SIGINT)
+    _, stderr = process.communicate(timeout=10)
+    assert "KeyboardInterrupt" in stderr
+    assert emulator.logic.stops == 1 and emulator.logic.State() == "STOPPED"
