@@ -9,6 +9,8 @@ from pydrake.systems.sensors import CameraConfig
 from pydrake.visualization import VisualizationConfig
 
 from guidedarm.diagrams.hardware_config import HardwareConfig
+from guidedarm.systems.hose_geometry import HoseConfig
+from guidedarm.systems.tof_tool_sensor import ToFToolConfig
 
 
 @dataclass
@@ -46,6 +48,8 @@ class StationScenario:
         and `<name>.state_estimated`.
     cameras: Drake CameraConfig per camera; each exports `<name>.rgb_image`.
     hardware: drivers used by `MakeStation(..., hardware=True)` (diagrams/hardware_config).
+    hose: a hose (centerline, brackets) registered on the world body, or None.
+    tof_tools: six-sensor ToF tools; each exports `<name>.ranges` and `<name>.valid`.
     """
 
     directives: list[ModelDirective] = field(default_factory=list)
@@ -55,3 +59,5 @@ class StationScenario:
     simulator_config: SimulatorConfig = field(default_factory=SimulatorConfig)
     visualization: VisualizationConfig = field(default_factory=_default_visualization)
     hardware: HardwareConfig = field(default_factory=HardwareConfig)
+    hose: HoseConfig | None = None
+    tof_tools: dict[str, ToFToolConfig] = field(default_factory=dict)

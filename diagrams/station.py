@@ -22,7 +22,9 @@ from pydrake.visualization import ApplyVisualizationConfig
 from guidedarm.diagrams.model_paths import MakeParser
 from guidedarm.diagrams.scenario import ArmConfig, StationScenario
 from guidedarm.systems.errors import ConfigurationError
+from guidedarm.systems.hose_geometry import ReadCenterline, RegisterHose
 from guidedarm.systems.joint_servo import ComputedTorqueLaw, JointServo
+from guidedarm.systems.tof_tool_sensor import ToFToolSensor
 
 RENDERER_NAME = "vtk"
 
@@ -45,6 +47,11 @@ def MakeStation(
         _AddArm(builder, plant, name, arm)
     for name, camera in scenario.cameras.items():
         _AddCamera(builder, plant, scene_graph, name, camera)
+    for name, tof in scenario.tof_tools.items():
+        sensor = builder.AddNamedSystem(f"{name}.sensor", ToFToolSensor(plant, tof))
+        builder.Connect(scene_graph.get_query_output_port(), sensor.get_input_port())
+        builder.ExportOutput(sensor.GetOutputPort("ranges"), f"{name}.ranges")
+        builder.ExportOutput(sensor.GetOutputPort("valid"), f"{name}.valid")
     if meshcat is not None:
         ApplyVisualizationConfig(scenario.visualization, builder, meshcat=meshcat)
     builder.ExportOutput(scene_graph.get_query_output_port(), "sim.query_object")
@@ -64,6 +71,8 @@ def AddStationModels(scenario: StationScenario, plant: MultibodyPlant) -> None:
     except Exception as e:
         message = str(e).strip().splitlines()[0] if str(e).strip() else type(e).__name__
         raise ConfigurationError(f"model directives: {message}") from None
+    if scenario.hose is not None:
+        RegisterHose(plant, ReadCenterline(scenario.hose.centerline), scenario.hose)
 
 
 def SetInitialPositions(scenario: StationScenario, plant: MultibodyPlant) -> None:

@@ -1,0 +1,62 @@
+"""Writes the four paper_path_*.csv centerlines (run once; the CSVs are checked in).
+
+Shapes modelled on seed 000, section 3.3 (m, robot base frame): 1 moderate up and down
+bends on an arc around the robot; 2 more and tighter bends (radius down to about 0.11 m);
+3 a long almost flat part, then a high bend closer to the base; 4 short, bent outward
+(away from the robot) and then up, past the standard x wall (see paper_path_4.yaml).
+"""
+
+from pathlib import Path
+
+import numpy as np
+
+from guidedarm.systems.hose_geometry import ArcLength, MinBendRadius, Resample, WriteCenterline
+
+U = np.linspace(0.0, 1.0, 3000)
+
+
+def _arc(r, phi0_deg: float, phi1_deg: float, z) -> np.ndarray:
+    phi = np.radians(phi0_deg + (phi1_deg - phi0_deg) * U)
+    return np.column_stack([r * np.cos(phi), r * np.sin(phi), z])
+
+
+def PaperPaths() -> dict[str, np.ndarray]:
+    """The four centerlines, finely sampled."""
+    length_1 = 0.37 * np.radians(100)
+    path_1 = _arc(0.37, -50, 50, 0.11 + 0.025 * np.sin(2 * np.pi * U * length_1 / 0.42))
+    length_2 = 0.38 * np.radians(110)
+    path_2 = _arc(
+        0.38 + 0.02 * np.sin(2 * np.pi * U * length_2 / 0.5),
+        -55,
+        55,
+        0.11 + 0.025 * np.sin(2 * np.pi * U * length_2 / 0.34),
+    )
+    flat = _arc(0.42, -60, -20, 0.07 + 0.004 * U)[::3]
+    v = U[1:]
+    phi = np.radians(-20 + 80 * v)
+    r = 0.42 - 0.06 * (1 - np.cos(2 * np.pi * v)) / 2
+    hump = np.column_stack(
+        [r * np.cos(phi), r * np.sin(phi), 0.074 + 0.11 * (1 - np.cos(2 * np.pi * v)) / 2]
+    )
+    path_3 = np.vstack([flat, hump])
+    angle = np.radians(np.linspace(0, 60, 1000))[1:]
+    straight = np.column_stack(
+        [np.linspace(0.28, 0.40, 1000), np.full(1000, 0.12), np.full(1000, 0.08)]
+    )
+    bend = np.column_stack(
+        [0.40 + 0.15 * np.sin(angle), np.full(len(angle), 0.12), 0.23 - 0.15 * np.cos(angle)]
+    )
+    up = np.array([np.cos(np.radians(60)), 0.0, np.sin(np.radians(60))])
+    rise = bend[-1] + np.linspace(0, 0.09, 500)[1:, None] * up
+    path_4 = np.vstack([straight, bend, rise])
+    return {f"paper_path_{i}": p for i, p in enumerate((path_1, path_2, path_3, path_4), 1)}
+
+
+if __name__ == "__main__":
+    for name, fine in PaperPaths().items():
+        points = Resample(fine, 0.005)
+        WriteCenterline(points, Path(__file__).parent / f"{name}.csv")
+        print(
+            f"{name}: length {ArcLength(points)[-1]:.3f} m, "
+            f"min bend radius {MinBendRadius(points):.3f} m"
+        )

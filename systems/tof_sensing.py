@@ -1,0 +1,247 @@
+"""Mathematics of the six-sensor ToF detection tool (seed 000, sections 2.2 and 3.1).
+
+Ray casting. Each VL6180X-like sensor S sees a cone (25 deg vertex angle) around its +z
+axis. The cone is sampled by rays (a centre ray and rings of rays); the sensor reports the
+nearest surface any ray meets within max_range. A ray is cast by sphere tracing against the
+scene's proximity geometry with QueryObject.ComputeSignedDistanceToPoint: at a point p the
+nearest surface is at least the minimum signed distance d away, so the ray advances by d
+until d < hit_tolerance (a hit) or it leaves the range (no return). This senses whatever
+geometry SceneGraph holds (hose, table, brackets, the robot), is exact for every shape that
+query supports (all Drake primitives), and costs only a broadphase check for a sensor with
+nothing within range. A depth camera per sensor would also work, but six VTK renders cost
+more than the handful of distance queries a reading needs, and rendered depth is quantised
+by the pixel grid.
+
+Detection grid. Rows are sensors 1-3, columns sensors 4-6; point (i, j) is where the lines
+of sight of row sensor i and column sensor j cross. It is detected when both sensors have a
+return; it is a detection error when either range disagrees with a hose of radius r centred
+on the point (|range - (distance to the point - r)| > half the grid spacing), e.g. the table
+seen far beyond the field, or the hose seen at another point of the same line.
+
+Estimators of the hose centre S in the tool frame T (the seed's S, eq. (8)):
+  grid      the mean of the detected, error-free grid points (presence only, the seed).
+  ranging   trilateration from the nearest row sensor and the nearest column sensor: the
+            hose centre lies at range + r from each emitter, in the detection plane (T's
+            y-z plane); with one arm seeing it, along that sensor's line of sight.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+from pydrake.geometry import GeometryId, QueryObject
+from pydrake.math import RigidTransform
+
+
+def ConeRays(cone_angle: float, rings: int) -> np.ndarray:
+    """Unit ray directions (K, 3) in the sensor frame: the +z axis and `rings` rings up to
+    the cone's half angle, with 6 k rays on ring k."""
+    half = cone_angle / 2
+    rays = [np.array([0.0, 0.0, 1.0])]
+    for k in range(1, rings + 1):
+        theta = half * k / rings
+        for j in range(6 * k):
+            phi = 2 * math.pi * j / (6 * k)
+            rays.append(
+                np.array(
+                    [
+                        math.sin(theta) * math.cos(phi),
+                        math.sin(theta) * math.sin(phi),
+                        math.cos(theta),
+                    ]
+                )
+            )
+    return np.array(rays)
+
+
+@dataclass(frozen=True)
+class RayCaster:
+    """Sphere tracing of cone rays against a QueryObject (ranges in m, poses in world W)."""
+
+    rays_S: np.ndarray
+    max_range: float
+    ignored: frozenset[GeometryId] = frozenset()
+    hit_tolerance: float = 2e-4
+    max_iterations: int = 48
+
+    def Range(self, query: QueryObject, X_WS: RigidTransform) -> float:
+        """Nearest return within the cone (m), or math.inf when nothing is in range."""
+        origin = X_WS.translation()
+        if self._Distance(query, origin, self.max_range) is None:
+            return math.inf
+        directions = X_WS.rotation().matrix() @ self.rays_S.T
+        best = math.inf
+        for k in range(directions.shape[1]):
+            best = min(best, self._Trace(query, origin, directions[:, k], best))
+        return best
+
+    def _Trace(self, query: QueryObject, origin: np.ndarray, u: np.ndarray, limit: float):
+        t = 0.0
+        limit = min(limit, self.max_range)
+        for _ in range(self.max_iterations):
+            d = self._Distance(query, origin + t * u, limit - t)
+            if d is None:
+                return math.inf
+            if d < self.hit_tolerance:
+                return t
+            t += d
+            if t > limit:
+                return math.inf
+        return math.inf
+
+    def _Distance(self, query: QueryObject, p_W: np.ndarray, threshold: float):
+        """Smallest signed distance to a non-ignored geometry within threshold, or None."""
+        if threshold <= 0:
+            return None
+        best = None
+        for result in query.ComputeSignedDistanceToPoint(p_W, threshold):
+            if result.id_G in self.ignored:
+                continue
+            if best is None or result.distance < best:
+                best = result.distance
+        return None if best is None else max(best, 0.0)
+
+
+def Measure(
+    true_ranges: np.ndarray,
+    rng: np.random.Generator,
+    noise_std: float,
+    quantization: float,
+    max_range: float,
+) -> tuple[np.ndarray, np.ndarray]:
+    """Noisy, quantised readings (m) and validity flags. An invalid reading (no return, or
+    noise pushing it past max_range) reports max_range, as the device reports its limit."""
+    noise = rng.normal(0.0, noise_std, size=true_ranges.shape)
+    finite = np.isfinite(true_ranges)
+    noisy = np.where(finite, true_ranges, max_range) + noise
+    if quantization > 0:
+        noisy = np.round(noisy / quantization) * quantization
+    noisy = np.clip(noisy, 0.0, None)
+    valid = finite & (noisy <= max_range)
+    return np.where(valid, noisy, max_range), valid
+
+
+@dataclass(frozen=True)
+class DetectionGrid:
+    """The 3 x 3 grid of a tool with row sensors 0-2 and column sensors 3-5.
+
+    X_TS: poses of the six sensor frames in the tool frame T (+z = line of sight).
+    hose_radius: radius assumed by the consistency check and the ranging estimator (m).
+    """
+
+    X_TS: tuple[RigidTransform, ...]
+    hose_radius: float
+
+    def __post_init__(self) -> None:
+        emitters = np.array([X.translation() for X in self.X_TS])
+        axes = np.array([X.rotation().matrix()[:, 2] for X in self.X_TS])
+        points = np.zeros((3, 3, 3))
+        for i in range(3):
+            for j in range(3):
+                points[i, j] = _ClosestPointOfLines(
+                    emitters[i], axes[i], emitters[3 + j], axes[3 + j]
+                )
+        object.__setattr__(self, "emitters", emitters)
+        object.__setattr__(self, "axes", axes)
+        object.__setattr__(self, "points", points)
+        spacing = min(
+            np.linalg.norm(points[1, 1] - points[0, 1]), np.linalg.norm(points[1, 1] - points[1, 0])
+        )
+        object.__setattr__(self, "spacing", float(spacing))
+        extent = np.max(np.linalg.norm(points - points[1, 1], axis=2))
+        object.__setattr__(self, "field_radius", float(extent + spacing / 2))
+
+    def ExpectedRanges(self) -> tuple[np.ndarray, np.ndarray]:
+        """Ranges (3, 3) of the row and the column sensor for a hose centred at each point."""
+        row = np.linalg.norm(self.points - self.emitters[:3, None, :], axis=2)
+        col = np.linalg.norm(self.points - self.emitters[None, 3:, :], axis=2)
+        return row - self.hose_radius, col - self.hose_radius
+
+    def Detect(self, ranges: np.ndarray, valid: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """(detected, errors), each a (3, 3) bool array (row sensor i, column sensor j)."""
+        valid = np.asarray(valid, bool)
+        detected = valid[:3, None] & valid[None, 3:]
+        row, col = self.ExpectedRanges()
+        tol = self.spacing / 2
+        bad = (np.abs(ranges[:3, None] - row) > tol) | (np.abs(ranges[None, 3:] - col) > tol)
+        return detected, detected & bad
+
+    def GridEstimate(self, ranges: np.ndarray, valid: np.ndarray) -> tuple[np.ndarray | None, bool]:
+        """The seed's S in T (mean of the error-free detected points) or None; and whether
+        the centre point is the only one (the seed's short-step condition)."""
+        detected, errors = self.Detect(ranges, valid)
+        good = detected & ~errors
+        if not good.any():
+            return None, False
+        centre_only = bool(good[1, 1]) and int(good.sum()) == 1
+        return self.points[good].mean(axis=0), centre_only
+
+    def RangingEstimate(
+        self, ranges: np.ndarray, valid: np.ndarray
+    ) -> tuple[np.ndarray | None, bool]:
+        """The hose centre in T from the ranges (see the module docstring) or None; and
+        whether it lies within half a grid spacing of the centre point."""
+        valid = np.asarray(valid, bool)
+        centre = self.points[1, 1]
+        row = _Nearest(ranges, valid, range(3))
+        col = _Nearest(ranges, valid, range(3, 6))
+        r = self.hose_radius
+        candidates = []
+        if row is not None and col is not None:
+            candidates.append(
+                _CircleIntersection(
+                    self.emitters[row],
+                    ranges[row] + r,
+                    self.emitters[col],
+                    ranges[col] + r,
+                    self.axes[row],
+                    centre,
+                )
+            )
+        for k in (row, col):
+            if k is not None:
+                candidates.append(self.emitters[k] + self.axes[k] * (ranges[k] + r))
+        for c in candidates:
+            if c is not None and np.linalg.norm(c - centre) <= self.field_radius:
+                return c, bool(np.linalg.norm(c - centre) < self.spacing / 2)
+        return None, False
+
+
+def _Nearest(ranges: np.ndarray, valid: np.ndarray, indices: range) -> int | None:
+    best = None
+    for k in indices:
+        if valid[k] and (best is None or ranges[k] < ranges[best]):
+            best = k
+    return best
+
+
+def _ClosestPointOfLines(p1, u1, p2, u2) -> np.ndarray:
+    """Midpoint of the shortest segment between lines p1 + s u1 and p2 + t u2."""
+    w = p1 - p2
+    a, b, c = u1 @ u1, u1 @ u2, u2 @ u2
+    d, e = u1 @ w, u2 @ w
+    den = a * c - b * b
+    s = (b * e - c * d) / den
+    t = (a * e - b * d) / den
+    return (p1 + s * u1 + p2 + t * u2) / 2
+
+
+def _CircleIntersection(c1, r1, c2, r2, u1, centre) -> np.ndarray | None:
+    """The intersection of spheres (c1, r1), (c2, r2) in the plane of c1, c2 and u1 that is
+    nearest to `centre` (closest point when they do not meet)."""
+    d_vec = c2 - c1
+    d = np.linalg.norm(d_vec)
+    if d < 1e-9:
+        return None
+    ex = d_vec / d
+    normal = np.cross(ex, u1)
+    if np.linalg.norm(normal) < 1e-9:
+        return None
+    ey = np.cross(normal / np.linalg.norm(normal), ex)
+    x = (r1 * r1 - r2 * r2 + d * d) / (2 * d)
+    h2 = r1 * r1 - x * x
+    h = math.sqrt(h2) if h2 > 0 else 0.0
+    options = [c1 + x * ex + h * ey, c1 + x * ex - h * ey]
+    return min(options, key=lambda p: np.linalg.norm(p - centre))

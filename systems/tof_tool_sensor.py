@@ -1,0 +1,133 @@
+"""ToFToolSensor: six VL6180X-like time-of-flight sensors reading SceneGraph geometry.
+
+The ray casting, noise and detection grid live in tof_sensing.py. The outputs are what the
+tool's microcontroller streams, so the hardware driver can produce the same ports: the six
+ranges (m) and their validity flags (1 = a return within range, 0 = none).
+"""
+
+from dataclasses import dataclass, field
+
+import numpy as np
+from pydrake.common.value import AbstractValue
+from pydrake.geometry import QueryObject
+from pydrake.math import RigidTransform
+from pydrake.multibody.plant import MultibodyPlant
+from pydrake.systems.framework import BasicVector, Context, LeafSystem, ValueProducer
+
+from guidedarm.systems.errors import ConfigurationError
+from guidedarm.systems.tof_sensing import ConeRays, Measure, RayCaster
+
+NUM_SENSORS = 6
+
+
+def _default_frames() -> list[str]:
+    return [f"tof_tool::tof_sensor_{i}" for i in range(1, NUM_SENSORS + 1)]
+
+
+@dataclass
+class ToFToolConfig:
+    """A six-sensor ToF tool; ports `<name>.ranges` and `<name>.valid`.
+
+    sensor_frames: scoped frames of sensors 1..6 (+z = line of sight); 1-3 are the grid rows.
+    tool_frame: the tool frame T (centre O of the detection field).
+    cone_angle_deg: vertex angle of each sensor's cone; max_range: no return beyond it (m).
+    noise_std, quantization: Gaussian noise and resolution of a reading (m).
+    seed: seed of the noise generator; period: the noise is redrawn every period (s).
+    rings: rings of rays sampling each cone (1 + 3 rings (rings + 1) rays).
+    """
+
+    sensor_frames: list[str] = field(default_factory=_default_frames)
+    tool_frame: str = "tof_tool::tof_tool"
+    cone_angle_deg: float = 25.0
+    max_range: float = 0.100
+    noise_std: float = 0.002
+    quantization: float = 0.001
+    seed: int = 0
+    period: float = 0.02
+    rings: int = 2
+
+
+class ToFToolSensor(LeafSystem):
+    """Ranges of six ToF sensors from the `query_object` input (SceneGraph's QueryObject).
+
+    Output `ranges` (6, m; max_range where there is no return) and `valid` (6, 0 or 1).
+    The noise of a reading at time t comes from np.random.default_rng((seed, floor(t /
+    period))), so a run is reproducible and `seed` changes it. Geometry of the tool's own
+    model instance is not seen (its cones look away from it by construction).
+    """
+
+    def __init__(self, plant: MultibodyPlant, config: ToFToolConfig) -> None:
+        super().__init__()
+        if len(config.sensor_frames) != NUM_SENSORS:
+            raise ConfigurationError(f"tof sensor_frames must name {NUM_SENSORS} frames")
+        if config.max_range <= 0 or config.period <= 0 or config.noise_std < 0:
+            raise ConfigurationError("tof max_range and period must be > 0, noise_std >= 0")
+        self._config = config
+        frames = [_Frame(plant, name) for name in config.sensor_frames]
+        self._frame_ids = [plant.GetBodyFrameIdOrThrow(f.body().index()) for f in frames]
+        self._X_BS = [f.GetFixedPoseInBodyFrame() for f in frames]
+        instance = frames[0].model_instance()
+        ignored = {
+            g
+            for b in plant.GetBodyIndices(instance)
+            for g in plant.GetCollisionGeometriesForBody(plant.get_body(b))
+        }
+        self._caster = RayCaster(
+            ConeRays(np.radians(config.cone_angle_deg), config.rings),
+            config.max_range,
+            frozenset(ignored),
+        )
+        self._query_port = self.DeclareAbstractInputPort(
+            "query_object", AbstractValue.Make(QueryObject())
+        )
+        self._reading = self.DeclareCacheEntry(
+            "reading",
+            ValueProducer(
+                allocate=lambda: AbstractValue.Make(np.zeros(2 * NUM_SENSORS)),
+                calc=self._CalcReading,
+            ),
+            prerequisites_of_calc={self.time_ticket(), self._query_port.ticket()},
+        )
+        self.DeclareVectorOutputPort(
+            "ranges", NUM_SENSORS, self.CalcRanges, prerequisites_of_calc={self._reading.ticket()}
+        )
+        self.DeclareVectorOutputPort(
+            "valid", NUM_SENSORS, self.CalcValid, prerequisites_of_calc={self._reading.ticket()}
+        )
+
+    def SensorPosesInWorld(self, context: Context) -> list[RigidTransform]:
+        """X_WS of the six sensors."""
+        query = self._query_port.Eval(context)
+        return [
+            query.GetPoseInWorld(f) @ X for f, X in zip(self._frame_ids, self._X_BS, strict=True)
+        ]
+
+    def TrueRanges(self, context: Context) -> np.ndarray:
+        """Noise-free nearest returns (m; inf when nothing is in range)."""
+        query = self._query_port.Eval(context)
+        poses = self.SensorPosesInWorld(context)
+        return np.array([self._caster.Range(query, X_WS) for X_WS in poses])
+
+    def _CalcReading(self, context: Context, value: AbstractValue) -> None:
+        c = self._config
+        tick = int(np.floor(context.get_time() / c.period + 1e-9))
+        rng = np.random.default_rng((c.seed, tick))
+        ranges, valid = Measure(
+            self.TrueRanges(context), rng, c.noise_std, c.quantization, c.max_range
+        )
+        value.set_value(np.concatenate([ranges, valid.astype(float)]))
+
+    def CalcRanges(self, context: Context, output: BasicVector) -> None:
+        output.SetFromVector(self._reading.Eval(context)[:NUM_SENSORS])
+
+    def CalcValid(self, context: Context, output: BasicVector) -> None:
+        output.SetFromVector(self._reading.Eval(context)[NUM_SENSORS:])
+
+
+def _Frame(plant: MultibodyPlant, scoped: str):
+    instance_name, _, frame_name = scoped.rpartition("::")
+    try:
+        instance = plant.GetModelInstanceByName(instance_name)
+        return plant.GetFrameByName(frame_name, instance)
+    except Exception:
+        raise ConfigurationError(f"tof frame '{scoped}' not found in the plant") from None

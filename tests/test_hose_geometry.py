@@ -1,0 +1,93 @@
+"""Hose centerlines: reading and validation, the paper paths, random paths, geometry."""
+
+import numpy as np
+import pytest
+from pydrake.multibody.plant import MultibodyPlant
+
+from guidedarm.systems.errors import ConfigurationError
+from guidedarm.systems.hose_geometry import (
+    ArcLength,
+    HoseConfig,
+    LoadPathLimits,
+    MinBendRadius,
+    RandomPathSpec,
+    RandomSmoothPath,
+    ReadCenterline,
+    RegisterHose,
+)
+
+
+@pytest.mark.parametrize(
+    "name, min_radius",
+    [
+        ("paper_path_1", 0.15),
+        ("paper_path_2", 0.10),
+        ("paper_path_3", 0.10),
+        ("paper_path_4", 0.14),
+    ],
+)
+def test_paper_paths(name, min_radius):
+    points = ReadCenterline(name)
+    assert 0.3 < ArcLength(points)[-1] < 1.2
+    assert MinBendRadius(points) >= min_radius
+    assert points[:, 2].min() > 0.06
+
+
+def test_path_4_raises_the_x_wall():
+    assert LoadPathLimits("paper_path_4").x == [-0.55, 0.85]
+    assert LoadPathLimits("paper_path_1").x == [-0.55, 0.55]
+
+
+@pytest.mark.parametrize(
+    "text, message",
+    [
+        ("x,y,z\n0.3,0,0.1\n0.3,0.05,abc\n", ":3: not three numbers"),
+        ("0.3,0,0.1\n0.3,0.05\n", "expected x,y,z"),
+        ("0.3,0,0.1\n0.3,0.05,0.1\n", "too short"),
+        ("0.3,0,0.1\n", "at least 2 points"),
+        ("0.3,0,0.1\n0.3,0,0.1\n0.3,0.2,0.1\n", "repeated point"),
+    ],
+)
+def test_bad_centerlines_name_the_cause(tmp_path, text, message):
+    path = tmp_path / "hose.csv"
+    path.write_text(text)
+    with pytest.raises(ConfigurationError, match=message):
+        ReadCenterline(str(path))
+
+
+def test_header_is_optional(tmp_path):
+    path = tmp_path / "hose.csv"
+    path.write_text("0.3,0,0.1\n0.3,0.2,0.1\n")
+    assert ReadCenterline(str(path)).shape == (2, 3)
+    with pytest.raises(ConfigurationError, match="not found"):
+        ReadCenterline(str(tmp_path / "missing.csv"))
+    with pytest.raises(ConfigurationError, match="unknown hose path"):
+        ReadCenterline("no_such_path")
+
+
+def test_random_paths_are_smooth_and_inside_the_region():
+    spec = RandomPathSpec()
+    for seed in range(20):
+        points = RandomSmoothPath(seed, spec)
+        assert MinBendRadius(points) >= spec.min_bend_radius
+        r = np.hypot(points[:, 0], points[:, 1])
+        assert spec.radius_range[0] <= r.min() and r.max() <= spec.radius_range[1]
+        assert spec.z_range[0] <= points[:, 2].min() and points[:, 2].max() <= spec.z_range[1]
+        assert ArcLength(points)[-1] == pytest.approx(spec.length, abs=0.01)
+    np.testing.assert_array_equal(RandomSmoothPath(7), RandomSmoothPath(7))
+
+
+def test_hose_geometry_is_registered_with_roles():
+    plant = MultibodyPlant(0.0)
+    from pydrake.geometry import SceneGraph
+
+    scene_graph = SceneGraph()
+    plant.RegisterAsSourceForSceneGraph(scene_graph)
+    points = ReadCenterline("paper_path_1")
+    ids = RegisterHose(plant, points, HoseConfig(segment_length=0.01))
+    assert len(ids) == int(np.ceil(ArcLength(points)[-1] / 0.01))
+    inspector = scene_graph.model_inspector()
+    from pydrake.geometry import Role
+
+    assert inspector.NumGeometriesWithRole(Role.kPerception) == len(ids) + 4
+    assert inspector.NumGeometriesWithRole(Role.kProximity) == len(ids) + 4

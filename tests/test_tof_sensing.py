@@ -1,0 +1,130 @@
+"""ToF tool sensing: cone rays, sphere-traced ranges through the station's QueryObject,
+noise and quantisation, the detection grid and both hose-centre estimators."""
+
+import numpy as np
+import pytest
+from pydrake.math import RigidTransform
+from pydrake.multibody.parsing import LoadModelDirectives
+from pydrake.multibody.plant import AddMultibodyPlant, MultibodyPlantConfig
+from pydrake.systems.framework import DiagramBuilder
+
+from guidedarm.diagrams.model_paths import MODELS_DIR
+from guidedarm.diagrams.scenario import StationScenario
+from guidedarm.diagrams.station import AddStationModels
+from guidedarm.systems.hose_geometry import HoseConfig
+from guidedarm.systems.tof_sensing import ConeRays, DetectionGrid, Measure
+from guidedarm.systems.tof_tool_sensor import ToFToolConfig, ToFToolSensor
+
+A, H, R = 0.022, 0.055, 0.010
+
+
+def test_cone_rays_fill_the_cone():
+    rays = ConeRays(np.radians(25.0), 2)
+    assert rays.shape == (19, 3)
+    angles = np.degrees(np.arccos(rays[:, 2]))
+    assert angles.max() == pytest.approx(12.5)
+    np.testing.assert_allclose(np.linalg.norm(rays, axis=1), 1.0)
+
+
+def test_measure_noise_quantisation_and_no_return():
+    rng = np.random.default_rng(3)
+    true = np.array([0.040] * 2000 + [np.inf])
+    ranges, valid = Measure(true, rng, 0.002, 0.001, 0.1)
+    assert not valid[-1] and ranges[-1] == 0.1
+    np.testing.assert_allclose(np.round(ranges[:-1] / 0.001), ranges[:-1] / 0.001, atol=1e-9)
+    assert np.std(ranges[:-1]) == pytest.approx(0.002, rel=0.1)
+    assert abs(np.mean(ranges[:-1]) - 0.040) < 2e-4
+
+
+@pytest.fixture(scope="module")
+def cell():
+    """The MZ04D cell with paper path 1, the tool teleported by setting joint positions."""
+    directives = LoadModelDirectives(str(MODELS_DIR / "directives/mz04d_cell.dmd.yaml"))
+    scenario = StationScenario(directives=directives.directives, hose=HoseConfig())
+    builder = DiagramBuilder()
+    plant, scene_graph = AddMultibodyPlant(MultibodyPlantConfig(time_step=0.0), builder)
+    AddStationModels(scenario, plant)
+    plant.Finalize()
+    sensor = builder.AddSystem(ToFToolSensor(plant, ToFToolConfig(noise_std=0.0)))
+    builder.Connect(scene_graph.get_query_output_port(), sensor.get_input_port())
+    diagram = builder.Build()
+    return plant, sensor, diagram
+
+
+def _grid(plant):
+    context = plant.CreateDefaultContext()
+    T = plant.GetFrameByName("tof_tool")
+    X_TS = tuple(plant.GetFrameByName(f"tof_sensor_{i}").CalcPose(context, T) for i in range(1, 7))
+    return DetectionGrid(X_TS, R)
+
+
+def test_grid_geometry_matches_the_tool(cell):
+    grid = _grid(cell[0])
+    assert grid.spacing == pytest.approx(A)
+    np.testing.assert_allclose(grid.points[1, 1], 0.0, atol=1e-12)
+    np.testing.assert_allclose(grid.points[0, 2], [0.0, -A, A], atol=1e-12)
+    row, col = grid.ExpectedRanges()
+    assert row[1, 1] == pytest.approx(H - R) and col[0, 0] == pytest.approx(H - A - R)
+
+
+@pytest.mark.parametrize(
+    "y, z, expected",
+    [(0.0, 0.0, (1, 1)), (A, 0.0, (2, 1)), (-A, A, (0, 2)), (0.0, -A, (1, 0))],
+)
+def test_grid_and_ranging_locate_an_ideal_hose(cell, y, z, expected):
+    """Ranges of a hose centred at (y, z) in the detection plane: the grid point is found and
+    ranging recovers the centre within 1 mm."""
+    grid = _grid(cell[0])
+    centre = np.array([0.0, y, z])
+    ranges = np.full(6, 0.1)
+    valid = np.zeros(6, bool)
+    for k in range(6):
+        e, u = grid.emitters[k], grid.axes[k]
+        along = (centre - e) @ u
+        lateral = np.linalg.norm(centre - e - along * u)
+        if lateral < 0.004:
+            ranges[k], valid[k] = np.linalg.norm(centre - e) - R, True
+    detected, errors = grid.Detect(ranges, valid)
+    assert detected[expected] and not errors[expected]
+    S, _ = grid.GridEstimate(ranges, valid)
+    np.testing.assert_allclose(S, grid.points[expected], atol=1e-9)
+    C, _ = grid.RangingEstimate(ranges, valid)
+    np.testing.assert_allclose(C, centre, atol=1e-3)
+
+
+def test_far_returns_are_detection_errors(cell):
+    grid = _grid(cell[0])
+    ranges = np.array([0.090, 0.1, 0.1, 0.045, 0.1, 0.1])
+    valid = np.array([1, 0, 0, 1, 0, 0], bool)
+    detected, errors = grid.Detect(ranges, valid)
+    assert detected[0, 0] and errors[0, 0]
+    assert grid.GridEstimate(ranges, valid)[0] is None
+
+
+def test_sensor_sees_the_hose_through_the_query_object(cell):
+    """Tool centred over paper path 1 (IK-free: the tool body is placed by the joint
+    positions found for that pose): the central sensors read hose surface ranges."""
+    plant, sensor, diagram = cell
+    from guidedarm.systems.hose_geometry import ReadCenterline
+    from guidedarm.systems.path_following import OrientationFromVector, ToolMount
+    from guidedarm.systems.tool_pose_solving import IkLimits, ToolPoseSolver
+
+    context = diagram.CreateDefaultContext()
+    plant_context = plant.GetMyContextFromRoot(context)
+    solver = ToolPoseSolver(
+        plant, plant.GetModelInstanceByName("mz04d"), plant.GetFrameByName("gripper"), IkLimits()
+    )
+    X_GT = plant.GetFrameByName("tof_tool").CalcPose(plant_context, plant.GetFrameByName("gripper"))
+    mount = ToolMount.FromTransform(X_GT)
+    c = ReadCenterline("paper_path_1")
+    X_WT = RigidTransform(OrientationFromVector(c[30] - c[26]), c[28])
+    result = solver.Solve(mount.GripperPose(X_WT), plant.GetPositions(plant_context))
+    assert result.success
+    plant.SetPositions(plant_context, result.q)
+    sensor_context = sensor.GetMyContextFromRoot(context)
+    true = sensor.TrueRanges(sensor_context)
+    # Sensors 2 and 5 look straight at the hose: surface at h - r = 45 mm.
+    assert true[1] == pytest.approx(H - R, abs=1.5e-3)
+    assert true[4] == pytest.approx(H - R, abs=1.5e-3)
+    valid = sensor.GetOutputPort("valid").Eval(sensor_context)
+    assert valid[1] == 1 and valid[4] == 1
