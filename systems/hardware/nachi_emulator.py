@@ -10,10 +10,12 @@ from __future__ import annotations
 
 import socket
 import threading
+from collections.abc import Callable
 
 import numpy as np
 from pydrake.math import RollPitchYaw
 from pydrake.systems.analysis import Simulator
+from pydrake.systems.framework import Context
 
 from guidedarm.systems.hardware import nachi_protocol as nachi
 from guidedarm.systems.hardware.line_socket import LineSocket
@@ -105,6 +107,8 @@ class NachiEmulator:
 
     The station must export `<arm>.position_commanded` and `<arm>.position_measured`; the
     flange pose is read from its plant (`plant` system), frames `<arm>::base`, `<arm>::flange`.
+    After every step each observer is called with the station's context (e.g. to sample
+    sensor ports for other emulated devices; they run in the stepping thread).
     """
 
     def __init__(
@@ -114,7 +118,9 @@ class NachiEmulator:
         host: str = "127.0.0.1",
         port: int = nachi.DEFAULT_PORT,
         period: float = 0.002,
+        observers: tuple[Callable[[Context], None], ...] = (),
     ) -> None:
+        self._observers = observers
         self.station = station
         self.simulator = Simulator(station)
         self.context = self.simulator.get_mutable_context()
@@ -152,6 +158,8 @@ class NachiEmulator:
             self._command_port.FixValue(self.context, command)
             t += self._period
             self.simulator.AdvanceTo(t)
+            for observer in self._observers:
+                observer(self.context)
 
     def Close(self) -> None:
         self._closing.set()
