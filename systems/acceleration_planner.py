@@ -38,8 +38,10 @@ class AccelerationPlanner(LeafSystem):
         self._state_index = self.DeclareDiscreteState(size)
         period = planning.parameters.time_step
         self.DeclareInitializationDiscreteUpdateEvent(self._Initialize)
-        # Offset one period: the state after the update at t_k is the command for t_k.
-        self.DeclarePeriodicDiscreteUpdateEvent(period, period, self._Update)
+        # Offset 0: the update at t_k computes the command for t_k + period, so discrete
+        # systems sampling the outputs at t_k (the station's servo interpolator) read the
+        # command for t_k, without a period of lag.
+        self.DeclarePeriodicDiscreteUpdateEvent(period, 0.0, self._Update)
         ticket = {self.xd_ticket()}
         for name, start in (
             ("position_commanded", 0),

@@ -290,7 +290,9 @@ class PlannerParameters:
         scaling itself makes (< 0.07 rad/s^2 at 500 Hz on the seed's task), while a
         weaker barrier (rho = 0.001) is so stiff at 500 Hz that, unscaled, it chatters.
     scaling_recovery_rate: rate of the exponential return (18) of c to 1 (1/s).
-    stop_at_waypoints: stop at every waypoint instead of blending through it.
+    stop_at_waypoints: stop at every waypoint instead of blending through it; the next
+        elementary task starts once the TCP is within the tolerances and slower than
+        rest_speed (m/s), i.e. practically at rest as boundary condition (3) asks.
     time_step: planner period (s), 0.002 s = 500 Hz as UR servoJ.
     min_singular_value: smallest admissible singular value of J_g before the planner
         stops with an error (m or rad per rad).
@@ -308,6 +310,7 @@ class PlannerParameters:
     penalty_strength: float = 0.003
     scaling_recovery_rate: float = 1.0
     stop_at_waypoints: bool = False
+    rest_speed: float = 0.001
     time_step: float = 0.002
     min_singular_value: float = 0.01
     blend_length: float = 0.05
@@ -326,6 +329,7 @@ class PlannerParameters:
             "time_step",
             "min_singular_value",
             "blend_length",
+            "rest_speed",
         ):
             value = getattr(self, name)
             if not np.isfinite(value) or value <= 0:
@@ -498,7 +502,8 @@ class AccelerationPlanning:
                 state.done_time = state.t
             return state
         if self.parameters.stop_at_waypoints:
-            if self._Reached(p, state.index):
+            resting = np.linalg.norm(tcp_velocity) <= self.parameters.rest_speed
+            if resting and self._Reached(p, state.index):
                 state.index += 1
                 if self.scaling is not None:  # a new elementary task starts smoothly
                     state.c_hat0, state.t0 = 0.0, state.t

@@ -1,0 +1,65 @@
+"""Task `waypoints` end to end: `guidedarm run ur10e_waypoints` through the station, and
+the planner on the MZ04D and the rover arm."""
+
+import json
+
+import numpy as np
+import pytest
+
+from guidedarm.diagrams.cli import main
+from guidedarm.diagrams.command_run import LoadScenario
+from guidedarm.diagrams.task_waypoints import MakePlannerSetup, TrajectoryMetrics
+from guidedarm.systems.acceleration_planning import RunPlanning
+
+SUMMARY_KEYS = {
+    "T_s", "qd_max", "qd_min", "qdd_max", "qdd_min", "final_error_m", "c_min",
+    "waypoint_distance_m", "sim_time_s", "failure", "tracking_error_max_rad",
+    "tcp_tracking_error_max_m",
+}  # fmt: skip
+FIGURES = [
+    "tcp_path", "joint_positions", "joint_velocities", "joint_accelerations",
+    "scaling_coefficient",
+]  # fmt: skip
+
+
+def test_guidedarm_run_ur10e_waypoints_through_the_station(tmp_path):
+    assert main(["run", "ur10e_waypoints", "--out", str(tmp_path)]) == 0
+    summary = json.loads((tmp_path / "summary.json").read_text())
+    assert summary.keys() >= SUMMARY_KEYS
+    assert summary["failure"] is None
+    assert summary["T_s"] == pytest.approx(5.32, rel=0.07)
+    assert summary["final_error_m"] <= 1e-3
+    assert max(summary["qdd_max"], -summary["qdd_min"]) <= 1.40
+    assert max(summary["qd_max"], -summary["qd_min"]) <= 1.05
+    assert summary["c_min"] == 0.0  # the smooth start
+    assert all(d < 0.05 for d in summary["waypoint_distance_m"][:-1])
+    # the station's servo tracks the 500 Hz commands to within about a millimetre
+    assert summary["tcp_tracking_error_max_m"] < 3e-3
+    for name in FIGURES:
+        assert (tmp_path / f"{name}.png").stat().st_size > 10_000
+    assert (tmp_path / "replay.html").stat().st_size > 10_000
+
+
+@pytest.mark.parametrize("name", ["mz04d_waypoints", "rover_arm_waypoints"])
+def test_the_same_planner_drives_the_other_arms(name):
+    _, scenario, _ = LoadScenario(name, [])
+    setup = MakePlannerSetup(scenario)
+    trajectory = RunPlanning(setup.planning, setup.q0, max_time=scenario.max_time)
+    metrics = TrajectoryMetrics(setup, trajectory)
+    assert metrics["T_s"] is not None and metrics["final_error_m"] <= 1e-3
+    assert np.all(np.abs(trajectory.qd) <= setup.velocity_limit)
+    assert np.all(np.abs(trajectory.qdd) <= setup.acceleration_limit * (1 + 1e-9))
+    assert all(d < scenario.planner.neighbourhood_radius for d in metrics["waypoint_distance_m"])
+
+
+def test_unknown_limits_choice_is_a_configuration_error(capsys, tmp_path):
+    code = main(["run", "ur10e_waypoints", "--out", str(tmp_path), "--set", "limits=jerk"])
+    assert code == 2
+    assert "limits must be one of" in capsys.readouterr().err
+
+
+def test_unreachable_waypoint_fails_before_any_motion(capsys, tmp_path):
+    far = "waypoints=[[2.5, 0.0, 0.5, 3.14159, 0.0, 0.0]]"
+    assert main(["run", "ur10e_waypoints", "--out", str(tmp_path), "--set", far]) == 2
+    assert "waypoint 1" in capsys.readouterr().err
+    assert not (tmp_path / "summary.json").exists()
