@@ -7,9 +7,11 @@ import numpy as np
 import pytest
 
 from guidedarm.diagrams.cli import main
+from guidedarm.diagrams.command_compare_planners import ComparePlanners, TableRow
 from guidedarm.diagrams.command_run import LoadScenario
 from guidedarm.diagrams.task_waypoints import MakePlannerSetup, TrajectoryMetrics
 from guidedarm.systems.acceleration_planning import RunPlanning
+from guidedarm.systems.planner_baselines import TrapezoidProfile
 
 SUMMARY_KEYS = {
     "T_s", "qd_max", "qd_min", "qdd_max", "qdd_min", "final_error_m", "c_min",
@@ -63,3 +65,39 @@ def test_unreachable_waypoint_fails_before_any_motion(capsys, tmp_path):
     assert main(["run", "ur10e_waypoints", "--out", str(tmp_path), "--set", far]) == 2
     assert "waypoint 1" in capsys.readouterr().err
     assert not (tmp_path / "summary.json").exists()
+
+
+def test_trapezoid_profile_reaches_the_limits_and_ends_at_rest():
+    duration, profile = TrapezoidProfile(1.0, v_max=0.5, a_max=1.0)
+    assert duration == pytest.approx(1.0 / 0.5 + 0.5 / 1.0)
+    t = np.linspace(0, duration, 2001)
+    s, ds, dds = profile(t)
+    assert s[0] == 0 and s[-1] == pytest.approx(1.0)
+    assert ds.max() == pytest.approx(0.5) and np.abs(dds).max() == pytest.approx(1.0)
+    short, _ = TrapezoidProfile(0.1, v_max=0.5, a_max=1.0)  # triangular
+    assert short == pytest.approx(2 * np.sqrt(0.1))
+
+
+def test_compare_planners_table(capsys):
+    assert main(["compare-planners"]) == 0
+    lines = capsys.readouterr().out.strip().splitlines()
+    assert lines[0].split()[0] == "planner" and len(lines) == 4
+    _, scenario, _ = LoadScenario("ur10e_waypoints", [])
+    setup = MakePlannerSetup(scenario)
+    rows = {
+        name: TableRow(setup, trajectory)
+        for name, trajectory in ComparePlanners(setup, scenario.max_time).items()
+    }
+    planner, movej, toppra = rows.values()
+    limit_v, limit_a = setup.velocity_limit[0], setup.acceleration_limit[0]
+    # movej keeps the speed limit but its blends add two segments' accelerations (the
+    # seed's experiment 1: 4.29 s, up to 2.48 rad/s^2); only the planner is smooth
+    assert movej["qd_abs_max"] <= limit_v + 1e-9 and movej["qdd_abs_max"] > 1.2 * limit_a
+    assert movej["T_s"] == pytest.approx(4.29, rel=0.1)
+    # Toppra is time-optimal on its path (limits met up to its grid discretisation)
+    assert toppra["T_s"] < movej["T_s"] < planner["T_s"]
+    assert toppra["qdd_abs_max"] <= 1.01 * limit_a and toppra["qd_abs_max"] <= 1.01 * limit_v
+    assert planner["qdd_abs_max"] <= limit_a * (1 + 1e-9)
+    assert planner["jerk_abs_max"] < 0.1 * min(movej["jerk_abs_max"], toppra["jerk_abs_max"])
+    assert max(toppra["waypoint_deviation_mm"]) < 1.0
+    assert all(d < 50 for d in movej["waypoint_deviation_mm"] + planner["waypoint_deviation_mm"])
