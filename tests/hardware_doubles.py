@@ -57,10 +57,10 @@ class ScriptedArmLink:
         pass
 
 
-def StartServer(module: str, *args: str) -> tuple[subprocess.Popen, int]:
+def StartServer(module: str, *args: str, stderr=None) -> tuple[subprocess.Popen, int]:
     """Runs `python -m module args` and waits for its `listening HOST PORT` line."""
     process = subprocess.Popen(
-        [sys.executable, "-m", module, *args], stdout=subprocess.PIPE, text=True
+        [sys.executable, "-m", module, *args], stdout=subprocess.PIPE, stderr=stderr, text=True
     )
     line = process.stdout.readline().split()
     if not line or line[0] != "listening":

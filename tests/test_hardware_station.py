@@ -8,6 +8,8 @@ import numpy as np
 import pytest
 from hardware_doubles import Mz04dScenario, WriteTestVideo
 from pydrake.common.value import AbstractValue
+from pydrake.geometry import Meshcat
+from pydrake.systems.analysis import Simulator
 from pydrake.systems.sensors import CameraConfig
 
 from guidedarm.diagrams.hardware_config import (
@@ -89,3 +91,26 @@ def test_unknown_driver_is_named():
     hardware = HardwareConfig(arms={"mz04d": ArmDriverConfig(driver="kuka_rsi")})
     with pytest.raises(ConfigurationError, match=r"hardware\.arms\.mz04d\.driver: 'kuka_rsi'"):
         MakeStation(Mz04dScenario(hardware=hardware), hardware=True)
+
+
+def test_meshcat_draws_the_measured_configuration(devices):
+    nachi_port, _, _ = devices
+    arm = ArmDriverConfig(driver="nachi_tcp", port=nachi_port, acceleration_limits=[20.0] * 6)
+    scenario = Mz04dScenario(hardware=HardwareConfig(arms={"mz04d": arm}))
+    meshcat = Meshcat()
+    station = MakeStation(scenario, meshcat, hardware=True)
+    simulator = Simulator(station)
+    station.GetInputPort("mz04d.position_commanded").FixValue(
+        simulator.get_mutable_context(), [0.0, np.pi / 2, 0.0, 0.0, -np.pi / 2, 0.0]
+    )
+    simulator.set_target_realtime_rate(1.0)
+    simulator.AdvanceTo(0.2)
+    # The plant's position vector seen by Meshcat: the arm's joints at their measured values.
+    context = simulator.get_context()
+    plant_positions = station.GetSubsystemByName("plant_positions")
+    positions = plant_positions.get_output_port().Eval(
+        plant_positions.GetMyContextFromRoot(context)
+    )
+    measured = station.GetOutputPort("mz04d.position_measured").Eval(context)
+    np.testing.assert_allclose(positions[:6], measured)
+    assert meshcat.HasPath("/drake/visualizer/mz04d")

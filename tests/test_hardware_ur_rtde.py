@@ -3,6 +3,8 @@ process on 127.0.0.1:30004), the control side against a recording fake."""
 
 from __future__ import annotations
 
+import socket
+import subprocess
 import time
 
 import numpy as np
@@ -12,6 +14,7 @@ from pydrake.multibody.plant import MultibodyPlant
 from pydrake.systems.analysis import Simulator
 
 from guidedarm.diagrams.model_paths import MakeParser
+from guidedarm.systems.hardware import rtde_protocol as rtde
 from guidedarm.systems.hardware.arm_driver import ArmDriver
 from guidedarm.systems.hardware.arm_link import LinkLostError
 from guidedarm.systems.hardware.command_guard import JointLimits
@@ -90,3 +93,35 @@ def test_quiet_link_stops_the_robot_and_fails_the_run():
     finally:
         link.close()
         StopServer(process)
+
+
+def test_double_rejects_malformed_packets_and_keeps_serving():
+    process, port = StartServer(
+        "guidedarm.systems.hardware.rtde_double", "--port", "0", stderr=subprocess.PIPE
+    )
+    try:
+        with socket.create_connection(("127.0.0.1", port), timeout=2.0) as connection:
+            buffer = bytearray()
+
+            def reply() -> rtde.Packet:
+                while not (packets := rtde.SplitPackets(buffer)):
+                    buffer.extend(connection.recv(4096))
+                return packets[0]
+
+            connection.sendall(rtde.EncodePacket(ord("X"), b"junk"))
+            assert reply().type == rtde.TEXT_MESSAGE
+            connection.sendall(rtde.EncodePacket(rtde.REQUEST_PROTOCOL_VERSION, b"\x00\x02"))
+            assert reply() == rtde.Packet(rtde.REQUEST_PROTOCOL_VERSION, b"\x01")
+    finally:
+        process.terminate()
+        _, stderr = process.communicate(timeout=5)
+    assert "rejected packet #1: unexpected RTDE packet type 88 (4 B)" in stderr
+
+
+def test_split_packets_keeps_a_truncated_tail_and_rejects_a_bad_size():
+    whole = rtde.EncodePacket(rtde.CONTROL_PACKAGE_START)
+    buffer = bytearray(whole + whole[:2])
+    assert rtde.SplitPackets(buffer) == [rtde.Packet(rtde.CONTROL_PACKAGE_START, b"")]
+    assert buffer == whole[:2]
+    with pytest.raises(rtde.RtdeProtocolError, match="size 1 is smaller than its header"):
+        rtde.SplitPackets(bytearray(b"\x00\x01U"))
