@@ -44,7 +44,6 @@ class ArmDriver(LeafSystem):
         self._watchdog = watchdog
         self._stale_after = stale_after
         self.stale_skips = 0
-        self.commands_sent = 0
         n = limits.lower.size
         self._n = n
         # State: measured q, v and the last sent command q, implied v.
@@ -96,7 +95,6 @@ class ArmDriver(LeafSystem):
                 self._link.stop()
                 raise CommandRefusedError(f"{self._link.name}: {e}; robot stopped") from None
             self._link.send_position(q_command, self._period)
-            self.commands_sent += 1
             x[2 * n :] = np.concatenate([q_command, v])
         state.set_value(self._state, x)
 
