@@ -115,7 +115,7 @@ def test_hardware_station_moves_the_emulated_arm(emulator):
     np.testing.assert_allclose(emulator.logic.measured, goal, atol=1e-3)
     measured = station.GetOutputPort("mz04d.position_measured").Eval(context)
     np.testing.assert_allclose(measured, goal, atol=1e-3)
-    assert emulator.logic.moves > 300  # a target per 2 ms period, minus stale periods
+    assert emulator.logic.moves > 200  # 400 periods; a target per period unless stale
 
 
 def test_frozen_controller_trips_the_watchdog_and_is_stopped(emulator):

@@ -109,6 +109,6 @@ def test_silent_tool_fails_the_run_after_its_watchdog():
         start = time.monotonic()
         with pytest.raises(LinkLostError, match=r"tof: no valid line for 0.1[5-9]\d* s"):
             simulator.AdvanceTo(2.0)
-        assert time.monotonic() - start < 0.3
+        assert time.monotonic() - start < 1.0  # well before the 2 s the run asked for
     finally:
         transport.close()
