@@ -21,6 +21,7 @@ Units: m, rad, s throughout. Everything here is plain Python/NumPy plus a Multib
 for kinematics; systems/acceleration_planner.py wraps it in a LeafSystem.
 """
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -46,23 +47,30 @@ def EulerRateMatrix(rpy: np.ndarray) -> np.ndarray:
     The seed prints B with its columns ordered (yaw', pitch', roll'); here they follow the
     order of phi = [roll, pitch, yaw] so that J = diag(I, B^-1) J_g matches e = k(q) - p_f.
     """
-    _, pitch, yaw = rpy
-    sy, cy = np.sin(pitch), np.cos(pitch)
-    sz, cz = np.sin(yaw), np.cos(yaw)
+    sy, cy = math.sin(rpy[1]), math.cos(rpy[1])
+    sz, cz = math.sin(rpy[2]), math.cos(rpy[2])
     return np.array([[cy * cz, -sz, 0.0], [cy * sz, cz, 0.0], [-sy, 0.0, 1.0]])
+
+
+def EulerRateMatrixInverse(rpy: np.ndarray) -> np.ndarray:
+    """B(phi)^-1 in closed form (singular at pitch = +-pi/2)."""
+    sy, cy = math.sin(rpy[1]), math.cos(rpy[1])
+    sz, cz = math.sin(rpy[2]), math.cos(rpy[2])
+    return np.array([[cz / cy, sz / cy, 0.0], [-sz, cz, 0.0], [cz * sy / cy, sz * sy / cy, 1.0]])
 
 
 def EulerRateMatrixDotTimesRate(rpy: np.ndarray, rpy_dot: np.ndarray) -> np.ndarray:
     """dB/dt (phi, phi') @ phi' (rad/s^2), the term that turns alpha into phi''."""
-    _, pitch, yaw = rpy
     droll, dpitch, dyaw = rpy_dot
-    sy, cy = np.sin(pitch), np.cos(pitch)
-    sz, cz = np.sin(yaw), np.cos(yaw)
-    column_roll = np.array(
-        [-sy * cz * dpitch - cy * sz * dyaw, -sy * sz * dpitch + cy * cz * dyaw, -cy * dpitch]
+    sy, cy = math.sin(rpy[1]), math.cos(rpy[1])
+    sz, cz = math.sin(rpy[2]), math.cos(rpy[2])
+    return np.array(
+        [
+            (-sy * cz * dpitch - cy * sz * dyaw) * droll - cz * dyaw * dpitch,
+            (-sy * sz * dpitch + cy * cz * dyaw) * droll - sz * dyaw * dpitch,
+            -cy * dpitch * droll,
+        ]
     )
-    column_pitch = np.array([-cz * dyaw, -sz * dyaw, 0.0])
-    return column_roll * droll + column_pitch * dpitch
 
 
 @dataclass
@@ -111,7 +119,7 @@ class ArmKinematics:
         self._columns = plant.GetVelocitiesFromArray(instance, velocity_start).astype(int)
         self._origin = np.zeros(3)
 
-    def Evaluate(self, q: np.ndarray, qd: np.ndarray, check: bool = True) -> TcpKinematics:
+    def Evaluate(self, q: np.ndarray, qd: np.ndarray) -> TcpKinematics:
         """Kinematics at joint positions q (rad) and velocities qd (rad/s)."""
         plant, context = self.plant, self._context
         plant.SetPositions(context, self.instance, q)
@@ -134,16 +142,18 @@ class ArmKinematics:
             self.base_frame,
             self.base_frame,
         )
-        B = EulerRateMatrix(rpy)
-        if check:
-            self._CheckSingularity(Jg, rpy, q)
-        B_inv = np.linalg.inv(B)
-        J = np.vstack([Jg[3:], B_inv @ Jg[:3]])
-        rpy_dot = B_inv @ (Jg[:3] @ qd)
-        rotational = B_inv @ (bias.rotational() - EulerRateMatrixDotTimesRate(rpy, rpy_dot))
-        Jdot_qdot = np.concatenate([bias.translational(), rotational])
-        p = np.concatenate([X_BT.translation(), rpy])
-        sigma = float(np.linalg.svd(Jg, compute_uv=False)[-1]) if check else np.nan
+        sigma = self._CheckSingularity(Jg, rpy, q)
+        B_inv = EulerRateMatrixInverse(rpy)
+        J = np.empty((6, 6))
+        J[:3] = Jg[3:]
+        J[3:] = B_inv @ Jg[:3]
+        rpy_dot = J[3:] @ qd
+        Jdot_qdot = np.empty(6)
+        Jdot_qdot[:3] = bias.translational()
+        Jdot_qdot[3:] = B_inv @ (bias.rotational() - EulerRateMatrixDotTimesRate(rpy, rpy_dot))
+        p = np.empty(6)
+        p[:3] = X_BT.translation()
+        p[3:] = rpy
         return TcpKinematics(p, J, Jdot_qdot, sigma)
 
     def Position(self, q: np.ndarray) -> np.ndarray:
@@ -152,8 +162,8 @@ class ArmKinematics:
         X_BT = self.plant.CalcRelativeTransform(self._context, self.base_frame, self.tool_frame)
         return np.concatenate([X_BT.translation(), RollPitchYaw(X_BT.rotation()).vector()])
 
-    def _CheckSingularity(self, Jg: np.ndarray, rpy: np.ndarray, q: np.ndarray) -> None:
-        sigma = np.linalg.svd(Jg, compute_uv=False)[-1]
+    def _CheckSingularity(self, Jg: np.ndarray, rpy: np.ndarray, q: np.ndarray) -> float:
+        sigma = float(np.linalg.svd(Jg, compute_uv=False)[-1])
         if sigma < self.min_singular_value:
             raise PlanningError(
                 f"near-singular arm configuration q={np.round(q, 4).tolist()} rad: smallest "
@@ -163,6 +173,7 @@ class ArmKinematics:
             raise PlanningError(
                 f"TCP pitch {rpy[1]:.4f} rad is at the Z-Y-X Euler-angle singularity (+-pi/2)"
             )
+        return sigma
 
 
 def _CheckLimits(name: str, lower: np.ndarray, upper: np.ndarray) -> None:
@@ -211,6 +222,8 @@ class VelocityPenalty:
         to_lower = (qd - self.lower) / self.range
         to_upper = (self.upper - qd) / self.range
         d = np.maximum(np.minimum(to_lower, to_upper), self.min_distance)
+        if d.min() >= self.theta:
+            return np.zeros_like(qd)
         direction = np.where(to_lower < to_upper, 1.0, -1.0) / self.range
         return np.where(d < self.theta, self.rho / d**2 * direction, 0.0)
 
@@ -462,9 +475,9 @@ class AccelerationPlanning:
         kin = self.kinematics.Evaluate(state.q, state.qd)
         state = self._AdvanceWaypoints(state, kin.p, kin.J[:3] @ state.qd)
         e = self.Error(kin.p, self.Target(state))
-        rhs = np.column_stack(
-            [kin.Jdot_qdot, params.gain_v * (kin.J @ state.qd) + params.gain_p * e]
-        )
+        rhs = np.empty((6, 2))
+        rhs[:, 0] = kin.Jdot_qdot
+        rhs[:, 1] = params.gain_v * (kin.J @ state.qd) + params.gain_p * e
         solved = np.linalg.solve(kin.J, rhs)
         a, b = -solved[:, 0], -solved[:, 1]
         if self.penalty is not None:
