@@ -126,7 +126,9 @@ def RunWaypoints(scenario: WaypointsScenario, context: RunContext) -> dict[str, 
     setup = MakePlannerSetup(scenario)
     arm = scenario.arm
     builder = DiagramBuilder()
-    station = builder.AddNamedSystem("station", MakeStation(scenario.station, context.meshcat))
+    station = builder.AddNamedSystem(
+        "station", MakeStation(scenario.station, context.meshcat, hardware=context.hardware)
+    )
     planner = builder.AddNamedSystem("planner", AccelerationPlanner(setup.planning))
     builder.Connect(
         planner.GetOutputPort("position_commanded"),
