@@ -236,6 +236,9 @@ class AccelerationScaling:
     largest lower bound, (c) the value of [c_min, c_max] nearest the previous c. Joints
     that a new c pushes past a limit join the violators and the choice is repeated, so the
     result satisfies every limit. No admissible c raises PlanningError naming the joints.
+    Violators are found at trial values of c, where a case-(1)/(2) bound lies below and a
+    case-(3)/(4) bound above the trial value, so rule (c) is admissible only in the
+    degenerate case c_min = c_max; in practice (c) means the limits cannot be met.
     """
 
     def __init__(self, lower: np.ndarray, upper: np.ndarray) -> None:
