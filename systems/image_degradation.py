@@ -13,8 +13,6 @@ then rounded and clipped to uint8. Noise is seeded: the same seed, image and tim
 same result, so studies are repeatable.
 """
 
-from __future__ import annotations
-
 from dataclasses import dataclass
 
 import cv2

@@ -83,14 +83,6 @@ class PanelSpec:
     markers: list[MarkerSpec] = field(default_factory=list)
     switches: list[SwitchSpec] = field(default_factory=list)
 
-    def switch(self, name: str) -> SwitchSpec:
-        for s in self.switches:
-            if s.name == name:
-                return s
-        raise ConfigurationError(
-            f"no switch '{name}' on the panel (have {[s.name for s in self.switches]})"
-        )
-
 
 @dataclass
 class MarkerPoseEstimate:

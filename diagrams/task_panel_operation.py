@@ -1,0 +1,300 @@
+"""Task `panel_operation`: the rover arm presses a panel switch guided by its camera (seed 003).
+
+Diagram: station (arm, gripper camera rendered at `supersampling` x its resolution, panel)
+-> ImageDegradation (pixel integration, lighting, blur, noise) -> MarkerPoseEstimator ->
+PanelOperation -> the arm's position command. The start is a random camera pose in front of
+the panel (seeded: distance, tilt, aim point) solved by inverse kinematics, so a marker is
+in view; or an explicit joint vector.
+
+Metrics (ground truth from the simulation; frames as in systems/marker_pose.py):
+  switch_pressed      1-based index of the switch whose cap travelled past its on-travel
+                      (a list if several did, None if none): observed, not assumed;
+  success             no failure and exactly the chosen switch pressed;
+  base_position_error_mm  |true camera position in P at the base point - its target|;
+  press_error_mm      {x, y, z}: |true tip position in P while pressing - its target|;
+  measurements        one record per image analysed (point, validity, ids, distance);
+  marker_loss         what the sequencer did when markers were not visible ("abort" or
+                      "continue" with the last valid estimate), None if they always were.
+With `cover_markers_after_base` a cover slides in front of the markers once the base
+measurement is taken (the seed's Table 6 case).
+"""
+
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+from pydrake.math import RigidTransform
+from pydrake.multibody.parsing import LoadModelDirectives, ProcessModelDirectives
+from pydrake.multibody.plant import MultibodyPlant
+from pydrake.systems.analysis import ApplySimulatorConfig, Simulator
+from pydrake.systems.framework import DiagramBuilder
+
+from guidedarm.diagrams.model_paths import MODELS_DIR, MakeParser
+from guidedarm.diagrams.panel_assets import COVER_CLOSED_M
+from guidedarm.diagrams.panel_camera_rig import LookAt
+from guidedarm.diagrams.panel_files import (
+    IntrinsicsFromCameraConfig,
+    LoadPanelSpec,
+    SupersampledCameraConfig,
+)
+from guidedarm.diagrams.run_context import RunContext
+from guidedarm.diagrams.scenario import StationScenario
+from guidedarm.diagrams.station import MakeStation
+from guidedarm.diagrams.tasks import TaskDefinition
+from guidedarm.systems.errors import ConfigurationError
+from guidedarm.systems.image_degradation import DegradationParams, ImageDegradation
+from guidedarm.systems.marker_pose import MarkerPoseSolver
+from guidedarm.systems.marker_pose_estimator import MarkerPoseEstimator
+from guidedarm.systems.panel_operation import ArmKinematics, PanelOperation, PanelOperationConfig
+
+
+@dataclass
+class StartConfig:
+    """position: explicit start joints (rad); empty draws a camera pose with `seed`:
+    distance to the aim point in distance_m [min, max] (m), tilt from the panel normal up to
+    max_tilt_deg, aim point within aim_offset_m of the markers' middle."""
+
+    position: list[float] = field(default_factory=list)
+    seed: int = 0
+    distance_m: list[float] = field(default_factory=lambda: [0.30, 0.40])
+    max_tilt_deg: float = 30.0
+    aim_offset_m: float = 0.02
+
+
+@dataclass
+class PanelOperationScenario:
+    """switch: 1-based index into the panel file's switches. camera: the key of
+    station.cameras on the arm (1920 x 1080 C920 by default), rendered at `supersampling`
+    times its resolution. panel_file: PANEL.yaml relative to models/; panel_model: its
+    model instance in the directives. arm_directives: the arm as its controller knows it
+    (kinematics for IK), without the panel. time_limit_s: simulated time allowed."""
+
+    task: str = "panel_operation"
+    arm: str = "rover_arm"
+    switch: int = 2
+    camera: str = "camera"
+    tip_frame: str = "rover_gripper::gripper_tip"
+    arm_directives: str = "package://guidedarm/directives/rover_arm.dmd.yaml"
+    panel_file: str = "panel/panel.yaml"
+    panel_model: str = "panel"
+    supersampling: int = 3
+    degradation: DegradationParams = field(default_factory=DegradationParams)
+    start: StartConfig = field(default_factory=StartConfig)
+    cover_markers_after_base: bool = False
+    operation: PanelOperationConfig = field(default_factory=PanelOperationConfig)
+    time_limit_s: float = 40.0
+    station: StationScenario = field(default_factory=StationScenario)
+
+
+class PanelOperationRun:
+    """The diagram of one scenario; `Run(start)` simulates from a start joint vector, so
+    several starts can share one build (the 10-run study)."""
+
+    def __init__(self, scenario: PanelOperationScenario, context: RunContext) -> None:
+        self.scenario = scenario
+        self.context = context
+        self.panel = LoadPanelSpec(MODELS_DIR / scenario.panel_file)
+        if not 1 <= scenario.switch <= len(self.panel.switches):
+            raise ConfigurationError(
+                f"switch must be 1 .. {len(self.panel.switches)}, got {scenario.switch}"
+            )
+        if scenario.camera not in scenario.station.cameras:
+            raise ConfigurationError(f"camera '{scenario.camera}' is not in station.cameras")
+        if scenario.arm not in scenario.station.arms:
+            raise ConfigurationError(f"arm '{scenario.arm}' is not in station.arms")
+        self.kinematics = _MakeArmKinematics(scenario)
+        self._Build()
+
+    def _Build(self) -> None:
+        scenario = self.scenario
+        k = scenario.supersampling
+        camera = scenario.station.cameras[scenario.camera]
+        station_scenario = _replace_camera(scenario.station, scenario.camera, camera, k)
+        builder = DiagramBuilder()
+        self.station = builder.AddNamedSystem(
+            "station", MakeStation(station_scenario, self.context.meshcat)
+        )
+        rendered = station_scenario.cameras[scenario.camera]
+        params = DegradationParams(**{**scenario.degradation.__dict__, "supersampling": k})
+        degradation = builder.AddNamedSystem("image_degradation", ImageDegradation(params))
+        solver = MarkerPoseSolver(IntrinsicsFromCameraConfig(rendered, k), self.panel)
+        estimator = builder.AddNamedSystem("marker_pose_estimator", MarkerPoseEstimator(solver))
+        switch = self.panel.switches[scenario.switch - 1]
+        self.sequencer = builder.AddNamedSystem(
+            "panel_operation",
+            PanelOperation(self.kinematics, self.panel, switch, scenario.operation),
+        )
+        builder.Connect(
+            self.station.GetOutputPort(f"{scenario.camera}.rgb_image"),
+            degradation.get_input_port(),
+        )
+        builder.Connect(degradation.get_output_port(), estimator.get_input_port())
+        builder.Connect(
+            estimator.GetOutputPort("estimate"), self.sequencer.GetInputPort("marker_estimate")
+        )
+        builder.Connect(
+            self.station.GetOutputPort(f"{scenario.arm}.state_estimated"),
+            self.sequencer.GetInputPort("arm_state"),
+        )
+        builder.Connect(
+            self.sequencer.get_output_port(),
+            self.station.GetInputPort(f"{scenario.arm}.position_commanded"),
+        )
+        self.diagram = builder.Build()
+        self.simulator = Simulator(self.diagram)
+        ApplySimulatorConfig(scenario.station.simulator_config, self.simulator)
+        self.plant: MultibodyPlant = self.station.GetSubsystemByName("plant")
+        self.panel_instance = self.plant.GetModelInstanceByName(scenario.panel_model)
+        self.arm_instance = self.plant.GetModelInstanceByName(scenario.arm)
+        plant_context = self.plant.CreateDefaultContext()
+        self.X_WP = self.plant.GetFrameByName("plate", self.panel_instance).CalcPoseInWorld(
+            plant_context
+        )
+
+    def SampleStart(self, seed: int) -> np.ndarray:
+        """A start joint vector whose camera sees the panel from a random pose (see
+        StartConfig), by inverse kinematics from the arm's default position."""
+        start = self.scenario.start
+        rng = np.random.default_rng(seed)
+        centres = [m.X_PM.GetDeterministicValue().translation() for m in self.panel.markers]
+        middle = np.mean(centres, axis=0)
+        q_default = self.kinematics.plant.GetPositions(self.kinematics.plant.CreateDefaultContext())
+        for _ in range(50):
+            aim = middle + np.append(rng.uniform(-1, 1, 2) * start.aim_offset_m, 0.0)
+            tilt = np.radians(rng.uniform(0.0, start.max_tilt_deg))
+            azimuth = rng.uniform(0.0, 2 * np.pi)
+            direction = [
+                np.sin(tilt) * np.cos(azimuth),
+                np.sin(tilt) * np.sin(azimuth),
+                np.cos(tilt),
+            ]
+            p_PC = aim + rng.uniform(*start.distance_m) * np.asarray(direction)
+            X_WT = self.X_WP @ LookAt(p_PC, aim) @ self.kinematics.X_CT
+            q = self.kinematics.SolveTip(X_WT, q_default)
+            if q is not None:
+                return q
+        raise ConfigurationError(f"no reachable start pose found for seed {seed}")
+
+    def Run(self, q_start: np.ndarray) -> dict[str, Any]:
+        """Simulates the operation from q_start; returns the summary metrics."""
+        scenario = self.scenario
+        context = self.simulator.get_mutable_context()
+        context.SetTime(0.0)
+        self.diagram.SetDefaultContext(context)
+        plant_context = self.plant.GetMyMutableContextFromRoot(context)
+        self.plant.SetPositions(plant_context, self.arm_instance, q_start)
+        self.simulator.Initialize()
+        self.context.start_recording()
+        sequencer_context = self.sequencer.GetMyContextFromRoot(context)
+        measured_base = self.sequencer.steps.index(
+            next(s for s in self.sequencer.steps if s.kind == "measure" and s.label == "base")
+        )
+        covered = False
+        t = 0.0
+        while t < scenario.time_limit_s:
+            t = min(t + 0.1, scenario.time_limit_s)
+            self.simulator.AdvanceTo(t)
+            state = self.sequencer.GetSequencerState(sequencer_context)
+            if state.done:
+                break
+            if scenario.cover_markers_after_base and not covered and state.step > measured_base:
+                cover = self.plant.GetJointByName("cover_slide", self.panel_instance)
+                cover.set_translation(plant_context, COVER_CLOSED_M)
+                covered = True
+            self.context.progress(f"simulated {t:.1f} s, step {state.step}")
+        self.context.write_replay()
+        return self._Metrics(self.sequencer.GetSequencerState(sequencer_context), context)
+
+    def _Metrics(self, state, context) -> dict[str, Any]:
+        scenario = self.scenario
+        plant_context = self.plant.GetMyContextFromRoot(context)
+        travels = [
+            -self.plant.GetJointByName(s.name, self.panel_instance).get_translation(plant_context)
+            for s in self.panel.switches
+        ]
+        pressed = [
+            i + 1
+            for i, (s, travel) in enumerate(zip(self.panel.switches, travels, strict=True))
+            if travel >= s.on_travel_m
+        ]
+        failure = state.failure
+        if failure is None and not state.done:
+            failure = f"the sequence did not finish within {scenario.time_limit_s} s"
+        if failure is None and pressed != [scenario.switch]:
+            failure = f"pressed switches {pressed}, expected [{scenario.switch}]"
+        targets = self.sequencer.targets
+        X_PW = self.X_WP.inverse()
+        base_error = None
+        if "measure_base" in state.q_at:
+            X_PC = X_PW @ self.kinematics.X_WC(np.array(state.q_at["measure_base"]))
+            X_PC_target = targets.base() @ self.kinematics.X_CT.inverse()
+            base_error = _mm(np.linalg.norm(X_PC.translation() - X_PC_target.translation()))
+        press_error = None
+        if "press" in state.q_at:
+            p_PT = (X_PW @ self.kinematics.X_WT(np.array(state.q_at["press"]))).translation()
+            target = targets.at_switch(-scenario.operation.press_depth_m).translation()
+            press_error = dict(zip("xyz", (_mm(abs(e)) for e in p_PT - target), strict=True))
+        lost = [m for m in state.measurements if not m["valid"]]
+        return {
+            "success": failure is None,
+            "switch": scenario.switch,
+            "switch_pressed": pressed[0] if len(pressed) == 1 else (pressed or None),
+            "switch_travel_mm": [_mm(t) for t in travels],
+            "base_position_error_mm": base_error,
+            "press_error_mm": press_error,
+            "measurements": state.measurements,
+            "marker_loss": scenario.operation.on_marker_loss if lost else None,
+            "failure": failure,
+            "sim_time_s": round(context.get_time(), 3),
+        }
+
+
+def _mm(value: float) -> float:
+    return round(1000.0 * float(value), 3)
+
+
+def _replace_camera(station: StationScenario, name: str, camera, k: int) -> StationScenario:
+    cameras = dict(station.cameras)
+    cameras[name] = SupersampledCameraConfig(camera, k)
+    return StationScenario(**{**station.__dict__, "cameras": cameras})
+
+
+def _MakeArmKinematics(scenario: PanelOperationScenario) -> ArmKinematics:
+    plant = MultibodyPlant(0.0)
+    try:
+        directives = LoadModelDirectives(
+            MakeParser(plant).package_map().ResolveUrl(scenario.arm_directives)
+        )
+        ProcessModelDirectives(directives, MakeParser(plant))
+    except Exception as e:
+        raise ConfigurationError(f"arm_directives: {str(e).splitlines()[0]}") from None
+    plant.Finalize()
+    camera = scenario.station.cameras[scenario.camera].X_PB.base_frame or ""
+    frames = []
+    for scoped in (camera, scenario.tip_frame):
+        instance, _, name = scoped.rpartition("::")
+        if not instance or not plant.HasModelInstanceNamed(instance):
+            raise ConfigurationError(f"frame '{scoped}' is not in {scenario.arm_directives}")
+        frames.append(plant.GetFrameByName(name, plant.GetModelInstanceByName(instance)))
+    return ArmKinematics(plant, *frames)
+
+
+def RunPanelOperation(scenario: PanelOperationScenario, context: RunContext) -> dict[str, Any]:
+    """Builds the diagram, picks the start and simulates one operation."""
+    run = PanelOperationRun(scenario, context)
+    start = scenario.start
+    q_start = np.asarray(start.position, float) if start.position else run.SampleStart(start.seed)
+    return run.Run(q_start)
+
+
+def PanelStartPose(run: PanelOperationRun, q: np.ndarray) -> RigidTransform:
+    """The true camera pose X_PC at joint positions q (for study tables)."""
+    return run.X_WP.inverse() @ run.kinematics.X_WC(q)
+
+
+TASK = TaskDefinition(
+    name="panel_operation",
+    scenario_type=PanelOperationScenario,
+    run=RunPanelOperation,
+    description="rover arm presses a panel switch guided by fiducial markers (seed 003)",
+)

@@ -1,0 +1,73 @@
+"""Task `panel_operation` (seed 003, section 2.4; Tables 4-6 in simulation)."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from guidedarm.diagrams.command_run import LoadScenario
+from guidedarm.diagrams.run_context import RunContext
+from guidedarm.diagrams.task_panel_operation import PanelOperationRun
+
+
+def _run(tmp_path, overrides):
+    _, scenario, _ = LoadScenario("panel_operation", overrides)
+    return PanelOperationRun(scenario, RunContext(tmp_path, quiet=True))
+
+
+@pytest.mark.slow
+def test_ten_runs_from_different_starts_press_the_chosen_switch(tmp_path):
+    results = []
+    for switch in (1, 2, 3):
+        run = _run(tmp_path, [f"switch={switch}"])
+        for seed in range(switch - 1, 10, 3):
+            results.append(run.Run(run.SampleStart(seed)))
+    assert len(results) == 10
+    start_distances = [r["measurements"][0]["distance_mm"] for r in results]
+    assert max(start_distances) - min(start_distances) > 40  # really different starts
+    for r in results:
+        assert r["failure"] is None, r["failure"]
+        assert r["success"] and r["switch_pressed"] == r["switch"]
+        assert max(r["press_error_mm"].values()) <= 2.0, r["press_error_mm"]
+        assert r["base_position_error_mm"] <= 2.0
+        assert [m["point"] for m in r["measurements"]] == ["start", "base", "switch_point"]
+        assert all(m["valid"] for m in r["measurements"])
+        travel = r["switch_travel_mm"]
+        assert travel[r["switch"] - 1] >= 4.0
+        assert sum(t > 0.5 for t in travel) == 1  # no neighbour touched
+
+
+@pytest.mark.parametrize("policy", ["abort", "continue"])
+def test_markers_covered_after_base_position(tmp_path, policy):
+    run = _run(
+        tmp_path,
+        ["switch=3", "cover_markers_after_base=true", f"operation.on_marker_loss={policy}"],
+    )
+    result = run.Run(run.SampleStart(1))
+    lost = result["measurements"][-1]
+    assert lost["point"] == "switch_point" and not lost["valid"]
+    assert result["marker_loss"] == policy
+    if policy == "abort":
+        assert result["failure"] == (
+            "markers lost at the 'switch_point' point: aborted before pressing "
+            "(on_marker_loss: abort)"
+        )
+        assert result["switch_pressed"] is None and max(result["switch_travel_mm"]) < 0.5
+    else:
+        assert lost["used_last_valid_estimate"] is True
+        assert result["success"] and result["switch_pressed"] == 3
+        assert max(result["press_error_mm"].values()) <= 2.0
+
+
+def test_no_marker_in_view_at_start_fails_without_moving(tmp_path):
+    run = _run(tmp_path, [])
+    q_away = np.array([1.2, -1.5707963267948966, 1.5707963267948966, 0.0, 0.0, 0.0])
+    result = run.Run(q_away)
+    assert result["failure"] == "no marker of the panel in view at the 'start' point"
+    assert not result["success"] and result["switch_pressed"] is None
+
+
+def test_bad_switch_index_is_one_line(run_cli, tmp_path):
+    code, _, err = run_cli("run", "panel_operation", "--out", tmp_path, "--set", "switch=9")
+    assert code == 2
+    assert err.strip() == "guidedarm: error: switch must be 1 .. 3, got 9"
