@@ -63,7 +63,9 @@ def RunJointTour(scenario: JointTourScenario, context: RunContext) -> dict[str, 
     if scenario.arm not in arms:
         raise ConfigurationError(f"arm '{scenario.arm}' is not in station.arms {list(arms)}")
     builder = DiagramBuilder()
-    station = builder.AddNamedSystem("station", MakeStation(scenario.station, context.meshcat))
+    station = builder.AddNamedSystem(
+        "station", MakeStation(scenario.station, context.meshcat, context.hardware)
+    )
     n = station.GetOutputPort(f"{scenario.arm}.position_measured").size()
     for i, w in enumerate(scenario.waypoints):
         if len(w) != n:
