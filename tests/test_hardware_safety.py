@@ -7,6 +7,9 @@ import pytest
 from hardware_doubles import ScriptedArmLink
 from pydrake.multibody.plant import MultibodyPlant
 from pydrake.systems.analysis import Simulator
+from pydrake.systems.framework import DiagramBuilder, EventStatus
+from pydrake.systems.primitives import TrajectorySource
+from pydrake.trajectories import PiecewisePolynomial
 
 from guidedarm.diagrams.model_paths import MakeParser
 from guidedarm.systems.errors import ConfigurationError
@@ -115,3 +118,27 @@ def test_quiet_link_fails_with_the_watchdog_message(limits):
     with pytest.raises(LinkLostError, match=r"scripted: link quiet for 0.2\d* s"):
         _Simulate(link, limits, np.zeros(6), 0.1)
     assert link.stops == 1 and link.sent == []
+
+
+def test_skipped_periods_do_not_inflate_the_implied_velocity(limits):
+    # joint1 accelerates at 10 rad/s^2 (limit 20); measurements go stale for 10 ms in the
+    # middle. The first command after the gap spans 12 ms: implied 0.54 rad/s, not 3.24.
+    link = ScriptedArmLink(np.zeros(6))
+    t = np.arange(0.0, 0.2, DT)
+    ramp = PiecewisePolynomial.FirstOrderHold(t, np.outer([1, 0, 0, 0, 0, 0], 5.0 * t**2))
+    builder = DiagramBuilder()
+    source = builder.AddSystem(TrajectorySource(ramp))
+    driver = builder.AddSystem(ArmDriver(link, limits, DT, watchdog=0.1, stale_after=0.02))
+    builder.Connect(source.get_output_port(), driver.get_input_port())
+    simulator = Simulator(builder.Build())
+
+    def monitor(context) -> EventStatus:
+        link.age = 0.05 if 0.050 <= context.get_time() < 0.060 else 0.0
+        return EventStatus.DidNothing()
+
+    simulator.set_monitor(monitor)
+    simulator.AdvanceTo(0.1)
+    sent = np.array(link.sent)[:, 0]
+    assert driver.stale_skips == 5
+    assert len(sent) == 50 - 5
+    assert np.max(np.diff(sent)) == pytest.approx(5.0 * (0.060**2 - 0.048**2))

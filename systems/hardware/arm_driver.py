@@ -46,8 +46,10 @@ class ArmDriver(LeafSystem):
         self.stale_skips = 0
         n = limits.lower.size
         self._n = n
-        # State: measured q, v and the last sent command q, implied v.
-        self._state = self.DeclareDiscreteState(4 * n)
+        # State: measured q, v; the last sent command q, its implied v, when it was sent
+        # (context time) and the interval before it, so that skipped periods do not inflate
+        # the implied velocity and acceleration.
+        self._state = self.DeclareDiscreteState(4 * n + 2)
         self.DeclareVectorInputPort("position_commanded", n)
         self.DeclareVectorOutputPort("position_measured", n, self._CalcSlice(0, n))
         self.DeclareVectorOutputPort("velocity_estimated", n, self._CalcSlice(n, 2 * n))
@@ -70,7 +72,11 @@ class ArmDriver(LeafSystem):
         if sample is None:
             self._Fail(f"{self._link.name}: no measurement within the watchdog {self._watchdog} s")
         zeros = np.zeros(self._n)
-        state.set_value(self._state, np.concatenate([sample.q, sample.v, sample.q, zeros]))
+        t = context.get_time() - self._period  # as if the current position had been sent
+        state.set_value(
+            self._state,
+            np.concatenate([sample.q, sample.v, sample.q, zeros, [t, self._period]]),
+        )
 
     def _Update(self, context: Context, state: DiscreteValues) -> None:
         n = self._n
@@ -87,15 +93,17 @@ class ArmDriver(LeafSystem):
             self.stale_skips += 1
         else:
             q_command = self.get_input_port().Eval(context)
+            t_sent, dt_sent = x[-2:]
+            dt = context.get_time() - t_sent
             try:
                 v = CheckCommand(
-                    self._limits, q_command, x[2 * n : 3 * n], x[3 * n :], self._period
+                    self._limits, q_command, x[2 * n : 3 * n], x[3 * n : 4 * n], dt, dt_sent
                 )
             except CommandRefusedError as e:
                 self._link.stop()
                 raise CommandRefusedError(f"{self._link.name}: {e}; robot stopped") from None
-            self._link.send_position(q_command, self._period)
-            x[2 * n :] = np.concatenate([q_command, v])
+            self._link.send_position(q_command, dt)
+            x[2 * n :] = np.concatenate([q_command, v, [context.get_time(), dt]])
         state.set_value(self._state, x)
 
     def _Fail(self, message: str) -> None:

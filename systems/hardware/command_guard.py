@@ -1,9 +1,10 @@
 """Joint limits of an arm (from its MultibodyPlant) and the check every streamed command
 passes before it reaches the robot.
 
-A command q_k sent every dt seconds implies the velocity v_k = (q_k - q_{k-1}) / dt and the
-acceleration a_k = (v_k - v_{k-1}) / dt; a command outside the position range or implying a
-velocity or acceleration beyond the limits is refused, never clipped.
+A command q_k sent dt_k seconds after q_{k-1} implies the velocity v_k = (q_k - q_{k-1}) / dt_k
+(at the middle of that interval) and the acceleration a_k = (v_k - v_{k-1}) / ((dt_k +
+dt_{k-1}) / 2); a command outside the position range or implying a velocity or acceleration
+beyond the limits is refused, never clipped.
 """
 
 from __future__ import annotations
@@ -77,13 +78,15 @@ def CheckCommand(
     q_previous: np.ndarray,
     v_previous: np.ndarray,
     dt: float,
+    dt_previous: float | None = None,
 ) -> np.ndarray:
-    """Returns the implied velocity (rad/s) of `q_command`, or raises CommandRefusedError
-    naming the first joint and limit it would violate."""
+    """Returns the implied velocity (rad/s) of `q_command` sent `dt` s after `q_previous`
+    (itself sent `dt_previous` s after its predecessor; default dt), or raises
+    CommandRefusedError naming the first joint and limit it would violate."""
     if q_command.shape != limits.lower.shape or not np.all(np.isfinite(q_command)):
         raise CommandRefusedError(f"command refused: not {limits.lower.size} finite joints")
     v = (q_command - q_previous) / dt
-    a = (v - v_previous) / dt
+    a = (v - v_previous) / (0.5 * (dt + (dt if dt_previous is None else dt_previous)))
     checks = (
         ("position", q_command < limits.lower, "below", limits.lower, q_command),
         ("position", q_command > limits.upper, "above", limits.upper, q_command),
