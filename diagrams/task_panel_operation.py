@@ -11,7 +11,10 @@ Metrics (ground truth from the simulation; frames as in systems/marker_pose.py):
                       (a list if several did, None if none): observed, not assumed;
   success             no failure and exactly the chosen switch pressed;
   base_position_error_mm  |true camera position in P at the base point - its target|;
+  base_camera_distance_mm the true camera distance from the panel plane there;
   press_error_mm      {x, y, z}: |true tip position in P while pressing - its target|;
+  press_tip_W_mm, press_target_W_mm  that tip position and its target in the world
+                      (the parked rover's) frame, as in the seed's Tables 5 and 6;
   measurements        one record per image analysed (point, validity, ids, distance);
   marker_loss         what the sequencer did when markers were not visible ("abort" or
                       "continue" with the last valid estimate), None if they always were.
@@ -23,7 +26,6 @@ from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
-from pydrake.math import RigidTransform
 from pydrake.multibody.parsing import LoadModelDirectives, ProcessModelDirectives
 from pydrake.multibody.plant import MultibodyPlant
 from pydrake.systems.analysis import ApplySimulatorConfig, Simulator
@@ -224,16 +226,20 @@ class PanelOperationRun:
             failure = f"pressed switches {pressed}, expected [{scenario.switch}]"
         targets = self.sequencer.targets
         X_PW = self.X_WP.inverse()
-        base_error = None
+        base_error = base_distance = None
         if "measure_base" in state.q_at:
             X_PC = X_PW @ self.kinematics.X_WC(np.array(state.q_at["measure_base"]))
             X_PC_target = targets.base() @ self.kinematics.X_CT.inverse()
             base_error = _mm(np.linalg.norm(X_PC.translation() - X_PC_target.translation()))
-        press_error = None
+            base_distance = _mm(X_PC.translation()[2])
+        press_error = press_tip = None
+        target_W = self.X_WP @ targets.at_switch(-scenario.operation.press_depth_m)
         if "press" in state.q_at:
-            p_PT = (X_PW @ self.kinematics.X_WT(np.array(state.q_at["press"]))).translation()
+            X_WT = self.kinematics.X_WT(np.array(state.q_at["press"]))
+            p_PT = (X_PW @ X_WT).translation()
             target = targets.at_switch(-scenario.operation.press_depth_m).translation()
             press_error = dict(zip("xyz", (_mm(abs(e)) for e in p_PT - target), strict=True))
+            press_tip = [_mm(v) for v in X_WT.translation()]
         lost = [m for m in state.measurements if not m["valid"]]
         return {
             "success": failure is None,
@@ -241,7 +247,10 @@ class PanelOperationRun:
             "switch_pressed": pressed[0] if len(pressed) == 1 else (pressed or None),
             "switch_travel_mm": [_mm(t) for t in travels],
             "base_position_error_mm": base_error,
+            "base_camera_distance_mm": base_distance,
             "press_error_mm": press_error,
+            "press_tip_W_mm": press_tip,
+            "press_target_W_mm": [_mm(v) for v in target_W.translation()],
             "measurements": state.measurements,
             "marker_loss": scenario.operation.on_marker_loss if lost else None,
             "failure": failure,
@@ -285,11 +294,6 @@ def RunPanelOperation(scenario: PanelOperationScenario, context: RunContext) -> 
     start = scenario.start
     q_start = np.asarray(start.position, float) if start.position else run.SampleStart(start.seed)
     return run.Run(q_start)
-
-
-def PanelStartPose(run: PanelOperationRun, q: np.ndarray) -> RigidTransform:
-    """The true camera pose X_PC at joint positions q (for study tables)."""
-    return run.X_WP.inverse() @ run.kinematics.X_WC(q)
 
 
 TASK = TaskDefinition(
