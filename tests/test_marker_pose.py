@@ -145,3 +145,14 @@ def test_example_files_load_and_assets_regenerate(tmp_path):
     for path in WritePanelAssets(DEFAULT_PANEL_FILE, tmp_path):
         committed = DEFAULT_PANEL_FILE.parent / path.name
         assert committed.read_bytes() == path.read_bytes(), f"{path.name} is stale"
+
+
+def test_tilt_study_reproduces_table_3(run_cli, tmp_path):
+    code, out, err = run_cli("marker-study", "tilt", "--out", tmp_path)
+    assert code == 0, err
+    rows = (tmp_path / "tilt.csv").read_text().splitlines()
+    assert rows[0] == "reference_deg,vision_deg,abs_error_deg,rotation_error_deg"
+    table = np.array([[float(v) for v in row.split(",")] for row in rows[1:]])
+    assert table[:, 0].tolist() == list(range(0, 27, 2))
+    assert np.max(table[:, 2]) <= 1.0 and np.max(table[:, 3]) <= 1.0
+    assert (tmp_path / "tilt.png").stat().st_size > 10_000
