@@ -148,7 +148,7 @@ def test_example_files_load_and_assets_regenerate(tmp_path):
 
 
 def test_tilt_study_reproduces_table_3(run_cli, tmp_path):
-    code, out, err = run_cli("marker-study", "tilt", "--out", tmp_path)
+    code, _, err = run_cli("marker-study", "tilt", "--out", tmp_path)
     assert code == 0, err
     rows = (tmp_path / "tilt.csv").read_text().splitlines()
     assert rows[0] == "reference_deg,vision_deg,abs_error_deg,rotation_error_deg"
