@@ -104,6 +104,10 @@ class PanelOperationRun:
             raise ConfigurationError(f"camera '{scenario.camera}' is not in station.cameras")
         if scenario.arm not in scenario.station.arms:
             raise ConfigurationError(f"arm '{scenario.arm}' is not in station.arms")
+        if scenario.degradation.supersampling != 1 or scenario.supersampling < 1:
+            raise ConfigurationError(
+                "set the camera's supersampling (>= 1) with the top-level key 'supersampling'"
+            )
         self.kinematics = _MakeArmKinematics(scenario)
         self._Build()
 

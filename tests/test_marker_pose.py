@@ -156,3 +156,14 @@ def test_tilt_study_reproduces_table_3(run_cli, tmp_path):
     assert table[:, 0].tolist() == list(range(0, 27, 2))
     assert np.max(table[:, 2]) <= 1.0 and np.max(table[:, 3]) <= 1.0
     assert (tmp_path / "tilt.png").stat().st_size > 10_000
+
+
+def test_marker_cover_hides_the_markers(rig, solver):
+    X_PC = LookAt([0.06, 0, 0.3], [0.06, 0, 0])
+    rig.SetCover(True)
+    try:
+        covered = solver.estimate(rig.Render(X_PC))
+    finally:
+        rig.SetCover(False)
+    assert not covered.valid and covered.ids == []
+    assert solver.estimate(rig.Render(X_PC)).ids == [7, 42]

@@ -67,7 +67,17 @@ def test_no_marker_in_view_at_start_fails_without_moving(tmp_path):
     assert not result["success"] and result["switch_pressed"] is None
 
 
-def test_bad_switch_index_is_one_line(run_cli, tmp_path):
-    code, _, err = run_cli("run", "panel_operation", "--out", tmp_path, "--set", "switch=9")
+@pytest.mark.parametrize(
+    "override, message",
+    [
+        ("switch=9", "switch must be 1 .. 3, got 9"),
+        ("degradation.supersampling=2", "set the camera's supersampling (>= 1) with the top-level"),
+        ("operation.on_marker_loss=ignore", "on_marker_loss must be 'abort' or 'continue'"),
+        ("start.distance_m=near", "key 'start.distance_m': expected a list"),
+    ],
+)
+def test_bad_scenario_values_are_one_line(run_cli, tmp_path, override, message):
+    code, _, err = run_cli("run", "panel_operation", "--out", tmp_path, "--set", override)
     assert code == 2
-    assert err.strip() == "guidedarm: error: switch must be 1 .. 3, got 9"
+    lines = err.strip().splitlines()
+    assert len(lines) == 1 and message in lines[0], err
