@@ -15,7 +15,8 @@ Metrics (ground truth from the simulation; frames as in systems/marker_pose.py):
   press_error_mm      {x, y, z}: |true tip position in P while pressing - its target|;
   press_tip_W_mm, press_target_W_mm  that tip position and its target in the world
                       (the parked rover's) frame, as in the seed's Tables 5 and 6;
-  measurements        one record per image analysed (point, validity, ids, distance);
+  measurements        one record per image analysed (point, validity, ids, distance, the
+                      estimated p_CP and its true error estimate_error_mm);
   marker_loss         what the sequencer did when markers were not visible ("abort" or
                       "continue" with the last valid estimate), None if they always were.
 With `cover_markers_after_base` a cover slides in front of the markers once the base
@@ -30,6 +31,7 @@ from pydrake.multibody.parsing import LoadModelDirectives, ProcessModelDirective
 from pydrake.multibody.plant import MultibodyPlant
 from pydrake.systems.analysis import ApplySimulatorConfig, Simulator
 from pydrake.systems.framework import DiagramBuilder
+from pydrake.systems.primitives import VectorLogSink
 
 from guidedarm.diagrams.model_paths import MODELS_DIR, MakeParser
 from guidedarm.diagrams.panel_assets import COVER_CLOSED_M
@@ -39,6 +41,7 @@ from guidedarm.diagrams.panel_files import (
     LoadPanelSpec,
     SupersampledCameraConfig,
 )
+from guidedarm.diagrams.plots import PlotJointSeries
 from guidedarm.diagrams.run_context import RunContext
 from guidedarm.diagrams.scenario import StationScenario
 from guidedarm.diagrams.station import MakeStation
@@ -146,6 +149,13 @@ class PanelOperationRun:
             self.sequencer.get_output_port(),
             self.station.GetInputPort(f"{scenario.arm}.position_commanded"),
         )
+        self.joint_log = builder.AddNamedSystem(
+            "joint_log", VectorLogSink(self.kinematics.plant.num_positions(), 0.02)
+        )
+        builder.Connect(
+            self.station.GetOutputPort(f"{scenario.arm}.position_measured"),
+            self.joint_log.get_input_port(),
+        )
         self.diagram = builder.Build()
         self.simulator = Simulator(self.diagram)
         ApplySimulatorConfig(scenario.station.simulator_config, self.simulator)
@@ -189,6 +199,7 @@ class PanelOperationRun:
         self.diagram.SetDefaultContext(context)
         plant_context = self.plant.GetMyMutableContextFromRoot(context)
         self.plant.SetPositions(plant_context, self.arm_instance, q_start)
+        self.joint_log.FindMutableLog(context).Clear()
         self.simulator.Initialize()
         self.context.start_recording()
         sequencer_context = self.sequencer.GetMyContextFromRoot(context)
@@ -209,7 +220,33 @@ class PanelOperationRun:
                 covered = True
             self.context.progress(f"simulated {t:.1f} s, step {state.step}")
         self.context.write_replay()
-        return self._Metrics(self.sequencer.GetSequencerState(sequencer_context), context)
+        state = self.sequencer.GetSequencerState(sequencer_context)
+        self._Plot(state, context)
+        return self._Metrics(state, context)
+
+    def _Plot(self, state, context) -> None:
+        """joints.png (measured joints) and tip_distance.png (tip to panel plane, with the
+        instants at which images were analysed)."""
+        import matplotlib.pyplot as plt  # after guidedarm.diagrams.plots chose Agg
+
+        log = self.joint_log.FindLog(context)
+        times, q = log.sample_times(), log.data()
+        if times.size < 2:
+            return
+        self.context.save_figure(PlotJointSeries(times, {"measured": q}, "q (rad)"), "joints")
+        X_PW = self.X_WP.inverse()
+        depth = [
+            1e3 * (X_PW @ self.kinematics.X_WT(q[:, i])).translation()[2] for i in range(times.size)
+        ]
+        figure, axes = plt.subplots(figsize=(7, 3))
+        axes.plot(times, depth, label="tip in front of the panel plane")
+        for record in state.measurements:
+            axes.axvline(record["t_s"], color="g" if record["valid"] else "r", linestyle="--")
+        axes.set_xlabel("t (s)")
+        axes.set_ylabel("z of the tip in P (mm)")
+        axes.set_title("panel operation: dashed = image analysed (green valid, red lost)")
+        axes.grid(True, alpha=0.3)
+        self.context.save_figure(figure, "tip_distance")
 
     def _Metrics(self, state, context) -> dict[str, Any]:
         scenario = self.scenario
@@ -244,6 +281,13 @@ class PanelOperationRun:
             target = targets.at_switch(-scenario.operation.press_depth_m).translation()
             press_error = dict(zip("xyz", (_mm(abs(e)) for e in p_PT - target), strict=True))
             press_tip = [_mm(v) for v in X_WT.translation()]
+        for record in state.measurements:
+            if "p_CP_mm" in record:
+                X_WC = self.kinematics.X_WC(np.array(state.q_at[f"measure_{record['point']}"]))
+                p_CP = (X_WC.inverse() @ self.X_WP).translation()
+                record["estimate_error_mm"] = _mm(
+                    np.linalg.norm(1e-3 * np.array(record["p_CP_mm"]) - p_CP)
+                )
         lost = [m for m in state.measurements if not m["valid"]]
         return {
             "success": failure is None,

@@ -287,7 +287,9 @@ class PanelOperation(LeafSystem):
         s.q_at[f"measure_{label}"] = q.tolist()
         if estimate.valid:
             s.X_WP = self._kinematics.X_WC(q) @ estimate.X_CP
-            record["distance_mm"] = round(1000 * np.linalg.norm(estimate.X_CP.translation()), 2)
+            p_CP = estimate.X_CP.translation()
+            record["distance_mm"] = round(1000 * np.linalg.norm(p_CP), 2)
+            record["p_CP_mm"] = [round(1000 * v, 3) for v in p_CP]
         elif s.X_WP is None:
             s.failure = f"no marker of the panel in view at the '{label}' point"
         elif self._config.on_marker_loss == "abort":
