@@ -27,10 +27,9 @@ from guidedarm.diagrams.panel_files import (
     IntrinsicsFromCameraConfig,
     SupersampledCameraConfig,
 )
+from guidedarm.diagrams.station import RENDERER_NAME
 from guidedarm.systems.errors import ConfigurationError
 from guidedarm.systems.image_degradation import DegradationParams, DegradeImage
-
-RENDERER_NAME = "vtk"
 
 
 def LookAt(p_PC: np.ndarray, target_P: np.ndarray, up_P=(0.0, 1.0, 0.0)) -> RigidTransform:

@@ -86,9 +86,10 @@ class ArmKinematics:
     def SolveTip(self, X_WT: RigidTransform, q_guess: np.ndarray) -> np.ndarray | None:
         """Joint positions putting the tip at X_WT (1e-6 m, 1e-5 rad), near q_guess.
 
-        The panel poses keep the wrist close to straight (a singularity where only j4 + j6
-        is fixed), where SNOPT with the nearest-to-guess cost sometimes stalls; then the
-        solve is repeated without the cost and from perturbed guesses.
+        Facing a panel, a six-joint arm's wrist is often close to straight (a singularity:
+        only the sum of the two wrist rolls is fixed), where SNOPT with the nearest-to-guess
+        cost sometimes stalls; then the solve is repeated without the cost (from the guess,
+        then from perturbed guesses) and the solution polished towards the guess.
         """
         q = self._SolveTipOnce(X_WT, q_guess, q_guess)
         if q is not None:
