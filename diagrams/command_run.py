@@ -39,6 +39,12 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         metavar="KEY=VALUE",
         help="override a scenario key (dotted keys reach nested fields)",
     )
+    parser.add_argument(
+        "--path-csv",
+        type=Path,
+        metavar="FILE",
+        help="hose centerline CSV for path following (same as --set path_csv=FILE)",
+    )
     parser.set_defaults(func=run_command)
 
 
@@ -54,6 +60,8 @@ def LoadScenario(name_or_path: str, overrides: list[str]) -> tuple[Any, Any, str
 
 
 def run_command(args: argparse.Namespace) -> int:
+    if getattr(args, "path_csv", None) is not None:
+        args.overrides.append(f"path_csv={json.dumps(str(args.path_csv.resolve()))}")
     task, scenario, name = LoadScenario(args.scenario, args.overrides)
     out_dir = args.out or Path("runs") / name
     meshcat = Meshcat()

@@ -168,8 +168,8 @@ class RandomPathSpec:
 
     length: float = 0.6
     min_bend_radius: float = 0.10
-    radius_range: tuple[float, float] = (0.27, 0.45)
-    z_range: tuple[float, float] = (0.07, 0.22)
+    radius_range: tuple[float, float] = (0.29, 0.43)
+    z_range: tuple[float, float] = (0.08, 0.20)
     max_slope_deg: float = 35.0
     x_range: tuple[float, float] = (-0.45, 0.45)
 

@@ -20,9 +20,10 @@ seen far beyond the field, or the hose seen at another point of the same line.
 
 Estimators of the hose centre S in the tool frame T (the seed's S, eq. (8)):
   grid      the mean of the detected, error-free grid points (presence only, the seed).
-  ranging   trilateration from the nearest row sensor and the nearest column sensor: the
-            hose centre lies at range + r from each emitter, in the detection plane (T's
-            y-z plane); with one arm seeing it, along that sensor's line of sight.
+  ranging   refines the grid: among the sensors of the error-free detected points, the
+            nearest row sensor and the nearest column sensor trilaterate the hose centre
+            (it lies at range + r from each emitter, in the detection plane, T's y-z
+            plane). Nothing detected by the grid means nothing detected here too.
 """
 
 from __future__ import annotations
@@ -33,6 +34,9 @@ from dataclasses import dataclass
 import numpy as np
 from pydrake.geometry import GeometryId, QueryObject
 from pydrake.math import RigidTransform
+
+# A range agrees with a grid point within this fraction of the grid spacing.
+CONSISTENCY_FRACTION = 0.5
 
 
 def ConeRays(cone_angle: float, rings: int) -> np.ndarray:
@@ -164,7 +168,7 @@ class DetectionGrid:
         valid = np.asarray(valid, bool)
         detected = valid[:3, None] & valid[None, 3:]
         row, col = self.ExpectedRanges()
-        tol = self.spacing / 2
+        tol = self.spacing * CONSISTENCY_FRACTION
         bad = (np.abs(ranges[:3, None] - row) > tol) | (np.abs(ranges[None, 3:] - col) > tol)
         return detected, detected & bad
 
@@ -183,10 +187,15 @@ class DetectionGrid:
     ) -> tuple[np.ndarray | None, bool]:
         """The hose centre in T from the ranges (see the module docstring) or None; and
         whether it lies within half a grid spacing of the centre point."""
-        valid = np.asarray(valid, bool)
+        detected, errors = self.Detect(ranges, valid)
+        good = detected & ~errors
+        if not good.any():
+            return None, False
+        # Only sensors that take part in an error-free grid detection are trusted.
+        trusted = np.concatenate([good.any(axis=1), good.any(axis=0)])
         centre = self.points[1, 1]
-        row = _Nearest(ranges, valid, range(3))
-        col = _Nearest(ranges, valid, range(3, 6))
+        row = _Nearest(ranges, trusted, range(3))
+        col = _Nearest(ranges, trusted, range(3, 6))
         r = self.hose_radius
         candidates = []
         if row is not None and col is not None:

@@ -2,7 +2,7 @@
 
 Shapes modelled on seed 000, section 3.3 (m, robot base frame): 1 moderate up and down
 bends on an arc around the robot; 2 more and tighter bends (radius down to about 0.11 m);
-3 a long almost flat part, then a high bend closer to the base; 4 short, bent outward
+3 a long almost flat part, then a high bend closer to the base (0.33 m); 4 short, bent outward
 (away from the robot) and then up, past the standard x wall (see paper_path_4.yaml).
 """
 
@@ -31,10 +31,10 @@ def PaperPaths() -> dict[str, np.ndarray]:
         55,
         0.11 + 0.025 * np.sin(2 * np.pi * U * length_2 / 0.34),
     )
-    flat = _arc(0.42, -60, -20, 0.07 + 0.004 * U)[::3]
+    flat = _arc(0.40, -60, -20, 0.07 + 0.004 * U)[::3]
     v = U[1:]
-    phi = np.radians(-20 + 80 * v)
-    r = 0.42 - 0.06 * (1 - np.cos(2 * np.pi * v)) / 2
+    phi = np.radians(-20 + 85 * v)
+    r = 0.40 - 0.07 * (1 - np.cos(np.pi * v)) / 2
     hump = np.column_stack(
         [r * np.cos(phi), r * np.sin(phi), 0.074 + 0.11 * (1 - np.cos(2 * np.pi * v)) / 2]
     )

@@ -1,0 +1,253 @@
+"""PathFollower: the step loop of the seed's figure 10 as a LeafSystem.
+
+On a periodic tick it runs a small state machine:
+  SENSE  the arm is stopped: read the six ranges and the gripper pose, compute the tool
+         pose (23)-(26), estimate the hose point S, and take one step of the seed's
+         algorithm (path_following.FollowStep) -> the next gripper pose, a new IK request;
+  SOLVE  wait for ToolPoseIk's answer; a failure while the hose is in sight stops the arm
+         and reports the step and why; while lost or retrying, the next retry is tried;
+  MOVE   joint-space interpolation from the previous goal to the IK solution, timed so the
+         tool centre moves at tool_speed (and no joint faster than max_joint_speed), then
+         wait until the measured joints reach the goal;
+  DONE / FAILED  hold the last goal.
+"""
+
+from dataclasses import dataclass, replace
+
+import numpy as np
+from pydrake.common.value import AbstractValue
+from pydrake.math import RigidTransform
+from pydrake.systems.framework import BasicVector, Context, LeafSystem, State
+
+from guidedarm.systems.path_following import (
+    RECORD_FIELDS,
+    EstimateHose,
+    FollowerMemory,
+    FollowerParams,
+    FollowStep,
+    GiveUpDirection,
+    IsExploring,
+    MakeRecord,
+    StepResult,
+    ToolMount,
+)
+from guidedarm.systems.tof_sensing import DetectionGrid
+
+SENSE, SOLVE, MOVE, DONE, FAILED = range(5)
+
+
+@dataclass
+class _Loop:
+    """The follower's abstract state (small: copied at every tick)."""
+
+    mode: int
+    step: int
+    q_goal: np.ndarray
+    memory: FollowerMemory | None = None
+    X_WT_sensed: RigidTransform | None = None
+    target: RigidTransform | None = None
+    request: int = 0
+    q_start: np.ndarray | None = None
+    t0: float = 0.0
+    duration: float = 0.0
+    record: np.ndarray | None = None
+    grid: np.ndarray | None = None
+    failure: str = ""
+
+
+@dataclass(frozen=True)
+class MotionLimits:
+    """tool_speed (m/s), max_joint_speed (rad/s), settle_tolerance (rad), settle_timeout (s)."""
+
+    tool_speed: float = 0.05
+    max_joint_speed: float = 1.0
+    settle_tolerance: float = 1e-3
+    settle_timeout: float = 2.0
+
+
+class PathFollower(LeafSystem):
+    """Inputs: `ranges` (6, m), `valid` (6), `X_WG_measured` (RigidTransform of the gripper
+    in world W), `q_measured` (n, rad), `ik_status` ([id, success, time]), `q_goal` (n, rad),
+    `ik_failure` (str).
+
+    Outputs: `X_WG_desired` (RigidTransform), `request` ([id]), `position_commanded` (n, rad),
+    `step_record` (RECORD_FIELDS of the latest step), `detections` and `detection_errors`
+    (the 3 x 3 grid of the latest reading, row-major), `mode` ([mode, step]), `failure`.
+    """
+
+    def __init__(
+        self,
+        params: FollowerParams,
+        mount: ToolMount,
+        grid: DetectionGrid,
+        q_initial: np.ndarray,
+        motion: MotionLimits,
+        period: float,
+    ) -> None:
+        super().__init__()
+        params = params.Resolved()
+        self._params, self._mount, self._grid, self._motion = params, mount, grid, motion
+        self._period = period
+        n = len(q_initial)
+        self._ranges = self.DeclareVectorInputPort("ranges", 6)
+        self._valid = self.DeclareVectorInputPort("valid", 6)
+        self._X_WG = self.DeclareAbstractInputPort(
+            "X_WG_measured", AbstractValue.Make(RigidTransform())
+        )
+        self._q_measured = self.DeclareVectorInputPort("q_measured", n)
+        self._ik_status = self.DeclareVectorInputPort("ik_status", 3)
+        self._ik_goal = self.DeclareVectorInputPort("q_goal", n)
+        self._ik_failure = self.DeclareAbstractInputPort("ik_failure", AbstractValue.Make(""))
+        self._loop = self.DeclareAbstractState(
+            AbstractValue.Make(_Loop(SENSE, 0, np.asarray(q_initial, float)))
+        )
+        self.DeclarePeriodicUnrestrictedUpdateEvent(period, 0.0, self._Update)
+        state_only = {self.xa_ticket()}
+        self.DeclareAbstractOutputPort(
+            "X_WG_desired",
+            lambda: AbstractValue.Make(RigidTransform()),
+            self._CalcTarget,
+            prerequisites_of_calc=state_only,
+        )
+        self.DeclareVectorOutputPort(
+            "request", 1, self._CalcRequest, prerequisites_of_calc=state_only
+        )
+        self.DeclareVectorOutputPort(
+            "position_commanded",
+            n,
+            self._CalcCommand,
+            prerequisites_of_calc={self.xa_ticket(), self.time_ticket()},
+        )
+        self.DeclareVectorOutputPort(
+            "step_record", len(RECORD_FIELDS), self._CalcRecord, prerequisites_of_calc=state_only
+        )
+        self.DeclareVectorOutputPort(
+            "detections", 9, lambda c, o: self._CalcGrid(c, o, 0), prerequisites_of_calc=state_only
+        )
+        self.DeclareVectorOutputPort(
+            "detection_errors",
+            9,
+            lambda c, o: self._CalcGrid(c, o, 9),
+            prerequisites_of_calc=state_only,
+        )
+        self.DeclareVectorOutputPort("mode", 2, self._CalcMode, prerequisites_of_calc=state_only)
+        self.DeclareAbstractOutputPort(
+            "failure",
+            lambda: AbstractValue.Make(""),
+            self._CalcFailure,
+            prerequisites_of_calc=state_only,
+        )
+
+    def Loop(self, context: Context) -> _Loop:
+        """The current loop state (mode, step, failure, ...)."""
+        return context.get_abstract_state(self._loop).get_value()
+
+    def _Update(self, context: Context, state: State) -> None:
+        loop = self.Loop(context)
+        t = context.get_time()
+        if loop.mode == SENSE:
+            loop = self._Sense(context, loop, t)
+        elif loop.mode == SOLVE:
+            loop = self._Solve(context, loop, t)
+        elif loop.mode == MOVE:
+            loop = self._Move(context, loop, t)
+        else:
+            return
+        state.get_mutable_abstract_state(self._loop).set_value(loop)
+
+    def _Sense(self, context: Context, loop: _Loop, t: float) -> _Loop:
+        params = self._params
+        X_WT = self._mount.ToolPose(self._X_WG.Eval(context))
+        ranges = self._ranges.Eval(context)
+        valid = self._valid.Eval(context) > 0.5
+        memory = loop.memory or FollowerMemory.Start(X_WT, params)
+        S_T, centre_only = EstimateHose(self._grid, params.estimator, ranges, valid)
+        result = FollowStep(X_WT, S_T, centre_only, memory, params)
+        detected, errors = self._grid.Detect(ranges, valid)
+        loop = replace(
+            loop,
+            memory=result.memory,
+            X_WT_sensed=X_WT,
+            record=MakeRecord(loop.step, t, X_WT, result, ranges, valid),
+            grid=np.concatenate([detected.ravel(), errors.ravel()]).astype(float),
+        )
+        return self._Request(loop, result)
+
+    def _Request(self, loop: _Loop, result: StepResult) -> _Loop:
+        if result.ended:
+            return replace(loop, mode=DONE)
+        if loop.step + 1 >= self._params.max_steps:
+            return replace(
+                loop, mode=FAILED, failure=f"step limit ({self._params.max_steps}) reached"
+            )
+        return replace(
+            loop,
+            mode=SOLVE,
+            memory=result.memory,
+            target=self._mount.GripperPose(result.X_WT_next),
+            request=loop.request + 1,
+        )
+
+    def _Solve(self, context: Context, loop: _Loop, t: float) -> _Loop:
+        status = self._ik_status.Eval(context)
+        if status[0] < loop.request:
+            return loop
+        record = loop.record.copy()
+        record[RECORD_FIELDS.index("ik_time")] += status[2]
+        loop = replace(loop, record=record)
+        if status[1] < 0.5:
+            if IsExploring(loop.memory):
+                return self._Request(
+                    loop, GiveUpDirection(loop.X_WT_sensed, loop.memory, self._params)
+                )
+            reason = self._ik_failure.Eval(context)
+            return replace(loop, mode=FAILED, failure=f"IK failed at step {loop.step}: {reason}")
+        q_goal = self._ik_goal.Eval(context).copy()
+        target_tool = self._mount.ToolPose(loop.target).translation()
+        distance = np.linalg.norm(target_tool - loop.X_WT_sensed.translation())
+        m = self._motion
+        duration = max(
+            distance / m.tool_speed,
+            np.max(np.abs(q_goal - loop.q_goal)) / m.max_joint_speed,
+            self._period,
+        )
+        return replace(loop, mode=MOVE, q_start=loop.q_goal, q_goal=q_goal, t0=t, duration=duration)
+
+    def _Move(self, context: Context, loop: _Loop, t: float) -> _Loop:
+        end = loop.t0 + loop.duration
+        if t < end:
+            return loop
+        error = np.max(np.abs(self._q_measured.Eval(context) - loop.q_goal))
+        if error < self._motion.settle_tolerance or t > end + self._motion.settle_timeout:
+            return replace(loop, mode=SENSE, step=loop.step + 1)
+        return loop
+
+    def _CalcTarget(self, context: Context, output: AbstractValue) -> None:
+        target = self.Loop(context).target
+        output.set_value(target if target is not None else RigidTransform())
+
+    def _CalcRequest(self, context: Context, output: BasicVector) -> None:
+        output.SetFromVector([self.Loop(context).request])
+
+    def _CalcCommand(self, context: Context, output: BasicVector) -> None:
+        loop = self.Loop(context)
+        if loop.mode != MOVE:
+            output.SetFromVector(loop.q_goal)
+            return
+        s = np.clip((context.get_time() - loop.t0) / loop.duration, 0.0, 1.0)
+        output.SetFromVector(loop.q_start + s * (loop.q_goal - loop.q_start))
+
+    def _CalcRecord(self, context: Context, output: BasicVector) -> None:
+        record = self.Loop(context).record
+        output.SetFromVector(record if record is not None else np.full(len(RECORD_FIELDS), -1.0))
+
+    def _CalcGrid(self, context: Context, output: BasicVector, start: int) -> None:
+        grid = self.Loop(context).grid
+        output.SetFromVector(grid[start : start + 9] if grid is not None else np.zeros(9))
+
+    def _CalcMode(self, context: Context, output: BasicVector) -> None:
+        loop = self.Loop(context)
+        output.SetFromVector([loop.mode, loop.step])
+
+    def _CalcFailure(self, context: Context, output: AbstractValue) -> None:
+        output.set_value(self.Loop(context).failure)

@@ -1,0 +1,327 @@
+"""Mathematics of 3D path following with a ToF tool (seed 000, equations (1)-(26), 3.2).
+
+Frames: world W = robot base; tool T with origin O (position p_WO) at the centre of the
+detection field and x_T the travel direction (the detection plane's normal n); gripper G.
+
+One step, from the tool pose X_WT (O, R) and the detected hose point S (or none):
+  m = S - O (9); t = O - O' (10), O' the last tool position with a detection;
+  w = t + m (11); P_n = O + w_hat d (12)-(13), or P_n = O + R x_hat d when S = O (14);
+  d = short_step when the hose is seen only at the centre or not at all, else long_step;
+  w_a = n a + m b (15)-(17) with a = |t|, b in (0, 1);
+  yaw = atan2(w_a,y, w_a,x) (20), pitch = atan(-w_a,z / |w_a,xy|) (21), roll = 0 (22).
+Tool pose from gripper pose: O = O_c + R_c z_hat l_e, R_e = R_c R_ec (23)-(26).
+
+Beyond the seed (its discussion): after lost_limit steps without a detection the tool
+returns to the last pose that saw the hose and retries in a direction turned by
+recovery_angle_deg (yaw +, yaw -, pitch up; a downward retry near the end finds the
+bracket post and follows it); when every retry is lost too, the hose
+has ended (or is lost for good) and the follower stops there.
+"""
+
+import math
+from dataclasses import dataclass, field, replace
+
+import numpy as np
+from pydrake.math import RigidTransform, RollPitchYaw, RotationMatrix
+
+from guidedarm.systems.errors import ConfigurationError
+
+ESTIMATORS = ("grid", "ranging")
+STEERINGS = ("seed", "centring")
+
+
+@dataclass
+class FollowerParams:
+    """Parameters of the path follower (m, deg).
+
+    estimator: `grid` (the seed's presence-only 3 x 3 grid) or `ranging` (ranges localise
+        the hose between the grid points).
+    steering: `seed` (w = t + m, w_a = n a + m b) or `centring` (w = n a + m: forward along
+        the tool axis plus the full offset, and w_a = n a + (S - S') b: turn toward the
+        hose's own direction, S' the previous detected point); empty picks `seed` for the
+        grid and `centring` for ranging, whose S is accurate enough to steer on.
+    long_step, short_step: the seed's d for long and short steps.
+    rotation_reduction: the seed's b in (0, 1); 0 picks 0.3 (seed) or 0.5 (centring).
+    lost_limit: steps without detection before a recovery (0 disables recoveries).
+    recovery_angle_deg: turn of the retry direction.
+    max_steps: the run stops with a failure after this many steps.
+    """
+
+    estimator: str = "grid"
+    steering: str = ""
+    long_step: float = 0.015
+    short_step: float = 0.010
+    rotation_reduction: float = 0.0
+    lost_limit: int = 3
+    recovery_angle_deg: float = 20.0
+    max_steps: int = 400
+
+    def Resolved(self) -> "FollowerParams":
+        """A checked copy with the automatic steering and rotation_reduction filled in."""
+        steering = self.steering or ("centring" if self.estimator == "ranging" else "seed")
+        b = self.rotation_reduction or (0.5 if steering == "centring" else 0.3)
+        resolved = replace(self, steering=steering, rotation_reduction=b)
+        resolved.Check()
+        return resolved
+
+    def Check(self) -> None:
+        """Raises ConfigurationError naming the first bad parameter."""
+        if self.steering not in STEERINGS:
+            raise ConfigurationError(f"steering must be one of {STEERINGS}, got '{self.steering}'")
+        if self.estimator not in ESTIMATORS:
+            raise ConfigurationError(
+                f"estimator must be one of {ESTIMATORS}, got '{self.estimator}'"
+            )
+        if not 0 < self.short_step <= self.long_step:
+            raise ConfigurationError("need 0 < short_step <= long_step")
+        if not 0 < self.rotation_reduction < 1:
+            raise ConfigurationError("rotation_reduction (the seed's b) must be in (0, 1)")
+        if self.lost_limit < 0 or self.max_steps < 1:
+            raise ConfigurationError("lost_limit must be >= 0 and max_steps >= 1")
+
+
+def Rotation(roll: float, pitch: float, yaw: float) -> np.ndarray:
+    """R = Rz(yaw) Ry(pitch) Rx(roll), equations (1)-(4)."""
+    cr, sr, cp, sp, cy, sy = (
+        math.cos(roll),
+        math.sin(roll),
+        math.cos(pitch),
+        math.sin(pitch),
+        math.cos(yaw),
+        math.sin(yaw),
+    )
+    Rx = np.array([[1, 0, 0], [0, cr, -sr], [0, sr, cr]])
+    Ry = np.array([[cp, 0, sp], [0, 1, 0], [-sp, 0, cp]])
+    Rz = np.array([[cy, -sy, 0], [sy, cy, 0], [0, 0, 1]])
+    return Rz @ Ry @ Rx
+
+
+@dataclass(frozen=True)
+class ToolMount:
+    """The tool frame relative to the gripper: l_e along gripper z, then roll, pitch, yaw
+    (m, rad); the seed's tool: 0.1597 m, (pi, 0, -pi/4)."""
+
+    l_e: float
+    roll: float
+    pitch: float
+    yaw: float
+
+    def ToolPose(self, X_WG: RigidTransform) -> RigidTransform:
+        """X_WT from the gripper pose, equations (23)-(26)."""
+        R_c = X_WG.rotation().matrix()
+        p_WO = X_WG.translation() + R_c @ np.array([0.0, 0.0, 1.0]) * self.l_e
+        R_e = R_c @ Rotation(self.roll, self.pitch, self.yaw)
+        return RigidTransform(RotationMatrix(R_e), p_WO)
+
+    def GripperPose(self, X_WT: RigidTransform) -> RigidTransform:
+        """X_WG for a tool pose: the inverse of ToolPose."""
+        R_c = X_WT.rotation().matrix() @ Rotation(self.roll, self.pitch, self.yaw).T
+        O_c = X_WT.translation() - R_c @ np.array([0.0, 0.0, 1.0]) * self.l_e
+        return RigidTransform(RotationMatrix(R_c), O_c)
+
+    @staticmethod
+    def FromTransform(X_GT: RigidTransform) -> "ToolMount":
+        """The mount of a weld X_GT; ConfigurationError unless it is an offset along z."""
+        p = X_GT.translation()
+        if np.linalg.norm(p[:2]) > 1e-9:
+            raise ConfigurationError(f"tool frame is not on the gripper z axis (offset {p})")
+        rpy = RollPitchYaw(X_GT.rotation())
+        return ToolMount(float(p[2]), rpy.roll_angle(), rpy.pitch_angle(), rpy.yaw_angle())
+
+
+def OrientationFromVector(w_a: np.ndarray) -> RotationMatrix:
+    """Tool orientation with x along w_a and roll 0, equations (20)-(22)."""
+    yaw = math.atan2(w_a[1], w_a[0])
+    pitch = math.atan2(-w_a[2], math.hypot(w_a[0], w_a[1]))
+    return RotationMatrix(Rotation(0.0, pitch, yaw))
+
+
+@dataclass(frozen=True)
+class FollowerMemory:
+    """What the follower remembers between steps (world frame, m)."""
+
+    O_prime: np.ndarray
+    last_detection: RigidTransform
+    S_prime: np.ndarray | None = None
+    lost: int = 0
+    recovery: int = 0
+    recoveries: int = 0
+    retry_origin: np.ndarray | None = None
+
+    @staticmethod
+    def Start(X_WT: RigidTransform, params: FollowerParams) -> "FollowerMemory":
+        """Memory at the start pose: O' one short step behind O, as if arriving along x_T."""
+        n = X_WT.rotation().matrix()[:, 0]
+        return FollowerMemory(X_WT.translation() - n * params.short_step, X_WT)
+
+
+@dataclass(frozen=True)
+class StepResult:
+    """Next tool pose, new memory, and what this step saw (S_W None: no detection)."""
+
+    X_WT_next: RigidTransform
+    memory: FollowerMemory
+    S_W: np.ndarray | None
+    long_step: bool
+    ended: bool = False
+    info: dict = field(default_factory=dict)
+
+
+_RECOVERY_TURNS = ((1, 0), (-1, 0), (0, -1))
+
+
+def FollowStep(
+    X_WT: RigidTransform,
+    S_T: np.ndarray | None,
+    centre_only: bool,
+    memory: FollowerMemory,
+    params: FollowerParams,
+) -> StepResult:
+    """One step of the seed's algorithm (module docstring); S_T is the detected hose point in
+    the tool frame, centre_only whether it is the centre point alone."""
+    p_WO = X_WT.translation()
+    R = X_WT.rotation().matrix()
+    n = R[:, 0]
+    if S_T is None:
+        return _StepWithoutDetection(X_WT, memory, params)
+    S_W = X_WT @ np.asarray(S_T, float)
+    m = S_W - p_WO
+    t = p_WO - memory.O_prime
+    d = params.short_step if centre_only else params.long_step
+    a = np.linalg.norm(t)
+    if np.linalg.norm(m) < 1e-9:
+        P_n = p_WO + n * d
+    else:
+        # Centring trusts m as the hose's true offset: the forward part is the tool axis,
+        # not the last displacement, whose sideways part made the seed's tool wave.
+        w = (n * a if params.steering == "centring" else t) + m
+        P_n = p_WO + w / np.linalg.norm(w) * d
+    if params.steering == "centring" and memory.S_prime is not None:
+        w_a = n * a + (S_W - memory.S_prime) * params.rotation_reduction
+    else:
+        w_a = n * a + m * params.rotation_reduction
+    # A retry counts as a recovery once the tool sees the hose away from where it restarted.
+    retrying = memory.recovery > 0
+    recovered = retrying and np.linalg.norm(p_WO - memory.retry_origin) > params.short_step
+    still_retrying = retrying and not recovered
+    new_memory = FollowerMemory(
+        O_prime=p_WO,
+        S_prime=S_W,
+        last_detection=memory.last_detection if still_retrying else X_WT,
+        recovery=memory.recovery if still_retrying else 0,
+        recoveries=memory.recoveries + int(recovered),
+        retry_origin=memory.retry_origin if still_retrying else None,
+    )
+    return StepResult(
+        RigidTransform(OrientationFromVector(w_a), P_n), new_memory, S_W, not centre_only
+    )
+
+
+def GiveUpDirection(
+    X_WT: RigidTransform, memory: FollowerMemory, params: FollowerParams
+) -> StepResult:
+    """The step after the arm cannot reach the next pose of a lost or retrying tool: the
+    next retry direction (or the end of the path)."""
+    return _StepWithoutDetection(X_WT, replace(memory, lost=params.lost_limit), params)
+
+
+def IsExploring(memory: FollowerMemory) -> bool:
+    """Whether the tool is moving without the hose in sight (lost or retrying)."""
+    return memory.lost > 0 or memory.recovery > 0
+
+
+def _StepWithoutDetection(
+    X_WT: RigidTransform, memory: FollowerMemory, params: FollowerParams
+) -> StepResult:
+    p_WO = X_WT.translation()
+    n = X_WT.rotation().matrix()[:, 0]
+    lost = memory.lost + 1
+    if params.lost_limit == 0 or lost <= params.lost_limit:
+        X_next = RigidTransform(OrientationFromVector(n), p_WO + n * params.short_step)
+        return StepResult(X_next, replace(memory, lost=lost), None, False)
+    attempt = memory.recovery + 1
+    if attempt > len(_RECOVERY_TURNS):
+        return StepResult(X_WT, memory, None, False, ended=True)
+    turn_yaw, turn_pitch = _RECOVERY_TURNS[attempt - 1]
+    delta = math.radians(params.recovery_angle_deg)
+    last = memory.last_detection
+    rpy = RollPitchYaw(last.rotation())
+    R_retry = RotationMatrix(
+        Rotation(0.0, rpy.pitch_angle() + turn_pitch * delta, rpy.yaw_angle() + turn_yaw * delta)
+    )
+    n_retry = R_retry.matrix()[:, 0]
+    O_last = last.translation()
+    retry_memory = replace(
+        memory,
+        O_prime=O_last - n_retry * params.short_step,
+        lost=0,
+        recovery=attempt,
+        retry_origin=O_last,
+    )
+    return StepResult(
+        RigidTransform(R_retry, O_last), retry_memory, None, False, info={"recovery": attempt}
+    )
+
+
+def EstimateHose(grid, estimator: str, ranges: np.ndarray, valid: np.ndarray):
+    """(S_T or None, centre_only) from a reading, by the selected estimator."""
+    if estimator == "ranging":
+        return grid.RangingEstimate(ranges, valid)
+    return grid.GridEstimate(ranges, valid)
+
+
+# Layout of one step's record (a vector, so that Drake loggers can keep it).
+RECORD_FIELDS = (
+    [
+        "step",
+        "t",
+        "O_x",
+        "O_y",
+        "O_z",
+        "S_x",
+        "S_y",
+        "S_z",
+        "detected",
+        "long_step",
+        "lost",
+        "recovery",
+        "recoveries",
+        "ended",
+        "ik_time",
+    ]
+    + [f"range_{i}" for i in range(1, 7)]
+    + [f"valid_{i}" for i in range(1, 7)]
+)
+
+
+def MakeRecord(
+    step: int,
+    t: float,
+    X_WT: RigidTransform,
+    result: StepResult,
+    ranges: np.ndarray,
+    valid: np.ndarray,
+    ik_time: float = 0.0,
+) -> np.ndarray:
+    """One step as a vector in RECORD_FIELDS order (S is NaN-free: O when undetected)."""
+    detected = result.S_W is not None
+    S = result.S_W if detected else X_WT.translation()
+    memory = result.memory
+    return np.concatenate(
+        [
+            [step, t],
+            X_WT.translation(),
+            S,
+            [
+                float(detected),
+                float(result.long_step),
+                memory.lost,
+                memory.recovery,
+                memory.recoveries,
+                float(result.ended),
+                ik_time,
+            ],
+            ranges,
+            np.asarray(valid, float),
+        ]
+    )

@@ -1,0 +1,202 @@
+"""Inverse kinematics of a commanded frame pose with the seed's constraints (seed 000, 3.2).
+
+One solve is a Drake InverseKinematics program on the arm's joints, started from the
+previous joint positions (as the seed's Matlab solver was):
+  - the frame's origin within position_tolerance of the target; its orientation as close
+    to the target as the arm allows (a cost, as the seed's weighted generalised IK), and
+    never farther than orientation_tolerance_deg: near the reach limit the tool keeps
+    its position on the path and tilts a little less than asked, and the next step,
+    computed from the measured pose, corrects the rest;
+  - no step rotates the frame by 90 deg or more about any axis (no tool reversal): the
+    angle between the new and the current orientation stays below max_step_rotation_deg;
+  - a downward tool: the frame's `down_axis` stays within max_tilt_deg of world -z;
+  - the origin of every body the arm moves stays inside the cell's virtual walls
+    (x, y in limits, z >= z_min; the seed's controller walls and IK bounds);
+  - joint limits (InverseKinematics' bounds);
+  - the joint-space move from the previous q keeps the frame within max_swing of the
+    straight line between its two poses: a solution on another branch (a wrist or elbow
+    flip) would swing the tool through the hose on the way, so it is not taken;
+  - a small cost on the distance to the previous joint positions keeps the same branch.
+"""
+
+import math
+import time
+from dataclasses import dataclass, field
+
+import numpy as np
+from pydrake.math import RigidTransform, RotationMatrix
+from pydrake.multibody.inverse_kinematics import InverseKinematics
+from pydrake.multibody.plant import MultibodyPlant
+from pydrake.multibody.tree import Frame, ModelInstanceIndex
+from pydrake.solvers import SnoptSolver, Solve
+
+from guidedarm.systems.errors import ConfigurationError
+
+
+@dataclass
+class IkLimits:
+    """Tolerances (m, deg), the frame's axis that should point down, the cell's virtual
+    walls (m, world frame), the weight of the stay-near-previous-q cost and the number of
+    perturbed restarts after a failed solve."""
+
+    position_tolerance: float = 0.0005
+    orientation_tolerance_deg: float = 0.5
+    orientation_cost_weight: float = 10.0
+    max_step_rotation_deg: float = 89.0
+    max_tilt_deg: float = 85.0
+    down_axis: list[float] = field(default_factory=lambda: [0.0, 0.0, 1.0])
+    x: list[float] = field(default_factory=lambda: [-0.55, 0.55])
+    y: list[float] = field(default_factory=lambda: [-0.55, 0.55])
+    z_min: float = 0.005
+    max_swing: float = 0.025
+    joint_cost_weight: float = 0.01
+    retries: int = 3
+
+
+@dataclass(frozen=True)
+class IkResult:
+    """q (rad, the arm's joints), success, solve time (s), and why it failed ('' if not)."""
+
+    q: np.ndarray
+    success: bool
+    solve_time: float
+    reason: str
+
+
+class ToolPoseSolver:
+    """IK of `frame` (a frame of `plant`) for the arm `instance`; see the module docstring."""
+
+    def __init__(
+        self, plant: MultibodyPlant, instance: ModelInstanceIndex, frame: Frame, limits: IkLimits
+    ) -> None:
+        self.plant = plant
+        self.frame = frame
+        self.limits = limits
+        self.context = plant.CreateDefaultContext()
+        self._q_start = plant.GetPositions(self.context).copy()
+        joints = plant.GetJointIndices(instance)
+        self.q_indices = np.array(
+            [
+                plant.get_joint(j).position_start()
+                for j in joints
+                if plant.get_joint(j).num_positions()
+            ]
+        )
+        if plant.num_positions() != len(self.q_indices):
+            raise ConfigurationError(
+                "tool pose IK needs a plant whose only joints are the arm's "
+                f"({plant.num_positions()} positions, the arm has {len(self.q_indices)})"
+            )
+        moved = plant.GetBodiesKinematicallyAffectedBy(list(joints))
+        self._bodies = [plant.get_body(b) for b in moved]
+        self._solver = SnoptSolver() if SnoptSolver().available() else None
+
+    def ForwardKinematics(self, q: np.ndarray) -> RigidTransform:
+        """X_WF of the frame at joint positions q."""
+        self.plant.SetPositions(self.context, q)
+        return self.frame.CalcPoseInWorld(self.context)
+
+    def Swing(self, q_from: np.ndarray, q_to: np.ndarray) -> float:
+        """Largest distance (m) of the frame from the straight line between its end poses
+        along the joint-space interpolation from q_from to q_to."""
+        a = self.ForwardKinematics(q_from).translation()
+        b = self.ForwardKinematics(q_to).translation()
+        worst = 0.0
+        for s in (0.25, 0.5, 0.75):
+            p = self.ForwardKinematics(q_from + s * (q_to - q_from)).translation()
+            worst = max(worst, float(np.linalg.norm(p - (a + s * (b - a)))))
+        return worst
+
+    def Solve(self, X_WF_desired: RigidTransform, q_previous: np.ndarray) -> IkResult:
+        """Joint positions putting the frame at X_WF_desired, started from q_previous."""
+        start = time.perf_counter()
+        lim = self.limits
+        X_WF_now = self.ForwardKinematics(q_previous)
+        ik = InverseKinematics(self.plant, with_joint_limits=True)
+        q = ik.q()
+        world = self.plant.world_frame()
+        p = X_WF_desired.translation()
+        tol = lim.position_tolerance
+        described = [
+            (
+                ik.AddPositionConstraint(self.frame, np.zeros(3), world, p - tol, p + tol),
+                "target position",
+            ),
+            (
+                ik.AddOrientationConstraint(
+                    world,
+                    X_WF_desired.rotation(),
+                    self.frame,
+                    RotationMatrix(),
+                    math.radians(lim.orientation_tolerance_deg),
+                ),
+                "target orientation",
+            ),
+            (
+                ik.AddOrientationConstraint(
+                    world,
+                    X_WF_now.rotation(),
+                    self.frame,
+                    RotationMatrix(),
+                    math.radians(lim.max_step_rotation_deg),
+                ),
+                "step rotation < 90 deg",
+            ),
+            (
+                ik.AddAngleBetweenVectorsConstraint(
+                    self.frame,
+                    np.asarray(lim.down_axis, float),
+                    world,
+                    np.array([0.0, 0.0, -1.0]),
+                    0.0,
+                    math.radians(lim.max_tilt_deg),
+                ),
+                "downward tool",
+            ),
+        ]
+        lower = np.array([lim.x[0], lim.y[0], lim.z_min])
+        upper = np.array([lim.x[1], lim.y[1], np.inf])
+        for body in self._bodies:
+            binding = ik.AddPositionConstraint(body.body_frame(), np.zeros(3), world, lower, upper)
+            described.append((binding, f"cell walls ({body.name()})"))
+        for binding, description in described:
+            binding.evaluator().set_description(description)
+        ik.AddOrientationCost(
+            world,
+            X_WF_desired.rotation(),
+            self.frame,
+            RotationMatrix(),
+            lim.orientation_cost_weight,
+        )
+        prog = ik.get_mutable_prog()
+        n = len(self.q_indices)
+        prog.AddQuadraticErrorCost(lim.joint_cost_weight * np.eye(n), q_previous, q)
+        # SNOPT occasionally stalls from the previous q near a limit; retry from nearby
+        # starts (seeded, so runs repeat) before reporting a failure.
+        rng = np.random.default_rng(len(q_previous))
+        starts = [q_previous] + [
+            q_previous + rng.normal(0.0, 0.3, size=n) for _ in range(self.limits.retries)
+        ]
+        swing = 0.0
+        for guess in starts:
+            result = self._solver.Solve(prog, guess) if self._solver else Solve(prog, guess)
+            if result.is_success():
+                q_new = result.GetSolution(q)
+                swing = self.Swing(q_previous, q_new)
+                if swing <= lim.max_swing:
+                    return IkResult(q_new, True, time.perf_counter() - start, "")
+        elapsed = time.perf_counter() - start
+        if swing > lim.max_swing:
+            reason = (
+                f"reaching the pose needs a reconfiguration (the tool would swing "
+                f"{1000 * swing:.0f} mm off its path)"
+            )
+            return IkResult(np.asarray(q_previous, float), False, elapsed, reason)
+        names = result.GetInfeasibleConstraintNames(prog)
+        reason = _Explain(names) if names else result.get_solution_result().name
+        return IkResult(np.asarray(q_previous, float), False, elapsed, reason)
+
+
+def _Explain(names: list[str]) -> str:
+    kinds = list(dict.fromkeys(name.split("[")[0] for name in names))
+    return "infeasible: " + ", ".join(kinds)

@@ -1,0 +1,139 @@
+"""The seed's path-following equations (1)-(26), long/short steps, recovery and end."""
+
+import math
+
+import numpy as np
+import pytest
+from pydrake.math import RigidTransform, RollPitchYaw
+
+from guidedarm.systems.errors import ConfigurationError
+from guidedarm.systems.path_following import (
+    FollowerMemory,
+    FollowerParams,
+    FollowStep,
+    GiveUpDirection,
+    OrientationFromVector,
+    Rotation,
+    ToolMount,
+)
+
+PARAMS = FollowerParams(long_step=0.015, short_step=0.010, lost_limit=2).Resolved()
+
+
+def test_rotation_is_z_y_x():
+    rng = np.random.default_rng(0)
+    for roll, pitch, yaw in rng.uniform(-3, 3, size=(20, 3)):
+        np.testing.assert_allclose(
+            Rotation(roll, pitch, yaw),
+            RollPitchYaw(roll, pitch, yaw).ToRotationMatrix().matrix(),
+            atol=1e-12,
+        )
+
+
+def test_tool_pose_from_gripper_pose_eq_23_26():
+    mount = ToolMount(0.1597, math.pi, 0.0, -math.pi / 4)
+    X_WG = RigidTransform(RollPitchYaw(0.1, -0.2, 0.3), [0.3, 0.1, 0.4])
+    X_WT = mount.ToolPose(X_WG)
+    # O = O_c + R_c z l_e, and the tool z axis points back at the gripper (roll pi).
+    np.testing.assert_allclose(
+        X_WT.translation(), X_WG.translation() + X_WG.rotation().matrix()[:, 2] * 0.1597
+    )
+    np.testing.assert_allclose(
+        X_WT.rotation().matrix()[:, 2], -X_WG.rotation().matrix()[:, 2], atol=1e-12
+    )
+    back = mount.GripperPose(X_WT)
+    np.testing.assert_allclose(back.GetAsMatrix4(), X_WG.GetAsMatrix4(), atol=1e-12)
+    assert ToolMount.FromTransform(
+        RigidTransform(RollPitchYaw(math.pi, 0, -math.pi / 4), [0, 0, 0.1597])
+    ).l_e == pytest.approx(0.1597)
+    with pytest.raises(ConfigurationError, match="not on the gripper z axis"):
+        ToolMount.FromTransform(RigidTransform([0.01, 0, 0.1]))
+
+
+def test_orientation_from_vector_eq_20_22():
+    w_a = np.array([1.0, 1.0, -math.sqrt(2.0)])
+    rpy = RollPitchYaw(OrientationFromVector(w_a))
+    assert rpy.yaw_angle() == pytest.approx(math.pi / 4)
+    assert rpy.pitch_angle() == pytest.approx(math.pi / 4)  # going down: positive pitch (21)
+    assert rpy.roll_angle() == pytest.approx(0.0, abs=1e-12)
+
+
+def _tool(yaw=0.0, p=(0.3, 0.0, 0.1)):
+    return RigidTransform(RollPitchYaw(0.0, 0.0, yaw), list(p))
+
+
+def test_long_step_toward_an_offset_detection_eq_9_13_17():
+    seed_params = FollowerParams(
+        long_step=0.015, short_step=0.010, steering="seed", rotation_reduction=0.3
+    ).Resolved()
+    X_WT = _tool()
+    memory = FollowerMemory(np.array([0.285, 0.0, 0.1]), X_WT)  # O' 15 mm behind
+    S_T = np.array([0.0, 0.022, 0.0])  # hose seen at the +y grid point
+    result = FollowStep(X_WT, S_T, False, memory, seed_params)
+    t = np.array([0.015, 0.0, 0.0])
+    m = np.array([0.0, 0.022, 0.0])
+    w = t + m
+    np.testing.assert_allclose(
+        result.X_WT_next.translation(), [0.3, 0.0, 0.1] + w / np.linalg.norm(w) * 0.015
+    )
+    w_a = np.array([1.0, 0.0, 0.0]) * 0.015 + m * 0.3
+    assert RollPitchYaw(result.X_WT_next.rotation()).yaw_angle() == pytest.approx(
+        math.atan2(w_a[1], w_a[0])
+    )
+    assert result.long_step
+    np.testing.assert_allclose(result.memory.O_prime, [0.3, 0.0, 0.1])
+
+
+def test_centre_only_is_a_short_step_along_the_tool_axis_eq_14():
+    X_WT = _tool(yaw=0.5)
+    memory = FollowerMemory.Start(X_WT, PARAMS)
+    result = FollowStep(X_WT, np.zeros(3), True, memory, PARAMS)
+    n = X_WT.rotation().matrix()[:, 0]
+    np.testing.assert_allclose(result.X_WT_next.translation(), X_WT.translation() + n * 0.010)
+    assert not result.long_step
+
+
+def test_lost_then_recovery_then_end():
+    X_seen = _tool()
+    memory = FollowerMemory.Start(X_seen, PARAMS)
+    result = FollowStep(X_seen, np.zeros(3), True, memory, PARAMS)
+    X, memory = result.X_WT_next, result.memory
+    O_prime = memory.O_prime.copy()
+    for k in range(PARAMS.lost_limit):  # straight on, O' kept (the seed's S = O case)
+        result = FollowStep(X, None, False, memory, PARAMS)
+        np.testing.assert_allclose(result.memory.O_prime, O_prime)
+        assert result.memory.lost == k + 1
+        X, memory = result.X_WT_next, result.memory
+    # Next loss: back to the last detecting pose, turned; each unreachable or lost retry
+    # moves on to the next turn (yaw +, yaw -, pitch up), then the path has ended.
+    result = FollowStep(X, None, False, memory, PARAMS)
+    turns = []
+    while not result.ended:
+        np.testing.assert_allclose(result.X_WT_next.translation(), X_seen.translation())
+        rpy = RollPitchYaw(result.X_WT_next.rotation())
+        turns.append((round(math.degrees(rpy.yaw_angle())), round(math.degrees(rpy.pitch_angle()))))
+        result = GiveUpDirection(result.X_WT_next, result.memory, PARAMS)
+    assert turns == [(20, 0), (-20, 0), (0, -20)]
+
+
+def test_a_retry_that_finds_the_hose_again_is_a_recovery():
+    X_seen = _tool()
+    memory = FollowerMemory.Start(X_seen, PARAMS)
+    memory = FollowStep(X_seen, np.zeros(3), True, memory, PARAMS).memory
+    retry = GiveUpDirection(X_seen, memory, PARAMS)
+    assert retry.memory.recovery == 1
+    # Seen again at the retry pose itself: not yet a recovery.
+    again = FollowStep(retry.X_WT_next, np.zeros(3), True, retry.memory, PARAMS)
+    assert again.memory.recoveries == 0 and again.memory.recovery == 1
+    moved = FollowStep(again.X_WT_next, np.zeros(3), True, again.memory, PARAMS)
+    moved = FollowStep(moved.X_WT_next, np.zeros(3), True, moved.memory, PARAMS)
+    assert moved.memory.recoveries == 1 and moved.memory.recovery == 0
+
+
+def test_params_are_checked_and_resolved():
+    assert FollowerParams(estimator="ranging").Resolved().steering == "centring"
+    assert FollowerParams().Resolved().rotation_reduction == 0.3
+    with pytest.raises(ConfigurationError, match="estimator"):
+        FollowerParams(estimator="lidar").Resolved()
+    with pytest.raises(ConfigurationError, match="rotation_reduction"):
+        FollowerParams(rotation_reduction=1.5).Resolved()

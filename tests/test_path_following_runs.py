@@ -1,0 +1,140 @@
+"""End-to-end path following (seed 000): the paper paths through the simulated station, a
+random-path suite through the kinematic executor, and bad input.
+
+The paper paths run the full station (servos at 2 ms); the 20 random paths use the
+kinematic executor (same algorithm, sensor and IK; IK solutions applied directly), which
+is about 30 times faster (docs/path_following.md).
+"""
+
+import json
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from guidedarm.diagrams.cli import main
+from guidedarm.diagrams.command_run import LoadScenario
+from guidedarm.diagrams.run_context import RunContext
+
+PAPER = ["paper_path_1", "paper_path_2", "paper_path_3"]
+
+
+def _run(tmp_path: Path, *overrides: str) -> dict:
+    task, scenario, _ = LoadScenario("path_following", list(overrides))
+    out = tmp_path / "_".join(o.replace("=", "-").replace("/", "_") for o in overrides)
+    return task.run(scenario, RunContext(out_dir=out, quiet=True))
+
+
+@pytest.fixture(scope="module")
+def station_runs(tmp_path_factory):
+    tmp = tmp_path_factory.mktemp("paper")
+    return {
+        (path, estimator): _run(tmp, f"path={path}", f"estimator={estimator}")
+        for path in PAPER
+        for estimator in ("grid", "ranging")
+    }
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("path", PAPER)
+def test_paper_paths_with_the_seeds_algorithm(station_runs, path):
+    s = station_runs[(path, "grid")]
+    assert s["success"], s["failure"]
+    assert s["coverage"] >= 0.95
+    assert s["collisions"] == 0
+    assert s["detected_path_error_max_mm"] <= 17.0  # the seed's +-16 mm, plus noise
+    assert s["tracking_error_max_mm"] <= 25.0
+    assert s["ik_time_median_ms"] <= 10.0
+
+
+@pytest.mark.slow
+def test_ranging_halves_the_errors(station_runs):
+    rows = []
+    for path in PAPER:
+        g, r = station_runs[(path, "grid")], station_runs[(path, "ranging")]
+        assert r["success"] and r["collisions"] == 0, r["failure"]
+        rows.append(
+            (
+                path,
+                g["detected_path_error_mean_mm"],
+                r["detected_path_error_mean_mm"],
+                g["tracking_error_mean_mm"],
+                r["tracking_error_mean_mm"],
+            )
+        )
+    print("\npath          detected mean (grid, ranging) mm   tracking mean (grid, ranging) mm")
+    for path, dg, dr, tg, tr in rows:
+        print(f"{path:13s} {dg:8.2f} {dr:8.2f}                       {tg:8.2f} {tr:8.2f}")
+    detected = np.array([[row[1], row[2]] for row in rows]).mean(axis=0)
+    tracking = np.array([[row[3], row[4]] for row in rows]).mean(axis=0)
+    assert detected[1] <= 0.5 * detected[0]
+    assert tracking[1] <= 0.5 * tracking[0]
+
+
+@pytest.mark.slow
+def test_ik_failure_mid_run_stops_and_says_where(tmp_path):
+    """paper_path_4 climbs where our MZ04D model needs a wrist reconfiguration; the IK
+    refuses the swing, the arm holds, and the summary names the step and the reason."""
+    s = _run(tmp_path, "path=paper_path_4")
+    assert not s["success"]
+    assert s["failure"].startswith("IK failed at step ")
+    assert "reconfiguration" in s["failure"] or "infeasible" in s["failure"]
+    assert s["collisions"] == 0
+    assert s["steps"] >= 10
+
+
+@pytest.mark.slow
+def test_random_paths_suite(tmp_path):
+    rows = []
+    for seed in range(20):
+        s = _run(tmp_path, f"path=random_{seed}", "executor=kinematic", "estimator=ranging")
+        rows.append(
+            (
+                seed,
+                s["success"],
+                s["coverage"],
+                s["tracking_error_max_mm"],
+                s["detected_path_error_max_mm"],
+                s["failure"] or "",
+            )
+        )
+    print("\nseed success coverage tracking_max_mm detected_max_mm failure")
+    for seed, ok, cov, trk, det, why in rows:
+        print(f"{seed:4d} {ok!s:7s} {cov:8.3f} {trk:15.2f} {det:15.2f} {why}")
+    assert sum(row[1] for row in rows) >= 18
+
+
+def _cli(tmp_path, capsys, *args) -> tuple[int, str]:
+    code = main(["run", "path_following", "--out", str(tmp_path / "out"), *args])
+    return code, capsys.readouterr().err
+
+
+@pytest.mark.parametrize(
+    "text, message",
+    [
+        ("x,y,z\n0.3,0.0,0.1\n0.3,zero,0.1\n", "not three numbers"),
+        ("0.3,0.0,0.1\n0.3,0.05,0.1\n", "too short"),
+        ("0.3,0.0,0.1\n0.9,0.0,0.1\n", "outside the cell walls"),
+        ("0.50,0.50,0.1\n0.50,0.30,0.1\n", "start pose out of reach"),
+    ],
+)
+def test_bad_centerlines_end_with_one_line(tmp_path, capsys, text, message):
+    csv = tmp_path / "hose.csv"
+    csv.write_text(text)
+    code, err = _cli(tmp_path, capsys, "--path-csv", str(csv), "--set", "executor=kinematic")
+    assert code == 2
+    assert message in err
+    assert len(err.strip().splitlines()) == 1
+
+
+@pytest.mark.slow
+def test_path_csv_flag_runs_a_file(tmp_path, capsys):
+    from guidedarm.systems.hose_geometry import ReadCenterline, WriteCenterline
+
+    csv = tmp_path / "mine.csv"
+    WriteCenterline(ReadCenterline("paper_path_1")[:60], csv)
+    code, _ = _cli(tmp_path, capsys, "--path-csv", str(csv), "--set", "executor=kinematic")
+    summary = json.loads((tmp_path / "out" / "summary.json").read_text())
+    assert code == 0, summary["failure"]
+    assert summary["coverage"] >= 0.95
+    assert (tmp_path / "out" / "detected_path.png").stat().st_size > 10000

@@ -1,0 +1,113 @@
+"""Tool pose IK: the seed's constraints hold on solutions, failures are reported, and the
+ToolPoseIk system answers one request per id."""
+
+import itertools
+import math
+
+import numpy as np
+import pytest
+from pydrake.math import RigidTransform
+from pydrake.multibody.parsing import LoadModelDirectives
+from pydrake.multibody.plant import MultibodyPlant
+from pydrake.systems.analysis import Simulator
+from pydrake.systems.framework import DiagramBuilder
+
+from guidedarm.diagrams.model_paths import MODELS_DIR
+from guidedarm.diagrams.scenario import StationScenario
+from guidedarm.diagrams.station import AddStationModels
+from guidedarm.systems.hose_geometry import ReadCenterline
+from guidedarm.systems.path_following import OrientationFromVector, ToolMount
+from guidedarm.systems.tool_pose_ik import ToolPoseIk
+from guidedarm.systems.tool_pose_solving import IkLimits, ToolPoseSolver
+
+HOME = np.array([0.0, math.pi / 2, 0.0, 0.0, -math.pi / 2, 0.0])
+
+
+@pytest.fixture(scope="module")
+def solver():
+    directives = LoadModelDirectives(str(MODELS_DIR / "directives/mz04d_cell.dmd.yaml"))
+    plant = MultibodyPlant(0.0)
+    AddStationModels(StationScenario(directives=directives.directives), plant)
+    plant.Finalize()
+    return ToolPoseSolver(
+        plant, plant.GetModelInstanceByName("mz04d"), plant.GetFrameByName("gripper"), IkLimits()
+    )
+
+
+def _mount(solver):
+    plant = solver.plant
+    X_GT = plant.GetFrameByName("tof_tool").CalcPose(
+        plant.CreateDefaultContext(), plant.GetFrameByName("gripper")
+    )
+    return ToolMount.FromTransform(X_GT)
+
+
+def test_solutions_along_a_path_satisfy_the_constraints(solver):
+    mount = _mount(solver)
+    plant = solver.plant
+    c = ReadCenterline("paper_path_2")[::8]
+    q = HOME
+    first = True
+    for a, b in itertools.pairwise(c):
+        X_WT = RigidTransform(OrientationFromVector(b - a), a)
+        X_WG = mount.GripperPose(X_WT)
+        if first:  # from home to the path: a large move, as the task's start pose
+            solver.limits.max_step_rotation_deg, solver.limits.max_swing = 180.0, np.inf
+        result = solver.Solve(X_WG, q)
+        solver.limits.max_step_rotation_deg, solver.limits.max_swing = 89.0, 0.025
+        first = False
+        assert result.success, result.reason
+        X = solver.ForwardKinematics(result.q)
+        assert np.max(np.abs(X.translation() - X_WG.translation())) <= 0.0005 + 1e-6
+        angle = X.rotation().inverse().multiply(X_WG.rotation()).ToAngleAxis().angle()
+        assert math.degrees(angle) <= 0.5 + 1e-3
+        assert np.all(result.q >= plant.GetPositionLowerLimits() - 1e-9)
+        assert np.all(result.q <= plant.GetPositionUpperLimits() + 1e-9)
+        context = plant.CreateDefaultContext()
+        plant.SetPositions(context, result.q)
+        for body in solver._bodies:
+            p = body.EvalPoseInWorld(context).translation()
+            assert -0.55 - 1e-6 <= p[0] <= 0.55 + 1e-6 and -0.55 - 1e-6 <= p[1] <= 0.55 + 1e-6
+            assert p[2] >= 0.005 - 1e-6
+        # Downward tool: the gripper's z axis within 85 deg of world -z.
+        assert X.rotation().matrix()[:, 2] @ [0, 0, -1] >= math.cos(math.radians(85)) - 1e-6
+        q = result.q
+
+
+def test_unreachable_pose_is_reported(solver):
+    X = RigidTransform(OrientationFromVector([0, 1, 0]), [0.75, 0.0, 0.08])
+    result = solver.Solve(_mount(solver).GripperPose(X), HOME)
+    assert not result.success
+    assert result.reason.startswith("infeasible") or result.reason
+    np.testing.assert_array_equal(result.q, HOME)
+
+
+def test_tool_pose_ik_system_answers_each_request_once(solver):
+    builder = DiagramBuilder()
+    ik = builder.AddSystem(ToolPoseIk(solver, 0.01))
+    builder.ExportInput(ik.GetInputPort("X_WF_desired"), "X")
+    builder.ExportInput(ik.GetInputPort("request"), "request")
+    builder.ExportInput(ik.GetInputPort("q_measured"), "q")
+    diagram = builder.Build()
+    simulator = Simulator(diagram)
+    context = simulator.get_mutable_context()
+    c = ReadCenterline("paper_path_1")
+    X_WT = RigidTransform(OrientationFromVector(c[4] - c[0]), c[0])
+    solver.limits.max_step_rotation_deg, solver.limits.max_swing = 180.0, np.inf
+    diagram.GetInputPort("X").FixValue(context, _mount(solver).GripperPose(X_WT))
+    diagram.GetInputPort("q").FixValue(context, HOME)
+    diagram.GetInputPort("request").FixValue(context, [0.0])
+    ik_context = ik.GetMyContextFromRoot(context)
+    ik.SetInitialGoal(ik.GetMyMutableContextFromRoot(context), HOME)
+    simulator.AdvanceTo(0.05)
+    np.testing.assert_array_equal(ik.GetOutputPort("q_goal").Eval(ik_context), HOME)
+    diagram.GetInputPort("request").FixValue(context, [1.0])
+    simulator.AdvanceTo(0.1)
+    solver.limits.max_step_rotation_deg, solver.limits.max_swing = 89.0, 0.025
+    status = ik.GetOutputPort("status").Eval(ik_context)
+    assert status[0] == 1 and status[1] == 1 and status[2] > 0
+    q_goal = ik.GetOutputPort("q_goal").Eval(ik_context)
+    assert not np.allclose(q_goal, HOME)
+    # The forward kinematics output is of the measured q (home, fixed above).
+    X_home = ik.GetOutputPort("X_WF_measured").Eval(ik_context)
+    np.testing.assert_allclose(X_home.translation(), solver.ForwardKinematics(HOME).translation())
