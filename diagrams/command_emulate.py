@@ -51,15 +51,22 @@ def DefaultCell() -> StationScenario:
 
 
 class ToFTap:
-    """Keeps the newest `<tool>.ranges`/`valid` of the station as (ranges m, status codes)."""
+    """Keeps the newest `<tool>.ranges`/`valid` of the station as (ranges m, status codes),
+    sampled once per sensor `period` (s): ray casting every 2 ms step would be wasted."""
 
-    def __init__(self, station, tool: str) -> None:
+    def __init__(self, station, tool: str, period: float) -> None:
         self._ranges = station.GetOutputPort(f"{tool}.ranges")
         self._valid = station.GetOutputPort(f"{tool}.valid")
+        self._period = period
+        self._tick = -1
         self._lock = threading.Lock()
         self._reading = (np.zeros(6), np.full(6, NO_TARGET_STATUS))
 
     def __call__(self, context: Context) -> None:
+        tick = int(np.floor(context.get_time() / self._period + 1e-9))
+        if tick == self._tick:
+            return
+        self._tick = tick
         valid = self._valid.Eval(context) > 0.5
         reading = (self._ranges.Eval(context).copy(), np.where(valid, 0, NO_TARGET_STATUS))
         with self._lock:
@@ -79,7 +86,10 @@ def StartEmulators(
             f"--arm {arm}: not an arm of the station {list(station_scenario.arms)}"
         )
     station = MakeStation(station_scenario)
-    taps = {name: ToFTap(station, name) for name in station_scenario.tof_tools}
+    taps = {
+        name: ToFTap(station, name, tool.period)
+        for name, tool in station_scenario.tof_tools.items()
+    }
     emulator = NachiEmulator(station, arm, host, port, observers=tuple(taps.values()))
     tofs = {
         name: TofEmulator(tap.Latest, station_scenario.tof_tools[name].period)
