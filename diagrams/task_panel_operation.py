@@ -2,7 +2,10 @@
 
 Diagram: station (arm, gripper camera rendered at `supersampling` x its resolution, panel)
 -> ImageDegradation (pixel integration, lighting, blur, noise) -> MarkerPoseEstimator ->
-PanelOperation -> the arm's position command. The start is a random camera pose in front of
+PanelOperation -> the arm's position command (operation.motion "joint_trajectory"), or
+PanelOperation -> AccelerationPlanner (seed 001) -> the arm's position command
+(operation.motion "planner"; the planner's frames, limits and parameters under `planner`).
+The start is a random camera pose in front of
 the panel (seeded: distance, tilt, aim point) solved by inverse kinematics, so a marker is
 in view; or an explicit joint vector.
 
@@ -27,8 +30,10 @@ from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
+from pydrake.math import RigidTransform, RollPitchYaw
 from pydrake.multibody.parsing import LoadModelDirectives, ProcessModelDirectives
 from pydrake.multibody.plant import MultibodyPlant
+from pydrake.multibody.tree import FixedOffsetFrame
 from pydrake.systems.analysis import ApplySimulatorConfig, Simulator
 from pydrake.systems.framework import DiagramBuilder
 from pydrake.systems.primitives import VectorLogSink
@@ -45,12 +50,25 @@ from guidedarm.diagrams.plots import PlotJointSeries
 from guidedarm.diagrams.run_context import RunContext
 from guidedarm.diagrams.scenario import StationScenario
 from guidedarm.diagrams.station import MakeStation
+from guidedarm.diagrams.task_waypoints import GetScopedFrame, SymmetricLimit
 from guidedarm.diagrams.tasks import TaskDefinition
+from guidedarm.systems import acceleration_planning as planning_law
+from guidedarm.systems.acceleration_planner import AccelerationPlanner
+from guidedarm.systems.acceleration_planning import (
+    AccelerationPlanning,
+    PlannerParameters,
+    PlanningError,
+)
 from guidedarm.systems.errors import ConfigurationError
 from guidedarm.systems.image_degradation import DegradationParams, ImageDegradation
 from guidedarm.systems.marker_pose import MarkerPoseSolver
 from guidedarm.systems.marker_pose_estimator import MarkerPoseEstimator
-from guidedarm.systems.panel_operation import ArmKinematics, PanelOperation, PanelOperationConfig
+from guidedarm.systems.panel_operation import (
+    ArmKinematics,
+    PanelOperation,
+    PanelOperationConfig,
+    PlannerFrames,
+)
 
 
 @dataclass
@@ -64,6 +82,22 @@ class StartConfig:
     distance_m: list[float] = field(default_factory=lambda: [0.30, 0.40])
     max_tilt_deg: float = 30.0
     aim_offset_m: float = 0.02
+
+
+@dataclass
+class PanelPlannerConfig:
+    """The acceleration-level planner of operation.motion "planner". base_frame: its base B
+    (scoped frame name); its TCP N is the scenario's tip frame rotated by tcp_rpy_deg
+    (roll, pitch, yaw in deg), which only changes how orientations are expressed (keep the
+    Z-Y-X pitch of the targets away from +-90 deg). max_joint_velocity,
+    max_joint_acceleration: symmetric limits, one value or one per joint (rad/s, rad/s^2).
+    parameters: the law's gains and settings."""
+
+    base_frame: str = ""
+    tcp_rpy_deg: list[float] = field(default_factory=lambda: [0.0, 0.0, 0.0])
+    max_joint_velocity: list[float] = field(default_factory=lambda: [0.5])
+    max_joint_acceleration: list[float] = field(default_factory=lambda: [1.5])
+    parameters: PlannerParameters = field(default_factory=PlannerParameters)
 
 
 @dataclass
@@ -87,6 +121,7 @@ class PanelOperationScenario:
     start: StartConfig = field(default_factory=StartConfig)
     cover_markers_after_base: bool = False
     operation: PanelOperationConfig = field(default_factory=PanelOperationConfig)
+    planner: PanelPlannerConfig = field(default_factory=PanelPlannerConfig)
     time_limit_s: float = 40.0
     station: StationScenario = field(default_factory=StationScenario)
 
@@ -129,9 +164,12 @@ class PanelOperationRun:
         solver = MarkerPoseSolver(IntrinsicsFromCameraConfig(rendered, k), self.panel)
         estimator = builder.AddNamedSystem("marker_pose_estimator", MarkerPoseEstimator(solver))
         switch = self.panel.switches[scenario.switch - 1]
+        planner, frames = None, None
+        if scenario.operation.motion == "planner":
+            planner, frames = _MakePlanner(scenario)
         self.sequencer = builder.AddNamedSystem(
             "panel_operation",
-            PanelOperation(self.kinematics, self.panel, switch, scenario.operation),
+            PanelOperation(self.kinematics, self.panel, switch, scenario.operation, frames),
         )
         builder.Connect(
             self.station.GetOutputPort(f"{scenario.camera}.rgb_image"),
@@ -145,10 +183,19 @@ class PanelOperationRun:
             self.station.GetOutputPort(f"{scenario.arm}.state_estimated"),
             self.sequencer.GetInputPort("arm_state"),
         )
-        builder.Connect(
-            self.sequencer.get_output_port(),
-            self.station.GetInputPort(f"{scenario.arm}.position_commanded"),
-        )
+        command = self.sequencer.get_output_port()
+        if planner is not None:
+            builder.AddNamedSystem("planner", planner)
+            builder.Connect(
+                self.sequencer.GetOutputPort("planner_task"), planner.GetInputPort("task")
+            )
+            builder.Connect(planner.GetOutputPort("done"), self.sequencer.GetInputPort("move_done"))
+            builder.Connect(
+                self.station.GetOutputPort(f"{scenario.arm}.state_estimated"),
+                planner.GetInputPort("joint_state"),
+            )
+            command = planner.GetOutputPort("position_commanded")
+        builder.Connect(command, self.station.GetInputPort(f"{scenario.arm}.position_commanded"))
         self.joint_log = builder.AddNamedSystem(
             "joint_log", VectorLogSink(self.kinematics.plant.num_positions(), 0.02)
         )
@@ -207,10 +254,17 @@ class PanelOperationRun:
             next(s for s in self.sequencer.steps if s.kind == "measure" and s.label == "base")
         )
         covered = False
+        planner_failure = None
         t = 0.0
         while t < scenario.time_limit_s:
             t = min(t + 0.1, scenario.time_limit_s)
-            self.simulator.AdvanceTo(t)
+            try:
+                self.simulator.AdvanceTo(t)
+            except PlanningError as e:
+                step = self.sequencer.GetSequencerState(sequencer_context).step
+                moves = [m.label for m in self.sequencer.steps[:step] if m.kind == "move"]
+                planner_failure = f"planner, move to '{moves[-1]}': {e}"
+                break
             state = self.sequencer.GetSequencerState(sequencer_context)
             if state.done:
                 break
@@ -222,7 +276,7 @@ class PanelOperationRun:
         self.context.write_replay()
         state = self.sequencer.GetSequencerState(sequencer_context)
         self._Plot(state, context)
-        return self._Metrics(state, context)
+        return self._Metrics(state, context, planner_failure)
 
     def _Plot(self, state, context) -> None:
         """joints.png (measured joints) and tip_distance.png (tip to panel plane, with the
@@ -248,7 +302,7 @@ class PanelOperationRun:
         axes.grid(True, alpha=0.3)
         self.context.save_figure(figure, "tip_distance")
 
-    def _Metrics(self, state, context) -> dict[str, Any]:
+    def _Metrics(self, state, context, planner_failure: str | None = None) -> dict[str, Any]:
         scenario = self.scenario
         plant_context = self.plant.GetMyContextFromRoot(context)
         travels = [
@@ -260,7 +314,7 @@ class PanelOperationRun:
             for i, (s, travel) in enumerate(zip(self.panel.switches, travels, strict=True))
             if travel >= s.on_travel_m
         ]
-        failure = state.failure
+        failure = planner_failure or state.failure
         if failure is None and not state.done:
             failure = f"the sequence did not finish within {scenario.time_limit_s} s"
         if failure is None and pressed != [scenario.switch]:
@@ -316,7 +370,8 @@ def _replace_camera(station: StationScenario, name: str, camera, k: int) -> Stat
     return StationScenario(**{**station.__dict__, "cameras": cameras})
 
 
-def _MakeArmKinematics(scenario: PanelOperationScenario) -> ArmKinematics:
+def _LoadArmPlant(scenario: PanelOperationScenario) -> MultibodyPlant:
+    """The arm as its controller knows it (not finalized)."""
     plant = MultibodyPlant(0.0)
     try:
         directives = LoadModelDirectives(
@@ -325,6 +380,46 @@ def _MakeArmKinematics(scenario: PanelOperationScenario) -> ArmKinematics:
         ProcessModelDirectives(directives, MakeParser(plant))
     except Exception as e:
         raise ConfigurationError(f"arm_directives: {str(e).splitlines()[0]}") from None
+    return plant
+
+
+def _MakePlanner(scenario: PanelOperationScenario) -> tuple[AccelerationPlanner, PlannerFrames]:
+    """The task-driven AccelerationPlanner on its own copy of the arm, and its frames."""
+    config = scenario.planner
+    plant = _LoadArmPlant(scenario)
+    tip = GetScopedFrame(plant, scenario.tip_frame, "tip_frame")
+    if len(config.tcp_rpy_deg) != 3:
+        raise ConfigurationError(f"planner.tcp_rpy_deg needs 3 angles, got {config.tcp_rpy_deg}")
+    X_TN = RigidTransform(RollPitchYaw(np.radians(config.tcp_rpy_deg)), np.zeros(3))
+    tcp = plant.AddFrame(FixedOffsetFrame("planner_tcp", tip, X_TN))
+    plant.Finalize()
+    base = GetScopedFrame(plant, config.base_frame, "planner.base_frame")
+    if not plant.HasModelInstanceNamed(scenario.arm):
+        raise ConfigurationError(f"arm '{scenario.arm}' is not in {scenario.arm_directives}")
+    kinematics = planning_law.ArmKinematics(
+        plant,
+        plant.GetModelInstanceByName(scenario.arm),
+        base,
+        tcp,
+        config.parameters.min_singular_value,
+    )
+    velocity = SymmetricLimit(config.max_joint_velocity, "planner.max_joint_velocity")
+    acceleration = SymmetricLimit(config.max_joint_acceleration, "planner.max_joint_acceleration")
+    q_default = plant.GetPositions(plant.CreateDefaultContext())
+    # The waypoint given here is never used: the planner idles until the first task.
+    planning = AccelerationPlanning(
+        kinematics,
+        kinematics.Position(q_default)[np.newaxis],
+        config.parameters,
+        (-velocity, velocity),
+        (-acceleration, acceleration),
+    )
+    X_WB = base.CalcPoseInWorld(plant.CreateDefaultContext())
+    return AccelerationPlanner(planning, accept_tasks=True), PlannerFrames(X_WB, X_TN)
+
+
+def _MakeArmKinematics(scenario: PanelOperationScenario) -> ArmKinematics:
+    plant = _LoadArmPlant(scenario)
     plant.Finalize()
     camera = scenario.station.cameras[scenario.camera].X_PB.base_frame or ""
     frames = []

@@ -101,12 +101,12 @@ def MakePlannerSetup(scenario: WaypointsScenario) -> PlannerSetup:
     kinematics = ArmKinematics(
         plant,
         instance,
-        _GetFrame(plant, scenario.base_frame, "base_frame"),
-        _GetFrame(plant, scenario.tool_frame, "tool_frame"),
+        GetScopedFrame(plant, scenario.base_frame, "base_frame"),
+        GetScopedFrame(plant, scenario.tool_frame, "tool_frame"),
         scenario.planner.min_singular_value,
     )
-    velocity = _SymmetricLimit(scenario.max_joint_velocity, "max_joint_velocity")
-    acceleration = _SymmetricLimit(scenario.max_joint_acceleration, "max_joint_acceleration")
+    velocity = SymmetricLimit(scenario.max_joint_velocity, "max_joint_velocity")
+    acceleration = SymmetricLimit(scenario.max_joint_acceleration, "max_joint_acceleration")
     waypoints = np.array(scenario.waypoints, float)
     planning = AccelerationPlanning(
         kinematics,
@@ -259,7 +259,8 @@ def SavePlannerFigures(
     context.save_figure(PlotScaling(trajectory.times, trajectory.c), "scaling_coefficient")
 
 
-def _GetFrame(plant: MultibodyPlant, scoped_name: str, key: str) -> Frame:
+def GetScopedFrame(plant: MultibodyPlant, scoped_name: str, key: str) -> Frame:
+    """The frame `instance::name` (or `name`) of plant; ConfigurationError naming `key`."""
     instance_name, sep, frame_name = scoped_name.rpartition("::")
     try:
         if not sep:
@@ -269,7 +270,8 @@ def _GetFrame(plant: MultibodyPlant, scoped_name: str, key: str) -> Frame:
         raise ConfigurationError(f"{key}: no frame '{scoped_name}' in the station") from None
 
 
-def _SymmetricLimit(values: list[float], key: str) -> np.ndarray:
+def SymmetricLimit(values: list[float], key: str) -> np.ndarray:
+    """Six positive limits from one value for every joint or one per joint."""
     limit = np.asarray(values, float)
     if limit.size == 1:
         limit = np.full(6, limit[0])

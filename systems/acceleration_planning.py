@@ -21,8 +21,9 @@ Units: m, rad, s throughout. Everything here is plain Python/NumPy plus a Multib
 for kinematics; systems/acceleration_planner.py wraps it in a LeafSystem.
 """
 
+import copy
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 from pydrake.math import RollPitchYaw
@@ -353,6 +354,17 @@ class PlannerParameters:
 
 
 @dataclass
+class PlannerTask:
+    """A task given to a running planner: `waypoints` rows [x, y, z, roll, pitch, yaw] of
+    the TCP T in the base frame B (m, rad, Z-Y-X Euler angles), the last one the final
+    location. A `sequence` number different from the running task's restarts the law with
+    these waypoints; a negative one means no task."""
+
+    sequence: int = -1
+    waypoints: np.ndarray = field(default_factory=lambda: np.zeros((0, 6)))
+
+
+@dataclass
 class PlannerState:
     """Everything the planner carries from one step to the next.
 
@@ -417,24 +429,9 @@ class AccelerationPlanning:
         acceleration_limits: tuple[np.ndarray, np.ndarray] | None = None,
     ) -> None:
         parameters.Validate()
-        waypoints = np.atleast_2d(np.asarray(waypoints, float))
-        if waypoints.ndim != 2 or waypoints.shape[1] != 6 or waypoints.shape[0] == 0:
-            raise ConfigurationError(
-                f"waypoints must be rows of [x, y, z, roll, pitch, yaw], got {waypoints.shape}"
-            )
-        if not np.all(np.isfinite(waypoints)):
-            raise ConfigurationError("waypoints must be finite numbers")
-        steps = np.linalg.norm(np.diff(waypoints[:, :3], axis=0), axis=1)
-        too_close = np.flatnonzero(steps <= parameters.neighbourhood_radius)
-        if too_close.size and not parameters.stop_at_waypoints:
-            i = int(too_close[0])
-            raise ConfigurationError(
-                f"waypoints {i + 1} and {i + 2} are {steps[i]:.4f} m apart, not more than the "
-                f"neighbourhood radius {parameters.neighbourhood_radius} m"
-            )
         self.kinematics = kinematics
-        self.waypoints = waypoints
         self.parameters = parameters
+        self.waypoints = self._CheckWaypoints(waypoints)
         self.penalty = (
             VelocityPenalty(
                 *velocity_limits, parameters.velocity_threshold, parameters.penalty_strength
@@ -445,6 +442,39 @@ class AccelerationPlanning:
         self.scaling = (
             AccelerationScaling(*acceleration_limits) if acceleration_limits is not None else None
         )
+
+    def _CheckWaypoints(self, waypoints: np.ndarray) -> np.ndarray:
+        waypoints = np.atleast_2d(np.asarray(waypoints, float))
+        if waypoints.ndim != 2 or waypoints.shape[1] != 6 or waypoints.shape[0] == 0:
+            raise ConfigurationError(
+                f"waypoints must be rows of [x, y, z, roll, pitch, yaw], got {waypoints.shape}"
+            )
+        if not np.all(np.isfinite(waypoints)):
+            raise ConfigurationError("waypoints must be finite numbers")
+        steps = np.linalg.norm(np.diff(waypoints[:, :3], axis=0), axis=1)
+        radius = self.parameters.neighbourhood_radius
+        too_close = np.flatnonzero(steps <= radius)
+        if too_close.size and not self.parameters.stop_at_waypoints:
+            i = int(too_close[0])
+            raise ConfigurationError(
+                f"waypoints {i + 1} and {i + 2} are {steps[i]:.4f} m apart, not more than the "
+                f"neighbourhood radius {radius} m"
+            )
+        return waypoints
+
+    def WithWaypoints(self, waypoints: np.ndarray) -> "AccelerationPlanning":
+        """The same planner (kinematics, limits, parameters) for other waypoints."""
+        planning = copy.copy(self)
+        planning.waypoints = self._CheckWaypoints(waypoints)
+        return planning
+
+    def Restart(self, state: PlannerState) -> PlannerState:
+        """Starts this planner's task from `state` (possibly moving): first waypoint, not
+        ended, and with acceleration limits c restarts from 0 (the smooth start)."""
+        state.index, state.sigma, state.inside, state.done_time = 0, 0.0, False, -1.0
+        if self.scaling is not None:
+            state.c_hat0, state.t0 = 0.0, state.t
+        return state
 
     def InitialState(self, q0: np.ndarray, t: float = 0.0) -> PlannerState:
         """At rest at q0; with acceleration limits c starts at 0 (smooth start, c-hat0 = 0)."""

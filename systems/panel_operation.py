@@ -14,8 +14,11 @@ pose from the arm's kinematics at the measured joint positions. When no marker i
 later point, `on_marker_loss` decides: "abort" stops the arm where it is and reports the
 failure, "continue" keeps the last valid X_WP (the arm's own kinematics carry the rest).
 
-Moves are minimum-jerk joint-space segments between inverse-kinematics solutions (Drake
-InverseKinematics, exact tip pose), timed so no joint exceeds `max_joint_speed`.
+Moves (`motion`): "joint_trajectory", minimum-jerk joint-space segments between
+inverse-kinematics solutions (Drake InverseKinematics, exact tip pose), timed so no joint
+exceeds `max_joint_speed`; or "planner", each move a PlannerTask for the acceleration-level
+planner (seed 001, systems/acceleration_planner.py), which ends it when its end condition
+holds and which streams the commands itself.
 Units: m, rad, s. Frames: W the controller plant's world, P panel, C camera, T gripper tip.
 """
 
@@ -24,18 +27,20 @@ from dataclasses import dataclass, field
 
 import numpy as np
 from pydrake.common.value import AbstractValue
-from pydrake.math import RigidTransform, RotationMatrix
+from pydrake.math import RigidTransform, RollPitchYaw, RotationMatrix
 from pydrake.multibody.inverse_kinematics import InverseKinematics
 from pydrake.multibody.plant import MultibodyPlant
 from pydrake.multibody.tree import Frame
 from pydrake.solvers import Solve
 from pydrake.systems.framework import BasicVector, Context, LeafSystem, State
 
+from guidedarm.systems.acceleration_planning import PlannerTask
 from guidedarm.systems.errors import ConfigurationError
 from guidedarm.systems.marker_pose import MarkerPoseEstimate, PanelSpec, SwitchSpec
 
 # The camera looks straight at the panel: image x = panel x, image y = -panel y.
 R_PC_STRAIGHT = RotationMatrix(np.diag([1.0, -1.0, -1.0]))
+MOTIONS = ("joint_trajectory", "planner")
 
 
 @dataclass
@@ -52,8 +57,11 @@ class PanelOperationConfig:
     press_hold_s: float = 0.3
     on_marker_loss: str = "continue"
     update_period_s: float = 0.01
+    motion: str = "joint_trajectory"
 
     def check(self) -> None:
+        if self.motion not in MOTIONS:
+            raise ConfigurationError(f"motion must be one of {MOTIONS}, got '{self.motion}'")
         if self.on_marker_loss not in ("abort", "continue"):
             raise ConfigurationError(
                 f"on_marker_loss must be 'abort' or 'continue', got '{self.on_marker_loss}'"
@@ -144,6 +152,21 @@ class PanelTargets:
 
 
 @dataclass
+class PlannerFrames:
+    """For motion "planner": X_WB, the planner's base frame B in W, and X_TN, the planner's
+    TCP frame N on the gripper tip T. N is T rotated so that the Z-Y-X Euler angles of the
+    targets stay away from the representation's singularity at pitch +-90 deg."""
+
+    X_WB: RigidTransform
+    X_TN: RigidTransform
+
+    def TaskRow(self, X_WT: RigidTransform) -> np.ndarray:
+        """[x, y, z, roll, pitch, yaw] of N in B (m, rad) when the tip is at X_WT."""
+        X_BN = self.X_WB.inverse() @ X_WT @ self.X_TN
+        return np.concatenate([X_BN.translation(), RollPitchYaw(X_BN.rotation()).vector()])
+
+
+@dataclass
 class Step:
     """One step: `kind` is measure | move | hold | done; `label` names it in the logs."""
 
@@ -162,7 +185,8 @@ class SequencerState:
     q_from: np.ndarray = field(default_factory=lambda: np.zeros(0))
     q_to: np.ndarray = field(default_factory=lambda: np.zeros(0))
     move_start_s: float = 0.0
-    move_duration_s: float = 0.0
+    move_end_s: float = 0.0
+    task: PlannerTask = field(default_factory=PlannerTask)
     X_WP: RigidTransform | None = None
     measurements: list[dict] = field(default_factory=list)
     q_at: dict[str, list[float]] = field(default_factory=dict)
@@ -180,9 +204,11 @@ class PanelOperation(LeafSystem):
     """The seed's panel-operation sequencer for one arm.
 
     Input ports: `arm_state` ([q; v] of the arm, rad, rad/s), `marker_estimate`
-    (MarkerPoseEstimate of the camera; evaluated only when measuring).
-    Output port: `position_commanded` (rad). The state (SequencerState) is read with
-    GetSequencerState for logs and ground-truth evaluation.
+    (MarkerPoseEstimate of the camera; evaluated only when measuring); with motion
+    "planner" also `move_done` (the planner's `done`, 1.0 when the current task ended).
+    Output port: `position_commanded` (rad; motion "joint_trajectory"), or `planner_task`
+    (PlannerTask; motion "planner", needs `planner_frames`). The state (SequencerState) is
+    read with GetSequencerState for logs and ground-truth evaluation.
     """
 
     def __init__(
@@ -191,9 +217,13 @@ class PanelOperation(LeafSystem):
         panel: PanelSpec,
         switch: SwitchSpec,
         config: PanelOperationConfig,
+        planner_frames: PlannerFrames | None = None,
     ) -> None:
         super().__init__()
         config.check()
+        if config.motion == "planner" and planner_frames is None:
+            raise ConfigurationError('motion "planner" needs the planner\'s frames')
+        self._planner_frames = planner_frames if config.motion == "planner" else None
         self._kinematics = kinematics
         self._config = config
         self.targets = PanelTargets(panel, switch, config, kinematics.X_CT)
@@ -218,15 +248,23 @@ class PanelOperation(LeafSystem):
         self._state_index = self.DeclareAbstractState(AbstractValue.Make(SequencerState()))
         self.DeclareInitializationUnrestrictedUpdateEvent(self._Initialize)
         self.DeclarePeriodicUnrestrictedUpdateEvent(config.update_period_s, 0.0, self._Update)
-        self.DeclareVectorOutputPort(
-            "position_commanded",
-            n,
-            self.CalcPositionCommanded,
-            prerequisites_of_calc={
-                self.abstract_state_ticket(self._state_index),
-                self.time_ticket(),
-            },
-        )
+        state_ticket = self.abstract_state_ticket(self._state_index)
+        self._move_done = None
+        if self._planner_frames is None:
+            self.DeclareVectorOutputPort(
+                "position_commanded",
+                n,
+                self.CalcPositionCommanded,
+                prerequisites_of_calc={state_ticket, self.time_ticket()},
+            )
+        else:
+            self._move_done = self.DeclareVectorInputPort("move_done", 1)
+            self.DeclareAbstractOutputPort(
+                "planner_task",
+                lambda: AbstractValue.Make(PlannerTask()),
+                lambda context, value: value.set_value(self.GetSequencerState(context).task),
+                prerequisites_of_calc={state_ticket},
+            )
 
     def GetSequencerState(self, context: Context) -> SequencerState:
         return context.get_abstract_state(self._state_index).get_value()
@@ -236,7 +274,8 @@ class PanelOperation(LeafSystem):
         if s.q_to.size == 0:
             output.SetFromVector(self._arm_state.Eval(context)[: self._n])
             return
-        tau = (context.get_time() - s.move_start_s) / max(s.move_duration_s, 1e-9)
+        duration = s.move_end_s - s.move_start_s
+        tau = (context.get_time() - s.move_start_s) / max(duration, 1e-9)
         output.SetFromVector(s.q_from + (s.q_to - s.q_from) * MinimumJerk(tau))
 
     def _Initialize(self, context: Context, state: State) -> None:
@@ -252,8 +291,12 @@ class PanelOperation(LeafSystem):
         x = self._arm_state.Eval(context)
         q, v = np.asarray(x[: self._n]), np.asarray(x[self._n :])
         step = self.steps[s.step]
-        moved = t >= s.move_start_s + s.move_duration_s
-        still = moved and t >= s.step_start_s + self._config.settle_time_s
+        if s.move_end_s == np.inf and self._move_done.Eval(context)[0] > 0.5:
+            s.move_end_s = t
+        moved = t >= s.move_end_s
+        # a step after a move counts its settle or hold time from the move's end
+        since = max(s.step_start_s, s.move_end_s)
+        still = moved and t >= since + self._config.settle_time_s
         still = still and np.max(np.abs(v)) < self._config.stationary_speed
         advance = False
         if step.kind == "measure" and still:
@@ -261,7 +304,7 @@ class PanelOperation(LeafSystem):
             advance = s.failure is None
         elif step.kind == "move":
             advance = self._StartMove(s, step, q, t)
-        elif step.kind == "hold" and moved and t >= s.step_start_s + step.duration_s:
+        elif step.kind == "hold" and moved and t >= since + step.duration_s:
             s.q_at[step.label] = q.tolist()
             advance = True
         elif step.kind == "done" and moved:
@@ -269,11 +312,10 @@ class PanelOperation(LeafSystem):
             s.done = True
         if s.failure is not None:
             s.done = True
-            s.q_from, s.q_to, s.move_duration_s = q.copy(), q.copy(), 0.0
+            s.q_from, s.q_to, s.move_end_s = q.copy(), q.copy(), min(s.move_end_s, t)
         if advance:
             s.step += 1
-            # A step after a move starts counting when the move ends (the settle time).
-            s.step_start_s = max(t, s.move_start_s + s.move_duration_s)
+            s.step_start_s = t
         state.get_mutable_abstract_state(self._state_index).set_value(s)
 
     def _Measure(self, context, s: SequencerState, label: str, q, t: float) -> None:
@@ -303,6 +345,12 @@ class PanelOperation(LeafSystem):
         s.measurements.append(record)
 
     def _StartMove(self, s: SequencerState, step: Step, q: np.ndarray, t: float) -> bool:
+        s.move_start_s = t
+        if self._planner_frames is not None:
+            row = self._planner_frames.TaskRow(s.X_WP @ step.X_PT)
+            s.task = PlannerTask(s.task.sequence + 1, row[np.newaxis])
+            s.move_end_s = np.inf  # until the planner says the task ended
+            return True
         q_start = s.q_to if s.q_to.size else q
         q_goal = self._kinematics.SolveTip(s.X_WP @ step.X_PT, q_start)
         if q_goal is None:
@@ -310,6 +358,5 @@ class PanelOperation(LeafSystem):
             return False
         largest = float(np.max(np.abs(q_goal - q_start)))
         s.q_from, s.q_to = q_start.copy(), q_goal
-        s.move_start_s = t
-        s.move_duration_s = max(1.875 * largest / self._config.max_joint_speed, 0.2)
+        s.move_end_s = t + max(1.875 * largest / self._config.max_joint_speed, 0.2)
         return True

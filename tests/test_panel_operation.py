@@ -67,12 +67,31 @@ def test_no_marker_in_view_at_start_fails_without_moving(tmp_path):
     assert not result["success"] and result["switch_pressed"] is None
 
 
+def test_planner_motion_presses_the_switch_within_the_planner_limits(tmp_path):
+    run = _run(tmp_path, ["switch=2", "operation.motion=planner"])
+    result = run.Run(run.SampleStart(4))
+    assert result["failure"] is None, result["failure"]
+    assert result["success"] and result["switch_pressed"] == 2
+    assert max(result["press_error_mm"].values()) <= 2.0, result["press_error_mm"]
+    assert result["base_position_error_mm"] <= 2.0
+    assert all(m["valid"] for m in result["measurements"])
+    state = run.sequencer.GetSequencerState(
+        run.sequencer.GetMyContextFromRoot(run.simulator.get_context())
+    )
+    assert state.task.sequence == 3  # base, switch point, press, retract: four planner tasks
+    # the measured joints keep the planner's 0.5 rad/s (the joint segments peak at 0.75)
+    log = run.joint_log.FindLog(run.simulator.get_context())
+    speed = np.abs(np.diff(log.data(), axis=1)) / np.diff(log.sample_times())
+    assert 0.2 < speed.max() <= 0.5 * 1.05
+
+
 @pytest.mark.parametrize(
     "override, message",
     [
         ("switch=9", "switch must be 1 .. 3, got 9"),
         ("degradation.supersampling=2", "set the camera's supersampling (>= 1) with the top-level"),
         ("operation.on_marker_loss=ignore", "on_marker_loss must be 'abort' or 'continue'"),
+        ("operation.motion=teleport", "motion must be one of ('joint_trajectory', 'planner')"),
         ("start.distance_m=near", "key 'start.distance_m': expected a list"),
     ],
 )
