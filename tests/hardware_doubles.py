@@ -47,6 +47,9 @@ class ScriptedArmLink:
     def latest(self) -> JointSample:
         return JointSample(self.q, np.zeros_like(self.q), time.monotonic() - self.age)
 
+    def fault(self) -> str | None:
+        return None
+
     def send_position(self, q: np.ndarray, period: float) -> None:
         self.sent.append(np.array(q))
 

@@ -95,7 +95,9 @@ def test_unknown_driver_is_named():
 
 def test_meshcat_draws_the_measured_configuration(devices):
     nachi_port, _, _ = devices
-    arm = ArmDriverConfig(driver="nachi_tcp", port=nachi_port, acceleration_limits=[20.0] * 6)
+    arm = ArmDriverConfig(
+        driver="nachi_tcp", port=nachi_port, watchdog=0.5, acceleration_limits=[20.0] * 6
+    )
     scenario = Mz04dScenario(hardware=HardwareConfig(arms={"mz04d": arm}))
     meshcat = Meshcat()
     station = MakeStation(scenario, meshcat, hardware=True)

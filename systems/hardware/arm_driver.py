@@ -1,7 +1,9 @@
 """ArmDriver: the hardware counterpart of a simulated arm's ports, on any ArmLink.
 
 Every `period` seconds it takes the link's latest measured sample and streams the commanded
-joint positions, with three safety rules:
+joint positions, with these safety rules:
+- a link reporting a fault (refused command, lost connection) stops the arm and fails the
+  run with the link's reason;
 - a sample older than `watchdog` (host seconds) means the link is lost: the arm is stopped
   and the run fails with LinkLostError;
 - a sample older than `stale_after` is not acted on: no command is sent from it;
@@ -81,6 +83,9 @@ class ArmDriver(LeafSystem):
     def _Update(self, context: Context, state: DiscreteValues) -> None:
         n = self._n
         x = context.get_discrete_state(self._state).value().copy()
+        fault = self._link.fault()
+        if fault is not None:
+            self._Fail(f"{self._link.name}: {fault}; robot stopped")
         sample = self._link.latest()
         age = SampleAge(sample, time.monotonic())
         if age > self._watchdog:

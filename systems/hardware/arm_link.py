@@ -52,11 +52,14 @@ class LatestSample:
 
 class ArmLink(Protocol):
     """A connection to one arm controller. `send_position` streams a joint position target
-    (rad) reached over `period` seconds; `stop` halts the arm and must be safe to repeat."""
+    (rad) reached over `period` seconds; `stop` halts the arm and must be safe to repeat;
+    `fault` is a one-line reason once the link can no longer be used, else None."""
 
     name: str
 
     def latest(self) -> JointSample | None: ...
+
+    def fault(self) -> str | None: ...
 
     def send_position(self, q: np.ndarray, period: float) -> None: ...
 

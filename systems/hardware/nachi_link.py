@@ -5,7 +5,9 @@ One I/O thread owns the socket: as soon as a joint target is pending (and at lea
 (READ_JOINTS). Velocities are differences of
 successive joint readings over the controller's clock. Malformed reply lines are printed,
 counted in `rejected_lines`, and skipped; the ArmDriver's watchdog covers a link that keeps
-failing.
+failing. A controller that refuses a target or a move (`NG ...`, e.g. after a STOP from its
+pendant) or a lost connection is a fault: streaming ends and the ArmDriver fails the run.
+Connecting sends RESET: starting a run is the deliberate act that clears an earlier STOP.
 """
 
 from __future__ import annotations
@@ -28,7 +30,7 @@ class NachiLink:
     ) -> None:
         self.name = name
         self.rejected_lines = 0
-        self.io_error: str | None = None
+        self._fault: str | None = None
         try:
             connection = socket.create_connection((host, port), timeout=timeout)
         except OSError as e:
@@ -36,6 +38,8 @@ class NachiLink:
         connection.setsockopt(socket.IPPROTO_TCP, socket.TCP_NODELAY, 1)
         self._socket = LineSocket(connection, nachi.MAX_LINE)
         self._lock = threading.Lock()
+        (reply,) = self.Request(nachi.RESET)
+        nachi.CheckOk(reply)
         self._pending: np.ndarray | None = None
         self._poll_period = poll_period
         self._latest = LatestSample()
@@ -60,11 +64,14 @@ class NachiLink:
             try:
                 if target is not None:
                     for reply in self.Request(nachi.FormatSetTarget(target), nachi.MOVE):
-                        self._Check(nachi.CheckOk, reply)
+                        nachi.CheckOk(reply)
                 (reply,) = self.Request(nachi.READ_JOINTS)
                 self._Check(self._Measured, reply)
+            except nachi.NachiProtocolError as e:
+                self._fault = str(e)
+                return
             except OSError as e:
-                self.io_error = str(e)
+                self._fault = f"connection lost: {e}"
                 return
 
     def _Check(self, parse, reply: str) -> None:
@@ -88,6 +95,9 @@ class NachiLink:
 
     def latest(self) -> JointSample | None:
         return self._latest.get()
+
+    def fault(self) -> str | None:
+        return self._fault
 
     def send_position(self, q: np.ndarray, period: float) -> None:
         self._pending = np.array(q, float)

@@ -79,6 +79,9 @@ class UrRtdeLink:
     def latest(self) -> JointSample | None:
         return self._latest.get()
 
+    def fault(self) -> str | None:
+        return None if self._receive.isConnected() else "RTDE connection lost"
+
     def send_position(self, q: np.ndarray, period: float) -> None:
         self._control.servoJ(
             [float(x) for x in q], 0.0, 0.0, period, self._lookahead_time, self._gain
