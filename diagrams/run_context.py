@@ -96,8 +96,11 @@ def AdvanceWithProgress(
     """Advances `simulator` to `t_final` in chunks, printing progress; returns the sim time.
 
     A monitor set on the simulator may stop it early (EventStatus.ReachedTermination); the
-    returned time is where it stopped.
+    returned time is where it stopped. Against hardware the simulator keeps wall-clock pace,
+    since the drivers' clocks are real.
     """
+    if context.hardware:
+        simulator.set_target_realtime_rate(1.0)
     t = simulator.get_context().get_time()
     while t < t_final:
         status = simulator.AdvanceTo(min(t + chunk_s, t_final))
