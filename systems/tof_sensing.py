@@ -15,7 +15,7 @@ by the pixel grid.
 Detection grid. Rows are sensors 1-3, columns sensors 4-6; point (i, j) is where the lines
 of sight of row sensor i and column sensor j cross. It is detected when both sensors have a
 return; it is a detection error when either range disagrees with a hose of radius r centred
-on the point (|range - (distance to the point - r)| > half the grid spacing), e.g. the table
+on the point (|range - (distance to the point - r)| > 3/4 of the grid spacing), e.g. the table
 seen far beyond the field, or the hose seen at another point of the same line.
 
 Estimators of the hose centre S in the tool frame T (the seed's S, eq. (8)):
@@ -35,8 +35,14 @@ import numpy as np
 from pydrake.geometry import GeometryId, QueryObject
 from pydrake.math import RigidTransform
 
-# A range agrees with a grid point within this fraction of the grid spacing.
-CONSISTENCY_FRACTION = 0.5
+# A range agrees with a grid point within this fraction of the grid spacing a. A hose
+# centred anywhere in the point's cell (a / 2 either way) reads up to a / 2 nearer or
+# a / 2 + 1.4 mm farther (seen off-axis by the cone's edge rays) than a hose on the point,
+# plus the noise (2 sigma = 4 mm): 16.4 mm for a = 22 mm. A tolerance of only a / 2 made a
+# hose midway between two points a coin toss between them (biasing S by up to half a
+# diagonal, 15.6 mm, plus noise), while a hose at the next point of the line is a off and
+# stays rejected.
+CONSISTENCY_FRACTION = 0.75
 
 
 def ConeRays(cone_angle: float, rings: int) -> np.ndarray:

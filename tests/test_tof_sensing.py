@@ -92,6 +92,23 @@ def test_grid_and_ranging_locate_an_ideal_hose(cell, y, z, expected):
     np.testing.assert_allclose(C, centre, atol=1e-3)
 
 
+@pytest.mark.parametrize("noise", [-0.003, 0.0, 0.003])
+def test_a_hose_between_two_points_is_consistent_with_both(cell, noise):
+    """Hose centred midway between points (1, 1) and (1, 2): sensor 2 sees it on axis at
+    h - a/2 - r, sensors 5 and 6 off axis at a/2 from their lines of sight. Both points stay
+    error-free within 1.5 sigma of noise, so S lands on the hose instead of either point."""
+    grid = _grid(cell[0])
+    side = np.hypot(H, A / 2) - R
+    ranges = np.array([0.1, H - A / 2 - R + noise, 0.1, 0.1, side, side])
+    valid = np.array([0, 1, 0, 0, 1, 1], bool)
+    detected, errors = grid.Detect(ranges, valid)
+    assert detected[1, 1] and detected[1, 2]
+    assert not errors[1, 1] and not errors[1, 2]
+    S, centre_only = grid.GridEstimate(ranges, valid)
+    np.testing.assert_allclose(S, [0.0, 0.0, A / 2], atol=1e-9)
+    assert not centre_only
+
+
 def test_far_returns_are_detection_errors(cell):
     grid = _grid(cell[0])
     ranges = np.array([0.090, 0.1, 0.1, 0.045, 0.1, 0.1])
