@@ -103,13 +103,14 @@ def ReachableRandomPath(scenario: "PathFollowingScenario", seed: int) -> np.ndar
     """The first random path of the seed's sequence that the arm can trace with the tool
     on the centerline and along it (IK every 15 mm, no reconfiguration): the generator's
     region is only an annulus, the arm's reachable set with a downward tool is smaller."""
+    # The tool exactly on and along the centerline: no orientation shortfall.
     setup = Setup(
         scenario.station,
         scenario.arm,
         scenario.gripper_frame,
         scenario.tof,
         FollowerParams(),
-        scenario.ik,
+        dataclasses.replace(scenario.ik, shortfall_tolerance_deg=0.0),
         MotionLimits(),
         scenario.period,
         np.zeros(0),
@@ -203,7 +204,9 @@ def _StartPosition(scenario, solver, mount, centerline: np.ndarray) -> np.ndarra
         else (solver.plant.GetPositions(solver.context))
     )
     start_limits = solver.limits
-    solver.limits = dataclasses.replace(start_limits, max_step_rotation_deg=180.0, max_swing=np.inf)
+    solver.limits = dataclasses.replace(
+        start_limits, max_step_rotation_deg=180.0, max_swing=np.inf, shortfall_tolerance_deg=0.0
+    )
     result = solver.Solve(mount.GripperPose(X_WT), q_home)
     solver.limits = start_limits
     if not result.success:

@@ -4,9 +4,12 @@ One solve is a Drake InverseKinematics program on the arm's joints, started from
 previous joint positions (as the seed's Matlab solver was):
   - the frame's origin within position_tolerance of the target; its orientation as close
     to the target as the arm allows (a cost, as the seed's weighted generalised IK), and
-    never farther than orientation_tolerance_deg: near the reach limit the tool keeps
-    its position on the path and tilts a little less than asked, and the next step,
-    computed from the measured pose, corrects the rest;
+    never farther than orientation_tolerance_deg; when no solution within that tolerance
+    exists without a reconfiguration (near the reach limit, or near a wrist singularity
+    where a small turn of the tool needs a large wrist turn that swings the tool), the
+    solve is repeated allowing a shortfall of up to shortfall_tolerance_deg: the tool
+    keeps its position on the path and turns less than asked, and the next step, computed
+    from the measured pose, asks again;
   - no step rotates the frame by 90 deg or more about any axis (no tool reversal): the
     angle between the new and the current orientation stays below max_step_rotation_deg;
   - a downward tool: the frame's `down_axis` stays within max_tilt_deg of world -z;
@@ -37,10 +40,12 @@ from guidedarm.systems.errors import ConfigurationError
 class IkLimits:
     """Tolerances (m, deg), the frame's axis that should point down, the cell's virtual
     walls (m, world frame), the weight of the stay-near-previous-q cost and the number of
-    perturbed restarts after a failed solve."""
+    perturbed restarts after a failed solve. shortfall_tolerance_deg: the orientation
+    tolerance of the second solve (module docstring); 0 disables it."""
 
     position_tolerance: float = 0.0005
     orientation_tolerance_deg: float = 0.5
+    shortfall_tolerance_deg: float = 15.0
     orientation_cost_weight: float = 10.0
     max_step_rotation_deg: float = 89.0
     max_tilt_deg: float = 85.0
@@ -111,6 +116,24 @@ class ToolPoseSolver:
         """Joint positions putting the frame at X_WF_desired, started from q_previous."""
         start = time.perf_counter()
         lim = self.limits
+        tolerances = [lim.orientation_tolerance_deg]
+        if lim.shortfall_tolerance_deg > lim.orientation_tolerance_deg:
+            tolerances.append(lim.shortfall_tolerance_deg)
+        reasons = []
+        for tolerance in tolerances:
+            q_new, reason = self._Solve(X_WF_desired, q_previous, tolerance)
+            if q_new is not None:
+                return IkResult(q_new, True, time.perf_counter() - start, "")
+            reasons.append(reason)
+        # The first reason names what the requested pose itself violates.
+        elapsed = time.perf_counter() - start
+        return IkResult(np.asarray(q_previous, float), False, elapsed, reasons[0])
+
+    def _Solve(
+        self, X_WF_desired: RigidTransform, q_previous: np.ndarray, orientation_tolerance: float
+    ) -> tuple[np.ndarray | None, str]:
+        """(q, '') of one program with the given orientation tolerance (deg), or (None, why)."""
+        lim = self.limits
         X_WF_now = self.ForwardKinematics(q_previous)
         ik = InverseKinematics(self.plant, with_joint_limits=True)
         q = ik.q()
@@ -128,7 +151,7 @@ class ToolPoseSolver:
                     X_WF_desired.rotation(),
                     self.frame,
                     RotationMatrix(),
-                    math.radians(lim.orientation_tolerance_deg),
+                    math.radians(orientation_tolerance),
                 ),
                 "target orientation",
             ),
@@ -184,17 +207,14 @@ class ToolPoseSolver:
                 q_new = result.GetSolution(q)
                 swing = self.Swing(q_previous, q_new)
                 if swing <= lim.max_swing:
-                    return IkResult(q_new, True, time.perf_counter() - start, "")
-        elapsed = time.perf_counter() - start
+                    return q_new, ""
         if swing > lim.max_swing:
-            reason = (
+            return None, (
                 f"reaching the pose needs a reconfiguration (the tool would swing "
                 f"{1000 * swing:.0f} mm off its path)"
             )
-            return IkResult(np.asarray(q_previous, float), False, elapsed, reason)
         names = result.GetInfeasibleConstraintNames(prog)
-        reason = _Explain(names) if names else result.get_solution_result().name
-        return IkResult(np.asarray(q_previous, float), False, elapsed, reason)
+        return None, _Explain(names) if names else result.get_solution_result().name
 
 
 def _Explain(names: list[str]) -> str:

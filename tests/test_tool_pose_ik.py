@@ -1,6 +1,7 @@
 """Tool pose IK: the seed's constraints hold on solutions, failures are reported, and the
 ToolPoseIk system answers one request per id."""
 
+import dataclasses
 import itertools
 import math
 
@@ -111,3 +112,34 @@ def test_tool_pose_ik_system_answers_each_request_once(solver):
     # The forward kinematics output is of the measured q (home, fixed above).
     X_home = ik.GetOutputPort("X_WF_measured").Eval(ik_context)
     np.testing.assert_allclose(X_home.translation(), solver.ForwardKinematics(HOME).translation())
+
+
+def test_orientation_shortfall_only_when_the_exact_pose_has_no_solution(solver):
+    """Along a line running out of reach the strict solve fails first on the orientation;
+    there the second solve holds the position and turns the tool up to 15 deg less."""
+    mount = _mount(solver)
+    a, b = np.array([0.30, 0.15, 0.10]), np.array([0.50, 0.40, 0.10])
+    R = OrientationFromVector(b - a)
+    strict = dataclasses.replace(solver.limits, shortfall_tolerance_deg=0.0)
+    relaxed = solver.limits
+    q = None
+    for s in np.linspace(0.0, 1.0, 41):
+        X_WG = mount.GripperPose(RigidTransform(R, a + s * (b - a)))
+        if q is None:
+            solver.limits = dataclasses.replace(strict, max_step_rotation_deg=180, max_swing=np.inf)
+            q = solver.Solve(X_WG, HOME).q
+        solver.limits = strict
+        exact = solver.Solve(X_WG, q)
+        solver.limits = relaxed
+        result = solver.Solve(X_WG, q)
+        assert result.success or not exact.success
+        if not exact.success:
+            break
+        np.testing.assert_array_equal(result.q, exact.q)
+        q = result.q
+    assert not exact.success and "target orientation" in exact.reason
+    assert result.success
+    X = solver.ForwardKinematics(result.q)
+    assert np.max(np.abs(X.translation() - X_WG.translation())) <= 0.0005 + 1e-6
+    angle = math.degrees(X.rotation().inverse().multiply(X_WG.rotation()).ToAngleAxis().angle())
+    assert 0.5 < angle <= 15.0 + 1e-3
