@@ -14,6 +14,7 @@ for the contact check.
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -139,7 +140,7 @@ def ToolGeometry(plant: MultibodyPlant, gripper_frame: str, tof: ToFToolConfig, 
     T = frame(tof.tool_frame)
     mount = ToolMount.FromTransform(T.CalcPose(context, frame(gripper_frame)))
     X_TS = tuple(frame(s).CalcPose(context, T) for s in tof.sensor_frames)
-    return mount, DetectionGrid(X_TS, radius)
+    return mount, DetectionGrid(X_TS, radius, math.radians(tof.cone_angle_deg))
 
 
 def RunKinematic(

@@ -23,7 +23,11 @@ Estimators of the hose centre S in the tool frame T (the seed's S, eq. (8)):
   ranging   refines the grid: among the sensors of the error-free detected points, the
             nearest row sensor and the nearest column sensor trilaterate the hose centre
             (it lies at range + r from each emitter, in the detection plane, T's y-z
-            plane). Nothing detected by the grid means nothing detected here too.
+            plane). With the cone angle known, that point then starts a least-squares fit
+            to every one of those sensors' ranges: a sensor whose cone holds the centre
+            sees the surface at distance - r, one that sees only the hose's flank sees it
+            along the cone's edge ray. Nothing detected by the grid means nothing detected
+            here too.
 """
 
 from __future__ import annotations
@@ -139,10 +143,12 @@ class DetectionGrid:
 
     X_TS: poses of the six sensor frames in the tool frame T (+z = line of sight).
     hose_radius: radius assumed by the consistency check and the ranging estimator (m).
+    cone_angle: the sensors' full cone angle (rad); None keeps ranging to trilateration.
     """
 
     X_TS: tuple[RigidTransform, ...]
     hose_radius: float
+    cone_angle: float | None = None
 
     def __post_init__(self) -> None:
         emitters = np.array([X.translation() for X in self.X_TS])
@@ -220,8 +226,52 @@ class DetectionGrid:
                 candidates.append(self.emitters[k] + self.axes[k] * (ranges[k] + r))
         for c in candidates:
             if c is not None and np.linalg.norm(c - centre) <= self.field_radius:
+                c = self._Refine(c, ranges, np.flatnonzero(trusted & np.asarray(valid, bool)))
                 return c, bool(np.linalg.norm(c - centre) < self.spacing / 2)
         return None, False
+
+    def PredictedRange(self, k: int, c: np.ndarray) -> float | None:
+        """Range (m) sensor k reads for a hose centred at c (the detection plane, T), or None
+        when its cone misses the hose: the nearest in-plane ray of the cone."""
+        half = self.cone_angle / 2
+        d = c - self.emitters[k]
+        distance = float(np.linalg.norm(d))
+        along = float(d @ self.axes[k])
+        if along <= 0:
+            return None
+        if along >= distance * math.cos(half):
+            return distance - self.hose_radius
+        side = d - along * self.axes[k]
+        edge = math.cos(half) * self.axes[k] + math.sin(half) * side / np.linalg.norm(side)
+        t = float(d @ edge)
+        h2 = distance * distance - t * t
+        r2 = self.hose_radius**2
+        return None if h2 > r2 else t - math.sqrt(r2 - h2)
+
+    def _Refine(self, c: np.ndarray, ranges: np.ndarray, sensors: np.ndarray) -> np.ndarray:
+        """Gauss-Newton fit of the hose centre to the sensors' ranges, from c; c itself when
+        the fit has fewer than three ranges to use or leaves the grid cell it started in."""
+        if self.cone_angle is None or len(sensors) < 3:
+            return c
+        basis = (self.axes[0], self.axes[3])
+        x = c.copy()
+        h = 1e-5
+        for _ in range(8):
+            residuals, jacobian = [], []
+            for k in sensors:
+                p = self.PredictedRange(k, x)
+                shifted = [self.PredictedRange(k, x + h * b) for b in basis]
+                if p is None or None in shifted:
+                    continue
+                residuals.append(ranges[k] - p)
+                jacobian.append([(q - p) / h for q in shifted])
+            if len(residuals) < 3:
+                return c
+            step = np.linalg.lstsq(np.array(jacobian), np.array(residuals), rcond=None)[0]
+            x = x + step[0] * basis[0] + step[1] * basis[1]
+            if np.linalg.norm(step) < 1e-6:
+                break
+        return x if np.linalg.norm(x - c) <= self.spacing / 2 else c
 
 
 def _Nearest(ranges: np.ndarray, valid: np.ndarray, indices: range) -> int | None:

@@ -109,6 +109,29 @@ def test_a_hose_between_two_points_is_consistent_with_both(cell, noise):
     assert not centre_only
 
 
+def test_ranging_fit_averages_the_noise_of_every_range(cell):
+    """Ranges of a hose anywhere within 8 mm of the centre, from the cone model with 2 mm
+    noise: the least-squares fit over all six sensors has a smaller mean error than the
+    two-sensor trilateration it starts from, and is exact without noise."""
+    X_TS = _grid(cell[0]).X_TS
+    trilateration = DetectionGrid(X_TS, R)
+    fit = DetectionGrid(X_TS, R, np.radians(25.0))
+    rng = np.random.default_rng(7)
+    errors = {"trilateration": [], "fit": []}
+    for _ in range(300):
+        centre = np.array([0.0, *rng.uniform(-0.008, 0.008, 2)])
+        model = [fit.PredictedRange(k, centre) for k in range(6)]
+        valid = np.array([m is not None for m in model])
+        exact = np.array([m if m is not None else 0.1 for m in model])
+        np.testing.assert_allclose(fit.RangingEstimate(exact, valid)[0], centre, atol=1e-6)
+        ranges = np.where(valid, exact + rng.normal(0.0, 0.002, 6), 0.1)
+        for name, grid in (("trilateration", trilateration), ("fit", fit)):
+            S, _ = grid.RangingEstimate(ranges, valid)
+            errors[name].append(np.linalg.norm(S - centre))
+    mean = {name: float(np.mean(e)) for name, e in errors.items()}
+    assert mean["fit"] <= 0.9 * mean["trilateration"], mean
+
+
 def test_far_returns_are_detection_errors(cell):
     grid = _grid(cell[0])
     ranges = np.array([0.090, 0.1, 0.1, 0.045, 0.1, 0.1])
