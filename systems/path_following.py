@@ -200,9 +200,12 @@ def FollowStep(
         w_a = n * a + (S_W - memory.S_prime) * params.rotation_reduction
     else:
         w_a = n * a + m * params.rotation_reduction
-    # A retry counts as a recovery once the tool sees the hose away from where it restarted.
+    # A retry counts as a recovery once the tool sees the hose more than a long step from
+    # where it restarted. One short step is not enough: past the end a retry that glimpses
+    # the hose's end then counted as recovered, and the tool cycled lost-retry-recovered
+    # around the end instead of stopping there.
     retrying = memory.recovery > 0
-    recovered = retrying and np.linalg.norm(p_WO - memory.retry_origin) > params.short_step
+    recovered = retrying and np.linalg.norm(p_WO - memory.retry_origin) > params.long_step
     still_retrying = retrying and not recovered
     new_memory = FollowerMemory(
         O_prime=p_WO,

@@ -72,12 +72,8 @@ def test_ranging_halves_the_errors(station_runs):
         print(f"{path:13s} {dg:8.2f} {dr:8.2f}                       {tg:8.2f} {tr:8.2f}")
     detected = np.array([[row[1], row[2]] for row in rows]).mean(axis=0)
     tracking = np.array([[row[3], row[4]] for row in rows]).mean(axis=0)
-    # The issue asks ranging to halve both means. Tracking: 3.31 / 7.16 mm = 0.46. Detected
-    # path: 2.86 / 5.72 mm = 0.500, 0.05 % short of half since the grid's consistency check
-    # was corrected (docs/path_following.md; before, the grid's mean was 8.2 mm). Ranging
-    # trilaterates from two ranges with 2 mm noise, about 2.5 mm mean error in the plane;
-    # the honest bound asserted here is 0.51 until ranging uses more of the six ranges.
-    assert detected[1] <= 0.51 * detected[0]
+    # Measured (seed 0): detected 2.27 / 5.72 mm = 0.40, tracking 2.90 / 7.16 mm = 0.41.
+    assert detected[1] <= 0.5 * detected[0]
     assert tracking[1] <= 0.5 * tracking[0]
 
 
