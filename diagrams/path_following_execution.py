@@ -188,7 +188,9 @@ def RunKinematic(
 def RunStation(setup: Setup, mount, grid, context: RunContext) -> Execution:
     """The follower loop through the simulated station (see the module docstring)."""
     builder = DiagramBuilder()
-    station = builder.AddNamedSystem("station", MakeStation(setup.station, context.meshcat))
+    station = builder.AddNamedSystem(
+        "station", MakeStation(setup.station, context.meshcat, context.hardware)
+    )
     solver = MakeSolver(setup)
     ik = builder.AddNamedSystem("tool_pose_ik", ToolPoseIk(solver, setup.period))
     follower = builder.AddNamedSystem(
@@ -218,6 +220,8 @@ def RunStation(setup: Setup, mount, grid, context: RunContext) -> Execution:
     diagram = builder.Build()
     simulator = Simulator(diagram)
     ApplySimulatorConfig(setup.station.simulator_config, simulator)
+    if context.hardware:
+        simulator.set_target_realtime_rate(1.0)
     root = simulator.get_mutable_context()
     ik.SetInitialGoal(ik.GetMyMutableContextFromRoot(root), setup.q_start)
     follower_context = follower.GetMyContextFromRoot(root)

@@ -38,10 +38,6 @@ def _Status(port: int) -> str:
 
 
 @pytest.mark.slow
-@pytest.mark.xfail(
-    strict=True,
-    reason="path_following_execution.RunStation builds MakeStation without context.hardware",
-)
 def test_path_following_on_the_emulators_matches_simulation(tmp_path):
     sim_run = _Run("--out", str(tmp_path / "sim"), *COMMON)
     assert sim_run.returncode == 0, sim_run.stderr
