@@ -40,5 +40,19 @@ class LineSocket:
             self._buffer += data
         del self._buffer[: end + 1]
 
+    def DiscardUnread(self) -> None:
+        """Drops whatever has arrived but not been read: replies to requests that timed out,
+        which would otherwise be taken for the replies to the next request."""
+        self._buffer.clear()
+        timeout = self.connection.gettimeout()
+        self.connection.setblocking(False)
+        try:
+            while self.connection.recv(4096):
+                pass
+        except (BlockingIOError, InterruptedError):
+            pass
+        finally:
+            self.connection.settimeout(timeout)
+
     def WriteLines(self, *lines: str) -> None:
         self.connection.sendall("".join(f"{line}\n" for line in lines).encode("ascii"))

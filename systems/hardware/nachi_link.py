@@ -38,6 +38,7 @@ class NachiLink:
         connection.setsockopt(socket.IPPROTO_TCP, socket.TCP_NODELAY, 1)
         self._socket = LineSocket(connection, nachi.MAX_LINE)
         self._lock = threading.Lock()
+        self._unanswered = False
         (reply,) = self.Request(nachi.RESET)
         nachi.CheckOk(reply)
         self._pending: np.ndarray | None = None
@@ -53,8 +54,15 @@ class NachiLink:
     def Request(self, *lines: str) -> list[str]:
         """Sends request lines and returns their replies (thread-safe)."""
         with self._lock:
+            if self._unanswered:
+                self._socket.DiscardUnread()
+                self._unanswered = False
             self._socket.WriteLines(*lines)
-            return [self._socket.ReadLine() for _ in lines]
+            try:
+                return [self._socket.ReadLine() for _ in lines]
+            except OSError:
+                self._unanswered = True
+                raise
 
     def _Run(self) -> None:
         while not self._closing.is_set():
