@@ -78,14 +78,21 @@ def AddStationModels(scenario: StationScenario, plant: MultibodyPlant) -> None:
 def SetInitialPositions(scenario: StationScenario, plant: MultibodyPlant) -> None:
     """Sets each arm's default joint positions (finalized plant) from the scenario."""
     for name, arm in scenario.arms.items():
-        instance = GetArmInstance(plant, name)
-        if len(arm.initial_position) > 0:
-            if len(arm.initial_position) != plant.num_positions(instance):
-                raise ConfigurationError(
-                    f"arms.{name}.initial_position has {len(arm.initial_position)} values, "
-                    f"the model has {plant.num_positions(instance)} joints"
-                )
-            plant.SetDefaultPositions(instance, np.asarray(arm.initial_position, float))
+        plant.SetDefaultPositions(GetArmInstance(plant, name), ArmInitialPosition(plant, name, arm))
+
+
+def ArmInitialPosition(plant: MultibodyPlant, name: str, arm: ArmConfig) -> np.ndarray:
+    """The arm's initial joint positions (rad): the scenario's, checked against the model,
+    or the model's defaults when the scenario gives none."""
+    instance = GetArmInstance(plant, name)
+    if len(arm.initial_position) == 0:
+        return plant.GetDefaultPositions(instance)
+    if len(arm.initial_position) != plant.num_positions(instance):
+        raise ConfigurationError(
+            f"arms.{name}.initial_position has {len(arm.initial_position)} values, "
+            f"the model has {plant.num_positions(instance)} joints"
+        )
+    return np.asarray(arm.initial_position, float)
 
 
 def GetArmInstance(plant: MultibodyPlant, name: str):

@@ -32,6 +32,7 @@ from guidedarm.diagrams.path_following_report import (
 )
 from guidedarm.diagrams.run_context import RunContext
 from guidedarm.diagrams.scenario import StationScenario
+from guidedarm.diagrams.station import ArmInitialPosition
 from guidedarm.diagrams.tasks import TaskDefinition
 from guidedarm.systems.errors import ConfigurationError, GuidedArmError
 from guidedarm.systems.hose_geometry import (
@@ -197,12 +198,7 @@ def MakeSetup(scenario: PathFollowingScenario, out_dir: Path) -> tuple[Setup, np
 def _StartPosition(scenario, solver, mount, centerline: np.ndarray) -> np.ndarray:
     ahead = centerline[min(4, len(centerline) - 1)]
     X_WT = RigidTransform(OrientationFromVector(ahead - centerline[0]), centerline[0])
-    arm = scenario.station.arms[scenario.arm]
-    q_home = (
-        np.asarray(arm.initial_position, float)
-        if arm.initial_position
-        else (solver.plant.GetPositions(solver.context))
-    )
+    q_home = ArmInitialPosition(solver.plant, scenario.arm, scenario.station.arms[scenario.arm])
     start_limits = solver.limits
     solver.limits = dataclasses.replace(
         start_limits, max_step_rotation_deg=180.0, max_swing=np.inf, shortfall_tolerance_deg=0.0

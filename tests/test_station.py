@@ -106,3 +106,22 @@ def test_bad_model_file_is_a_configuration_error():
     directive.add_model.file = "package://guidedarm/nowhere/ghost.urdf"
     with pytest.raises(ConfigurationError, match="model directives"):
         MakeStation(StationScenario(directives=[directive]))
+
+
+def test_arm_initial_position_is_checked_where_tasks_read_it():
+    from pydrake.multibody.plant import MultibodyPlant
+
+    from guidedarm.diagrams.station import AddStationModels, ArmInitialPosition
+
+    scenario = station_for("ur10e")
+    plant = MultibodyPlant(0.0)
+    AddStationModels(scenario, plant)
+    plant.Finalize()
+    np.testing.assert_allclose(
+        ArmInitialPosition(plant, "ur10e", ArmConfig(initial_position=HOME["ur10e"])),
+        HOME["ur10e"],
+    )
+    # Without a scenario value, the model's defaults (the directive's home pose) apply.
+    np.testing.assert_allclose(ArmInitialPosition(plant, "ur10e", ArmConfig()), HOME["ur10e"])
+    with pytest.raises(ConfigurationError, match="initial_position has 3 values"):
+        ArmInitialPosition(plant, "ur10e", ArmConfig(initial_position=[0.0, 0.0, 0.0]))
