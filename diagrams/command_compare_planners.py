@@ -18,9 +18,8 @@ from typing import Any
 import numpy as np
 
 from guidedarm.diagrams.command_run import LoadScenario
-from guidedarm.diagrams.planner_plots import PlotTcpPath
 from guidedarm.diagrams.run_context import RunContext
-from guidedarm.diagrams.task_waypoints import MakePlannerSetup, PlannerSetup
+from guidedarm.diagrams.task_waypoints import MakePlannerSetup, PlannerSetup, PlotTcpPathsOfJoints
 from guidedarm.systems.acceleration_planning import ClosestApproach, RunPlanning
 from guidedarm.systems.errors import ConfigurationError
 from guidedarm.systems.planner_baselines import JointTrajectory, MoveJ, ToppraThroughWaypoints
@@ -109,18 +108,9 @@ def compare_command(args: argparse.Namespace) -> int:
                 for name, row in rows.items()
             ],
         )
-        kinematics = setup.planning.kinematics
-        paths = {
-            name: np.array([kinematics.Position(q)[:3] for q in t.q])
-            for name, t in trajectories.items()
-        }
+        joint_paths = {name: t.q for name, t in trajectories.items()}
         context.save_figure(
-            PlotTcpPath(
-                paths,
-                setup.planning.waypoints,
-                scenario.planner.neighbourhood_radius,
-                kinematics.Position(setup.q0),
-            ),
+            PlotTcpPathsOfJoints(setup, joint_paths, scenario.planner.neighbourhood_radius),
             "compare_tcp_paths",
         )
         for path in context.written:

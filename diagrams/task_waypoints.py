@@ -211,6 +211,18 @@ def TrajectoryMetrics(
     return metrics
 
 
+def PlotTcpPathsOfJoints(
+    setup: PlannerSetup, joint_paths: dict[str, np.ndarray], radius: float
+) -> Any:
+    """PlotTcpPath of joint trajectories (samples x joints, rad), mapped to the TCP position
+    by the planner's kinematics, with the task's waypoints, start and neighbourhoods (m)."""
+    kinematics = setup.planning.kinematics
+    paths = {
+        name: np.array([kinematics.Position(q)[:3] for q in qs]) for name, qs in joint_paths.items()
+    }
+    return PlotTcpPath(paths, setup.planning.waypoints, radius, kinematics.Position(setup.q0))
+
+
 def SavePlannerFigures(
     context: RunContext,
     scenario: WaypointsScenario,
@@ -219,18 +231,11 @@ def SavePlannerFigures(
     measured: np.ndarray,
 ) -> None:
     """TCP path, q, qd, qdd (limits dashed) and c(t), like the seed's figures 2-14."""
-    kinematics = setup.planning.kinematics
-    tcp = np.array([kinematics.Position(q) for q in trajectory.q])
-    paths = {"commanded": tcp[:, :3]}
+    joint_paths = {"commanded": trajectory.q}
     if measured.size:
-        paths["measured"] = np.array([kinematics.Position(q)[:3] for q in measured])
+        joint_paths["measured"] = measured
     context.save_figure(
-        PlotTcpPath(
-            paths,
-            setup.planning.waypoints,
-            scenario.planner.neighbourhood_radius,
-            kinematics.Position(setup.q0),
-        ),
+        PlotTcpPathsOfJoints(setup, joint_paths, scenario.planner.neighbourhood_radius),
         "tcp_path",
     )
     times = trajectory.times
