@@ -180,9 +180,9 @@ class DetectionGrid:
         valid = np.asarray(valid, bool)
         detected = valid[:3, None] & valid[None, 3:]
         row, col = self.ExpectedRanges()
-        tol = self.spacing * CONSISTENCY_FRACTION
-        bad = (np.abs(ranges[:3, None] - row) > tol) | (np.abs(ranges[None, 3:] - col) > tol)
-        return detected, detected & bad
+        misfit = np.maximum(np.abs(ranges[:3, None] - row), np.abs(ranges[None, 3:] - col))
+        consistent = detected & (misfit <= self.spacing * CONSISTENCY_FRACTION)
+        return detected, detected & ~_PatchOfBestFit(consistent, misfit)
 
     def GridEstimate(self, ranges: np.ndarray, valid: np.ndarray) -> tuple[np.ndarray | None, bool]:
         """The seed's S in T (mean of the error-free detected points) or None; and whether
@@ -272,6 +272,29 @@ class DetectionGrid:
             if np.linalg.norm(step) < 1e-6:
                 break
         return x if np.linalg.norm(x - c) <= self.spacing / 2 else c
+
+
+def _PatchOfBestFit(consistent: np.ndarray, misfit: np.ndarray) -> np.ndarray:
+    """The 4-connected patch of consistent points that holds the best-fitting one.
+
+    The hose crosses the detection plane once, and a hose between two points is consistent
+    with both, so the points that see it are edge neighbours. A consistent point off that
+    patch is a flank seen by a cone's edge rays or another object: with the hose at the
+    centre the two outer sensors facing a far corner read the hose's flanks at ranges that
+    fit the corner too, and the mean of centre and corner put S half a grid diagonal
+    (15.6 mm) off the hose."""
+    if not consistent.any():
+        return consistent
+    start = np.unravel_index(np.argmin(np.where(consistent, misfit, np.inf)), misfit.shape)
+    patch = np.zeros_like(consistent)
+    frontier = [start]
+    while frontier:
+        i, j = frontier.pop()
+        if not (0 <= i < 3 and 0 <= j < 3) or patch[i, j] or not consistent[i, j]:
+            continue
+        patch[i, j] = True
+        frontier += [(i + 1, j), (i - 1, j), (i, j + 1), (i, j - 1)]
+    return patch
 
 
 def _Nearest(ranges: np.ndarray, valid: np.ndarray, indices: range) -> int | None:
