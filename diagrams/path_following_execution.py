@@ -27,7 +27,8 @@ from pydrake.systems.primitives import VectorLogSink
 from guidedarm.diagrams.run_context import RunContext
 from guidedarm.diagrams.scenario import StationScenario
 from guidedarm.diagrams.station import AddStationModels, MakeStation
-from guidedarm.systems.path_follower import DONE, FAILED, MotionLimits, PathFollower
+from guidedarm.systems.joint_moves import MotionLimits
+from guidedarm.systems.path_follower import DONE, FAILED, PathFollower
 from guidedarm.systems.path_following import (
     RECORD_FIELDS,
     EstimateHose,
@@ -118,29 +119,32 @@ class KinematicScene:
 
 
 def MakeSolver(setup: Setup, plant: MultibodyPlant | None = None) -> ToolPoseSolver:
-    """The IK of the gripper frame on a plant of the station's models without the hose."""
+    """The IK of the gripper frame on a plant of the station's models without the hose,
+    holding the ToF tool's centre on target."""
     if plant is None:
         plant = MultibodyPlant(0.0)
         bare = StationScenario(directives=setup.station.directives)
         AddStationModels(bare, plant)
         plant.Finalize()
-    instance_name, _, frame_name = setup.gripper_frame.rpartition("::")
-    frame = plant.GetFrameByName(frame_name, plant.GetModelInstanceByName(instance_name))
-    return ToolPoseSolver(plant, plant.GetModelInstanceByName(setup.arm), frame, setup.limits)
+    gripper = _ScopedFrame(plant, setup.gripper_frame)
+    tool = _ScopedFrame(plant, setup.station.tof_tools[setup.tool_name].tool_frame)
+    p_GO = tool.CalcPose(plant.CreateDefaultContext(), gripper).translation()
+    instance = plant.GetModelInstanceByName(setup.arm)
+    return ToolPoseSolver(plant, instance, gripper, setup.limits, p_GO)
 
 
 def ToolGeometry(plant: MultibodyPlant, gripper_frame: str, tof: ToFToolConfig, radius: float):
     """(ToolMount, DetectionGrid) read from the plant's frames."""
     context = plant.CreateDefaultContext()
-
-    def frame(scoped: str):
-        instance, _, name = scoped.rpartition("::")
-        return plant.GetFrameByName(name, plant.GetModelInstanceByName(instance))
-
-    T = frame(tof.tool_frame)
-    mount = ToolMount.FromTransform(T.CalcPose(context, frame(gripper_frame)))
-    X_TS = tuple(frame(s).CalcPose(context, T) for s in tof.sensor_frames)
+    T = _ScopedFrame(plant, tof.tool_frame)
+    mount = ToolMount.FromTransform(T.CalcPose(context, _ScopedFrame(plant, gripper_frame)))
+    X_TS = tuple(_ScopedFrame(plant, s).CalcPose(context, T) for s in tof.sensor_frames)
     return mount, DetectionGrid(X_TS, radius, math.radians(tof.cone_angle_deg))
+
+
+def _ScopedFrame(plant: MultibodyPlant, scoped: str):
+    instance, _, name = scoped.rpartition("::")
+    return plant.GetFrameByName(name, plant.GetModelInstanceByName(instance))
 
 
 def RunKinematic(

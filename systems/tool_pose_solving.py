@@ -2,7 +2,8 @@
 
 One solve is a Drake InverseKinematics program on the arm's joints, started from the
 previous joint positions (as the seed's Matlab solver was):
-  - the frame's origin within position_tolerance of the target; its orientation as close
+  - the frame's point Q (the tool centre O for the path follower) within
+    position_tolerance of where the target pose puts it; the frame's orientation as close
     to the target as the arm allows (a cost, as the seed's weighted generalised IK), and
     never farther than orientation_tolerance_deg; when no solution within that tolerance
     exists without a reconfiguration (near the reach limit, or near a wrist singularity
@@ -19,6 +20,9 @@ previous joint positions (as the seed's Matlab solver was):
   - the joint-space move from the previous q keeps the frame within max_swing of the
     straight line between its two poses: a solution on another branch (a wrist or elbow
     flip) would swing the tool through the hose on the way, so it is not taken;
+  - a joint whose range exceeds a full turn takes the 2 pi multiple nearest its previous
+    position: the same pose reached with the last joint a turn further would spin the
+    tool once around the hose;
   - a small cost on the distance to the previous joint positions keeps the same branch.
 """
 
@@ -45,7 +49,7 @@ class IkLimits:
 
     position_tolerance: float = 0.0005
     orientation_tolerance_deg: float = 0.5
-    shortfall_tolerance_deg: float = 15.0
+    shortfall_tolerance_deg: float = 45.0
     orientation_cost_weight: float = 10.0
     max_step_rotation_deg: float = 89.0
     max_tilt_deg: float = 85.0
@@ -72,11 +76,21 @@ class ToolPoseSolver:
     """IK of `frame` (a frame of `plant`) for the arm `instance`; see the module docstring."""
 
     def __init__(
-        self, plant: MultibodyPlant, instance: ModelInstanceIndex, frame: Frame, limits: IkLimits
+        self,
+        plant: MultibodyPlant,
+        instance: ModelInstanceIndex,
+        frame: Frame,
+        limits: IkLimits,
+        p_FQ: np.ndarray | None = None,
     ) -> None:
+        """p_FQ: the point of the frame held on target (m, frame F; default its origin).
+        With the tool centre there, an orientation shortfall turns the tool about its centre
+        and leaves it on the path; about the gripper's origin it would move the centre
+        sideways by the tool's length times the shortfall."""
         self.plant = plant
         self.frame = frame
         self.limits = limits
+        self.p_FQ = np.zeros(3) if p_FQ is None else np.asarray(p_FQ, float)
         self.context = plant.CreateDefaultContext()
         self._q_start = plant.GetPositions(self.context).copy()
         joints = plant.GetJointIndices(instance)
@@ -92,6 +106,8 @@ class ToolPoseSolver:
                 "tool pose IK needs a plant whose only joints are the arm's "
                 f"({plant.num_positions()} positions, the arm has {len(self.q_indices)})"
             )
+        self._lower = plant.GetPositionLowerLimits()
+        self._upper = plant.GetPositionUpperLimits()
         moved = plant.GetBodiesKinematicallyAffectedBy(list(joints))
         self._bodies = [plant.get_body(b) for b in moved]
         self._solver = SnoptSolver() if SnoptSolver().available() else None
@@ -111,6 +127,14 @@ class ToolPoseSolver:
             p = self.ForwardKinematics(q_from + s * (q_to - q_from)).translation()
             worst = max(worst, float(np.linalg.norm(p - (a + s * (b - a)))))
         return worst
+
+    def NearestTurn(self, q: np.ndarray, q_previous: np.ndarray) -> np.ndarray:
+        """q with each joint moved by whole turns (2 pi) as near q_previous as its limits
+        allow; the frame's pose does not change."""
+        turns = np.round((q_previous - q) / (2 * math.pi))
+        shifted = q + 2 * math.pi * turns
+        inside = (shifted >= self._lower) & (shifted <= self._upper)
+        return np.where(inside, shifted, q)
 
     def Solve(self, X_WF_desired: RigidTransform, q_previous: np.ndarray) -> IkResult:
         """Joint positions putting the frame at X_WF_desired, started from q_previous."""
@@ -138,11 +162,11 @@ class ToolPoseSolver:
         ik = InverseKinematics(self.plant, with_joint_limits=True)
         q = ik.q()
         world = self.plant.world_frame()
-        p = X_WF_desired.translation()
+        p = X_WF_desired @ self.p_FQ
         tol = lim.position_tolerance
         described = [
             (
-                ik.AddPositionConstraint(self.frame, np.zeros(3), world, p - tol, p + tol),
+                ik.AddPositionConstraint(self.frame, self.p_FQ, world, p - tol, p + tol),
                 "target position",
             ),
             (
@@ -204,7 +228,7 @@ class ToolPoseSolver:
         for guess in starts:
             result = self._solver.Solve(prog, guess) if self._solver else Solve(prog, guess)
             if result.is_success():
-                q_new = result.GetSolution(q)
+                q_new = self.NearestTurn(result.GetSolution(q), q_previous)
                 swing = self.Swing(q_previous, q_new)
                 if swing <= lim.max_swing:
                     return q_new, ""
