@@ -43,7 +43,7 @@ from guidedarm.systems.hose_geometry import (
     ReadCenterline,
     WriteCenterline,
 )
-from guidedarm.systems.path_follower import MotionLimits
+from guidedarm.systems.joint_moves import MotionLimits
 from guidedarm.systems.path_following import (
     RECORD_FIELDS,
     FollowerParams,

@@ -6,19 +6,24 @@ On a periodic tick it runs a small state machine:
          algorithm (path_following.FollowStep) -> the next gripper pose, a new IK request;
   SOLVE  wait for ToolPoseIk's answer; a failure while the hose is in sight stops the arm
          and reports the step and why; while lost or retrying, the next retry is tried;
-  MOVE   joint-space interpolation from the previous goal to the IK solution, timed so the
-         tool centre moves at tool_speed (and no joint faster than max_joint_speed), then
-         wait until the measured joints reach the goal;
+  MOVE   a rest-to-rest joint-space move to the IK solution (joint_moves: the tool centre
+         cruises at tool_speed, joint speeds and accelerations bounded), then wait until
+         the measured joints reach the goal. A retry (path_following's recovery) first
+         retraces, in reverse, the poses the tool visited since it last saw the hose (each
+         was reached collision-free on the way out), then turns in place: a direct
+         joint-space move back could sweep the tool through the hose;
   DONE / FAILED  hold the last goal.
 """
 
 from dataclasses import dataclass, replace
+from typing import NamedTuple
 
 import numpy as np
 from pydrake.common.value import AbstractValue
 from pydrake.math import RigidTransform
 from pydrake.systems.framework import BasicVector, Context, LeafSystem, State
 
+from guidedarm.systems.joint_moves import JointMove, MotionLimits, PlanJointMove
 from guidedarm.systems.path_following import (
     RECORD_FIELDS,
     EstimateHose,
@@ -36,9 +41,17 @@ from guidedarm.systems.tof_sensing import DetectionGrid
 SENSE, SOLVE, MOVE, DONE, FAILED = range(5)
 
 
+class _Visited(NamedTuple):
+    """A pose the arm stopped at: joints (rad) and tool centre p_WO (m)."""
+
+    q: np.ndarray
+    p_WO: np.ndarray
+
+
 @dataclass
 class _Loop:
-    """The follower's abstract state (small: copied at every tick)."""
+    """The follower's abstract state (small: copied at every tick). trail: the poses since
+    the last one that saw the hose (that one first, the current one last)."""
 
     mode: int
     step: int
@@ -46,23 +59,14 @@ class _Loop:
     memory: FollowerMemory | None = None
     X_WT_sensed: RigidTransform | None = None
     target: RigidTransform | None = None
+    retrace: bool = False
     request: int = 0
-    q_start: np.ndarray | None = None
+    move: JointMove | None = None
     t0: float = 0.0
-    duration: float = 0.0
+    trail: tuple[_Visited, ...] = ()
     record: np.ndarray | None = None
     grid: np.ndarray | None = None
     failure: str = ""
-
-
-@dataclass(frozen=True)
-class MotionLimits:
-    """tool_speed (m/s), max_joint_speed (rad/s), settle_tolerance (rad), settle_timeout (s)."""
-
-    tool_speed: float = 0.05
-    max_joint_speed: float = 1.0
-    settle_tolerance: float = 1e-3
-    settle_timeout: float = 2.0
 
 
 class PathFollower(LeafSystem):
@@ -164,8 +168,10 @@ class PathFollower(LeafSystem):
         S_T, centre_only = EstimateHose(self._grid, params.estimator, ranges, valid)
         result = FollowStep(X_WT, S_T, centre_only, memory, params)
         detected, errors = self._grid.Detect(ranges, valid)
+        here = _Visited(loop.q_goal, X_WT.translation())
         loop = replace(
             loop,
+            trail=loop.trail + (here,) if IsExploring(result.memory) else (here,),
             memory=result.memory,
             X_WT_sensed=X_WT,
             record=MakeRecord(loop.step, t, X_WT, result, ranges, valid),
@@ -185,6 +191,7 @@ class PathFollower(LeafSystem):
             mode=SOLVE,
             memory=result.memory,
             target=self._mount.GripperPose(result.X_WT_next),
+            retrace="recovery" in result.info,
             request=loop.request + 1,
         )
 
@@ -203,18 +210,16 @@ class PathFollower(LeafSystem):
             reason = self._ik_failure.Eval(context)
             return replace(loop, mode=FAILED, failure=f"IK failed at step {loop.step}: {reason}")
         q_goal = self._ik_goal.Eval(context).copy()
-        target_tool = self._mount.ToolPose(loop.target).translation()
-        distance = np.linalg.norm(target_tool - loop.X_WT_sensed.translation())
-        m = self._motion
-        duration = max(
-            distance / m.tool_speed,
-            np.max(np.abs(q_goal - loop.q_goal)) / m.max_joint_speed,
-            self._period,
-        )
-        return replace(loop, mode=MOVE, q_start=loop.q_goal, q_goal=q_goal, t0=t, duration=duration)
+        back = loop.trail[-2::-1] if loop.retrace else ()
+        stops = [loop.trail[-1], *back]
+        waypoints = [v.q for v in stops] + [q_goal]
+        target = self._mount.ToolPose(loop.target).translation()
+        move = PlanJointMove(waypoints, [v.p_WO for v in stops] + [target], self._motion)
+        trail = loop.trail[:1] if loop.retrace else loop.trail
+        return replace(loop, mode=MOVE, move=move, q_goal=q_goal, t0=t, trail=trail)
 
     def _Move(self, context: Context, loop: _Loop, t: float) -> _Loop:
-        end = loop.t0 + loop.duration
+        end = loop.t0 + max(loop.move.duration, self._period)
         if t < end:
             return loop
         error = np.max(np.abs(self._q_measured.Eval(context) - loop.q_goal))
@@ -234,8 +239,7 @@ class PathFollower(LeafSystem):
         if loop.mode != MOVE:
             output.SetFromVector(loop.q_goal)
             return
-        s = np.clip((context.get_time() - loop.t0) / loop.duration, 0.0, 1.0)
-        output.SetFromVector(loop.q_start + s * (loop.q_goal - loop.q_start))
+        output.SetFromVector(loop.move.Position(context.get_time() - loop.t0))
 
     def _CalcRecord(self, context: Context, output: BasicVector) -> None:
         record = self.Loop(context).record
