@@ -147,6 +147,7 @@ class FollowerMemory:
     recovery: int = 0
     recoveries: int = 0
     retry_origin: np.ndarray | None = None
+    last_loss: np.ndarray | None = None
 
     @staticmethod
     def Start(X_WT: RigidTransform, params: FollowerParams) -> "FollowerMemory":
@@ -214,6 +215,7 @@ def FollowStep(
         recovery=memory.recovery if still_retrying else 0,
         recoveries=memory.recoveries + int(recovered),
         retry_origin=memory.retry_origin if still_retrying else None,
+        last_loss=memory.last_loss,
     )
     return StepResult(
         RigidTransform(OrientationFromVector(w_a), P_n), new_memory, S_W, not centre_only
@@ -243,7 +245,8 @@ def _StepWithoutDetection(
         X_next = RigidTransform(OrientationFromVector(n), p_WO + n * params.short_step)
         return StepResult(X_next, replace(memory, lost=lost), None, False)
     attempt = memory.recovery + 1
-    if attempt > len(_RECOVERY_TURNS):
+    O_last = memory.last_detection.translation()
+    if attempt > len(_RECOVERY_TURNS) or (attempt == 1 and _LostHereBefore(O_last, memory, params)):
         return StepResult(X_WT, memory, None, False, ended=True)
     turn_yaw, turn_pitch = _RECOVERY_TURNS[attempt - 1]
     delta = math.radians(params.recovery_angle_deg)
@@ -253,17 +256,26 @@ def _StepWithoutDetection(
         Rotation(0.0, rpy.pitch_angle() + turn_pitch * delta, rpy.yaw_angle() + turn_yaw * delta)
     )
     n_retry = R_retry.matrix()[:, 0]
-    O_last = last.translation()
     retry_memory = replace(
         memory,
         O_prime=O_last - n_retry * params.short_step,
         lost=0,
         recovery=attempt,
         retry_origin=O_last,
+        last_loss=O_last if attempt == 1 else memory.last_loss,
     )
     return StepResult(
         RigidTransform(R_retry, O_last), retry_memory, None, False, info={"recovery": attempt}
     )
+
+
+def _LostHereBefore(O_last: np.ndarray, memory: FollowerMemory, params: FollowerParams) -> bool:
+    """Whether the hose is lost again within two long steps of where it was lost last time:
+    a retry there only glimpses the hose's end, and cycling around the end (each cycle
+    sweeping the tool past it) is how the first version ended its runs."""
+    if memory.last_loss is None:
+        return False
+    return bool(np.linalg.norm(O_last - memory.last_loss) <= 2 * params.long_step)
 
 
 def EstimateHose(grid, estimator: str, ranges: np.ndarray, valid: np.ndarray):

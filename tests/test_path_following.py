@@ -130,6 +130,32 @@ def test_a_retry_that_finds_the_hose_again_is_a_recovery():
     assert moved.memory.recoveries == 1 and moved.memory.recovery == 0
 
 
+def test_lost_again_where_it_was_lost_before_is_the_end():
+    """After a recovery, losing the hose within two long steps of the previous loss ends
+    the run (the retries only glimpse the hose's end); farther on, retries start again."""
+
+    def lose(X, memory):
+        for _ in range(PARAMS.lost_limit + 1):
+            result = FollowStep(X, None, False, memory, PARAMS)
+            X, memory = result.X_WT_next, result.memory
+        return result
+
+    def follow(X, memory, steps):
+        for _ in range(steps):
+            result = FollowStep(X, np.zeros(3), True, memory, PARAMS)
+            X, memory = result.X_WT_next, result.memory
+        return X, memory
+
+    X, memory = follow(_tool(), FollowerMemory.Start(_tool(), PARAMS), 1)
+    retry = lose(X, memory)
+    assert retry.info == {"recovery": 1}
+    X, memory = follow(retry.X_WT_next, retry.memory, 3)  # last seen 20 mm past the loss
+    assert memory.recoveries == 1 and memory.recovery == 0
+    assert lose(X, memory).ended
+    X, memory = follow(X, memory, 2)  # last seen 40 mm past it: beyond two long steps
+    assert lose(X, memory).info == {"recovery": 1}
+
+
 def test_params_are_checked_and_resolved():
     assert FollowerParams(estimator="ranging").Resolved().steering == "centring"
     assert FollowerParams().Resolved().rotation_reduction == 0.3
