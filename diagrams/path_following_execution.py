@@ -40,7 +40,7 @@ from guidedarm.systems.path_following import (
     MakeRecord,
     ToolMount,
 )
-from guidedarm.systems.tof_sensing import DetectionGrid
+from guidedarm.systems.tof_sensing import AverageReadings, DetectionGrid
 from guidedarm.systems.tof_tool_sensor import ToFToolConfig, ToFToolSensor
 from guidedarm.systems.tool_pose_ik import ToolPoseIk
 from guidedarm.systems.tool_pose_solving import IkLimits, ToolPoseSolver
@@ -160,7 +160,8 @@ def RunKinematic(
     for step in range(params.max_steps):
         t = step * _KINEMATIC_STEP_TIME
         context.progress(f"step {step}")
-        ranges, valid = scene.Read(q, t)
+        readings = [scene.Read(q, t + k * params.reading_period) for k in range(params.readings)]
+        ranges, valid = AverageReadings(*map(np.array, zip(*readings, strict=True)))
         X_WT = mount.ToolPose(solver.ForwardKinematics(q))
         memory = memory or FollowerMemory.Start(X_WT, params)
         S_T, centre_only = EstimateHose(grid, params.estimator, ranges, valid)

@@ -1,7 +1,8 @@
 """PathFollower: the step loop of the seed's figure 10 as a LeafSystem.
 
 On a periodic tick it runs a small state machine:
-  SENSE  the arm is stopped: read the six ranges and the gripper pose, compute the tool
+  SENSE  the arm is stopped: read the six ranges (params.readings of them, one per
+         reading_period, averaged) and the gripper pose, compute the tool
          pose (23)-(26), estimate the hose point S, and take one step of the seed's
          algorithm (path_following.FollowStep) -> the next gripper pose, a new IK request;
   SOLVE  wait for ToolPoseIk's answer; a failure while the hose is in sight stops the arm
@@ -36,7 +37,7 @@ from guidedarm.systems.path_following import (
     StepResult,
     ToolMount,
 )
-from guidedarm.systems.tof_sensing import DetectionGrid
+from guidedarm.systems.tof_sensing import AverageReadings, DetectionGrid
 
 SENSE, SOLVE, MOVE, DONE, FAILED = range(5)
 
@@ -64,6 +65,8 @@ class _Loop:
     move: JointMove | None = None
     t0: float = 0.0
     trail: tuple[_Visited, ...] = ()
+    samples: tuple[tuple[np.ndarray, np.ndarray], ...] = ()
+    sampled_at: float = 0.0
     record: np.ndarray | None = None
     grid: np.ndarray | None = None
     failure: str = ""
@@ -161,9 +164,14 @@ class PathFollower(LeafSystem):
 
     def _Sense(self, context: Context, loop: _Loop, t: float) -> _Loop:
         params = self._params
+        if not loop.samples or t >= loop.sampled_at + params.reading_period - 1e-9:
+            sample = (self._ranges.Eval(context).copy(), self._valid.Eval(context) > 0.5)
+            loop = replace(loop, samples=(*loop.samples, sample), sampled_at=t)
+        if len(loop.samples) < params.readings:
+            return loop
+        ranges, valid = AverageReadings(*map(np.array, zip(*loop.samples, strict=True)))
+        loop = replace(loop, samples=())
         X_WT = self._mount.ToolPose(self._X_WG.Eval(context))
-        ranges = self._ranges.Eval(context)
-        valid = self._valid.Eval(context) > 0.5
         memory = loop.memory or FollowerMemory.Start(X_WT, params)
         S_T, centre_only = EstimateHose(self._grid, params.estimator, ranges, valid)
         result = FollowStep(X_WT, S_T, centre_only, memory, params)

@@ -42,6 +42,11 @@ class FollowerParams:
         grid and `centring` for ranging, whose S is accurate enough to steer on.
     long_step, short_step: the seed's d for long and short steps.
     rotation_reduction: the seed's b in (0, 1); 0 picks 0.3 (seed) or 0.5 (centring).
+    readings: sensor readings averaged per step; 0 picks 1 for the grid (the seed reads
+        once) and 4 for ranging, whose accuracy is the ranges' noise (2 mm each, halved by
+        four readings), where the grid's is its 22 mm spacing.
+    reading_period: time between readings (s): the sensors' measurement period, so that
+        each reading is a new measurement.
     lost_limit: steps without detection before a recovery (0 disables recoveries).
     recovery_angle_deg: turn of the retry direction.
     max_steps: the run stops with a failure after this many steps.
@@ -52,6 +57,8 @@ class FollowerParams:
     long_step: float = 0.015
     short_step: float = 0.010
     rotation_reduction: float = 0.0
+    readings: int = 0
+    reading_period: float = 0.02
     lost_limit: int = 3
     recovery_angle_deg: float = 20.0
     max_steps: int = 400
@@ -60,7 +67,8 @@ class FollowerParams:
         """A checked copy with the automatic steering and rotation_reduction filled in."""
         steering = self.steering or ("centring" if self.estimator == "ranging" else "seed")
         b = self.rotation_reduction or (0.5 if steering == "centring" else 0.3)
-        resolved = replace(self, steering=steering, rotation_reduction=b)
+        readings = self.readings or (4 if self.estimator == "ranging" else 1)
+        resolved = replace(self, steering=steering, rotation_reduction=b, readings=readings)
         resolved.Check()
         return resolved
 
@@ -76,6 +84,8 @@ class FollowerParams:
             raise ConfigurationError("need 0 < short_step <= long_step")
         if not 0 < self.rotation_reduction < 1:
             raise ConfigurationError("rotation_reduction (the seed's b) must be in (0, 1)")
+        if self.readings < 0 or self.reading_period <= 0:
+            raise ConfigurationError("readings must be >= 0 and reading_period positive")
         if self.lost_limit < 0 or self.max_steps < 1:
             raise ConfigurationError("lost_limit must be >= 0 and max_steps >= 1")
 

@@ -137,6 +137,17 @@ def Measure(
     return np.where(valid, noisy, max_range), valid
 
 
+def AverageReadings(ranges: np.ndarray, valid: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """One reading (6,) from N readings (N, 6) of the same sensors at rest: a sensor is
+    valid when more than half of its readings are, with the mean of those as its range;
+    an invalid one keeps the device's report (its limit)."""
+    ranges, valid = np.atleast_2d(ranges), np.atleast_2d(np.asarray(valid, bool))
+    count = valid.sum(axis=0)
+    mean = np.where(valid, ranges, 0.0).sum(axis=0) / np.maximum(count, 1)
+    averaged_valid = 2 * count > len(ranges)
+    return np.where(averaged_valid, mean, ranges.max(axis=0)), averaged_valid
+
+
 @dataclass(frozen=True)
 class DetectionGrid:
     """The 3 x 3 grid of a tool with row sensors 0-2 and column sensors 3-5.

@@ -43,12 +43,9 @@ def test_paper_paths_with_the_seeds_algorithm(station_runs, path):
     assert s["success"], s["failure"]
     assert s["coverage"] >= 0.95
     assert s["collisions"] == 0
-    # The seed's bound is +-16 mm. A presence-only grid cannot do better than half a grid
-    # diagonal: with the hose on the centre point, the outer sensors' cones see its flanks
-    # at ranges that fit a diagonal corner point too, S lands midway, 11 * sqrt(2) =
-    # 15.6 mm off, plus the tool's own offset from the hose (measured 15.3-16.1 mm with
-    # seed 0, 16.9 mm with seed 3 on path 4; docs/path_following.md).
-    assert s["detected_path_error_max_mm"] <= 17.0
+    # The seed's bound. Measured 11.1-15.4 mm with seed 0, 8.9-15.4 mm over noise seeds
+    # 0-5 (docs/path_following.md).
+    assert s["detected_path_error_max_mm"] <= 16.0
     assert s["tracking_error_max_mm"] <= 25.0
 
 
@@ -78,11 +75,12 @@ def test_ranging_halves_the_errors(station_runs):
 
 
 def _unreachable_centerline(path: Path) -> None:
-    """A straight hose from within reach (0.34 m from the base axis) out to 0.64 m, where
-    no arm pose holds the tool over it: about 15 steps in, no IK solution exists."""
+    """A straight hose from within reach (0.34 m from the base axis, 0.1 m high) rising to
+    the cell's corner, 0.76 m out and 0.7 m high, where no arm pose holds the tool over it:
+    60-65 steps in, no IK solution exists."""
     from guidedarm.systems.hose_geometry import WriteCenterline
 
-    a, b = np.array([0.30, 0.15, 0.10]), np.array([0.50, 0.40, 0.10])
+    a, b = np.array([0.30, 0.15, 0.10]), np.array([0.54, 0.54, 0.70])
     WriteCenterline(a + (b - a) * np.linspace(0.0, 1.0, 65)[:, None], path)
 
 
@@ -94,7 +92,10 @@ def test_ik_failure_mid_run_stops_and_says_where(tmp_path, capsys):
     s = json.loads((tmp_path / "out" / "summary.json").read_text())
     assert code == 1
     assert not s["success"]
-    match = re.fullmatch(r"IK failed at step (\d+): infeasible: .+", s["failure"])
+    match = re.fullmatch(
+        r"IK failed at step (\d+): (infeasible: .+|reaching the pose needs a reconfiguration .+)",
+        s["failure"],
+    )
     assert match, s["failure"]
     step = int(match.group(1))
     assert step >= 10 and s["steps"] == step + 1  # the arm stopped at the failing step
