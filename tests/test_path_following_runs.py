@@ -104,10 +104,11 @@ def test_ik_failure_mid_run_stops_and_says_where(tmp_path, capsys):
 
 
 @pytest.mark.slow
-def test_random_paths_suite(tmp_path):
+@pytest.mark.parametrize("estimator", ["grid", "ranging"])
+def test_random_paths_suite(tmp_path, estimator):
     rows = []
     for seed in range(20):
-        s = _run(tmp_path, f"path=random_{seed}", "executor=kinematic", "estimator=ranging")
+        s = _run(tmp_path, f"path=random_{seed}", "executor=kinematic", f"estimator={estimator}")
         rows.append(
             (
                 seed,
@@ -118,7 +119,7 @@ def test_random_paths_suite(tmp_path):
                 s["failure"] or "",
             )
         )
-    print("\nseed success coverage tracking_max_mm detected_max_mm failure")
+    print(f"\n{estimator}: seed success coverage tracking_max_mm detected_max_mm failure")
     for seed, ok, cov, trk, det, why in rows:
         print(f"{seed:4d} {ok!s:7s} {cov:8.3f} {trk:15.2f} {det:15.2f} {why}")
     assert sum(row[1] for row in rows) >= 18
