@@ -64,7 +64,7 @@ from guidedarm.systems.image_degradation import DegradationParams, ImageDegradat
 from guidedarm.systems.marker_pose import MarkerPoseSolver
 from guidedarm.systems.marker_pose_estimator import MarkerPoseEstimator
 from guidedarm.systems.panel_operation import (
-    ArmKinematics,
+    CameraArmKinematics,
     PanelOperation,
     PanelOperationConfig,
     PlannerFrames,
@@ -418,7 +418,7 @@ def _MakePlanner(scenario: PanelOperationScenario) -> tuple[AccelerationPlanner,
     return AccelerationPlanner(planning, accept_tasks=True), PlannerFrames(X_WB, X_TN)
 
 
-def _MakeArmKinematics(scenario: PanelOperationScenario) -> ArmKinematics:
+def _MakeArmKinematics(scenario: PanelOperationScenario) -> CameraArmKinematics:
     plant = _LoadArmPlant(scenario)
     plant.Finalize()
     camera = scenario.station.cameras[scenario.camera].X_PB.base_frame or ""
@@ -428,7 +428,7 @@ def _MakeArmKinematics(scenario: PanelOperationScenario) -> ArmKinematics:
         if not instance or not plant.HasModelInstanceNamed(instance):
             raise ConfigurationError(f"frame '{scoped}' is not in {scenario.arm_directives}")
         frames.append(plant.GetFrameByName(name, plant.GetModelInstanceByName(instance)))
-    return ArmKinematics(plant, *frames)
+    return CameraArmKinematics(plant, *frames)
 
 
 def RunPanelOperation(scenario: PanelOperationScenario, context: RunContext) -> dict[str, Any]:

@@ -70,7 +70,7 @@ class PanelOperationConfig:
             raise ConfigurationError("base_distance_m, max_joint_speed, update_period_s > 0")
 
 
-class ArmKinematics:
+class CameraArmKinematics:
     """Camera and tip poses of one arm of `plant` (all its positions are that arm's joints),
     and inverse kinematics for the tip."""
 
@@ -213,7 +213,7 @@ class PanelOperation(LeafSystem):
 
     def __init__(
         self,
-        kinematics: ArmKinematics,
+        kinematics: CameraArmKinematics,
         panel: PanelSpec,
         switch: SwitchSpec,
         config: PanelOperationConfig,
