@@ -15,7 +15,7 @@ for the contact check.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 from pydrake.geometry import QueryObject
@@ -27,6 +27,11 @@ from pydrake.systems.primitives import VectorLogSink
 from guidedarm.diagrams.run_context import RunContext
 from guidedarm.diagrams.scenario import StationScenario
 from guidedarm.diagrams.station import AddStationModels, MakeStation
+from guidedarm.systems.acceleration_planning import (
+    AccelerationPlanning,
+    ArmKinematics,
+    PlannerParameters,
+)
 from guidedarm.systems.joint_moves import MotionLimits
 from guidedarm.systems.path_follower import DONE, FAILED, PathFollower
 from guidedarm.systems.path_following import (
@@ -40,6 +45,7 @@ from guidedarm.systems.path_following import (
     MakeRecord,
     ToolMount,
 )
+from guidedarm.systems.planner_moves import PlannerMoves
 from guidedarm.systems.tof_sensing import AverageReadings, DetectionGrid
 from guidedarm.systems.tof_tool_sensor import ToFToolConfig, ToFToolSensor
 from guidedarm.systems.tool_pose_ik import ToolPoseIk
@@ -76,6 +82,8 @@ class Setup:
     period: float
     q_start: np.ndarray
     max_time: float
+    moves: str = "joint_trajectory"
+    planner: PlannerParameters = field(default_factory=PlannerParameters)
 
 
 class KinematicScene:
@@ -198,9 +206,12 @@ def RunStation(setup: Setup, mount, grid, context: RunContext) -> Execution:
     )
     solver = MakeSolver(setup)
     ik = builder.AddNamedSystem("tool_pose_ik", ToolPoseIk(solver, setup.period))
+    plan_move = MakePlannerMoves(setup, solver.plant) if setup.moves == "planner" else None
     follower = builder.AddNamedSystem(
         "path_follower",
-        PathFollower(setup.params, mount, grid, setup.q_start, setup.motion, setup.period),
+        PathFollower(
+            setup.params, mount, grid, setup.q_start, setup.motion, setup.period, plan_move
+        ),
     )
     arm, tof = setup.arm, setup.tool_name
     q_measured = station.GetOutputPort(f"{arm}.position_measured")
@@ -252,6 +263,30 @@ def RunStation(setup: Setup, mount, grid, context: RunContext) -> Execution:
     return Execution(
         _LastPerStep(log.data().T), qlog.sample_times(), qlog.data().T, root.get_time(), failure
     )
+
+
+def MakePlannerMoves(setup: Setup, plant: MultibodyPlant) -> PlannerMoves:
+    """Moves through seed 001's planner, its tool frame the ToF tool's T, its joint limits
+    the scenario's motion limits."""
+    tool = _ScopedFrame(plant, setup.station.tof_tools[setup.tool_name].tool_frame)
+    kinematics = ArmKinematics(
+        plant,
+        plant.GetModelInstanceByName(setup.arm),
+        plant.world_frame(),
+        tool,
+        setup.planner.min_singular_value,
+    )
+    speed = np.full(6, setup.motion.max_joint_speed)
+    accel = np.full(6, setup.motion.max_joint_acceleration)
+    q = setup.q_start
+    planning = AccelerationPlanning(
+        kinematics,
+        kinematics.Position(q)[np.newaxis],
+        setup.planner,
+        (-speed, speed),
+        (-accel, accel),
+    )
+    return PlannerMoves(planning)
 
 
 def _LastPerStep(samples: np.ndarray) -> np.ndarray:

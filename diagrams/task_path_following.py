@@ -34,6 +34,7 @@ from guidedarm.diagrams.run_context import RunContext
 from guidedarm.diagrams.scenario import StationScenario
 from guidedarm.diagrams.station import ArmInitialPosition
 from guidedarm.diagrams.tasks import TaskDefinition
+from guidedarm.systems.acceleration_planning import PlannerParameters
 from guidedarm.systems.errors import ConfigurationError, GuidedArmError
 from guidedarm.systems.hose_geometry import (
     HoseConfig,
@@ -52,6 +53,7 @@ from guidedarm.systems.path_following import (
 from guidedarm.systems.tool_pose_solving import IkLimits
 
 EXECUTORS = ("station", "kinematic")
+MOVES = ("joint_trajectory", "planner")
 
 
 @dataclass
@@ -59,9 +61,12 @@ class PathFollowingScenario:
     """path: `paper_path_N`, another name in models/hoses/, or `random_<seed>`;
     path_csv: a centerline CSV (overrides path); estimator: `grid` (the seed) or `ranging`;
     seed: ToF noise seed; repeat_seed: when set, a second run with this noise seed is
-    overlaid (repeatability); executor: `station` or `kinematic`; tool_speed (m/s);
-    max_joint_speed (rad/s); period: follower and IK tick (s); max_time: simulated time
-    limit (s); min_coverage: success threshold; follower: the algorithm's parameters
+    overlaid (repeatability); executor: `station` or `kinematic`; motion: how the station
+    moves between steps, `joint_trajectory` (rest-to-rest joint moves at tool_speed) or
+    `planner` (seed 001's acceleration-level planner with the `planner` parameters; both
+    within max_joint_speed and max_joint_acceleration); tool_speed (m/s); max_joint_speed
+    (rad/s); max_joint_acceleration (rad/s^2); period: follower and IK tick (s); max_time:
+    simulated time limit (s); min_coverage: success threshold; follower: the algorithm's parameters
     (estimator overrides follower.estimator); ik: IK tolerances (the cell walls come from
     the path: models/hoses/NAME.yaml); arm, gripper_frame, tof: names in the station."""
 
@@ -74,6 +79,9 @@ class PathFollowingScenario:
     executor: str = "station"
     tool_speed: float = 0.05
     max_joint_speed: float = 1.0
+    max_joint_acceleration: float = 5.0
+    motion: str = "joint_trajectory"
+    planner: PlannerParameters = field(default_factory=PlannerParameters)
     period: float = 0.01
     max_time: float = 400.0
     min_coverage: float = 0.95
@@ -160,8 +168,14 @@ def MakeSetup(scenario: PathFollowingScenario, out_dir: Path) -> tuple[Setup, np
     """Validates the scenario, places the hose and solves the start pose."""
     if scenario.executor not in EXECUTORS:
         raise ConfigurationError(f"executor must be one of {EXECUTORS}, got '{scenario.executor}'")
-    if scenario.tool_speed <= 0 or scenario.period <= 0 or scenario.max_joint_speed <= 0:
-        raise ConfigurationError("tool_speed, max_joint_speed and period must be positive")
+    if scenario.motion not in MOVES:
+        raise ConfigurationError(f"motion must be one of {MOVES}, got '{scenario.motion}'")
+    rates = (scenario.tool_speed, scenario.period, scenario.max_joint_speed)
+    if min(*rates, scenario.max_joint_acceleration) <= 0:
+        raise ConfigurationError(
+            "tool_speed, max_joint_speed, max_joint_acceleration and period must be positive"
+        )
+    scenario.planner.Validate()
     if scenario.arm not in scenario.station.arms or scenario.tof not in scenario.station.tof_tools:
         raise ConfigurationError(
             f"station must define arms.{scenario.arm} and tof_tools.{scenario.tof}"
@@ -183,10 +197,16 @@ def MakeSetup(scenario: PathFollowingScenario, out_dir: Path) -> tuple[Setup, np
         scenario.tof,
         params,
         limits,
-        MotionLimits(scenario.tool_speed, scenario.max_joint_speed),
+        MotionLimits(
+            scenario.tool_speed,
+            scenario.max_joint_speed,
+            max_joint_acceleration=scenario.max_joint_acceleration,
+        ),
         scenario.period,
         np.zeros(0),
         scenario.max_time,
+        scenario.motion,
+        scenario.planner,
     )
     solver = MakeSolver(setup)
     mount, grid = ToolGeometry(solver.plant, scenario.gripper_frame, tof, station.hose.diameter / 2)

@@ -10,6 +10,7 @@ stops at every waypoint, where the follower reads its sensors anyway.
 """
 
 import math
+from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
@@ -110,3 +111,31 @@ def PlanJointMove(
         points.append(q)
         profiles.append(Trapezoid(speed, accel))
     return JointMove(np.array(points), tuple(profiles))
+
+
+@dataclass(frozen=True)
+class SampledMove:
+    """A move given by samples: times (s, from 0) and joint positions (samples x n, rad),
+    linearly interpolated between samples (e.g. a planner's 2 ms commands)."""
+
+    times: np.ndarray
+    q: np.ndarray
+
+    @property
+    def duration(self) -> float:
+        """Total duration (s)."""
+        return float(self.times[-1])
+
+    @property
+    def goal(self) -> np.ndarray:
+        """The last sample (rad)."""
+        return self.q[-1]
+
+    def Position(self, t: float) -> np.ndarray:
+        """Joint positions (rad) at time t (s) after the start."""
+        return np.array([np.interp(t, self.times, column) for column in self.q.T])
+
+
+Move = JointMove | SampledMove
+MovePlanner = Callable[[list[np.ndarray], list[np.ndarray]], Move]
+"""Plans a move through joint waypoints (rad) given the tool centre at each (m)."""

@@ -24,7 +24,8 @@ from pydrake.common.value import AbstractValue
 from pydrake.math import RigidTransform
 from pydrake.systems.framework import BasicVector, Context, LeafSystem, State
 
-from guidedarm.systems.joint_moves import JointMove, MotionLimits, PlanJointMove
+from guidedarm.systems.errors import GuidedArmError
+from guidedarm.systems.joint_moves import MotionLimits, Move, MovePlanner, PlanJointMove
 from guidedarm.systems.path_following import (
     RECORD_FIELDS,
     EstimateHose,
@@ -62,7 +63,7 @@ class _Loop:
     target: RigidTransform | None = None
     retrace: bool = False
     request: int = 0
-    move: JointMove | None = None
+    move: Move | None = None
     t0: float = 0.0
     trail: tuple[_Visited, ...] = ()
     samples: tuple[tuple[np.ndarray, np.ndarray], ...] = ()
@@ -90,11 +91,15 @@ class PathFollower(LeafSystem):
         q_initial: np.ndarray,
         motion: MotionLimits,
         period: float,
+        plan_move: MovePlanner | None = None,
     ) -> None:
+        """plan_move: how moves are made (default: joint_moves.PlanJointMove with `motion`;
+        e.g. planner_moves.PlannerMoves); motion's settle limits apply either way."""
         super().__init__()
         params = params.Resolved()
         self._params, self._mount, self._grid, self._motion = params, mount, grid, motion
         self._period = period
+        self._plan_move = plan_move or (lambda q, p: PlanJointMove(q, p, motion))
         n = len(q_initial)
         self._ranges = self.DeclareVectorInputPort("ranges", 6)
         self._valid = self.DeclareVectorInputPort("valid", 6)
@@ -222,9 +227,12 @@ class PathFollower(LeafSystem):
         stops = [loop.trail[-1], *back]
         waypoints = [v.q for v in stops] + [q_goal]
         target = self._mount.ToolPose(loop.target).translation()
-        move = PlanJointMove(waypoints, [v.p_WO for v in stops] + [target], self._motion)
+        try:
+            move = self._plan_move(waypoints, [v.p_WO for v in stops] + [target])
+        except GuidedArmError as e:
+            return replace(loop, mode=FAILED, failure=f"move failed at step {loop.step}: {e}")
         trail = loop.trail[:1] if loop.retrace else loop.trail
-        return replace(loop, mode=MOVE, move=move, q_goal=q_goal, t0=t, trail=trail)
+        return replace(loop, mode=MOVE, move=move, q_goal=move.goal, t0=t, trail=trail)
 
     def _Move(self, context: Context, loop: _Loop, t: float) -> _Loop:
         end = loop.t0 + max(loop.move.duration, self._period)

@@ -149,6 +149,29 @@ def test_bad_centerlines_end_with_one_line(tmp_path, capsys, text, message):
 
 
 @pytest.mark.slow
+def test_moves_through_the_acceleration_level_planner(tmp_path, capsys):
+    """motion: planner (seed 001's law between the follower's steps) on the first 0.35 m of
+    paper_path_1 through the station."""
+    from guidedarm.systems.hose_geometry import ReadCenterline, WriteCenterline
+
+    csv = tmp_path / "short.csv"
+    WriteCenterline(ReadCenterline("paper_path_1")[:50], csv)
+    code, _ = _cli(tmp_path, capsys, "--path-csv", str(csv), "--set", "motion=planner")
+    summary = json.loads((tmp_path / "out" / "summary.json").read_text())
+    assert code == 0, summary["failure"]
+    assert summary["coverage"] >= 0.95 and summary["collisions"] == 0
+    assert summary["tracking_error_max_mm"] <= 25.0
+
+
+def test_unknown_motion_is_one_line(tmp_path, capsys):
+    code, err = _cli(tmp_path, capsys, "--set", "motion=teleport")
+    assert code == 2
+    assert err.strip() == (
+        "guidedarm: error: motion must be one of ('joint_trajectory', 'planner'), got 'teleport'"
+    )
+
+
+@pytest.mark.slow
 def test_path_csv_flag_runs_a_file(tmp_path, capsys):
     from guidedarm.systems.hose_geometry import ReadCenterline, WriteCenterline
 
