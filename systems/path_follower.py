@@ -5,8 +5,9 @@ On a periodic tick it runs a small state machine:
          reading_period, averaged) and the gripper pose, compute the tool
          pose (23)-(26), estimate the hose point S, and take one step of the seed's
          algorithm (path_following.FollowStep) -> the next gripper pose, a new IK request;
-  SOLVE  wait for ToolPoseIk's answer; a failure while the hose is in sight stops the arm
-         and reports the step and why; while lost or retrying, the next retry is tried;
+  SOLVE  wait for ToolPoseIk's answer and plan the move; a failure of either while the
+         hose is in sight stops the arm and reports the step and why; while lost or
+         retrying, the next retry is tried;
   MOVE   a rest-to-rest joint-space move to the IK solution (joint_moves: the tool centre
          cruises at tool_speed, joint speeds and accelerations bounded), then wait until
          the measured joints reach the goal. A retry (path_following's recovery) first
@@ -216,12 +217,8 @@ class PathFollower(LeafSystem):
         record[RECORD_FIELDS.index("ik_time")] += status[2]
         loop = replace(loop, record=record)
         if status[1] < 0.5:
-            if IsExploring(loop.memory):
-                return self._Request(
-                    loop, GiveUpDirection(loop.X_WT_sensed, loop.memory, self._params)
-                )
             reason = self._ik_failure.Eval(context)
-            return replace(loop, mode=FAILED, failure=f"IK failed at step {loop.step}: {reason}")
+            return self._Refused(loop, f"IK failed at step {loop.step}: {reason}")
         q_goal = self._ik_goal.Eval(context).copy()
         back = loop.trail[-2::-1] if loop.retrace else ()
         stops = [loop.trail[-1], *back]
@@ -230,9 +227,16 @@ class PathFollower(LeafSystem):
         try:
             move = self._plan_move(waypoints, [v.p_WO for v in stops] + [target])
         except GuidedArmError as e:
-            return replace(loop, mode=FAILED, failure=f"move failed at step {loop.step}: {e}")
+            return self._Refused(loop, f"move failed at step {loop.step}: {e}")
         trail = loop.trail[:1] if loop.retrace else loop.trail
         return replace(loop, mode=MOVE, move=move, q_goal=move.goal, t0=t, trail=trail)
+
+    def _Refused(self, loop: _Loop, failure: str) -> _Loop:
+        """The arm cannot go where the step asks: while lost or retrying, the next retry;
+        with the hose in sight, stop with `failure`."""
+        if IsExploring(loop.memory):
+            return self._Request(loop, GiveUpDirection(loop.X_WT_sensed, loop.memory, self._params))
+        return replace(loop, mode=FAILED, failure=failure)
 
     def _Move(self, context: Context, loop: _Loop, t: float) -> _Loop:
         end = loop.t0 + max(loop.move.duration, self._period)

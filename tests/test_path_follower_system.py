@@ -11,6 +11,7 @@ from pydrake.systems.primitives import ConstantVectorSource, VectorLogSink
 from guidedarm.diagrams.command_run import LoadScenario
 from guidedarm.diagrams.path_following_execution import MakeSolver
 from guidedarm.diagrams.task_path_following import MakeSetup
+from guidedarm.systems.acceleration_planning import PlanningError
 from guidedarm.systems.path_follower import DONE, PathFollower
 from guidedarm.systems.tool_pose_ik import ToolPoseIk
 
@@ -18,13 +19,25 @@ DT = 0.002
 
 
 @pytest.fixture(scope="module")
-def blind_run(tmp_path_factory):
+def blind_setup(tmp_path_factory):
     _, scenario, _ = LoadScenario("path_following", [])
-    setup, _, (mount, grid) = MakeSetup(scenario, tmp_path_factory.mktemp("follower"))
+    return MakeSetup(scenario, tmp_path_factory.mktemp("follower"))
+
+
+@pytest.fixture(scope="module")
+def blind_run(blind_setup):
+    return _BlindRun(blind_setup)
+
+
+def _BlindRun(made_setup, plan_move=None):
+    """Runs the follower for 30 s with nothing in sight: (setup, loop state, commands)."""
+    setup, _, (mount, grid) = made_setup
     builder = DiagramBuilder()
     ik = builder.AddSystem(ToolPoseIk(MakeSolver(setup), setup.period))
     follower = builder.AddSystem(
-        PathFollower(setup.params, mount, grid, setup.q_start, setup.motion, setup.period)
+        PathFollower(
+            setup.params, mount, grid, setup.q_start, setup.motion, setup.period, plan_move
+        )
     )
     ranges = builder.AddSystem(ConstantVectorSource(np.full(6, 0.1)))
     valid = builder.AddSystem(ConstantVectorSource(np.zeros(6)))
@@ -83,6 +96,16 @@ def test_blind_follower_retraces_and_ends(blind_run):
     p_start = solver.ForwardKinematics(q[stops[0]]) @ solver.p_FQ
     p_retry = solver.ForwardKinematics(q[stops[4]]) @ solver.p_FQ
     assert np.linalg.norm(p_retry - p_start) < 0.001
+
+
+def test_a_move_that_cannot_be_planned_while_lost_skips_to_the_next_retry(blind_setup):
+    def refuse(waypoints, tool_points):
+        raise PlanningError("near-singular arm configuration")
+
+    _, loop, q = _BlindRun(blind_setup, refuse)
+    # Every move refused: the first lost step and each retry are skipped, then the end.
+    assert loop.mode == DONE and loop.failure == ""
+    assert np.max(np.abs(q - q[0])) == 0.0
 
 
 def test_commands_stay_within_speed_and_acceleration_limits(blind_run):
