@@ -265,6 +265,8 @@ def RunPathFollowing(scenario: PathFollowingScenario, context: RunContext) -> di
     execution, centerline = Execute(scenario, context, scenario.seed)
     metrics = Metrics(execution.records, centerline)
     failure = execution.failure
+    if failure is None and execution.collisions:
+        failure = f"the robot touched the hose during {execution.collisions} step(s)"
     if failure is None and metrics["coverage"] < scenario.min_coverage:
         failure = (
             f"hose lost after step {metrics['steps'] - 1}: coverage "
