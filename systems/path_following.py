@@ -14,8 +14,9 @@ Tool pose from gripper pose: O = O_c + R_c z_hat l_e, R_e = R_c R_ec (23)-(26).
 Beyond the seed (its discussion): after lost_limit steps without a detection the tool
 returns to the last pose that saw the hose and retries in a direction turned by
 recovery_angle_deg (yaw +, yaw -, pitch up; a downward retry near the end finds the
-bracket post and follows it); when every retry is lost too, the hose
-has ended (or is lost for good) and the follower stops there.
+bracket post and follows it); when every retry is lost too, or the hose is lost again
+within two long steps of where it was lost before, the hose has ended (or is lost for
+good) and the follower stops there.
 """
 
 import math

@@ -16,7 +16,9 @@ Detection grid. Rows are sensors 1-3, columns sensors 4-6; point (i, j) is where
 of sight of row sensor i and column sensor j cross. It is detected when both sensors have a
 return; it is a detection error when either range disagrees with a hose of radius r centred
 on the point (|range - (distance to the point - r)| > 3/4 of the grid spacing), e.g. the table
-seen far beyond the field, or the hose seen at another point of the same line.
+seen far beyond the field, or the hose seen at another point of the same line, or when it
+lies off the 4-connected patch of consistent points around the best-fitting one (the
+flanks of a centred hose seen by the outer cones; see _PatchOfBestFit).
 
 Estimators of the hose centre S in the tool frame T (the seed's S, eq. (8)):
   grid      the mean of the detected, error-free grid points (presence only, the seed).
