@@ -127,22 +127,10 @@ class ArmKinematics:
         plant.SetVelocities(context, self.instance, qd)
         X_BT = plant.CalcRelativeTransform(context, self.base_frame, self.tool_frame)
         rpy = RollPitchYaw(X_BT.rotation()).vector()
-        Jg = plant.CalcJacobianSpatialVelocity(
-            context,
-            JacobianWrtVariable.kV,
-            self.tool_frame,
-            self._origin,
-            self.base_frame,
-            self.base_frame,
-        )[:, self._columns]
-        bias = plant.CalcBiasSpatialAcceleration(
-            context,
-            JacobianWrtVariable.kV,
-            self.tool_frame,
-            self._origin,
-            self.base_frame,
-            self.base_frame,
-        )
+        # T's origin, measured and expressed in B, with respect to v.
+        point = (JacobianWrtVariable.kV, self.tool_frame, self._origin, self.base_frame)
+        Jg = plant.CalcJacobianSpatialVelocity(context, *point, self.base_frame)[:, self._columns]
+        bias = plant.CalcBiasSpatialAcceleration(context, *point, self.base_frame)
         sigma = self._CheckSingularity(Jg, rpy, q)
         B_inv = EulerRateMatrixInverse(rpy)
         J = np.empty((6, 6))
