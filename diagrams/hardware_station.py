@@ -29,6 +29,7 @@ from guidedarm.systems.hardware.tof_driver import TofDriver
 from guidedarm.systems.hardware.tof_protocol import TofLineCollector
 from guidedarm.systems.hardware.tof_transports import BleTransport, SerialTransport
 from guidedarm.systems.hardware.ur_rtde_link import OpenUrRtde
+from guidedarm.systems.tof_tool_sensor import TOF_PORTS, MakeDetectionGrid
 
 ARM_DRIVERS = ("ur_rtde", "nachi_tcp")
 TOF_TRANSPORTS = ("serial", "ble")
@@ -85,10 +86,11 @@ def MakeHardwareStation(scenario: StationScenario, meshcat: Meshcat | None = Non
             SerialTransport(collector, config.device, config.baudrate)
         else:
             BleTransport(collector, config.device)
-        system = TofDriver(collector, tool.period, config.watchdog, tool.max_range)
+        grid = MakeDetectionGrid(plant, tool)
+        system = TofDriver(collector, tool.period, config.watchdog, tool.max_range, grid)
         builder.AddNamedSystem(f"{name}.driver", system)
-        builder.ExportOutput(system.GetOutputPort("ranges"), f"{name}.ranges")
-        builder.ExportOutput(system.GetOutputPort("valid"), f"{name}.valid")
+        for port in TOF_PORTS:
+            builder.ExportOutput(system.GetOutputPort(port), f"{name}.{port}")
     if meshcat is not None:
         _DrawMeasured(builder, plant, scene_graph, measured, meshcat)
     diagram = builder.Build()

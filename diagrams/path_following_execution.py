@@ -14,7 +14,6 @@ for the contact check.
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -46,8 +45,8 @@ from guidedarm.systems.path_following import (
     ToolMount,
 )
 from guidedarm.systems.planner_moves import PlannerMoves
-from guidedarm.systems.tof_sensing import AverageReadings, DetectionGrid
-from guidedarm.systems.tof_tool_sensor import ToFToolConfig, ToFToolSensor
+from guidedarm.systems.tof_sensing import AverageReadings
+from guidedarm.systems.tof_tool_sensor import MakeDetectionGrid, ToFToolConfig, ToFToolSensor
 from guidedarm.systems.tool_pose_ik import ToolPoseIk
 from guidedarm.systems.tool_pose_solving import IkLimits, ToolPoseSolver
 
@@ -141,13 +140,11 @@ def MakeSolver(setup: Setup, plant: MultibodyPlant | None = None) -> ToolPoseSol
     return ToolPoseSolver(plant, instance, gripper, setup.limits, p_GO)
 
 
-def ToolGeometry(plant: MultibodyPlant, gripper_frame: str, tof: ToFToolConfig, radius: float):
+def ToolGeometry(plant: MultibodyPlant, gripper_frame: str, tof: ToFToolConfig):
     """(ToolMount, DetectionGrid) read from the plant's frames."""
-    context = plant.CreateDefaultContext()
     T = _ScopedFrame(plant, tof.tool_frame)
-    mount = ToolMount.FromTransform(T.CalcPose(context, _ScopedFrame(plant, gripper_frame)))
-    X_TS = tuple(_ScopedFrame(plant, s).CalcPose(context, T) for s in tof.sensor_frames)
-    return mount, DetectionGrid(X_TS, radius, math.radians(tof.cone_angle_deg))
+    X_GT = T.CalcPose(plant.CreateDefaultContext(), _ScopedFrame(plant, gripper_frame))
+    return ToolMount.FromTransform(X_GT), MakeDetectionGrid(plant, tof)
 
 
 def _ScopedFrame(plant: MultibodyPlant, scoped: str):

@@ -24,7 +24,7 @@ from guidedarm.diagrams.scenario import ArmConfig, StationScenario
 from guidedarm.systems.errors import ConfigurationError
 from guidedarm.systems.hose_geometry import ReadCenterline, RegisterHose
 from guidedarm.systems.joint_servo import ComputedTorqueLaw, JointServo
-from guidedarm.systems.tof_tool_sensor import ToFToolSensor
+from guidedarm.systems.tof_tool_sensor import TOF_PORTS, ToFToolSensor
 
 RENDERER_NAME = "vtk"
 
@@ -50,8 +50,8 @@ def MakeStation(
     for name, tof in scenario.tof_tools.items():
         sensor = builder.AddNamedSystem(f"{name}.sensor", ToFToolSensor(plant, tof))
         builder.Connect(scene_graph.get_query_output_port(), sensor.get_input_port())
-        builder.ExportOutput(sensor.GetOutputPort("ranges"), f"{name}.ranges")
-        builder.ExportOutput(sensor.GetOutputPort("valid"), f"{name}.valid")
+        for port in TOF_PORTS:
+            builder.ExportOutput(sensor.GetOutputPort(port), f"{name}.{port}")
     if meshcat is not None:
         ApplyVisualizationConfig(scenario.visualization, builder, meshcat=meshcat)
     builder.ExportOutput(scene_graph.get_query_output_port(), "sim.query_object")

@@ -127,7 +127,7 @@ def ReachableRandomPath(scenario: "PathFollowingScenario", seed: int) -> np.ndar
     )
     solver = MakeSolver(setup)
     tof = scenario.station.tof_tools[scenario.tof]
-    mount, _ = ToolGeometry(solver.plant, scenario.gripper_frame, tof, 0.01)
+    mount, _ = ToolGeometry(solver.plant, scenario.gripper_frame, tof)
     for attempt in range(20):
         path = RandomSmoothPath(seed * 1000 + attempt)
         try:
@@ -187,6 +187,7 @@ def MakeSetup(scenario: PathFollowingScenario, out_dir: Path) -> tuple[Setup, np
     station.hose.centerline = str(Path(csv).resolve()) if Path(csv).is_file() else csv
     tof = station.tof_tools[scenario.tof]
     tof.seed = scenario.seed
+    tof.target_radius = station.hose.diameter / 2
     params = dataclasses.replace(scenario.follower, estimator=scenario.estimator).Resolved()
     limits = scenario.ik
     limits.x, limits.y, limits.z_min = list(walls.x), list(walls.y), walls.z_min
@@ -209,7 +210,7 @@ def MakeSetup(scenario: PathFollowingScenario, out_dir: Path) -> tuple[Setup, np
         scenario.planner,
     )
     solver = MakeSolver(setup)
-    mount, grid = ToolGeometry(solver.plant, scenario.gripper_frame, tof, station.hose.diameter / 2)
+    mount, grid = ToolGeometry(solver.plant, scenario.gripper_frame, tof)
     setup.q_start = _StartPosition(scenario, solver, mount, centerline)
     station.arms[scenario.arm].initial_position = setup.q_start.tolist()
     return setup, centerline, (mount, grid)

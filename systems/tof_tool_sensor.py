@@ -5,6 +5,7 @@ tool's microcontroller streams, so the hardware driver can produce the same port
 ranges (m) and their validity flags (1 = a return within range, 0 = none).
 """
 
+from collections.abc import Callable
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -15,7 +16,7 @@ from pydrake.multibody.plant import MultibodyPlant
 from pydrake.systems.framework import BasicVector, Context, LeafSystem, ValueProducer
 
 from guidedarm.systems.errors import ConfigurationError
-from guidedarm.systems.tof_sensing import ConeRays, Measure, RayCaster
+from guidedarm.systems.tof_sensing import ConeRays, DetectionGrid, Measure, RayCaster
 
 NUM_SENSORS = 6
 
@@ -31,6 +32,8 @@ class ToFToolConfig:
     sensor_frames: scoped frames of sensors 1..6 (+z = line of sight); 1-3 are the grid rows.
     tool_frame: the tool frame T (centre O of the detection field).
     cone_angle_deg: vertex angle of each sensor's cone; max_range: no return beyond it (m).
+    target_radius: radius of the round target (the hose) that the detection grid's
+        consistency check assumes (m).
     noise_std, quantization: Gaussian noise and resolution of a reading (m).
     seed: seed of the noise generator; period: the noise is redrawn every period (s).
     rings: rings of rays sampling each cone (1 + 3 rings (rings + 1) rays).
@@ -40,6 +43,7 @@ class ToFToolConfig:
     tool_frame: str = "tof_tool::tof_tool"
     cone_angle_deg: float = 25.0
     max_range: float = 0.100
+    target_radius: float = 0.010
     noise_std: float = 0.002
     quantization: float = 0.001
     seed: int = 0
@@ -47,10 +51,16 @@ class ToFToolConfig:
     rings: int = 2
 
 
+# Output ports of a ToF tool, the same in the simulated and the hardware station.
+TOF_PORTS = ("ranges", "valid", "detections", "detection_errors")
+
+
 class ToFToolSensor(LeafSystem):
     """Ranges of six ToF sensors from the `query_object` input (SceneGraph's QueryObject).
 
-    Output `ranges` (6, m; max_range where there is no return) and `valid` (6, 0 or 1).
+    Output `ranges` (6, m; max_range where there is no return) and `valid` (6, 0 or 1), and
+    the seed's 3 x 3 grid of that reading: `detections` and `detection_errors` (9 each,
+    0 or 1, row-major: row sensor i = 1..3, column sensor j = 4..6; tof_sensing).
     The noise of a reading at time t comes from np.random.default_rng((seed, floor(t /
     period))), so a run is reproducible and `seed` changes it. Geometry of the tool's own
     model instance is not seen (its cones look away from it by construction).
@@ -94,6 +104,9 @@ class ToFToolSensor(LeafSystem):
         self.DeclareVectorOutputPort(
             "valid", NUM_SENSORS, self.CalcValid, prerequisites_of_calc={self._reading.ticket()}
         )
+        DeclareGridOutputs(
+            self, MakeDetectionGrid(plant, config), self._Reading, {self._reading.ticket()}
+        )
 
     def SensorPosesInWorld(self, context: Context) -> list[RigidTransform]:
         """X_WS of the six sensors."""
@@ -117,11 +130,44 @@ class ToFToolSensor(LeafSystem):
         )
         value.set_value(np.concatenate([ranges, valid.astype(float)]))
 
+    def _Reading(self, context: Context) -> tuple[np.ndarray, np.ndarray]:
+        reading = self._reading.Eval(context)
+        return reading[:NUM_SENSORS], reading[NUM_SENSORS:] > 0.5
+
     def CalcRanges(self, context: Context, output: BasicVector) -> None:
         output.SetFromVector(self._reading.Eval(context)[:NUM_SENSORS])
 
     def CalcValid(self, context: Context, output: BasicVector) -> None:
         output.SetFromVector(self._reading.Eval(context)[NUM_SENSORS:])
+
+
+def MakeDetectionGrid(plant: MultibodyPlant, config: ToFToolConfig) -> DetectionGrid:
+    """The tool's detection grid from the (finalized) plant's tool and sensor frames."""
+    context = plant.CreateDefaultContext()
+    T = _Frame(plant, config.tool_frame)
+    X_TS = tuple(_Frame(plant, name).CalcPose(context, T) for name in config.sensor_frames)
+    return DetectionGrid(X_TS, config.target_radius, np.radians(config.cone_angle_deg))
+
+
+def DeclareGridOutputs(
+    system: LeafSystem,
+    grid: DetectionGrid,
+    reading: Callable[[Context], tuple[np.ndarray, np.ndarray]],
+    prerequisites: set,
+) -> None:
+    """Declares `detections` and `detection_errors` (9, row-major) of `system`, computed
+    by `grid` from reading(context) = (ranges, valid), which depends on prerequisites."""
+
+    def calc(index: int):
+        def output(context: Context, value: BasicVector) -> None:
+            value.SetFromVector(grid.Detect(*reading(context))[index].ravel().astype(float))
+
+        return output
+
+    system.DeclareVectorOutputPort("detections", 9, calc(0), prerequisites_of_calc=prerequisites)
+    system.DeclareVectorOutputPort(
+        "detection_errors", 9, calc(1), prerequisites_of_calc=prerequisites
+    )
 
 
 def _Frame(plant: MultibodyPlant, scoped: str):

@@ -7,6 +7,7 @@ import time
 
 import numpy as np
 import pytest
+from pydrake.math import RigidTransform, RotationMatrix
 from pydrake.systems.analysis import Simulator
 
 from guidedarm.systems.errors import ConfigurationError
@@ -21,8 +22,10 @@ from guidedarm.systems.hardware.tof_protocol import (
     TofLineError,
 )
 from guidedarm.systems.hardware.tof_transports import BleTransport, SerialTransport
+from guidedarm.systems.tof_sensing import DetectionGrid
 
 RANGES_MM = np.array([12, 40, 100, 255, 0, 73])
+GRID = (-0.022, 0.0, 0.022)
 STATUS = np.array([0, 0, 0, 15, 12, 0])
 GOOD = FormatTofLine(7, RANGES_MM, STATUS)
 
@@ -68,6 +71,16 @@ def test_ble_transport_without_adapter_fails_with_one_line():
         BleTransport(TofLineCollector(), "00:11:22:33:44:55")
 
 
+def _Grid() -> DetectionGrid:
+    """The tool's geometry: row sensors 55 mm above the centre looking down, column sensors
+    55 mm to the side looking across, 22 mm apart."""
+    rows = [RigidTransform(RotationMatrix.MakeXRotation(np.pi), [0, y, 0.055]) for y in GRID]
+    columns = [
+        RigidTransform(RotationMatrix.MakeXRotation(-np.pi / 2), [0, -0.055, z]) for z in GRID
+    ]
+    return DetectionGrid((*rows, *columns), 0.010)
+
+
 def _Source():
     return 1e-3 * RANGES_MM, STATUS
 
@@ -77,7 +90,7 @@ def test_driver_reads_the_emulator_through_a_pty_and_survives_bad_lines():
     collector = TofLineCollector()
     transport = SerialTransport(collector, emulator.device, 115200)
     try:
-        driver = TofDriver(collector, period=0.02, watchdog=0.2, no_return_range=0.1)
+        driver = TofDriver(collector, 0.02, 0.2, no_return_range=0.1, grid=_Grid())
         simulator = Simulator(driver)
         simulator.set_target_realtime_rate(1.0)
         simulator.AdvanceTo(0.5)
@@ -85,6 +98,11 @@ def test_driver_reads_the_emulator_through_a_pty_and_survives_bad_lines():
         expected = np.where(STATUS == 0, 1e-3 * RANGES_MM, 0.1)  # as the simulated sensor
         np.testing.assert_allclose(driver.GetOutputPort("ranges").Eval(context), expected)
         np.testing.assert_array_equal(driver.GetOutputPort("valid").Eval(context), STATUS == 0)
+        # The seed's grid of that reading, as the simulated sensor outputs it.
+        detected, errors = _Grid().Detect(expected, STATUS == 0)
+        for port, grid in (("detections", detected), ("detection_errors", errors)):
+            np.testing.assert_array_equal(driver.GetOutputPort(port).Eval(context), grid.ravel())
+        assert detected.sum() == 3  # rows 1-3 x column 6 (sensors 4, 5 invalid)
     finally:
         emulator.close()
         time.sleep(0.05)

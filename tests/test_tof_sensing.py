@@ -207,3 +207,13 @@ def test_sensor_sees_the_hose_through_the_query_object(cell):
     assert true[4] == pytest.approx(H - R, abs=1.5e-3)
     valid = sensor.GetOutputPort("valid").Eval(sensor_context)
     assert valid[1] == 1 and valid[4] == 1
+    # The sensor's own grid outputs: the centre point detected and error-free, and no
+    # error-free point off the centre's patch.
+    detections = sensor.GetOutputPort("detections").Eval(sensor_context).reshape(3, 3)
+    errors = sensor.GetOutputPort("detection_errors").Eval(sensor_context).reshape(3, 3)
+    assert detections[1, 1] == 1 and errors[1, 1] == 0
+    grid = DetectionGrid(_grid(plant).X_TS, R)
+    ranges = sensor.GetOutputPort("ranges").Eval(sensor_context)
+    expected = grid.Detect(ranges, valid > 0.5)
+    np.testing.assert_array_equal(detections, expected[0])
+    np.testing.assert_array_equal(errors, expected[1])

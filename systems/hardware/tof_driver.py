@@ -13,12 +13,15 @@ from pydrake.systems.framework import BasicVector, Context, DiscreteValues, Leaf
 
 from guidedarm.systems.hardware.arm_link import LinkLostError, StopAllArms
 from guidedarm.systems.hardware.tof_protocol import NUM_SENSORS, TofLineCollector
+from guidedarm.systems.tof_sensing import DetectionGrid
+from guidedarm.systems.tof_tool_sensor import DeclareGridOutputs
 
 
 class TofDriver(LeafSystem):
     """Outputs `ranges` (m, per sensor along its line of sight; `no_return_range` where the
     reading is not valid, as the simulated sensor does) and `valid` (1 where the VL6180X
-    status is 0, else 0). Before the first reading: no_return_range, valid 0."""
+    status is 0, else 0). Before the first reading: no_return_range, valid 0. With a
+    `grid`, also `detections` and `detection_errors` as ToFToolSensor has them."""
 
     def __init__(
         self,
@@ -26,6 +29,7 @@ class TofDriver(LeafSystem):
         period: float,
         watchdog: float,
         no_return_range: float = 0.1,
+        grid: DetectionGrid | None = None,
     ) -> None:
         super().__init__()
         self._collector = collector
@@ -36,7 +40,13 @@ class TofDriver(LeafSystem):
         self._state = self.DeclareDiscreteState(np.r_[np.full(n, no_return_range), np.zeros(n)])
         self.DeclareVectorOutputPort("ranges", n, self._CalcSlice(0, n))
         self.DeclareVectorOutputPort("valid", n, self._CalcSlice(n, 2 * n))
+        if grid is not None:
+            DeclareGridOutputs(self, grid, self._Reading, {self.xd_ticket()})
         self.DeclarePeriodicDiscreteUpdateEvent(period, 0.0, self._Update)
+
+    def _Reading(self, context: Context) -> tuple[np.ndarray, np.ndarray]:
+        value = context.get_discrete_state(self._state).value()
+        return value[:NUM_SENSORS], value[NUM_SENSORS:] > 0.5
 
     def _CalcSlice(self, start: int, stop: int):
         def calc(context: Context, output: BasicVector) -> None:
