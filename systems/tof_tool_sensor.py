@@ -68,10 +68,7 @@ class ToFToolSensor(LeafSystem):
 
     def __init__(self, plant: MultibodyPlant, config: ToFToolConfig) -> None:
         super().__init__()
-        if len(config.sensor_frames) != NUM_SENSORS:
-            raise ConfigurationError(f"tof sensor_frames must name {NUM_SENSORS} frames")
-        if config.max_range <= 0 or config.period <= 0 or config.noise_std < 0:
-            raise ConfigurationError("tof max_range and period must be > 0, noise_std >= 0")
+        CheckToFConfig(config)
         self._config = config
         frames = [_Frame(plant, name) for name in config.sensor_frames]
         self._frame_ids = [plant.GetBodyFrameIdOrThrow(f.body().index()) for f in frames]
@@ -141,8 +138,19 @@ class ToFToolSensor(LeafSystem):
         output.SetFromVector(self._reading.Eval(context)[NUM_SENSORS:])
 
 
+def CheckToFConfig(config: ToFToolConfig) -> None:
+    """Raises ConfigurationError naming the first bad field of a ToF tool's config."""
+    if len(config.sensor_frames) != NUM_SENSORS:
+        raise ConfigurationError(f"tof sensor_frames must name {NUM_SENSORS} frames")
+    if config.max_range <= 0 or config.period <= 0 or config.noise_std < 0:
+        raise ConfigurationError("tof max_range and period must be > 0, noise_std >= 0")
+    if config.target_radius <= 0 or not 0 < config.cone_angle_deg < 180:
+        raise ConfigurationError("tof target_radius must be > 0 and cone_angle_deg in (0, 180)")
+
+
 def MakeDetectionGrid(plant: MultibodyPlant, config: ToFToolConfig) -> DetectionGrid:
     """The tool's detection grid from the (finalized) plant's tool and sensor frames."""
+    CheckToFConfig(config)
     context = plant.CreateDefaultContext()
     T = _Frame(plant, config.tool_frame)
     X_TS = tuple(_Frame(plant, name).CalcPose(context, T) for name in config.sensor_frames)
