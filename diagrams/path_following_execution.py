@@ -45,6 +45,7 @@ from guidedarm.systems.path_following import (
     ToolMount,
 )
 from guidedarm.systems.planner_moves import PlannerMoves
+from guidedarm.systems.plant_frames import GetScopedFrame
 from guidedarm.systems.tof_sensing import AverageReadings
 from guidedarm.systems.tof_tool_sensor import MakeDetectionGrid, ToFToolConfig, ToFToolSensor
 from guidedarm.systems.tool_pose_ik import ToolPoseIk
@@ -133,8 +134,9 @@ def MakeSolver(setup: Setup, plant: MultibodyPlant | None = None) -> ToolPoseSol
         bare = StationScenario(directives=setup.station.directives)
         AddStationModels(bare, plant)
         plant.Finalize()
-    gripper = _ScopedFrame(plant, setup.gripper_frame)
-    tool = _ScopedFrame(plant, setup.station.tof_tools[setup.tool_name].tool_frame)
+    gripper = GetScopedFrame(plant, setup.gripper_frame, "gripper_frame")
+    tool_frame = setup.station.tof_tools[setup.tool_name].tool_frame
+    tool = GetScopedFrame(plant, tool_frame, f"tof_tools.{setup.tool_name}.tool_frame")
     p_GO = tool.CalcPose(plant.CreateDefaultContext(), gripper).translation()
     instance = plant.GetModelInstanceByName(setup.arm)
     return ToolPoseSolver(plant, instance, gripper, setup.limits, p_GO)
@@ -142,14 +144,11 @@ def MakeSolver(setup: Setup, plant: MultibodyPlant | None = None) -> ToolPoseSol
 
 def ToolGeometry(plant: MultibodyPlant, gripper_frame: str, tof: ToFToolConfig):
     """(ToolMount, DetectionGrid) read from the plant's frames."""
-    T = _ScopedFrame(plant, tof.tool_frame)
-    X_GT = T.CalcPose(plant.CreateDefaultContext(), _ScopedFrame(plant, gripper_frame))
+    T = GetScopedFrame(plant, tof.tool_frame, "tof tool_frame")
+    X_GT = T.CalcPose(
+        plant.CreateDefaultContext(), GetScopedFrame(plant, gripper_frame, "gripper_frame")
+    )
     return ToolMount.FromTransform(X_GT), MakeDetectionGrid(plant, tof)
-
-
-def _ScopedFrame(plant: MultibodyPlant, scoped: str):
-    instance, _, name = scoped.rpartition("::")
-    return plant.GetFrameByName(name, plant.GetModelInstanceByName(instance))
 
 
 def RunKinematic(
@@ -265,7 +264,8 @@ def RunStation(setup: Setup, mount, grid, context: RunContext) -> Execution:
 def MakePlannerMoves(setup: Setup, plant: MultibodyPlant) -> PlannerMoves:
     """Moves through seed 001's planner, its tool frame the ToF tool's T, its joint limits
     the scenario's motion limits."""
-    tool = _ScopedFrame(plant, setup.station.tof_tools[setup.tool_name].tool_frame)
+    tool_frame = setup.station.tof_tools[setup.tool_name].tool_frame
+    tool = GetScopedFrame(plant, tool_frame, f"tof_tools.{setup.tool_name}.tool_frame")
     kinematics = ArmKinematics(
         plant,
         plant.GetModelInstanceByName(setup.arm),

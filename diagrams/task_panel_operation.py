@@ -50,7 +50,7 @@ from guidedarm.diagrams.plots import PlotJointSeries
 from guidedarm.diagrams.run_context import RunContext
 from guidedarm.diagrams.scenario import StationScenario
 from guidedarm.diagrams.station import MakeStation
-from guidedarm.diagrams.task_waypoints import GetScopedFrame, SymmetricLimit
+from guidedarm.diagrams.task_waypoints import SymmetricLimit
 from guidedarm.diagrams.tasks import TaskDefinition
 from guidedarm.systems import acceleration_planning as planning_law
 from guidedarm.systems.acceleration_planner import AccelerationPlanner
@@ -69,6 +69,7 @@ from guidedarm.systems.panel_operation import (
     PanelOperationConfig,
     PlannerFrames,
 )
+from guidedarm.systems.plant_frames import GetScopedFrame
 
 
 @dataclass

@@ -11,7 +11,6 @@ from typing import Any
 
 import numpy as np
 from pydrake.multibody.plant import MultibodyPlant
-from pydrake.multibody.tree import Frame
 from pydrake.systems.analysis import ApplySimulatorConfig, Simulator
 from pydrake.systems.framework import DiagramBuilder, EventStatus
 from pydrake.systems.primitives import VectorLogSink
@@ -39,6 +38,7 @@ from guidedarm.systems.acceleration_planning import (
 )
 from guidedarm.systems.acceleration_planning_ik import SolveWaypointIk
 from guidedarm.systems.errors import ConfigurationError
+from guidedarm.systems.plant_frames import GetScopedFrame
 
 LIMIT_CHOICES = ("none", "velocity", "velocity,acceleration")
 
@@ -262,17 +262,6 @@ def SavePlannerFigures(
         "joint_accelerations",
     )
     context.save_figure(PlotScaling(trajectory.times, trajectory.c), "scaling_coefficient")
-
-
-def GetScopedFrame(plant: MultibodyPlant, scoped_name: str, key: str) -> Frame:
-    """The frame `instance::name` (or `name`) of plant; ConfigurationError naming `key`."""
-    instance_name, sep, frame_name = scoped_name.rpartition("::")
-    try:
-        if not sep:
-            return plant.GetFrameByName(frame_name)
-        return plant.GetFrameByName(frame_name, plant.GetModelInstanceByName(instance_name))
-    except Exception:
-        raise ConfigurationError(f"{key}: no frame '{scoped_name}' in the station") from None
 
 
 def SymmetricLimit(values: list[float], key: str) -> np.ndarray:

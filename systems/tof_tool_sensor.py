@@ -16,6 +16,7 @@ from pydrake.multibody.plant import MultibodyPlant
 from pydrake.systems.framework import BasicVector, Context, LeafSystem, ValueProducer
 
 from guidedarm.systems.errors import ConfigurationError
+from guidedarm.systems.plant_frames import GetScopedFrame
 from guidedarm.systems.tof_sensing import ConeRays, DetectionGrid, Measure, RayCaster
 
 NUM_SENSORS = 6
@@ -70,7 +71,7 @@ class ToFToolSensor(LeafSystem):
         super().__init__()
         CheckToFConfig(config)
         self._config = config
-        frames = [_Frame(plant, name) for name in config.sensor_frames]
+        frames = [GetScopedFrame(plant, name, "tof sensor_frames") for name in config.sensor_frames]
         self._frame_ids = [plant.GetBodyFrameIdOrThrow(f.body().index()) for f in frames]
         self._X_BS = [f.GetFixedPoseInBodyFrame() for f in frames]
         instance = frames[0].model_instance()
@@ -152,8 +153,11 @@ def MakeDetectionGrid(plant: MultibodyPlant, config: ToFToolConfig) -> Detection
     """The tool's detection grid from the (finalized) plant's tool and sensor frames."""
     CheckToFConfig(config)
     context = plant.CreateDefaultContext()
-    T = _Frame(plant, config.tool_frame)
-    X_TS = tuple(_Frame(plant, name).CalcPose(context, T) for name in config.sensor_frames)
+    T = GetScopedFrame(plant, config.tool_frame, "tof tool_frame")
+    X_TS = tuple(
+        GetScopedFrame(plant, name, "tof sensor_frames").CalcPose(context, T)
+        for name in config.sensor_frames
+    )
     return DetectionGrid(X_TS, config.target_radius, np.radians(config.cone_angle_deg))
 
 
@@ -176,12 +180,3 @@ def DeclareGridOutputs(
     system.DeclareVectorOutputPort(
         "detection_errors", 9, calc(1), prerequisites_of_calc=prerequisites
     )
-
-
-def _Frame(plant: MultibodyPlant, scoped: str):
-    instance_name, _, frame_name = scoped.rpartition("::")
-    try:
-        instance = plant.GetModelInstanceByName(instance_name)
-        return plant.GetFrameByName(frame_name, instance)
-    except Exception:
-        raise ConfigurationError(f"tof frame '{scoped}' not found in the plant") from None
