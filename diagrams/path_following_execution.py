@@ -165,7 +165,7 @@ def RunKinematic(
         t = step * _KINEMATIC_STEP_TIME
         context.progress(f"step {step}")
         readings = [scene.Read(q, t + k * params.reading_period) for k in range(params.readings)]
-        ranges, valid = AverageReadings(*map(np.array, zip(*readings, strict=True)))
+        ranges, valid = AverageReadings(readings)
         X_WT = mount.ToolPose(solver.ForwardKinematics(q))
         memory = memory or FollowerMemory.Start(X_WT, params)
         S_T, centre_only = EstimateHose(grid, params.estimator, ranges, valid)

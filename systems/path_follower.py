@@ -175,7 +175,7 @@ class PathFollower(LeafSystem):
             loop = replace(loop, samples=(*loop.samples, sample), sampled_at=t)
         if len(loop.samples) < params.readings:
             return loop
-        ranges, valid = AverageReadings(*map(np.array, zip(*loop.samples, strict=True)))
+        ranges, valid = AverageReadings(loop.samples)
         loop = replace(loop, samples=())
         X_WT = self._mount.ToolPose(self._X_WG.Eval(context))
         memory = loop.memory or FollowerMemory.Start(X_WT, params)

@@ -35,6 +35,7 @@ Estimators of the hose centre S in the tool frame T (the seed's S, eq. (8)):
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -139,11 +140,14 @@ def Measure(
     return np.where(valid, noisy, max_range), valid
 
 
-def AverageReadings(ranges: np.ndarray, valid: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """One reading (6,) from N readings (N, 6) of the same sensors at rest: a sensor is
-    valid when more than half of its readings are, with the mean of those as its range;
-    an invalid one keeps the device's report (its limit)."""
-    ranges, valid = np.atleast_2d(ranges), np.atleast_2d(np.asarray(valid, bool))
+def AverageReadings(
+    readings: Sequence[tuple[np.ndarray, np.ndarray]],
+) -> tuple[np.ndarray, np.ndarray]:
+    """One reading (ranges, valid) from N readings (ranges, valid) of the same sensors at
+    rest: a sensor is valid when more than half of its readings are, with the mean of those
+    as its range; an invalid one keeps the device's report (its limit)."""
+    ranges = np.array([r for r, _ in readings])
+    valid = np.array([v for _, v in readings], bool)
     count = valid.sum(axis=0)
     mean = np.where(valid, ranges, 0.0).sum(axis=0) / np.maximum(count, 1)
     averaged_valid = 2 * count > len(ranges)

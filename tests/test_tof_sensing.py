@@ -12,7 +12,7 @@ from guidedarm.diagrams.model_paths import MODELS_DIR
 from guidedarm.diagrams.scenario import StationScenario
 from guidedarm.diagrams.station import AddStationModels
 from guidedarm.systems.hose_geometry import HoseConfig
-from guidedarm.systems.tof_sensing import ConeRays, DetectionGrid, Measure
+from guidedarm.systems.tof_sensing import AverageReadings, ConeRays, DetectionGrid, Measure
 from guidedarm.systems.tof_tool_sensor import ToFToolConfig, ToFToolSensor
 
 A, H, R = 0.022, 0.055, 0.010
@@ -34,6 +34,20 @@ def test_measure_noise_quantisation_and_no_return():
     np.testing.assert_allclose(np.round(ranges[:-1] / 0.001), ranges[:-1] / 0.001, atol=1e-9)
     assert np.std(ranges[:-1]) == pytest.approx(0.002, rel=0.1)
     assert abs(np.mean(ranges[:-1]) - 0.040) < 2e-4
+
+
+def test_average_of_readings_keeps_a_sensor_valid_in_most_of_them():
+    """Sensor 1 valid in all three readings: the mean; sensor 2 in two of three: the mean of
+    those two; sensor 3 in one of three: invalid, reporting the device's limit."""
+    limit = 0.1
+    readings = [
+        (np.array([0.040, 0.050, limit]), np.array([1, 1, 0], bool)),
+        (np.array([0.042, limit, 0.030]), np.array([1, 0, 1], bool)),
+        (np.array([0.044, 0.054, limit]), np.array([1, 1, 0], bool)),
+    ]
+    ranges, valid = AverageReadings(readings)
+    np.testing.assert_allclose(ranges, [0.042, 0.052, limit])
+    np.testing.assert_array_equal(valid, [True, True, False])
 
 
 @pytest.fixture(scope="module")
