@@ -72,6 +72,15 @@ def StartServer(module: str, *args: str, stderr=None) -> tuple[subprocess.Popen,
     return process, int(line[2])
 
 
+def StartNachiEmulator(*args: str) -> tuple[subprocess.Popen, int, str]:
+    """Runs `guidedarm emulate nachi --port 0 args`: (process, TCP port, ToF pty device)."""
+    command = [sys.executable, "-m", "guidedarm.diagrams.cli", "emulate", "nachi", "--port", "0"]
+    process = subprocess.Popen([*command, *args], stdout=subprocess.PIPE, text=True)
+    port = int(process.stdout.readline().split(":")[-1])
+    device = process.stdout.readline().split()[-1]
+    return process, port, device
+
+
 def StopServer(process: subprocess.Popen) -> None:
     process.terminate()
     process.wait(timeout=5)

@@ -3,11 +3,10 @@ over a pseudo-terminal, read back with the project's own drivers."""
 
 from __future__ import annotations
 
-import subprocess
-import sys
 import time
 
 import numpy as np
+from hardware_doubles import StartNachiEmulator, StopServer
 from pydrake.systems.analysis import Simulator
 
 from guidedarm.diagrams.command_emulate import DefaultCell
@@ -22,24 +21,8 @@ HOME = np.array([0.0, np.pi / 2, 0.0, 0.0, -np.pi / 2, 0.0])
 
 
 def test_emulate_nachi_serves_the_arm_and_the_tof_tool():
-    process = subprocess.Popen(
-        [
-            sys.executable,
-            "-m",
-            "guidedarm.diagrams.cli",
-            "emulate",
-            "nachi",
-            "--port",
-            "0",
-            "--duration",
-            "20",
-        ],
-        stdout=subprocess.PIPE,
-        text=True,
-    )
+    process, port, device = StartNachiEmulator("--duration", "20")
     try:
-        port = int(process.stdout.readline().split(":")[-1])
-        device = process.stdout.readline().split()[-1]
         link = NachiLink("mz04d", "127.0.0.1", port)
         collector = TofLineCollector()
         transport = SerialTransport(collector, device, 115200)
@@ -56,8 +39,7 @@ def test_emulate_nachi_serves_the_arm_and_the_tof_tool():
         transport.close()
         link.close()
     finally:
-        process.terminate()
-        process.wait(timeout=5)
+        StopServer(process)
     # At home nothing is within the sensors' 100 mm: every reading is "no return" (status
     # 11 on the line), reported as max_range like the simulated sensor. Readings of a hose
     # are compared end to end in the path-following hardware-in-the-loop test.

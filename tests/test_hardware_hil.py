@@ -10,6 +10,7 @@ import subprocess
 import sys
 
 import pytest
+from hardware_doubles import StartNachiEmulator, StopServer
 
 from guidedarm.diagrams.command_run import LoadScenario
 from guidedarm.diagrams.task_path_following import MakeSetup
@@ -50,26 +51,10 @@ def test_path_following_on_the_emulators_matches_simulation(tmp_path):
     _, scenario, _ = LoadScenario("path_following", [])
     setup, _, _ = MakeSetup(scenario, tmp_path / "setup")
     q_start = [float(q) for q in setup.q_start]
-    emulator = subprocess.Popen(
-        [
-            sys.executable,
-            "-m",
-            "guidedarm.diagrams.cli",
-            "emulate",
-            "nachi",
-            "--port",
-            "0",
-            "--scenario",
-            "path_following",
-            "--set",
-            f"station.arms.mz04d.initial_position={q_start}",
-        ],
-        stdout=subprocess.PIPE,
-        text=True,
+    emulator, port, device = StartNachiEmulator(
+        "--scenario", "path_following", "--set", f"station.arms.mz04d.initial_position={q_start}"
     )
     try:
-        port = int(emulator.stdout.readline().split(":")[-1])
-        device = emulator.stdout.readline().split()[-1]
         hardware_run = _Run(
             "--hardware",
             "--out",
@@ -85,8 +70,7 @@ def test_path_following_on_the_emulators_matches_simulation(tmp_path):
         )
         status = _Status(port)
     finally:
-        emulator.terminate()
-        emulator.wait(timeout=10)
+        StopServer(emulator)
     assert hardware_run.returncode == 0, hardware_run.stderr
     # The emulated arm was driven (one target per 10 ms) and stopped when the run ended.
     state, moves, errors = status.split()[1:]
