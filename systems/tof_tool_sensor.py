@@ -34,7 +34,7 @@ class ToFToolConfig:
     tool_frame: the tool frame T (centre O of the detection field).
     cone_angle_deg: vertex angle of each sensor's cone; max_range: no return beyond it (m).
     target_radius: radius of the round target (the hose) that the detection grid's
-        consistency check assumes (m).
+        consistency check assumes (m); the path-following task sets it from hose.diameter.
     noise_std, quantization: Gaussian noise and resolution of a reading (m).
     seed: seed of the noise generator; period: the noise is redrawn every period (s).
     rings: rings of rays sampling each cone (1 + 3 rings (rings + 1) rays).
