@@ -13,7 +13,7 @@ REPO = Path(__file__).resolve().parents[1]
 @pytest.fixture
 def run_cli(capsys):
     """Runs `guidedarm ARGS...` in-process; returns (exit code, stdout, stderr)."""
-    from guidedarm.diagrams.cli import main
+    from guidedarm.diagrams.cli.main import main
 
     def run(*args: str) -> tuple[int, str, str]:
         code = main([str(a) for a in args])

@@ -74,7 +74,15 @@ def StartServer(module: str, *args: str, stderr=None) -> tuple[subprocess.Popen,
 
 def StartNachiEmulator(*args: str) -> tuple[subprocess.Popen, int, str]:
     """Runs `guidedarm emulate nachi --port 0 args`: (process, TCP port, ToF pty device)."""
-    command = [sys.executable, "-m", "guidedarm.diagrams.cli", "emulate", "nachi", "--port", "0"]
+    command = [
+        sys.executable,
+        "-m",
+        "guidedarm.diagrams.cli.main",
+        "emulate",
+        "nachi",
+        "--port",
+        "0",
+    ]
     process = subprocess.Popen([*command, *args], stdout=subprocess.PIPE, text=True)
     port = int(process.stdout.readline().split(":")[-1])
     device = process.stdout.readline().split()[-1]
@@ -90,8 +98,8 @@ def Mz04dScenario(**fields):
     """The seed-000 cell (MZ04D, gripper, ToF tool) as a StationScenario."""
     from pydrake.multibody.parsing import LoadModelDirectives
 
-    from guidedarm.diagrams.model_paths import MODELS_DIR
-    from guidedarm.diagrams.scenario import ArmConfig, StationScenario
+    from guidedarm.diagrams.station.model_paths import MODELS_DIR
+    from guidedarm.diagrams.station.scenario import ArmConfig, StationScenario
 
     directives = LoadModelDirectives(str(MODELS_DIR / "directives/mz04d_cell.dmd.yaml"))
     return StationScenario(directives=directives.directives, arms={"mz04d": ArmConfig()}, **fields)

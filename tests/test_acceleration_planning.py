@@ -6,9 +6,10 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 from pydrake.math import RollPitchYaw, RotationMatrix
 
-from guidedarm.diagrams.command_run import LoadScenario
-from guidedarm.diagrams.task_waypoints import MakePlannerSetup
-from guidedarm.systems.acceleration_planning import (
+from guidedarm.diagrams.cli.command_run import LoadScenario
+from guidedarm.diagrams.tasks.waypoints import MakePlannerSetup
+from guidedarm.systems.errors import ConfigurationError
+from guidedarm.systems.planning.acceleration_planner_math import (
     AccelerationPlanning,
     AccelerationScaling,
     ClosestApproach,
@@ -20,8 +21,7 @@ from guidedarm.systems.acceleration_planning import (
     VelocityPenalty,
     WrapAngle,
 )
-from guidedarm.systems.acceleration_planning_ik import SolveWaypointIk
-from guidedarm.systems.errors import ConfigurationError
+from guidedarm.systems.planning.waypoint_ik import SolveWaypointIk
 
 PI = np.pi
 Q0_UR10E = np.array([-PI / 2, -PI / 2, -3 * PI / 4, -PI / 4, PI / 2, PI / 4])

@@ -11,8 +11,8 @@ import pytest
 from pydrake.common.yaml import yaml_load_typed
 from pydrake.systems.sensors import CameraConfig
 
-from guidedarm.diagrams.panel_camera_rig import LookAt, PanelCameraRig
-from guidedarm.diagrams.panel_files import DEFAULT_CAMERA_FILE, DEFAULT_PANEL_FILE
+from guidedarm.diagrams.tasks.panel_camera_rig import LookAt, PanelCameraRig
+from guidedarm.diagrams.tasks.panel_files import DEFAULT_CAMERA_FILE, DEFAULT_PANEL_FILE
 
 C920 = "{width: 1920, height: 1080, focal: !FocalLength {x: 1360.2, y: 1360.2}}"
 X_PC = LookAt([0.02, -0.01, 0.28], [0.06, 0.0, 0.0])

@@ -9,8 +9,8 @@ import numpy as np
 from hardware_doubles import StartNachiEmulator, StopServer
 from pydrake.systems.analysis import Simulator
 
-from guidedarm.diagrams.command_emulate import DefaultCell
-from guidedarm.diagrams.station import MakeStation
+from guidedarm.diagrams.cli.command_emulate import DefaultCell
+from guidedarm.diagrams.station.station import MakeStation
 from guidedarm.systems.hardware import nachi_protocol as nachi
 from guidedarm.systems.hardware.nachi_link import NachiLink
 from guidedarm.systems.hardware.tof_driver import TofDriver

@@ -12,8 +12,8 @@ import sys
 import pytest
 from hardware_doubles import StartNachiEmulator, StopServer
 
-from guidedarm.diagrams.command_run import LoadScenario
-from guidedarm.diagrams.task_path_following import MakeSetup
+from guidedarm.diagrams.cli.command_run import LoadScenario
+from guidedarm.diagrams.tasks.path_following import MakeSetup
 
 # The follower's moves are rest to rest with joint accelerations of at most 5 rad/s^2
 # (joint_moves), so the acceleration guard runs at a plausible arm limit, 10 rad/s^2, the
@@ -28,7 +28,7 @@ ACCELERATION = "[10, 10, 10, 10, 10, 10]"
 
 
 def _Run(*args: str) -> subprocess.CompletedProcess:
-    command = [sys.executable, "-m", "guidedarm.diagrams.cli", "run", "path_following", *args]
+    command = [sys.executable, "-m", "guidedarm.diagrams.cli.main", "run", "path_following", *args]
     return subprocess.run(command, capture_output=True, text=True, timeout=300)
 
 

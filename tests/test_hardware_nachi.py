@@ -19,8 +19,8 @@ from pydrake.systems.framework import DiagramBuilder
 from pydrake.systems.primitives import ConstantVectorSource, TrajectorySource
 from pydrake.trajectories import PiecewisePolynomial
 
-from guidedarm.diagrams.hardware_config import ArmDriverConfig, HardwareConfig
-from guidedarm.diagrams.station import MakeStation
+from guidedarm.diagrams.station.hardware_config import ArmDriverConfig, HardwareConfig
+from guidedarm.diagrams.station.station import MakeStation
 from guidedarm.systems.hardware import nachi_protocol as nachi
 from guidedarm.systems.hardware.arm_link import LinkLostError
 from guidedarm.systems.hardware.nachi_emulator import NachiControllerLogic, NachiEmulator

@@ -11,7 +11,7 @@ from pydrake.systems.framework import DiagramBuilder, EventStatus
 from pydrake.systems.primitives import TrajectorySource
 from pydrake.trajectories import PiecewisePolynomial
 
-from guidedarm.diagrams.model_paths import MakeParser
+from guidedarm.diagrams.station.model_paths import MakeParser
 from guidedarm.systems.errors import ConfigurationError
 from guidedarm.systems.hardware.arm_driver import ArmDriver
 from guidedarm.systems.hardware.arm_link import LinkLostError

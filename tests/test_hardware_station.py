@@ -12,17 +12,17 @@ from pydrake.geometry import Meshcat
 from pydrake.systems.analysis import Simulator
 from pydrake.systems.sensors import CameraConfig
 
-from guidedarm.diagrams.hardware_config import (
+from guidedarm.diagrams.station.hardware_config import (
     ArmDriverConfig,
     CameraDriverConfig,
     HardwareConfig,
     TofDriverConfig,
 )
-from guidedarm.diagrams.station import MakeStation
+from guidedarm.diagrams.station.station import MakeStation
 from guidedarm.systems.errors import ConfigurationError
 from guidedarm.systems.hardware.nachi_emulator import NachiEmulator
 from guidedarm.systems.hardware.tof_emulator import TofEmulator
-from guidedarm.systems.tof_tool_sensor import ToFToolConfig
+from guidedarm.systems.tof.tof_tool_sensor import ToFToolConfig
 
 
 def _Ports(diagram) -> dict[str, object]:

@@ -22,7 +22,7 @@ from guidedarm.systems.hardware.tof_protocol import (
     TofLineError,
 )
 from guidedarm.systems.hardware.tof_transports import BleTransport, SerialTransport
-from guidedarm.systems.tof_sensing import DetectionGrid
+from guidedarm.systems.tof.tof_tool_sensor_math import DetectionGrid
 
 RANGES_MM = np.array([12, 40, 100, 255, 0, 73])
 GRID = (-0.022, 0.0, 0.022)

@@ -13,7 +13,7 @@ from hardware_doubles import RecordingRtdeControl, StartServer, StopServer
 from pydrake.multibody.plant import MultibodyPlant
 from pydrake.systems.analysis import Simulator
 
-from guidedarm.diagrams.model_paths import MakeParser
+from guidedarm.diagrams.station.model_paths import MakeParser
 from guidedarm.systems.hardware import rtde_protocol as rtde
 from guidedarm.systems.hardware.arm_driver import ArmDriver
 from guidedarm.systems.hardware.arm_link import LinkLostError

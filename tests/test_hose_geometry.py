@@ -5,7 +5,7 @@ import pytest
 from pydrake.multibody.plant import MultibodyPlant
 
 from guidedarm.systems.errors import ConfigurationError
-from guidedarm.systems.hose_geometry import (
+from guidedarm.systems.path_following.hose_geometry import (
     ArcLength,
     HoseConfig,
     LoadPathLimits,

@@ -3,7 +3,7 @@
 import numpy as np
 import pytest
 
-from guidedarm.systems.joint_moves import MotionLimits, PlanJointMove, Trapezoid
+from guidedarm.systems.path_following.joint_moves import MotionLimits, PlanJointMove, Trapezoid
 
 
 def _derivatives(move, dt=1e-3):

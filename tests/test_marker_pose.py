@@ -14,18 +14,18 @@ from pydrake.common.yaml import yaml_load_typed
 from pydrake.systems.framework import DiagramBuilder
 from pydrake.systems.sensors import CameraConfig, ImageRgba8U
 
-from guidedarm.diagrams.panel_assets import WritePanelAssets
-from guidedarm.diagrams.panel_camera_rig import LookAt, PanelCameraRig
-from guidedarm.diagrams.panel_files import (
+from guidedarm.diagrams.tasks.panel_assets import WritePanelAssets
+from guidedarm.diagrams.tasks.panel_camera_rig import LookAt, PanelCameraRig
+from guidedarm.diagrams.tasks.panel_files import (
     DEFAULT_CAMERA_FILE,
     DEFAULT_PANEL_FILE,
     LoadCameraIntrinsics,
     LoadPanelSpec,
 )
 from guidedarm.systems.errors import ConfigurationError
-from guidedarm.systems.image_degradation import DegradationParams, DegradeImage
-from guidedarm.systems.marker_pose import MarkerPoseSolver
-from guidedarm.systems.marker_pose_estimator import MarkerPoseEstimator
+from guidedarm.systems.markers.image_degradation import DegradationParams, DegradeImage
+from guidedarm.systems.markers.marker_pose_estimator import MarkerPoseEstimator
+from guidedarm.systems.markers.marker_pose_estimator_math import MarkerPoseSolver
 
 C920 = """
 width: 1920

@@ -5,9 +5,9 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from guidedarm.diagrams.command_run import LoadScenario
+from guidedarm.diagrams.cli.command_run import LoadScenario
 from guidedarm.diagrams.run_context import RunContext
-from guidedarm.diagrams.task_panel_operation import PanelOperationRun
+from guidedarm.diagrams.tasks.panel_operation import PanelOperationRun
 
 
 def _run(tmp_path, overrides):

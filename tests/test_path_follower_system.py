@@ -8,12 +8,12 @@ from pydrake.systems.analysis import Simulator
 from pydrake.systems.framework import DiagramBuilder
 from pydrake.systems.primitives import ConstantVectorSource, VectorLogSink
 
-from guidedarm.diagrams.command_run import LoadScenario
-from guidedarm.diagrams.path_following_execution import MakeSolver
-from guidedarm.diagrams.task_path_following import MakeSetup
-from guidedarm.systems.acceleration_planning import PlanningError
-from guidedarm.systems.path_follower import DONE, PathFollower
-from guidedarm.systems.tool_pose_ik import ToolPoseIk
+from guidedarm.diagrams.cli.command_run import LoadScenario
+from guidedarm.diagrams.tasks.path_following import MakeSetup
+from guidedarm.diagrams.tasks.path_following_execution import MakeSolver
+from guidedarm.systems.path_following.path_follower import DONE, PathFollower
+from guidedarm.systems.path_following.tool_pose_ik import ToolPoseIk
+from guidedarm.systems.planning.acceleration_planner_math import PlanningError
 
 DT = 0.002
 

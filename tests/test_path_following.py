@@ -7,7 +7,7 @@ import pytest
 from pydrake.math import RigidTransform, RollPitchYaw
 
 from guidedarm.systems.errors import ConfigurationError
-from guidedarm.systems.path_following import (
+from guidedarm.systems.path_following.path_follower_math import (
     FollowerMemory,
     FollowerParams,
     FollowStep,

@@ -13,8 +13,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from guidedarm.diagrams.cli import main
-from guidedarm.diagrams.command_run import LoadScenario
+from guidedarm.diagrams.cli.command_run import LoadScenario
+from guidedarm.diagrams.cli.main import main
 from guidedarm.diagrams.run_context import RunContext
 
 PAPER = ["paper_path_1", "paper_path_2", "paper_path_3", "paper_path_4"]
@@ -78,7 +78,7 @@ def _unreachable_centerline(path: Path) -> None:
     """A straight hose from within reach (0.34 m from the base axis, 0.1 m high) rising to
     the cell's corner, 0.76 m out and 0.7 m high, where no arm pose holds the tool over it:
     60-65 steps in, no IK solution exists."""
-    from guidedarm.systems.hose_geometry import WriteCenterline
+    from guidedarm.systems.path_following.hose_geometry import WriteCenterline
 
     a, b = np.array([0.30, 0.15, 0.10]), np.array([0.54, 0.54, 0.70])
     WriteCenterline(a + (b - a) * np.linspace(0.0, 1.0, 65)[:, None], path)
@@ -152,7 +152,7 @@ def test_bad_centerlines_end_with_one_line(tmp_path, capsys, text, message):
 def test_moves_through_the_acceleration_level_planner(tmp_path, capsys):
     """motion: planner (seed 001's law between the follower's steps) on the first 0.35 m of
     paper_path_1 through the station."""
-    from guidedarm.systems.hose_geometry import ReadCenterline, WriteCenterline
+    from guidedarm.systems.path_following.hose_geometry import ReadCenterline, WriteCenterline
 
     csv = tmp_path / "short.csv"
     WriteCenterline(ReadCenterline("paper_path_1")[:50], csv)
@@ -183,7 +183,7 @@ def test_bad_settings_end_with_one_line(tmp_path, capsys, override, message):
 
 @pytest.mark.slow
 def test_path_csv_flag_runs_a_file(tmp_path, capsys):
-    from guidedarm.systems.hose_geometry import ReadCenterline, WriteCenterline
+    from guidedarm.systems.path_following.hose_geometry import ReadCenterline, WriteCenterline
 
     csv = tmp_path / "mine.csv"
     WriteCenterline(ReadCenterline("paper_path_1")[:60], csv)

@@ -4,10 +4,10 @@ import numpy as np
 import pytest
 from pydrake.math import RigidTransform, RotationMatrix
 
-from guidedarm.diagrams.command_run import LoadScenario
-from guidedarm.diagrams.path_following_execution import MakePlannerMoves, MakeSolver
-from guidedarm.diagrams.task_path_following import MakeSetup
-from guidedarm.systems.acceleration_planning import PlanningError
+from guidedarm.diagrams.cli.command_run import LoadScenario
+from guidedarm.diagrams.tasks.path_following import MakeSetup
+from guidedarm.diagrams.tasks.path_following_execution import MakePlannerMoves, MakeSolver
+from guidedarm.systems.planning.acceleration_planner_math import PlanningError
 
 
 @pytest.fixture(scope="module")

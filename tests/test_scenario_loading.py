@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import pytest
 
-from guidedarm.diagrams.command_run import LoadScenario
+from guidedarm.diagrams.cli.command_run import LoadScenario
 from guidedarm.diagrams.scenario_loading import ScenarioError, parse_overrides
 from guidedarm.systems.errors import ConfigurationError
 

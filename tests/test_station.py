@@ -8,9 +8,9 @@ from pydrake.common.schema import Transform
 from pydrake.systems.analysis import Simulator
 from pydrake.systems.sensors import CameraConfig
 
-from guidedarm.diagrams.scenario import ArmConfig, StationScenario
-from guidedarm.diagrams.scene_views import SceneDirectives
-from guidedarm.diagrams.station import MakeStation
+from guidedarm.diagrams.station.scenario import ArmConfig, StationScenario
+from guidedarm.diagrams.station.scene_views import SceneDirectives
+from guidedarm.diagrams.station.station import MakeStation
 from guidedarm.systems.errors import ConfigurationError
 
 HOME = {
@@ -111,7 +111,7 @@ def test_bad_model_file_is_a_configuration_error():
 def test_arm_initial_position_is_checked_where_tasks_read_it():
     from pydrake.multibody.plant import MultibodyPlant
 
-    from guidedarm.diagrams.station import AddStationModels, ArmInitialPosition
+    from guidedarm.diagrams.station.station_plant import AddStationModels, ArmInitialPosition
 
     scenario = station_for("ur10e")
     plant = MultibodyPlant(0.0)

@@ -8,12 +8,17 @@ from pydrake.multibody.parsing import LoadModelDirectives
 from pydrake.multibody.plant import AddMultibodyPlant, MultibodyPlantConfig
 from pydrake.systems.framework import DiagramBuilder
 
-from guidedarm.diagrams.model_paths import MODELS_DIR
-from guidedarm.diagrams.scenario import StationScenario
-from guidedarm.diagrams.station import AddStationModels
-from guidedarm.systems.hose_geometry import HoseConfig
-from guidedarm.systems.tof_sensing import AverageReadings, ConeRays, DetectionGrid, Measure
-from guidedarm.systems.tof_tool_sensor import ToFToolConfig, ToFToolSensor
+from guidedarm.diagrams.station.model_paths import MODELS_DIR
+from guidedarm.diagrams.station.scenario import StationScenario
+from guidedarm.diagrams.station.station_plant import AddStationModels
+from guidedarm.systems.path_following.hose_geometry import HoseConfig
+from guidedarm.systems.tof.tof_tool_sensor import ToFToolConfig, ToFToolSensor
+from guidedarm.systems.tof.tof_tool_sensor_math import (
+    AverageReadings,
+    ConeRays,
+    DetectionGrid,
+    Measure,
+)
 
 A, H, R = 0.022, 0.055, 0.010
 
@@ -198,9 +203,9 @@ def test_sensor_sees_the_hose_through_the_query_object(cell):
     """Tool centred over paper path 1 (IK-free: the tool body is placed by the joint
     positions found for that pose): the central sensors read hose surface ranges."""
     plant, sensor, diagram = cell
-    from guidedarm.systems.hose_geometry import ReadCenterline
-    from guidedarm.systems.path_following import OrientationFromVector, ToolMount
-    from guidedarm.systems.tool_pose_solving import IkLimits, ToolPoseSolver
+    from guidedarm.systems.path_following.hose_geometry import ReadCenterline
+    from guidedarm.systems.path_following.path_follower_math import OrientationFromVector, ToolMount
+    from guidedarm.systems.path_following.tool_pose_ik_math import IkLimits, ToolPoseSolver
 
     context = diagram.CreateDefaultContext()
     plant_context = plant.GetMyContextFromRoot(context)

@@ -13,13 +13,13 @@ from pydrake.multibody.plant import MultibodyPlant
 from pydrake.systems.analysis import Simulator
 from pydrake.systems.framework import DiagramBuilder
 
-from guidedarm.diagrams.model_paths import MODELS_DIR
-from guidedarm.diagrams.scenario import StationScenario
-from guidedarm.diagrams.station import AddStationModels
-from guidedarm.systems.hose_geometry import ReadCenterline
-from guidedarm.systems.path_following import OrientationFromVector, ToolMount
-from guidedarm.systems.tool_pose_ik import ToolPoseIk
-from guidedarm.systems.tool_pose_solving import IkLimits, ToolPoseSolver
+from guidedarm.diagrams.station.model_paths import MODELS_DIR
+from guidedarm.diagrams.station.scenario import StationScenario
+from guidedarm.diagrams.station.station_plant import AddStationModels
+from guidedarm.systems.path_following.hose_geometry import ReadCenterline
+from guidedarm.systems.path_following.path_follower_math import OrientationFromVector, ToolMount
+from guidedarm.systems.path_following.tool_pose_ik import ToolPoseIk
+from guidedarm.systems.path_following.tool_pose_ik_math import IkLimits, ToolPoseSolver
 
 HOME = np.array([0.0, math.pi / 2, 0.0, 0.0, -math.pi / 2, 0.0])
 

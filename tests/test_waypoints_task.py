@@ -6,12 +6,12 @@ import json
 import numpy as np
 import pytest
 
-from guidedarm.diagrams.cli import main
-from guidedarm.diagrams.command_compare_planners import ComparePlanners, TableRow
-from guidedarm.diagrams.command_run import LoadScenario
-from guidedarm.diagrams.task_waypoints import MakePlannerSetup, TrajectoryMetrics
-from guidedarm.systems.acceleration_planning import RunPlanning
-from guidedarm.systems.planner_baselines import TrapezoidProfile
+from guidedarm.diagrams.cli.command_compare_planners import ComparePlanners, TableRow
+from guidedarm.diagrams.cli.command_run import LoadScenario
+from guidedarm.diagrams.cli.main import main
+from guidedarm.diagrams.tasks.waypoints import MakePlannerSetup, TrajectoryMetrics
+from guidedarm.systems.planning.acceleration_planner_math import RunPlanning
+from guidedarm.systems.planning.planner_baselines import TrapezoidProfile
 
 SUMMARY_KEYS = {
     "T_s", "qd_max", "qd_min", "qdd_max", "qdd_min", "final_error_m", "c_min",

@@ -16,7 +16,12 @@ from pathlib import Path
 
 import numpy as np
 
-from guidedarm.systems.hose_geometry import ArcLength, MinBendRadius, Resample, WriteCenterline
+from guidedarm.systems.path_following.hose_geometry import (
+    ArcLength,
+    MinBendRadius,
+    Resample,
+    WriteCenterline,
+)
 
 U = np.linspace(0.0, 1.0, 3000)
 

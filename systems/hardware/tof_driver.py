@@ -13,8 +13,8 @@ from pydrake.systems.framework import BasicVector, Context, DiscreteValues, Leaf
 
 from guidedarm.systems.hardware.arm_link import LinkLostError, StopAllArms
 from guidedarm.systems.hardware.tof_protocol import NUM_SENSORS, TofLineCollector
-from guidedarm.systems.tof_sensing import DetectionGrid
-from guidedarm.systems.tof_tool_sensor import DeclareGridOutputs
+from guidedarm.systems.tof.tof_tool_sensor import DeclareGridOutputs
+from guidedarm.systems.tof.tof_tool_sensor_math import DetectionGrid
 
 
 class TofDriver(LeafSystem):

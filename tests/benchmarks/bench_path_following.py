@@ -10,10 +10,10 @@ from tempfile import TemporaryDirectory
 
 import numpy as np
 
-from guidedarm.diagrams.command_run import LoadScenario
-from guidedarm.diagrams.path_following_execution import KinematicScene
+from guidedarm.diagrams.cli.command_run import LoadScenario
 from guidedarm.diagrams.run_context import RunContext
-from guidedarm.diagrams.task_path_following import MakeSetup
+from guidedarm.diagrams.tasks.path_following import MakeSetup
+from guidedarm.diagrams.tasks.path_following_execution import KinematicScene
 
 
 def ReadingCost(repeats: int = 50) -> tuple[float, float]:

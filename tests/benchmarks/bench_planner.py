@@ -11,10 +11,10 @@ from pydrake.systems.analysis import Simulator
 from pydrake.systems.framework import DiagramBuilder
 from pydrake.systems.primitives import ConstantVectorSource
 
-from guidedarm.diagrams.command_run import LoadScenario
-from guidedarm.diagrams.task_waypoints import MakePlannerSetup
-from guidedarm.systems.acceleration_planner import AccelerationPlanner
-from guidedarm.systems.acceleration_planning import RunPlanning
+from guidedarm.diagrams.cli.command_run import LoadScenario
+from guidedarm.diagrams.tasks.waypoints import MakePlannerSetup
+from guidedarm.systems.planning.acceleration_planner import AccelerationPlanner
+from guidedarm.systems.planning.acceleration_planner_math import RunPlanning
 
 
 def main() -> None:

@@ -23,7 +23,7 @@ from pydrake.systems.analysis import Simulator
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 from hardware_doubles import RecordingRtdeControl, StartServer, StopServer
 
-from guidedarm.diagrams.model_paths import MakeParser
+from guidedarm.diagrams.station.model_paths import MakeParser
 from guidedarm.systems.hardware.arm_driver import ArmDriver
 from guidedarm.systems.hardware.command_guard import JointLimits
 from guidedarm.systems.hardware.ur_rtde_link import RTDE_FREQUENCY, UrRtdeLink

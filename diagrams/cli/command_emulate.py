@@ -1,0 +1,121 @@
+"""`guidedarm emulate nachi|tof`: emulated devices served from a Drake simulation of a station.
+
+`nachi` serves the Nachi User Task line protocol (docs/nachi_protocol.md) for an arm of the
+station on TCP; every ToF tool of the station is streamed as well, each on its own
+pseudo-terminal. `tof` streams the ToF tools only, the arm holding its initial position.
+Without --scenario the station is the seed-000 cell (MZ04D, gripper, ToF tool `tof`).
+"""
+
+from __future__ import annotations
+
+import argparse
+import threading
+
+import numpy as np
+from pydrake.multibody.parsing import LoadModelDirectives
+from pydrake.systems.framework import Context
+
+from guidedarm.diagrams.cli.command_run import LoadScenario
+from guidedarm.diagrams.station.model_paths import MODELS_DIR
+from guidedarm.diagrams.station.scenario import ArmConfig, StationScenario
+from guidedarm.diagrams.station.station import MakeStation
+from guidedarm.systems.errors import ConfigurationError
+from guidedarm.systems.hardware.nachi_emulator import NachiEmulator
+from guidedarm.systems.hardware.nachi_protocol import DEFAULT_PORT
+from guidedarm.systems.hardware.tof_emulator import TofEmulator
+from guidedarm.systems.tof.tof_tool_sensor import ToFToolConfig
+
+NO_TARGET_STATUS = 11  # VL6180X "max signal to noise ratio": nothing returned in range
+
+
+def register(subparsers: argparse._SubParsersAction) -> None:
+    parser = subparsers.add_parser("emulate", help="serve emulated hardware from a simulation")
+    parser.add_argument("device", choices=["nachi", "tof"])
+    parser.add_argument("--scenario", help="scenario name or YAML whose `station` to simulate")
+    parser.add_argument("--set", dest="overrides", action="append", default=[], metavar="K=V")
+    parser.add_argument("--arm", default="mz04d", help="the arm served over TCP (nachi)")
+    parser.add_argument("--host", default="127.0.0.1")
+    parser.add_argument("--port", type=int, default=DEFAULT_PORT, help="TCP port (0 = any)")
+    parser.add_argument("--duration", type=float, default=np.inf, help="simulated seconds")
+    parser.set_defaults(func=emulate_command)
+
+
+def DefaultCell() -> StationScenario:
+    """The seed-000 cell: MZ04D at home with its gripper and the ToF tool `tof`."""
+    directives = LoadModelDirectives(str(MODELS_DIR / "directives/mz04d_cell.dmd.yaml"))
+    return StationScenario(
+        directives=directives.directives,
+        arms={"mz04d": ArmConfig()},
+        tof_tools={"tof": ToFToolConfig()},
+    )
+
+
+class ToFTap:
+    """Keeps the newest `<tool>.ranges`/`valid` of the station as (ranges m, status codes),
+    sampled once per sensor `period` (s): ray casting every 2 ms step would be wasted."""
+
+    def __init__(self, station, tool: str, period: float) -> None:
+        self._ranges = station.GetOutputPort(f"{tool}.ranges")
+        self._valid = station.GetOutputPort(f"{tool}.valid")
+        self._period = period
+        self._tick = -1
+        self._lock = threading.Lock()
+        self._reading = (np.zeros(6), np.full(6, NO_TARGET_STATUS))
+
+    def __call__(self, context: Context) -> None:
+        tick = int(np.floor(context.get_time() / self._period + 1e-9))
+        if tick == self._tick:
+            return
+        self._tick = tick
+        valid = self._valid.Eval(context) > 0.5
+        reading = (self._ranges.Eval(context).copy(), np.where(valid, 0, NO_TARGET_STATUS))
+        with self._lock:
+            self._reading = reading
+
+    def Latest(self) -> tuple[np.ndarray, np.ndarray]:
+        with self._lock:
+            return self._reading
+
+
+def StartEmulators(
+    station_scenario: StationScenario, arm: str, host: str, port: int
+) -> tuple[NachiEmulator, dict[str, TofEmulator]]:
+    """The Nachi emulator for `arm` and a ToF emulator per tool of the station."""
+    if arm not in station_scenario.arms:
+        raise ConfigurationError(
+            f"--arm {arm}: not an arm of the station {list(station_scenario.arms)}"
+        )
+    station = MakeStation(station_scenario)
+    taps = {
+        name: ToFTap(station, name, tool.period)
+        for name, tool in station_scenario.tof_tools.items()
+    }
+    emulator = NachiEmulator(station, arm, host, port, observers=tuple(taps.values()))
+    tofs = {
+        name: TofEmulator(tap.Latest, station_scenario.tof_tools[name].period)
+        for name, tap in taps.items()
+    }
+    return emulator, tofs
+
+
+def emulate_command(args: argparse.Namespace) -> int:
+    if args.scenario:
+        _, scenario, _ = LoadScenario(args.scenario, args.overrides)
+        station_scenario = scenario.station
+    else:
+        station_scenario = DefaultCell()
+    port = args.port if args.device == "nachi" else 0
+    emulator, tofs = StartEmulators(station_scenario, args.arm, args.host, port)
+    if args.device == "nachi":
+        print(f"nachi: {args.arm} listening on {args.host}:{emulator.port}", flush=True)
+    elif not tofs:
+        raise ConfigurationError("the station has no tof_tools to emulate")
+    for name, tof in tofs.items():
+        print(f"tof: {name} streaming on {tof.device}", flush=True)
+    try:
+        emulator.Run(args.duration)
+    finally:
+        emulator.Close()
+        for tof in tofs.values():
+            tof.close()
+    return 0

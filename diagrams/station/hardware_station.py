@@ -1,0 +1,170 @@
+"""MakeHardwareStation: the station's ports (without the sim-only `sim.` ones) served by
+drivers of real arms, cameras and ToF tools, chosen in the scenario's `hardware` section.
+
+The models of the scenario are still loaded: the arms' joint limits come from them, and
+Meshcat draws the measured configuration. Hardware diagrams must run in real time:
+`simulator.set_target_realtime_rate(1.0)`.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from pydrake.geometry import Meshcat, MeshcatVisualizer, SceneGraph
+from pydrake.multibody.plant import MultibodyPlant
+from pydrake.systems.framework import Diagram, DiagramBuilder, OutputPort
+from pydrake.systems.primitives import ConstantVectorSource, MatrixGain, Multiplexer
+from pydrake.systems.rendering import MultibodyPositionToGeometryPose
+
+from guidedarm.diagrams.station.hardware_config import ArmDriverConfig, HardwareConfig
+from guidedarm.diagrams.station.scenario import StationScenario
+from guidedarm.diagrams.station.station_plant import (
+    AddStationModels,
+    GetArmInstance,
+    SetInitialPositions,
+)
+from guidedarm.systems.errors import ConfigurationError
+from guidedarm.systems.hardware import nachi_protocol
+from guidedarm.systems.hardware.arm_driver import ArmDriver
+from guidedarm.systems.hardware.arm_link import ArmLink
+from guidedarm.systems.hardware.command_guard import JointLimits
+from guidedarm.systems.hardware.nachi_link import NachiLink
+from guidedarm.systems.hardware.opencv_camera import FrameGrabber, OpenCvCamera
+from guidedarm.systems.hardware.tof_driver import TofDriver
+from guidedarm.systems.hardware.tof_protocol import TofLineCollector
+from guidedarm.systems.hardware.tof_transports import BleTransport, SerialTransport
+from guidedarm.systems.hardware.ur_rtde_link import OpenUrRtde
+from guidedarm.systems.tof.tof_tool_sensor import TOF_PORTS, MakeDetectionGrid
+
+ARM_DRIVERS = ("ur_rtde", "nachi_tcp")
+TOF_TRANSPORTS = ("serial", "ble")
+
+
+def MakeHardwareStation(scenario: StationScenario, meshcat: Meshcat | None = None) -> Diagram:
+    """Builds the hardware station of `scenario`; connects to every configured device."""
+    hardware = scenario.hardware
+    _CheckCovered(scenario, hardware)
+    builder = DiagramBuilder()
+    scene_graph = builder.AddNamedSystem("scene_graph", SceneGraph())
+    plant = MultibodyPlant(0.0)
+    plant.RegisterAsSourceForSceneGraph(scene_graph)
+    AddStationModels(scenario, plant)
+    plant.Finalize()
+    SetInitialPositions(scenario, plant)
+    measured: dict[str, OutputPort] = {}
+    for name, arm in scenario.arms.items():
+        config = hardware.arms[name]
+        instance = GetArmInstance(plant, name)
+        try:
+            limits = JointLimits.FromPlant(plant, instance, config.acceleration_limits)
+        except ConfigurationError as e:
+            raise ConfigurationError(f"hardware.arms.{name}.acceleration_limits: {e}") from None
+        driver = builder.AddNamedSystem(
+            f"{name}.driver",
+            ArmDriver(
+                _OpenArmLink(name, config, arm.control_period),
+                limits,
+                arm.control_period,
+                config.watchdog,
+                config.stale_after,
+            ),
+        )
+        builder.ExportInput(driver.get_input_port(), f"{name}.position_commanded")
+        for port in ("position_measured", "velocity_estimated", "state_estimated"):
+            builder.ExportOutput(driver.GetOutputPort(port), f"{name}.{port}")
+        measured[name] = driver.GetOutputPort("position_measured")
+    for name, camera in scenario.cameras.items():
+        config = hardware.cameras[name]
+        system = OpenCvCamera(
+            FrameGrabber(config.source),
+            camera.width,
+            camera.height,
+            1.0 / camera.fps,
+            config.watchdog,
+        )
+        builder.AddNamedSystem(f"{name}.opencv_camera", system)
+        builder.ExportOutput(system.get_output_port(), f"{name}.rgb_image")
+    for name, tool in scenario.tof_tools.items():
+        config = hardware.tof_tools[name]
+        collector = TofLineCollector(name)
+        if config.transport == "serial":
+            SerialTransport(collector, config.device, config.baudrate)
+        else:
+            BleTransport(collector, config.device)
+        grid = MakeDetectionGrid(plant, tool)
+        system = TofDriver(collector, tool.period, config.watchdog, tool.max_range, grid)
+        builder.AddNamedSystem(f"{name}.driver", system)
+        for port in TOF_PORTS:
+            builder.ExportOutput(system.GetOutputPort(port), f"{name}.{port}")
+    if meshcat is not None:
+        _DrawMeasured(builder, plant, scene_graph, measured, meshcat)
+    diagram = builder.Build()
+    diagram.set_name("hardware_station")
+    return diagram
+
+
+def _CheckCovered(scenario: StationScenario, hardware: HardwareConfig) -> None:
+    """Every arm, camera and ToF tool of the scenario needs a driver: fail before connecting."""
+    for section in ("arms", "cameras", "tof_tools"):
+        missing = sorted(set(getattr(scenario, section)) - set(getattr(hardware, section)))
+        if missing:
+            raise ConfigurationError(f"hardware.{section}: no driver for {missing}")
+    for name, arm in hardware.arms.items():
+        if arm.driver not in ARM_DRIVERS:
+            raise ConfigurationError(
+                f"hardware.arms.{name}.driver: '{arm.driver}' is not one of {ARM_DRIVERS}"
+            )
+    for name, tool in hardware.tof_tools.items():
+        if tool.transport not in TOF_TRANSPORTS:
+            raise ConfigurationError(
+                f"hardware.tof_tools.{name}.transport: '{tool.transport}' is not one of "
+                f"{TOF_TRANSPORTS}"
+            )
+
+
+def _OpenArmLink(name: str, config: ArmDriverConfig, period: float) -> ArmLink:
+    if config.driver == "ur_rtde":
+        return OpenUrRtde(name, config.host, config.lookahead_time, config.gain)
+    port = config.port or nachi_protocol.DEFAULT_PORT
+    return NachiLink(name, config.host, port, poll_period=period)
+
+
+def _DrawMeasured(
+    builder: DiagramBuilder,
+    plant: MultibodyPlant,
+    scene_graph: SceneGraph,
+    measured: dict[str, OutputPort],
+    meshcat: Meshcat,
+) -> None:
+    """Meshcat shows the plant at the measured arm joints (other joints at their defaults):
+    q_plant = P [q_arm_1; ...; q_arm_k; q_default]."""
+    nq = plant.num_positions()
+    q_default = plant.GetPositions(plant.CreateDefaultContext())
+    rows = [_PositionRows(plant, name) for name in measured]
+    sizes = [len(r) for r in rows] + [nq]
+    P = np.zeros((nq, sum(sizes)))
+    column = 0
+    for r in rows:
+        P[r, column : column + len(r)] = np.eye(len(r))
+        column += len(r)
+    arm_rows = np.concatenate(rows) if rows else np.zeros(0, int)
+    rest = np.setdiff1d(np.arange(nq), arm_rows)
+    P[rest, column + rest] = 1.0
+    mux = builder.AddNamedSystem("measured_mux", Multiplexer(sizes))
+    for i, port in enumerate(measured.values()):
+        builder.Connect(port, mux.get_input_port(i))
+    default = builder.AddNamedSystem("default_positions", ConstantVectorSource(q_default))
+    builder.Connect(default.get_output_port(), mux.get_input_port(len(rows)))
+    gain = builder.AddNamedSystem("plant_positions", MatrixGain(P))
+    to_pose = builder.AddNamedSystem("to_pose", MultibodyPositionToGeometryPose(plant))
+    builder.Connect(mux.get_output_port(), gain.get_input_port())
+    builder.Connect(gain.get_output_port(), to_pose.get_input_port())
+    builder.Connect(
+        to_pose.get_output_port(), scene_graph.get_source_pose_port(plant.get_source_id())
+    )
+    MeshcatVisualizer.AddToBuilder(builder, scene_graph, meshcat)
+
+
+def _PositionRows(plant: MultibodyPlant, name: str) -> np.ndarray:
+    """Indices of the instance's positions in the plant's position vector."""
+    every = np.arange(plant.num_positions(), dtype=float)
+    return plant.GetPositionsFromArray(plant.GetModelInstanceByName(name), every).astype(int)

@@ -1,0 +1,63 @@
+"""Scenario schemas of the station, loaded with `yaml_load_typed` (see scenario_loading)."""
+
+from dataclasses import dataclass, field
+
+from pydrake.multibody.parsing import ModelDirective
+from pydrake.multibody.plant import MultibodyPlantConfig
+from pydrake.systems.analysis import SimulatorConfig
+from pydrake.systems.sensors import CameraConfig
+from pydrake.visualization import VisualizationConfig
+
+from guidedarm.diagrams.station.hardware_config import HardwareConfig
+from guidedarm.systems.path_following.hose_geometry import HoseConfig
+from guidedarm.systems.tof.tof_tool_sensor import ToFToolConfig
+
+
+@dataclass
+class ArmConfig:
+    """One position-controlled arm: the model instance of the same name in `directives`.
+
+    initial_position: joint positions at t = 0 (rad); empty keeps the model's defaults.
+    kp, kd: servo gains of the simulated controller (1/s^2, 1/s); kd <= 0 means critically
+        damped, 2 sqrt(kp).
+    control_period: period at which position commands are sampled and differentiated (s);
+        0.002 s matches UR servoJ at 500 Hz.
+    """
+
+    initial_position: list[float] = field(default_factory=list)
+    kp: float = 1600.0
+    kd: float = 0.0
+    control_period: float = 0.002
+
+
+def _default_plant_config() -> MultibodyPlantConfig:
+    return MultibodyPlantConfig(time_step=0.002, discrete_contact_approximation="sap")
+
+
+def _default_visualization() -> VisualizationConfig:
+    return VisualizationConfig(publish_contacts=False, publish_inertia=False)
+
+
+@dataclass
+class StationScenario:
+    """Everything the station needs: models, arms, cameras, plant and visualisation.
+
+    directives: Drake model directives placing every model (arms, tools, scene).
+    arms: position-controlled arms, keyed by model instance name; each exports the ports
+        `<name>.position_commanded`, `<name>.position_measured`, `<name>.velocity_estimated`
+        and `<name>.state_estimated`.
+    cameras: Drake CameraConfig per camera; each exports `<name>.rgb_image`.
+    hardware: drivers used by `MakeStation(..., hardware=True)` (diagrams/hardware_config).
+    hose: a hose (centerline, brackets) registered on the world body, or None.
+    tof_tools: six-sensor ToF tools; each exports `<name>.ranges` and `<name>.valid`.
+    """
+
+    directives: list[ModelDirective] = field(default_factory=list)
+    arms: dict[str, ArmConfig] = field(default_factory=dict)
+    cameras: dict[str, CameraConfig] = field(default_factory=dict)
+    plant_config: MultibodyPlantConfig = field(default_factory=_default_plant_config)
+    simulator_config: SimulatorConfig = field(default_factory=SimulatorConfig)
+    visualization: VisualizationConfig = field(default_factory=_default_visualization)
+    hardware: HardwareConfig = field(default_factory=HardwareConfig)
+    hose: HoseConfig | None = None
+    tof_tools: dict[str, ToFToolConfig] = field(default_factory=dict)

@@ -1,0 +1,128 @@
+"""MakeStation: the arms, tools, sensors and scene of a scenario, behind fixed port names.
+
+The simulated branch builds a MultibodyPlant and SceneGraph (with a headless VTK renderer)
+from the scenario's model directives, adds a position servo per arm and a camera per
+CameraConfig. The hardware branch (diagrams/station/hardware_station.py) exports the same ports
+from drivers. Sim-only ground truth is exported under the `sim.` prefix and is not part of
+the sim/hardware contract.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from pydrake.geometry import MakeRenderEngineVtk, Meshcat, RenderEngineVtkParams, SceneGraph
+from pydrake.multibody.plant import AddMultibodyPlant, MultibodyPlant
+from pydrake.systems.framework import Diagram, DiagramBuilder
+from pydrake.systems.primitives import Demultiplexer, StateInterpolatorWithDiscreteDerivative
+from pydrake.systems.sensors import CameraConfig, RgbdSensor
+from pydrake.visualization import ApplyVisualizationConfig
+
+from guidedarm.diagrams.station.hardware_station import MakeHardwareStation
+from guidedarm.diagrams.station.scenario import ArmConfig, StationScenario
+from guidedarm.diagrams.station.station_plant import (
+    AddStationModels,
+    GetArmInstance,
+    SetInitialPositions,
+)
+from guidedarm.systems.errors import ConfigurationError
+from guidedarm.systems.joint_servo import ComputedTorqueLaw, JointServo
+from guidedarm.systems.tof.tof_tool_sensor import TOF_PORTS, ToFToolSensor
+
+RENDERER_NAME = "vtk"
+
+
+def MakeStation(
+    scenario: StationScenario, meshcat: Meshcat | None = None, hardware: bool = False
+) -> Diagram:
+    """Builds the station Diagram of `scenario` (simulated, or hardware drivers)."""
+    if hardware:
+        return MakeHardwareStation(scenario, meshcat)
+    builder = DiagramBuilder()
+    plant, scene_graph = AddMultibodyPlant(scenario.plant_config, builder)
+    AddStationModels(scenario, plant)
+    scene_graph.AddRenderer(RENDERER_NAME, MakeRenderEngineVtk(RenderEngineVtkParams()))
+    plant.Finalize()
+    SetInitialPositions(scenario, plant)
+    for name, arm in scenario.arms.items():
+        _AddArm(builder, plant, name, arm)
+    for name, camera in scenario.cameras.items():
+        _AddCamera(builder, plant, scene_graph, name, camera)
+    for name, tof in scenario.tof_tools.items():
+        sensor = builder.AddNamedSystem(f"{name}.sensor", ToFToolSensor(plant, tof))
+        builder.Connect(scene_graph.get_query_output_port(), sensor.get_input_port())
+        for port in TOF_PORTS:
+            builder.ExportOutput(sensor.GetOutputPort(port), f"{name}.{port}")
+    if meshcat is not None:
+        ApplyVisualizationConfig(scenario.visualization, builder, meshcat=meshcat)
+    builder.ExportOutput(scene_graph.get_query_output_port(), "sim.query_object")
+    builder.ExportOutput(plant.get_body_poses_output_port(), "sim.body_poses")
+    builder.ExportOutput(plant.get_state_output_port(), "sim.plant_state")
+    builder.ExportOutput(plant.get_contact_results_output_port(), "sim.contact_results")
+    diagram = builder.Build()
+    diagram.set_name("station")
+    return diagram
+
+
+def _AddArm(builder: DiagramBuilder, plant: MultibodyPlant, name: str, arm: ArmConfig) -> None:
+    instance = GetArmInstance(plant, name)
+    n = plant.num_actuated_dofs(instance)
+    if n == 0 or n != plant.num_velocities(instance):
+        raise ConfigurationError(
+            f"arms.{name}: every joint must have an actuator ({n} actuators, "
+            f"{plant.num_velocities(instance)} joints)"
+        )
+    if arm.control_period <= 0:
+        raise ConfigurationError(f"arms.{name}.control_period must be positive")
+    if arm.kp <= 0:
+        raise ConfigurationError(f"arms.{name}: servo gains must be positive, got kp={arm.kp}")
+    kd = arm.kd if arm.kd > 0 else 2.0 * np.sqrt(arm.kp)
+    servo = builder.AddNamedSystem(
+        f"{name}.servo", JointServo(ComputedTorqueLaw(plant, instance, arm.kp, kd))
+    )
+    interpolator = builder.AddNamedSystem(
+        f"{name}.command_interpolator",
+        StateInterpolatorWithDiscreteDerivative(
+            n, arm.control_period, suppress_initial_transient=True
+        ),
+    )
+    builder.Connect(plant.get_state_output_port(), servo.get_input_port(0))
+    builder.Connect(interpolator.get_output_port(), servo.get_input_port(1))
+    builder.Connect(servo.get_output_port(), plant.get_actuation_input_port(instance))
+    builder.ExportInput(interpolator.get_input_port(), f"{name}.position_commanded")
+    demux = builder.AddNamedSystem(f"{name}.state_demux", Demultiplexer([n, n]))
+    builder.Connect(plant.get_state_output_port(instance), demux.get_input_port())
+    builder.ExportOutput(demux.get_output_port(0), f"{name}.position_measured")
+    builder.ExportOutput(demux.get_output_port(1), f"{name}.velocity_estimated")
+    builder.ExportOutput(plant.get_state_output_port(instance), f"{name}.state_estimated")
+
+
+def _AddCamera(
+    builder: DiagramBuilder,
+    plant: MultibodyPlant,
+    scene_graph: SceneGraph,
+    name: str,
+    config: CameraConfig,
+) -> None:
+    config.renderer_name = RENDERER_NAME
+    color, depth = config.MakeCameras()
+    base = config.X_PB.base_frame or "world"
+    try:
+        frame = plant.GetFrameByName(base.split("::")[-1], _InstanceOf(plant, base))
+    except Exception:
+        raise ConfigurationError(f"cameras.{name}.X_PB.base_frame: no frame '{base}'") from None
+    # The sensor body S is placed relative to frame F; RgbdSensor wants it relative to the
+    # body that carries F. The camera's own offset X_BC is already inside `color`.
+    X_BodyS = frame.GetFixedPoseInBodyFrame() @ config.X_PB.GetDeterministicValue()
+    body_frame_id = plant.GetBodyFrameIdOrThrow(frame.body().index())
+    sensor = builder.AddNamedSystem(
+        f"{name}.rgbd_sensor", RgbdSensor(body_frame_id, X_BodyS, color, depth)
+    )
+    builder.Connect(scene_graph.get_query_output_port(), sensor.query_object_input_port())
+    builder.ExportOutput(sensor.color_image_output_port(), f"{name}.rgb_image")
+    builder.ExportOutput(sensor.body_pose_in_world_output_port(), f"sim.{name}.X_WS")
+
+
+def _InstanceOf(plant: MultibodyPlant, scoped_name: str):
+    if "::" not in scoped_name:
+        return plant.world_body().model_instance()
+    return plant.GetModelInstanceByName(scoped_name.rsplit("::", 1)[0])

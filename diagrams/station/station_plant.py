@@ -1,0 +1,145 @@
+"""The station's models in a MultibodyPlant: the one builder of every plant made from a
+scenario (the simulated station's, the hardware station's, and the controller plants that
+planners and IK solve on).
+
+`MakeMultibodyPlant(scenario, model_instance_names)` follows the pattern of the
+`manipulation` package's builder of the same name: the scenario's model directives, optionally
+cut down to the named model instances. A weld whose parent is cut away becomes a weld to the
+world at the parent's default pose, so a controller plant of one arm keeps the arm where the
+station has it (e.g. the rover arm on its rover).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from pydrake.common.schema import Transform
+from pydrake.math import RigidTransform
+from pydrake.multibody.parsing import (
+    FlattenModelDirectives,
+    ModelDirective,
+    ModelDirectives,
+    ProcessModelDirectives,
+)
+from pydrake.multibody.plant import MultibodyPlant
+from pydrake.multibody.tree import ModelInstanceIndex
+
+from guidedarm.diagrams.station.model_paths import MakeParser
+from guidedarm.diagrams.station.scenario import ArmConfig, StationScenario
+from guidedarm.systems.errors import ConfigurationError
+from guidedarm.systems.path_following.hose_geometry import ReadCenterline, RegisterHose
+
+
+def MakeMultibodyPlant(
+    scenario: StationScenario,
+    model_instance_names: list[str] | None = None,
+    with_hose: bool = False,
+    time_step: float = 0.0,
+) -> MultibodyPlant:
+    """A finalized plant of the scenario's models (all, or only `model_instance_names`),
+    the arms at their scenario initial positions. The hose is added only `with_hose`;
+    controller plants leave it out (IK and planners must not know where it truly is)."""
+    plant = MultibodyPlant(time_step)
+    AddStationModels(scenario, plant, model_instance_names, with_hose)
+    plant.Finalize()
+    SetInitialPositions(scenario, plant, model_instance_names)
+    return plant
+
+
+def AddStationModels(
+    scenario: StationScenario,
+    plant: MultibodyPlant,
+    model_instance_names: list[str] | None = None,
+    with_hose: bool = True,
+) -> None:
+    """Adds the scenario's models (all, or the named instances) to an unfinalized plant."""
+    directives = scenario.directives
+    if model_instance_names is not None:
+        directives = _KeepInstances(scenario, model_instance_names)
+    try:
+        ProcessModelDirectives(ModelDirectives(directives=directives), MakeParser(plant))
+    except Exception as e:
+        message = str(e).strip().splitlines()[0] if str(e).strip() else type(e).__name__
+        raise ConfigurationError(f"model directives: {message}") from None
+    if with_hose and scenario.hose is not None:
+        RegisterHose(plant, ReadCenterline(scenario.hose.centerline), scenario.hose)
+
+
+def SetInitialPositions(
+    scenario: StationScenario,
+    plant: MultibodyPlant,
+    model_instance_names: list[str] | None = None,
+) -> None:
+    """Sets each arm's default joint positions (finalized plant) from the scenario."""
+    for name, arm in scenario.arms.items():
+        if model_instance_names is None or name in model_instance_names:
+            plant.SetDefaultPositions(
+                GetArmInstance(plant, name), ArmInitialPosition(plant, name, arm)
+            )
+
+
+def ArmInitialPosition(plant: MultibodyPlant, name: str, arm: ArmConfig) -> np.ndarray:
+    """The arm's initial joint positions (rad): the scenario's, checked against the model,
+    or the model's defaults when the scenario gives none."""
+    instance = GetArmInstance(plant, name)
+    if len(arm.initial_position) == 0:
+        return plant.GetDefaultPositions(instance)
+    if len(arm.initial_position) != plant.num_positions(instance):
+        raise ConfigurationError(
+            f"arms.{name}.initial_position has {len(arm.initial_position)} values, "
+            f"the model has {plant.num_positions(instance)} joints"
+        )
+    return np.asarray(arm.initial_position, float)
+
+
+def GetArmInstance(plant: MultibodyPlant, name: str) -> ModelInstanceIndex:
+    """The model instance called `name`, or a ConfigurationError listing the known ones."""
+    if not plant.HasModelInstanceNamed(name):
+        known = [
+            plant.GetModelInstanceName(ModelInstanceIndex(i))
+            for i in range(plant.num_model_instances())
+        ]
+        raise ConfigurationError(f"arms.{name}: no model instance '{name}' (have {known})")
+    return plant.GetModelInstanceByName(name)
+
+
+def _KeepInstances(scenario: StationScenario, names: list[str]) -> list[ModelDirective]:
+    """The flattened directives of the named instances; welds to a dropped parent become
+    welds to the world at that parent's default pose in the whole station."""
+    package_map = MakeParser(MultibodyPlant(0.0)).package_map()
+    flat = FlattenModelDirectives(ModelDirectives(directives=scenario.directives), package_map)
+    known = {d.add_model.name for d in flat.directives if d.add_model}
+    missing = sorted(set(names) - known)
+    if missing:
+        raise ConfigurationError(
+            f"model directives: no model instance {missing} (have {sorted(known)})"
+        )
+    whole = None
+    kept = []
+    for directive in flat.directives:
+        if directive.add_model:
+            if directive.add_model.name in names:
+                kept.append(directive)
+        elif directive.add_weld:
+            weld = directive.add_weld
+            if _Instance(weld.child) not in names:
+                continue
+            if weld.parent != "world" and _Instance(weld.parent) not in names:
+                whole = whole or MakeMultibodyPlant(scenario)
+                X_WP = whole.GetFrameByName(
+                    _Local(weld.parent), whole.GetModelInstanceByName(_Instance(weld.parent))
+                ).CalcPoseInWorld(whole.CreateDefaultContext())
+                X_PC = weld.X_PC.GetDeterministicValue() if weld.X_PC else RigidTransform()
+                weld.parent = "world"
+                weld.X_PC = Transform(X_WP @ X_PC)
+            kept.append(directive)
+        elif directive.add_frame and _Instance(directive.add_frame.X_PF.base_frame or "") in names:
+            kept.append(directive)
+    return kept
+
+
+def _Instance(scoped_name: str) -> str:
+    return scoped_name.rsplit("::", 1)[0] if "::" in scoped_name else ""
+
+
+def _Local(scoped_name: str) -> str:
+    return scoped_name.rsplit("::", 1)[-1]

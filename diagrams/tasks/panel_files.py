@@ -1,0 +1,91 @@
+"""Reading the camera file (CAMERA.yaml) and the panel file (PANEL.yaml) of seed 003.
+
+Both are plain YAML loaded against the dataclasses of
+systems/markers/marker_pose_estimator_math.py; a malformed file, an unknown key or a wrong
+type fails with one line naming the file and the key."""
+
+from __future__ import annotations
+
+import copy
+from pathlib import Path
+
+from pydrake.systems.sensors import CameraConfig
+
+from guidedarm.diagrams.scenario_loading import ScenarioError, load_typed, read_raw_scenario
+from guidedarm.diagrams.station.model_paths import MODELS_DIR
+from guidedarm.systems.errors import ConfigurationError
+from guidedarm.systems.markers.marker_pose_estimator_math import (
+    CameraIntrinsics,
+    GetDictionary,
+    PanelSpec,
+)
+
+MODELS_PANEL_DIR = MODELS_DIR / "panel"
+DEFAULT_PANEL_FILE = MODELS_PANEL_DIR / "panel.yaml"
+DEFAULT_CAMERA_FILE = MODELS_PANEL_DIR / "c920_camera.yaml"
+
+
+def LoadCameraIntrinsics(path: str | Path) -> CameraIntrinsics:
+    """The intrinsics in a CAMERA.yaml file."""
+    intrinsics = load_typed(CameraIntrinsics, _ReadMapping(path), str(path))
+    if intrinsics.width <= 0 or intrinsics.height <= 0 or intrinsics.fx <= 0:
+        raise ConfigurationError(f"{path}: width, height and fx must be positive")
+    intrinsics.distortion_vector()
+    return intrinsics
+
+
+def LoadPanelSpec(path: str | Path) -> PanelSpec:
+    """The panel in a PANEL.yaml file (its dictionary name is checked here)."""
+    panel = load_typed(PanelSpec, _ReadMapping(path), str(path))
+    try:
+        GetDictionary(panel.dictionary)
+    except ConfigurationError as e:
+        raise ConfigurationError(f"{path}: {e}") from None
+    return panel
+
+
+# Drake's CameraInfo puts the principal point at (w/2 - 0.5, h/2 - 0.5) in OpenCV pixel
+# coordinates, but the VTK images are offset by half a pixel from that: measured on
+# rendered plate and marker edges (1920 x 1080 and 3840 x 2160), the image centre sits at
+# (w/2 - 1, h/2 - 1). Without this the pose is off by 0.5 px (0.15 mm at 420 mm).
+VTK_PRINCIPAL_POINT_OFFSET_PX = -0.5
+
+
+def IntrinsicsFromCameraConfig(config: CameraConfig, supersampling: int = 1) -> CameraIntrinsics:
+    """The intrinsics of the images rendered for `config` (no distortion), after averaging
+    `supersampling` x `supersampling` blocks of pixels (see ImageDegradation)."""
+    color, _ = config.MakeCameras()
+    info = color.core().intrinsics()
+    k = supersampling
+
+    def down(c: float) -> float:
+        return (c + VTK_PRINCIPAL_POINT_OFFSET_PX + 0.5) / k - 0.5
+
+    return CameraIntrinsics(
+        width=info.width() // k,
+        height=info.height() // k,
+        fx=info.focal_x() / k,
+        fy=info.focal_y() / k,
+        cx=down(info.center_x()),
+        cy=down(info.center_y()),
+    )
+
+
+def SupersampledCameraConfig(config: CameraConfig, supersampling: int) -> CameraConfig:
+    """A copy of `config` rendering `supersampling` times the resolution (same optics)."""
+    color, _ = config.MakeCameras()
+    info = color.core().intrinsics()
+    k = supersampling
+    result = copy.deepcopy(config)
+    result.width, result.height = config.width * k, config.height * k
+    result.focal = CameraConfig.FocalLength(x=info.focal_x() * k, y=info.focal_y() * k)
+    result.center_x = (info.center_x() + 0.5) * k - 0.5
+    result.center_y = (info.center_y() + 0.5) * k - 0.5
+    return result
+
+
+def _ReadMapping(path: str | Path) -> dict:
+    path = Path(path)
+    if not path.is_file():
+        raise ScenarioError(f"file not found: {path}")
+    return read_raw_scenario(path)

@@ -1,0 +1,282 @@
+"""Task `waypoints`: an arm's TCP through waypoints with the acceleration-level planner.
+
+The AccelerationPlanner (seed 001) streams commanded joint positions at 500 Hz to the
+station's `<arm>.position_commanded`; the run reports the seed's Table 2 figures on the
+commanded trajectory (what the planner produces) and the measured tracking error of the
+simulated arm.
+"""
+
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+from pydrake.multibody.plant import MultibodyPlant
+from pydrake.systems.analysis import ApplySimulatorConfig, Simulator
+from pydrake.systems.framework import DiagramBuilder, EventStatus
+from pydrake.systems.primitives import VectorLogSink
+
+from guidedarm.diagrams.plots import PlotJointSeries
+from guidedarm.diagrams.run_context import AdvanceWithProgress, RunContext
+from guidedarm.diagrams.station.scenario import StationScenario
+from guidedarm.diagrams.station.station import MakeStation
+from guidedarm.diagrams.station.station_plant import (
+    AddStationModels,
+    GetArmInstance,
+    SetInitialPositions,
+)
+from guidedarm.diagrams.tasks.planner_plots import PlotScaling, PlotTcpPath
+from guidedarm.diagrams.tasks.registry import TaskDefinition
+from guidedarm.systems.errors import ConfigurationError
+from guidedarm.systems.planning.acceleration_planner import AccelerationPlanner
+from guidedarm.systems.planning.acceleration_planner_math import (
+    AccelerationPlanning,
+    ArmKinematics,
+    ClosestApproach,
+    PlannedTrajectory,
+    PlannerParameters,
+    PlannerState,
+    PlanningError,
+)
+from guidedarm.systems.planning.waypoint_ik import SolveWaypointIk
+from guidedarm.systems.plant_frames import GetScopedFrame
+
+LIMIT_CHOICES = ("none", "velocity", "velocity,acceleration")
+
+
+@dataclass
+class WaypointsScenario:
+    """arm: the arm of `station.arms` to move; base_frame, tool_frame: scoped frame names
+    (e.g. `ur10e::base`, `ur10e::tool0`) of the base B and the TCP T.
+    waypoints: rows [x, y, z, roll, pitch, yaw] of T in B (m, rad, Z-Y-X Euler angles); the
+        last one is the final location. The start is the arm's initial position.
+    limits: which of the seed's constraints are on: none, velocity, velocity,acceleration.
+    max_joint_velocity, max_joint_acceleration: symmetric limits (rad/s, rad/s^2), one
+        value for every joint or one per joint.
+    planner: the planner's gains and settings. max_time: the run fails if the task has not
+        ended by then (s); settle_time: simulated after the end (s).
+    """
+
+    task: str = "waypoints"
+    arm: str = ""
+    base_frame: str = ""
+    tool_frame: str = ""
+    waypoints: list[list[float]] = field(default_factory=list)
+    limits: str = "velocity,acceleration"
+    max_joint_velocity: list[float] = field(default_factory=lambda: [1.0471975511965976])
+    max_joint_acceleration: list[float] = field(default_factory=lambda: [1.3962634015954636])
+    planner: PlannerParameters = field(default_factory=PlannerParameters)
+    max_time: float = 20.0
+    settle_time: float = 0.3
+    station: StationScenario = field(default_factory=StationScenario)
+
+
+@dataclass
+class PlannerSetup:
+    """The planner's own plant (a copy of the station's models), its law and the start."""
+
+    plant: MultibodyPlant
+    planning: AccelerationPlanning
+    q0: np.ndarray
+    joint_waypoints: np.ndarray
+    velocity_limit: np.ndarray
+    acceleration_limit: np.ndarray
+
+
+def MakePlannerSetup(scenario: WaypointsScenario) -> PlannerSetup:
+    """Builds the planner for `scenario` and refuses bad input before any motion:
+    unknown arm or frames, bad limits or gains, waypoints out of reach, singular start."""
+    if scenario.arm not in scenario.station.arms:
+        raise ConfigurationError(
+            f"arm '{scenario.arm}' is not in station.arms {list(scenario.station.arms)}"
+        )
+    if scenario.limits not in LIMIT_CHOICES:
+        raise ConfigurationError(f"limits must be one of {LIMIT_CHOICES}, got '{scenario.limits}'")
+    if not scenario.waypoints:
+        raise ConfigurationError("waypoints: at least one waypoint is needed")
+    plant = MultibodyPlant(time_step=0.0)
+    AddStationModels(scenario.station, plant)
+    plant.Finalize()
+    SetInitialPositions(scenario.station, plant)
+    instance = GetArmInstance(plant, scenario.arm)
+    kinematics = ArmKinematics(
+        plant,
+        instance,
+        GetScopedFrame(plant, scenario.base_frame, "base_frame"),
+        GetScopedFrame(plant, scenario.tool_frame, "tool_frame"),
+        scenario.planner.min_singular_value,
+    )
+    velocity = SymmetricLimit(scenario.max_joint_velocity, "max_joint_velocity")
+    acceleration = SymmetricLimit(scenario.max_joint_acceleration, "max_joint_acceleration")
+    waypoints = np.array(scenario.waypoints, float)
+    planning = AccelerationPlanning(
+        kinematics,
+        waypoints,
+        scenario.planner,
+        (-velocity, velocity) if scenario.limits != "none" else None,
+        (-acceleration, acceleration) if scenario.limits == "velocity,acceleration" else None,
+    )
+    q0 = plant.GetPositions(plant.CreateDefaultContext(), instance)
+    planning.InitialState(q0)
+    joint_waypoints = SolveWaypointIk(kinematics, waypoints, q0)
+    return PlannerSetup(plant, planning, q0, joint_waypoints, velocity, acceleration)
+
+
+def RunWaypoints(scenario: WaypointsScenario, context: RunContext) -> dict[str, Any]:
+    """Simulates the planner driving the station's arm; returns the Table-2 metrics."""
+    setup = MakePlannerSetup(scenario)
+    arm = scenario.arm
+    builder = DiagramBuilder()
+    station = builder.AddNamedSystem(
+        "station", MakeStation(scenario.station, context.meshcat, hardware=context.hardware)
+    )
+    planner = builder.AddNamedSystem("planner", AccelerationPlanner(setup.planning))
+    builder.Connect(
+        planner.GetOutputPort("position_commanded"),
+        station.GetInputPort(f"{arm}.position_commanded"),
+    )
+    builder.Connect(station.GetOutputPort(f"{arm}.state_estimated"), planner.get_input_port())
+    # Logged at every simulator step (both logs at the same instants), then reduced to one
+    # sample per planner step: a periodic log would race the planner's update events.
+    planner_log = builder.AddNamedSystem(
+        "planner_log", VectorLogSink(planner.GetOutputPort("planner_state").size())
+    )
+    builder.Connect(planner.GetOutputPort("planner_state"), planner_log.get_input_port())
+    measured_log = builder.AddNamedSystem("measured_log", VectorLogSink(6))
+    builder.Connect(
+        station.GetOutputPort(f"{arm}.position_measured"), measured_log.get_input_port()
+    )
+    diagram = builder.Build()
+    simulator = Simulator(diagram)
+    ApplySimulatorConfig(scenario.station.simulator_config, simulator)
+    planner_context = planner.GetMyContextFromRoot(simulator.get_mutable_context())
+
+    def monitor(root_context) -> EventStatus:
+        done_time = planner.GetOutputPort("planner_state").Eval(planner_context)[-1]
+        if 0 <= done_time <= root_context.get_time() - scenario.settle_time:
+            return EventStatus.ReachedTermination(planner, "task ended")
+        return EventStatus.DidNothing()
+
+    simulator.set_monitor(monitor)
+    failure = None
+    context.start_recording()
+    try:
+        simulator.Initialize()
+        t_end = AdvanceWithProgress(simulator, scenario.max_time, context)
+    except PlanningError as e:
+        failure = f"planner: {e}"
+        t_end = simulator.get_context().get_time()
+    context.write_replay()
+
+    root = simulator.get_context()
+    states = planner_log.FindLog(root).data()
+    _, steps = np.unique(states[PlannerState.TIME_ROW], return_index=True)
+    trajectory = PlannedTrajectory.FromStateVectors(states[:, steps])
+    measured = measured_log.FindLog(root).data()[:, steps].T
+    if failure is None and trajectory.done_time < 0:
+        failure = f"the TCP did not reach the final waypoint within max_time {scenario.max_time} s"
+    metrics = TrajectoryMetrics(setup, trajectory, measured)
+    SavePlannerFigures(context, scenario, setup, trajectory, measured)
+    return {"sim_time_s": round(t_end, 4), **metrics, "failure": failure}
+
+
+def TrajectoryMetrics(
+    setup: PlannerSetup, trajectory: PlannedTrajectory, measured: np.ndarray | None = None
+) -> dict[str, Any]:
+    """The seed's Table 2 figures of a commanded trajectory, plus measured tracking."""
+    kinematics = setup.planning.kinematics
+    waypoints = setup.planning.waypoints
+    tcp = np.array([kinematics.Position(q) for q in trajectory.q])
+    done = trajectory.done_time >= 0
+    k_end = int(np.searchsorted(trajectory.times, trajectory.done_time - 1e-9)) if done else -1
+    final_error = float(np.linalg.norm(tcp[k_end, :3] - waypoints[-1, :3]))
+    metrics: dict[str, Any] = {
+        "T_s": round(trajectory.done_time, 4) if done else None,
+        "qd_max": float(trajectory.qd.max()),
+        "qd_min": float(trajectory.qd.min()),
+        "qdd_max": float(trajectory.qdd.max()),
+        "qdd_min": float(trajectory.qdd.min()),
+        "final_error_m": final_error,
+        "c_min": float(trajectory.c[1:].min()) if trajectory.c.size > 1 else 1.0,
+        "waypoint_distance_m": ClosestApproach(tcp[:, :3], waypoints).round(5).tolist(),
+        "qdd_step_max": float(np.abs(np.diff(trajectory.qdd, axis=0)).max(initial=0.0)),
+    }
+    if measured is not None and measured.size:
+        count = min(len(measured), len(trajectory.q))
+        joint_error = np.abs(measured[:count] - trajectory.q[:count])
+        tcp_measured = np.array([kinematics.Position(q) for q in measured[:count]])
+        metrics["tracking_error_max_rad"] = float(joint_error.max())
+        metrics["tcp_tracking_error_max_m"] = float(
+            np.linalg.norm(tcp_measured[:, :3] - tcp[:count, :3], axis=1).max()
+        )
+    return metrics
+
+
+def PlotTcpPathsOfJoints(
+    setup: PlannerSetup, joint_paths: dict[str, np.ndarray], radius: float
+) -> Any:
+    """PlotTcpPath of joint trajectories (samples x joints, rad), mapped to the TCP position
+    by the planner's kinematics, with the task's waypoints, start and neighbourhoods (m)."""
+    kinematics = setup.planning.kinematics
+    paths = {
+        name: np.array([kinematics.Position(q)[:3] for q in qs]) for name, qs in joint_paths.items()
+    }
+    return PlotTcpPath(paths, setup.planning.waypoints, radius, kinematics.Position(setup.q0))
+
+
+def SavePlannerFigures(
+    context: RunContext,
+    scenario: WaypointsScenario,
+    setup: PlannerSetup,
+    trajectory: PlannedTrajectory,
+    measured: np.ndarray,
+) -> None:
+    """TCP path, q, qd, qdd (limits dashed) and c(t), like the seed's figures 2-14."""
+    joint_paths = {"commanded": trajectory.q}
+    if measured.size:
+        joint_paths["measured"] = measured
+    context.save_figure(
+        PlotTcpPathsOfJoints(setup, joint_paths, scenario.planner.neighbourhood_radius),
+        "tcp_path",
+    )
+    times = trajectory.times
+    series = {"commanded": trajectory.q.T}
+    if measured.size:
+        count = min(len(measured), len(times))
+        series = {"commanded": trajectory.q[:count].T, "measured": measured[:count].T}
+        times = times[:count]
+    context.save_figure(PlotJointSeries(times, series, "q (rad)"), "joint_positions")
+    velocity, acceleration = setup.velocity_limit, setup.acceleration_limit
+    context.save_figure(
+        PlotJointSeries(
+            trajectory.times, {"commanded": trajectory.qd.T}, "qd (rad/s)", (-velocity, velocity)
+        ),
+        "joint_velocities",
+    )
+    context.save_figure(
+        PlotJointSeries(
+            trajectory.times,
+            {"commanded": trajectory.qdd.T},
+            "qdd (rad/s^2)",
+            (-acceleration, acceleration),
+        ),
+        "joint_accelerations",
+    )
+    context.save_figure(PlotScaling(trajectory.times, trajectory.c), "scaling_coefficient")
+
+
+def SymmetricLimit(values: list[float], key: str) -> np.ndarray:
+    """Six positive limits from one value for every joint or one per joint."""
+    limit = np.asarray(values, float)
+    if limit.size == 1:
+        limit = np.full(6, limit[0])
+    if limit.size != 6 or not np.all(np.isfinite(limit)) or np.any(limit <= 0):
+        raise ConfigurationError(f"{key} needs 1 or 6 positive values, got {values}")
+    return limit
+
+
+TASK = TaskDefinition(
+    name="waypoints",
+    scenario_type=WaypointsScenario,
+    run=RunWaypoints,
+    description="TCP through waypoints with the acceleration-level planner (seed 001)",
+)

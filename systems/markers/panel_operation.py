@@ -1,0 +1,366 @@
+"""PanelOperation: press a switch on a marker panel with an eye-in-hand camera (seed 003, 2.4).
+
+The sequence, as in the seed: from a start with at least one marker in view, measure the
+panel pose; move to the base point in front of the panel (camera `base_distance_m` from
+the panel plane, looking straight at the middle of the markers) and measure again; move to
+the last measurement point (gripper tip `measure_standoff_m` in front of the chosen switch,
+where the markers are still in view) and measure again; press (tip `press_depth_m` past the
+switch's rest face), hold, retract. Images are analysed only while the arm stands still
+(commanded move finished, settle time over, every joint slower than `stationary_speed`),
+so moves between points need no speed limit for the camera's sake.
+
+Each measurement replaces the panel estimate X_WP = X_WC(q) X_CP, with X_WC(q) the camera
+pose from the arm's kinematics at the measured joint positions. When no marker is seen at a
+later point, `on_marker_loss` decides: "abort" stops the arm where it is and reports the
+failure, "continue" keeps the last valid X_WP (the arm's own kinematics carry the rest).
+
+Moves (`motion`): "joint_trajectory", minimum-jerk joint-space segments between
+inverse-kinematics solutions (Drake InverseKinematics, exact tip pose), timed so no joint
+exceeds `max_joint_speed`; or "planner", each move a PlannerTask for the acceleration-level
+planner (seed 001, systems/planning/acceleration_planner.py), which ends it when its end condition
+holds and which streams the commands itself.
+Units: m, rad, s. Frames: W the controller plant's world, P panel, C camera, T gripper tip.
+"""
+
+import copy
+from dataclasses import dataclass, field
+
+import numpy as np
+from pydrake.common.value import AbstractValue
+from pydrake.math import RigidTransform, RollPitchYaw, RotationMatrix
+from pydrake.multibody.inverse_kinematics import InverseKinematics
+from pydrake.multibody.plant import MultibodyPlant
+from pydrake.multibody.tree import Frame
+from pydrake.solvers import Solve
+from pydrake.systems.framework import BasicVector, Context, LeafSystem, State
+
+from guidedarm.systems.errors import ConfigurationError
+from guidedarm.systems.markers.marker_pose_estimator_math import (
+    MarkerPoseEstimate,
+    PanelSpec,
+    SwitchSpec,
+)
+from guidedarm.systems.planning.acceleration_planner_math import PlannerTask
+
+# The camera looks straight at the panel: image x = panel x, image y = -panel y.
+R_PC_STRAIGHT = RotationMatrix(np.diag([1.0, -1.0, -1.0]))
+MOTIONS = ("joint_trajectory", "planner")
+
+
+@dataclass
+class PanelOperationConfig:
+    """Parameters of the sequence (see the module docstring); lengths in m, speeds rad/s."""
+
+    base_distance_m: float = 0.17
+    measure_standoff_m: float = 0.09
+    press_depth_m: float = 0.006
+    retract_standoff_m: float = 0.06
+    max_joint_speed: float = 0.75
+    settle_time_s: float = 0.3
+    stationary_speed: float = 0.002
+    press_hold_s: float = 0.3
+    on_marker_loss: str = "continue"
+    update_period_s: float = 0.01
+    motion: str = "joint_trajectory"
+
+    def check(self) -> None:
+        if self.motion not in MOTIONS:
+            raise ConfigurationError(f"motion must be one of {MOTIONS}, got '{self.motion}'")
+        if self.on_marker_loss not in ("abort", "continue"):
+            raise ConfigurationError(
+                f"on_marker_loss must be 'abort' or 'continue', got '{self.on_marker_loss}'"
+            )
+        if min(self.base_distance_m, self.max_joint_speed, self.update_period_s) <= 0:
+            raise ConfigurationError("base_distance_m, max_joint_speed, update_period_s > 0")
+
+
+class CameraArmKinematics:
+    """Camera and tip poses of one arm of `plant` (all its positions are that arm's joints),
+    and inverse kinematics for the tip."""
+
+    def __init__(self, plant: MultibodyPlant, camera_frame: Frame, tip_frame: Frame) -> None:
+        self.plant = plant
+        self.camera_frame = camera_frame
+        self.tip_frame = tip_frame
+        self._context = plant.CreateDefaultContext()
+        self.X_CT = self.X_WC(plant.GetPositions(self._context)).inverse() @ self.X_WT(
+            plant.GetPositions(self._context)
+        )
+
+    def X_WC(self, q: np.ndarray) -> RigidTransform:
+        self.plant.SetPositions(self._context, q)
+        return self.camera_frame.CalcPoseInWorld(self._context)
+
+    def X_WT(self, q: np.ndarray) -> RigidTransform:
+        self.plant.SetPositions(self._context, q)
+        return self.tip_frame.CalcPoseInWorld(self._context)
+
+    def SolveTip(self, X_WT: RigidTransform, q_guess: np.ndarray) -> np.ndarray | None:
+        """Joint positions putting the tip at X_WT (1e-6 m, 1e-5 rad), near q_guess.
+
+        Facing a panel, a six-joint arm's wrist is often close to straight (a singularity:
+        only the sum of the two wrist rolls is fixed), where SNOPT with the nearest-to-guess
+        cost sometimes stalls; then the solve is repeated without the cost (from the guess,
+        then from perturbed guesses) and the solution polished towards the guess.
+        """
+        q = self._SolveTipOnce(X_WT, q_guess, q_guess)
+        if q is not None:
+            return q
+        rng = np.random.default_rng(0)
+        for attempt in range(5):
+            start = q_guess + (rng.normal(0, 0.2, q_guess.size) if attempt else 0.0)
+            q = self._SolveTipOnce(X_WT, start, None)
+            if q is not None:
+                polished = self._SolveTipOnce(X_WT, q, q_guess)
+                return q if polished is None else polished
+        return None
+
+    def _SolveTipOnce(self, X_WT: RigidTransform, start: np.ndarray, nearest: np.ndarray | None):
+        ik = InverseKinematics(self.plant)
+        p = X_WT.translation()
+        world = self.plant.world_frame()
+        ik.AddPositionConstraint(self.tip_frame, np.zeros(3), world, p - 1e-6, p + 1e-6)
+        ik.AddOrientationConstraint(world, X_WT.rotation(), self.tip_frame, RotationMatrix(), 1e-5)
+        prog = ik.get_mutable_prog()
+        q = ik.q()
+        if nearest is not None:
+            prog.AddQuadraticErrorCost(np.eye(len(start)), nearest, q)
+        prog.SetInitialGuess(q, start)
+        result = Solve(prog)
+        return result.GetSolution(q) if result.is_success() else None
+
+
+class PanelTargets:
+    """Tip poses X_PT of the sequence's points for `switch` of `panel`."""
+
+    def __init__(
+        self,
+        panel: PanelSpec,
+        switch: SwitchSpec,
+        config: PanelOperationConfig,
+        X_CT: RigidTransform,
+    ) -> None:
+        self._switch = np.asarray(switch.position, float)
+        centres = [m.X_PM.GetDeterministicValue().translation() for m in panel.markers]
+        self._middle = np.mean(centres, axis=0)
+        self._config = config
+        self._X_CT = X_CT
+
+    def base(self) -> RigidTransform:
+        p_PC = self._middle + [0.0, 0.0, self._config.base_distance_m]
+        return RigidTransform(R_PC_STRAIGHT, p_PC) @ self._X_CT
+
+    def at_switch(self, standoff_m: float) -> RigidTransform:
+        R_PT = R_PC_STRAIGHT @ self._X_CT.rotation()
+        return RigidTransform(R_PT, self._switch + [0.0, 0.0, standoff_m])
+
+
+@dataclass
+class PlannerFrames:
+    """For motion "planner": X_WB, the planner's base frame B in W, and X_TN, the planner's
+    TCP frame N on the gripper tip T. N is T rotated so that the Z-Y-X Euler angles of the
+    targets stay away from the representation's singularity at pitch +-90 deg."""
+
+    X_WB: RigidTransform
+    X_TN: RigidTransform
+
+    def TaskRow(self, X_WT: RigidTransform) -> np.ndarray:
+        """[x, y, z, roll, pitch, yaw] of N in B (m, rad) when the tip is at X_WT."""
+        X_BN = self.X_WB.inverse() @ X_WT @ self.X_TN
+        return np.concatenate([X_BN.translation(), RollPitchYaw(X_BN.rotation()).vector()])
+
+
+@dataclass
+class Step:
+    """One step: `kind` is measure | move | hold | done; `label` names it in the logs."""
+
+    kind: str
+    label: str
+    X_PT: RigidTransform | None = None
+    duration_s: float = 0.0
+
+
+@dataclass
+class SequencerState:
+    """The sequencer's abstract state: current step, current move, estimate and logs."""
+
+    step: int = 0
+    step_start_s: float = 0.0
+    q_from: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    q_to: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    move_start_s: float = 0.0
+    move_end_s: float = 0.0
+    task: PlannerTask = field(default_factory=PlannerTask)
+    X_WP: RigidTransform | None = None
+    measurements: list[dict] = field(default_factory=list)
+    q_at: dict[str, list[float]] = field(default_factory=dict)
+    failure: str | None = None
+    done: bool = False
+
+
+def MinimumJerk(tau: float) -> float:
+    """The minimum-jerk profile s(tau) on [0, 1] (0 and 1 outside); peak ds/dtau 1.875."""
+    tau = min(max(tau, 0.0), 1.0)
+    return tau**3 * (10.0 - 15.0 * tau + 6.0 * tau**2)
+
+
+class PanelOperation(LeafSystem):
+    """The seed's panel-operation sequencer for one arm.
+
+    Input ports: `arm_state` ([q; v] of the arm, rad, rad/s), `marker_estimate`
+    (MarkerPoseEstimate of the camera; evaluated only when measuring); with motion
+    "planner" also `move_done` (the planner's `done`, 1.0 when the current task ended).
+    Output port: `position_commanded` (rad; motion "joint_trajectory"), or `planner_task`
+    (PlannerTask; motion "planner", needs `planner_frames`). The state (SequencerState) is
+    read with GetSequencerState for logs and ground-truth evaluation.
+    """
+
+    def __init__(
+        self,
+        kinematics: CameraArmKinematics,
+        panel: PanelSpec,
+        switch: SwitchSpec,
+        config: PanelOperationConfig,
+        planner_frames: PlannerFrames | None = None,
+    ) -> None:
+        super().__init__()
+        config.check()
+        if config.motion == "planner" and planner_frames is None:
+            raise ConfigurationError('motion "planner" needs the planner\'s frames')
+        self._planner_frames = planner_frames if config.motion == "planner" else None
+        self._kinematics = kinematics
+        self._config = config
+        self.targets = PanelTargets(panel, switch, config, kinematics.X_CT)
+        targets = self.targets
+        self.steps = [
+            Step("measure", "start"),
+            Step("move", "base", targets.base()),
+            Step("measure", "base"),
+            Step("move", "switch_point", targets.at_switch(config.measure_standoff_m)),
+            Step("measure", "switch_point"),
+            Step("move", "press", targets.at_switch(-config.press_depth_m)),
+            Step("hold", "press", duration_s=config.press_hold_s),
+            Step("move", "retract", targets.at_switch(config.retract_standoff_m)),
+            Step("done", "done"),
+        ]
+        n = kinematics.plant.num_positions()
+        self._n = n
+        self._arm_state = self.DeclareVectorInputPort("arm_state", 2 * n)
+        self._estimate = self.DeclareAbstractInputPort(
+            "marker_estimate", AbstractValue.Make(MarkerPoseEstimate(None, [], -1.0, False))
+        )
+        self._state_index = self.DeclareAbstractState(AbstractValue.Make(SequencerState()))
+        self.DeclareInitializationUnrestrictedUpdateEvent(self._Initialize)
+        self.DeclarePeriodicUnrestrictedUpdateEvent(config.update_period_s, 0.0, self._Update)
+        state_ticket = self.abstract_state_ticket(self._state_index)
+        self._move_done = None
+        if self._planner_frames is None:
+            self.DeclareVectorOutputPort(
+                "position_commanded",
+                n,
+                self.CalcPositionCommanded,
+                prerequisites_of_calc={state_ticket, self.time_ticket()},
+            )
+        else:
+            self._move_done = self.DeclareVectorInputPort("move_done", 1)
+            self.DeclareAbstractOutputPort(
+                "planner_task",
+                lambda: AbstractValue.Make(PlannerTask()),
+                lambda context, value: value.set_value(self.GetSequencerState(context).task),
+                prerequisites_of_calc={state_ticket},
+            )
+
+    def GetSequencerState(self, context: Context) -> SequencerState:
+        return context.get_abstract_state(self._state_index).get_value()
+
+    def CalcPositionCommanded(self, context: Context, output: BasicVector) -> None:
+        s = self.GetSequencerState(context)
+        if s.q_to.size == 0:
+            output.SetFromVector(self._arm_state.Eval(context)[: self._n])
+            return
+        duration = s.move_end_s - s.move_start_s
+        tau = (context.get_time() - s.move_start_s) / max(duration, 1e-9)
+        output.SetFromVector(s.q_from + (s.q_to - s.q_from) * MinimumJerk(tau))
+
+    def _Initialize(self, context: Context, state: State) -> None:
+        q = np.array(self._arm_state.Eval(context)[: self._n])
+        s = SequencerState(q_from=q, q_to=q.copy(), step_start_s=context.get_time())
+        state.get_mutable_abstract_state(self._state_index).set_value(s)
+
+    def _Update(self, context: Context, state: State) -> None:
+        s = copy.deepcopy(self.GetSequencerState(context))
+        if s.done:
+            return
+        t = context.get_time()
+        x = self._arm_state.Eval(context)
+        q, v = np.asarray(x[: self._n]), np.asarray(x[self._n :])
+        step = self.steps[s.step]
+        if s.move_end_s == np.inf and self._move_done.Eval(context)[0] > 0.5:
+            s.move_end_s = t
+        moved = t >= s.move_end_s
+        # a step after a move counts its settle or hold time from the move's end
+        since = max(s.step_start_s, s.move_end_s)
+        still = moved and t >= since + self._config.settle_time_s
+        still = still and np.max(np.abs(v)) < self._config.stationary_speed
+        advance = False
+        if step.kind == "measure" and still:
+            self._Measure(context, s, step.label, q, t)
+            advance = s.failure is None
+        elif step.kind == "move":
+            advance = self._StartMove(s, step, q, t)
+        elif step.kind == "hold" and moved and t >= since + step.duration_s:
+            s.q_at[step.label] = q.tolist()
+            advance = True
+        elif step.kind == "done" and moved:
+            s.q_at["end"] = q.tolist()
+            s.done = True
+        if s.failure is not None:
+            s.done = True
+            s.q_from, s.q_to, s.move_end_s = q.copy(), q.copy(), min(s.move_end_s, t)
+        if advance:
+            s.step += 1
+            s.step_start_s = t
+        state.get_mutable_abstract_state(self._state_index).set_value(s)
+
+    def _Measure(self, context, s: SequencerState, label: str, q, t: float) -> None:
+        estimate: MarkerPoseEstimate = self._estimate.Eval(context)
+        record = {
+            "point": label,
+            "t_s": round(t, 4),
+            "valid": bool(estimate.valid),
+            "ids": list(estimate.ids),
+            "reprojection_error_px": round(float(estimate.reprojection_error_px), 4),
+        }
+        s.q_at[f"measure_{label}"] = q.tolist()
+        if estimate.valid:
+            s.X_WP = self._kinematics.X_WC(q) @ estimate.X_CP
+            p_CP = estimate.X_CP.translation()
+            record["distance_mm"] = round(1000 * np.linalg.norm(p_CP), 2)
+            record["p_CP_mm"] = [round(1000 * v, 3) for v in p_CP]
+        elif s.X_WP is None:
+            s.failure = f"no marker of the panel in view at the '{label}' point"
+        elif self._config.on_marker_loss == "abort":
+            s.failure = (
+                f"markers lost at the '{label}' point: aborted before pressing "
+                "(on_marker_loss: abort)"
+            )
+        else:
+            record["used_last_valid_estimate"] = True
+        s.measurements.append(record)
+
+    def _StartMove(self, s: SequencerState, step: Step, q: np.ndarray, t: float) -> bool:
+        s.move_start_s = t
+        if self._planner_frames is not None:
+            row = self._planner_frames.TaskRow(s.X_WP @ step.X_PT)
+            s.task = PlannerTask(s.task.sequence + 1, row[np.newaxis])
+            s.move_end_s = np.inf  # until the planner says the task ended
+            return True
+        q_start = s.q_to if s.q_to.size else q
+        q_goal = self._kinematics.SolveTip(s.X_WP @ step.X_PT, q_start)
+        if q_goal is None:
+            s.failure = f"no inverse-kinematics solution for the '{step.label}' pose"
+            return False
+        largest = float(np.max(np.abs(q_goal - q_start)))
+        s.q_from, s.q_to = q_start.copy(), q_goal
+        s.move_end_s = t + max(1.875 * largest / self._config.max_joint_speed, 0.2)
+        return True

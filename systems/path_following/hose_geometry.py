@@ -1,0 +1,308 @@
+"""The followed hose: centerline files, a random smooth path generator, and SceneGraph geometry.
+
+A centerline is an (N, 3) array of points (m) in the robot base frame, which the cell
+scenes weld to the world with the identity, so base = world. The hose is registered on the
+plant's world body as a chain of capsules (radius = hose radius, one per centerline
+segment) with proximity, illustration and perception roles, so that the ToF sensors, contact
+checks and cameras all see it; a bracket (a collar 50 mm from the hose end and a post down
+to the table at z = 0) holds each end, as the seed's metal brackets do.
+"""
+
+import dataclasses
+import itertools
+import math
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+from pydrake.geometry import Box, Capsule, Cylinder
+from pydrake.math import RigidTransform, RotationMatrix
+from pydrake.multibody.plant import CoulombFriction, MultibodyPlant
+
+from guidedarm.systems.errors import ConfigurationError
+
+HOSES_DIR = Path(__file__).resolve().parents[2] / "models" / "hoses"
+MIN_HOSE_LENGTH = 0.10
+BRACKET_INSET = 0.05
+_HOSE_COLOR = np.array([0.15, 0.45, 0.85, 1.0])
+_BRACKET_COLOR = np.array([0.55, 0.56, 0.58, 1.0])
+
+
+@dataclass
+class HoseConfig:
+    """The hose of a scene.
+
+    centerline: a named path (`models/hoses/NAME.csv`, e.g. `paper_path_1`) or a CSV file of
+        x, y, z rows (m, robot base frame; header optional).
+    diameter: hose diameter (m); the seed's shower hose is 20 mm.
+    segment_length: length of one capsule of the geometry chain (m).
+    brackets: add a bracket at each end.
+    """
+
+    centerline: str = "paper_path_1"
+    diameter: float = 0.020
+    segment_length: float = 0.010
+    brackets: bool = True
+
+
+@dataclass
+class PathLimits:
+    """Allowed workspace of a path's run (virtual walls of the cell, m; robot base frame).
+
+    A named path may override them in `models/hoses/NAME.yaml` (the seed's path 4 raised the
+    x limit to 0.850 m).
+    """
+
+    x: list[float] = dataclasses.field(default_factory=lambda: [-0.55, 0.55])
+    y: list[float] = dataclasses.field(default_factory=lambda: [-0.55, 0.55])
+    z_min: float = 0.005
+
+
+def ResolveCenterlinePath(name_or_file: str) -> Path:
+    """The CSV of a named path or a file path; ConfigurationError if neither exists."""
+    path = Path(name_or_file)
+    if path.suffix.lower() == ".csv" or path.is_file():
+        if not path.is_file():
+            raise ConfigurationError(f"centerline file not found: {path}")
+        return path
+    named = HOSES_DIR / f"{name_or_file}.csv"
+    if not named.is_file():
+        known = ", ".join(sorted(p.stem for p in HOSES_DIR.glob("*.csv")))
+        raise ConfigurationError(f"unknown hose path '{name_or_file}' (known: {known})")
+    return named
+
+
+def LoadPathLimits(name_or_file: str) -> PathLimits:
+    """The path's workspace limits: defaults, overridden by a sidecar NAME.yaml if present."""
+    from pydrake.common.yaml import yaml_load_typed
+
+    sidecar = ResolveCenterlinePath(name_or_file).with_suffix(".yaml")
+    if not sidecar.is_file():
+        return PathLimits()
+    try:
+        return yaml_load_typed(schema=PathLimits, filename=str(sidecar))
+    except Exception as e:
+        raise ConfigurationError(f"{sidecar}: {str(e).splitlines()[0]}") from None
+
+
+def ReadCenterline(name_or_file: str) -> np.ndarray:
+    """Reads and validates a centerline CSV (x, y, z in m per row, header optional)."""
+    path = ResolveCenterlinePath(name_or_file)
+    rows = []
+    for number, line in enumerate(path.read_text().splitlines(), start=1):
+        text = line.strip()
+        if not text or text.startswith("#"):
+            continue
+        cells = [c.strip() for c in text.split(",")]
+        try:
+            values = [float(c) for c in cells]
+        except ValueError:
+            if not rows and number == _first_content_line(path):
+                continue  # a header row
+            raise ConfigurationError(f"{path}:{number}: not three numbers: '{text}'") from None
+        if len(values) != 3:
+            raise ConfigurationError(f"{path}:{number}: expected x,y,z, got {len(values)} values")
+        rows.append(values)
+    return ValidateCenterline(np.array(rows, float).reshape(-1, 3), str(path))
+
+
+def ValidateCenterline(points: np.ndarray, source: str = "centerline") -> np.ndarray:
+    """Checks finiteness, no repeated points and a length of at least MIN_HOSE_LENGTH."""
+    if len(points) < 2:
+        raise ConfigurationError(f"{source}: needs at least 2 points, has {len(points)}")
+    if not np.all(np.isfinite(points)):
+        raise ConfigurationError(f"{source}: contains non-finite coordinates")
+    steps = np.linalg.norm(np.diff(points, axis=0), axis=1)
+    if np.any(steps < 1e-6):
+        raise ConfigurationError(f"{source}: repeated point at row {int(np.argmin(steps)) + 2}")
+    if steps.sum() < MIN_HOSE_LENGTH:
+        raise ConfigurationError(f"{source}: too short ({steps.sum():.3f} m < {MIN_HOSE_LENGTH} m)")
+    return points
+
+
+def Resample(points: np.ndarray, spacing: float) -> np.ndarray:
+    """Points at equal arc-length spacing (the last point kept) along the polyline."""
+    s = ArcLength(points)
+    count = max(math.ceil(s[-1] / spacing), 1)
+    samples = np.linspace(0.0, s[-1], count + 1)
+    return np.column_stack([np.interp(samples, s, points[:, i]) for i in range(3)])
+
+
+def ArcLength(points: np.ndarray) -> np.ndarray:
+    """Cumulative arc length at each point (m)."""
+    return np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(points, axis=0), axis=1))])
+
+
+def MinBendRadius(points: np.ndarray, window: float = 0.03) -> float:
+    """Smallest radius of the circle through points `window` apart along the path (m)."""
+    fine = Resample(points, 0.002)
+    k = max(round(window / 0.002), 1)
+    a, b, c = fine[: -2 * k], fine[k:-k], fine[2 * k :]
+    if len(a) == 0:
+        return math.inf
+    ab, bc, ca = (np.linalg.norm(x, axis=1) for x in (b - a, c - b, a - c))
+    area2 = np.linalg.norm(np.cross(b - a, c - a), axis=1)
+    with np.errstate(divide="ignore"):
+        radius = np.where(area2 > 1e-12, ab * bc * ca / np.maximum(2 * area2, 1e-300), np.inf)
+    return float(np.min(radius))
+
+
+def DistanceToCenterline(points: np.ndarray, centerline: np.ndarray) -> np.ndarray:
+    """Distance of each query point (M, 3) to the centerline polyline (m)."""
+    a, b = centerline[:-1], centerline[1:]
+    ab = b - a
+    queries = np.atleast_2d(points)
+    t = np.einsum("mkj,kj->mk", queries[:, None, :] - a[None], ab) / np.sum(ab * ab, axis=1)
+    t = np.clip(t, 0.0, 1.0)
+    closest = a[None] + t[..., None] * ab[None]
+    return np.min(np.linalg.norm(queries[:, None, :] - closest, axis=2), axis=1)
+
+
+@dataclass
+class RandomPathSpec:
+    """Region and shape of random paths (m): an annulus around the robot's z axis.
+
+    Radii and heights bound the hose centre; the paths are smooth with curvature below
+    1 / min_bend_radius everywhere.
+    """
+
+    length: float = 0.6
+    min_bend_radius: float = 0.10
+    radius_range: tuple[float, float] = (0.29, 0.43)
+    z_range: tuple[float, float] = (0.08, 0.20)
+    max_slope_deg: float = 35.0
+    x_range: tuple[float, float] = (-0.45, 0.45)
+
+
+def RandomSmoothPath(seed: int, spec: RandomPathSpec | None = None) -> np.ndarray:
+    """A seeded random hose centerline (5 mm spacing) inside spec's region.
+
+    The tangent turns at a random, smoothly varying rate (kappa <= 0.8 / min_bend_radius)
+    and is steered back when the path nears the region's border; attempts that still leave
+    the region are redrawn from the same seeded generator.
+    """
+    spec = spec or RandomPathSpec()
+    rng = np.random.default_rng(seed)
+    for _ in range(200):
+        path = _TryRandomPath(rng, spec)
+        if path is not None and MinBendRadius(path) >= spec.min_bend_radius:
+            return path
+    raise ConfigurationError(f"no random path found for seed {seed} within the region")
+
+
+def _TryRandomPath(rng: np.random.Generator, spec: RandomPathSpec) -> np.ndarray | None:
+    ds = 0.005
+    kappa_max = 0.8 / spec.min_bend_radius
+    r0 = rng.uniform(*spec.radius_range)
+    phi0 = rng.uniform(-0.6, 0.6)
+    p = np.array([r0 * math.cos(phi0), r0 * math.sin(phi0), rng.uniform(*spec.z_range)])
+    heading = phi0 + rng.choice([-1.0, 1.0]) * math.pi / 2 + rng.uniform(-0.5, 0.5)
+    slope = 0.0
+    points = [p.copy()]
+    k_heading, k_slope = 0.0, 0.0
+    max_slope = math.radians(spec.max_slope_deg)
+    for _ in range(int(spec.length / ds)):
+        # Smooth random curvature (first-order filtered noise) plus a pull back inside.
+        k_heading = 0.9 * k_heading + 0.1 * rng.normal(0.0, kappa_max)
+        k_slope = 0.9 * k_slope + 0.1 * rng.normal(0.0, kappa_max)
+        r = math.hypot(p[0], p[1])
+        radial = math.atan2(p[1], p[0])
+        outward = math.cos(heading - radial)
+        if r > spec.radius_range[1] - 0.04 and outward > -0.3:
+            k_heading = math.copysign(kappa_max, math.sin(heading - radial))
+        if r < spec.radius_range[0] + 0.04 and outward < 0.3:
+            k_heading = -math.copysign(kappa_max, math.sin(heading - radial))
+        if p[2] > spec.z_range[1] - 0.03:
+            k_slope = -kappa_max
+        if p[2] < spec.z_range[0] + 0.03:
+            k_slope = kappa_max
+        k_heading = float(np.clip(k_heading, -kappa_max, kappa_max))
+        k_slope = float(np.clip(k_slope, -kappa_max, kappa_max))
+        # Keep the total curvature (heading turns scaled by cos(slope)) under kappa_max.
+        norm = math.hypot(k_heading * math.cos(slope), k_slope)
+        if norm > kappa_max:
+            k_heading, k_slope = k_heading * kappa_max / norm, k_slope * kappa_max / norm
+        heading += k_heading * ds
+        slope = float(np.clip(slope + k_slope * ds, -max_slope, max_slope))
+        direction = np.array(
+            [
+                math.cos(heading) * math.cos(slope),
+                math.sin(heading) * math.cos(slope),
+                math.sin(slope),
+            ]
+        )
+        p = p + ds * direction
+        points.append(p.copy())
+        r = math.hypot(p[0], p[1])
+        if not (
+            spec.radius_range[0] <= r <= spec.radius_range[1]
+            and spec.z_range[0] <= p[2] <= spec.z_range[1]
+            and spec.x_range[0] <= p[0] <= spec.x_range[1]
+        ):
+            return None
+    return np.array(points)
+
+
+def WriteCenterline(points: np.ndarray, path: Path) -> None:
+    """Writes a centerline CSV with an x,y,z header (m)."""
+    lines = ["x,y,z"] + [f"{x:.6f},{y:.6f},{z:.6f}" for x, y, z in points]
+    path.write_text("\n".join(lines) + "\n")
+
+
+def RegisterHose(plant: MultibodyPlant, centerline: np.ndarray, config: HoseConfig) -> list:
+    """Registers the hose (and brackets) on the world body of an unfinalized plant.
+
+    Returns the GeometryIds of the hose capsules (proximity role), for contact checks.
+    """
+    if config.diameter <= 0 or config.segment_length <= 0:
+        raise ConfigurationError("hose diameter and segment_length must be positive")
+    radius = config.diameter / 2
+    points = Resample(centerline, config.segment_length)
+    world = plant.world_body()
+    friction = CoulombFriction(0.5, 0.5)
+    ids = []
+    for i, (a, b) in enumerate(itertools.pairwise(points)):
+        X_WC = _SegmentPose(a, b)
+        shape = Capsule(radius, float(np.linalg.norm(b - a)))
+        ids.append(plant.RegisterCollisionGeometry(world, X_WC, shape, f"hose_{i}", friction))
+        plant.RegisterVisualGeometry(world, X_WC, shape, f"hose_{i}", _HOSE_COLOR)
+    if config.brackets:
+        for name, ordered in (("start", points), ("end", points[::-1])):
+            _RegisterBracket(plant, name, ordered, radius, friction)
+    return ids
+
+
+def _RegisterBracket(plant, name, ordered, radius, friction) -> None:
+    """A collar around the hose BRACKET_INSET from its end and a post under it to the table.
+
+    The hose runs free beyond the bracket, so a follower that passes its end sees nothing
+    more (the post lies under the hose, where the consistency check rejects it).
+    """
+    world = plant.world_body()
+    s = ArcLength(ordered)
+    at = np.array([np.interp(BRACKET_INSET, s, ordered[:, i]) for i in range(3)])
+    ahead = np.array([np.interp(BRACKET_INSET + 0.01, s, ordered[:, i]) for i in range(3)])
+    axis = (ahead - at) / np.linalg.norm(ahead - at)
+    X_WC = _SegmentPose(at - axis * 0.006, at + axis * 0.006)
+    collar = Cylinder(radius + 0.003, 0.012)
+    post_top = at[2] - radius
+    height = max(post_top, 0.001)
+    X_WP = RigidTransform([at[0], at[1], height / 2])
+    post = Box(0.012, 0.012, height)
+    for suffix, X, shape in (("collar", X_WC, collar), ("post", X_WP, post)):
+        label = f"hose_bracket_{name}_{suffix}"
+        plant.RegisterCollisionGeometry(world, X, shape, label, friction)
+        plant.RegisterVisualGeometry(world, X, shape, label, _BRACKET_COLOR)
+
+
+def _SegmentPose(a: np.ndarray, b: np.ndarray) -> RigidTransform:
+    """Pose whose z axis runs from a to b, centred between them."""
+    axis = (b - a) / np.linalg.norm(b - a)
+    return RigidTransform(RotationMatrix.MakeFromOneVector(axis, 2), (a + b) / 2)
+
+
+def _first_content_line(path: Path) -> int:
+    for number, line in enumerate(path.read_text().splitlines(), start=1):
+        if line.strip() and not line.strip().startswith("#"):
+            return number
+    return 0

@@ -1,0 +1,94 @@
+"""Joint solutions of TCP waypoints: the planner's reachability check before any motion.
+
+The acceleration-level planner never solves inverse kinematics itself, but a waypoint out
+of the arm's reach would only show up as a run that never ends. Solving the IK of every
+waypoint first (each from the previous solution, so they lie on one branch) refuses such
+a task at once, and the joint waypoints serve the baselines the planner is compared with.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from pydrake.math import RigidTransform, RollPitchYaw, RotationMatrix
+from pydrake.multibody.inverse_kinematics import InverseKinematics
+from pydrake.solvers import Solve
+
+from guidedarm.systems.errors import ConfigurationError
+from guidedarm.systems.planning.acceleration_planner_math import ArmKinematics
+
+
+def WaypointPose(p: np.ndarray) -> RigidTransform:
+    """X_BT of a waypoint row [x, y, z, roll, pitch, yaw] (m, rad; Z-Y-X Euler angles)."""
+    return RigidTransform(RollPitchYaw(p[3:]), p[:3])
+
+
+def SolveWaypointIk(
+    kinematics: ArmKinematics,
+    waypoints: np.ndarray,
+    q_start: np.ndarray,
+    tolerance: float = 1e-6,
+    attempts: int = 8,
+) -> np.ndarray:
+    """Joint positions (rad), one row per waypoint, within the plant's joint limits.
+
+    Raises ConfigurationError naming the first waypoint that has no solution.
+    """
+    plant, instance = kinematics.plant, kinematics.instance
+    context = plant.CreateDefaultContext()
+    lower = plant.GetPositionLowerLimits()
+    upper = plant.GetPositionUpperLimits()
+    rng = np.random.default_rng(0)
+    solutions = []
+    q_previous = np.asarray(q_start, float)
+    for i, p in enumerate(np.atleast_2d(waypoints)):
+        X_BT = WaypointPose(p)
+        guesses = [q_previous] + [
+            rng.uniform(
+                np.maximum(plant.GetPositionsFromArray(instance, lower), -np.pi),
+                np.minimum(plant.GetPositionsFromArray(instance, upper), np.pi),
+            )
+            for _ in range(attempts - 1)
+        ]
+        for guess in guesses:
+            q = _Solve(kinematics, context, X_BT, guess, tolerance)
+            if q is not None:
+                break
+        else:
+            raise ConfigurationError(
+                f"waypoint {i + 1} {np.round(p, 4).tolist()} is out of reach of "
+                f"{plant.GetModelInstanceName(instance)} (no joint solution within its limits)"
+            )
+        solutions.append(q)
+        q_previous = q
+    return np.array(solutions)
+
+
+def _Solve(
+    kinematics: ArmKinematics,
+    context,
+    X_BT: RigidTransform,
+    guess: np.ndarray,
+    tolerance: float,
+) -> np.ndarray | None:
+    plant, instance = kinematics.plant, kinematics.instance
+    plant.SetPositions(context, instance, guess)
+    ik = InverseKinematics(plant, context, with_joint_limits=True)
+    p = X_BT.translation()
+    ik.AddPositionConstraint(
+        kinematics.tool_frame, np.zeros(3), kinematics.base_frame, p - tolerance, p + tolerance
+    )
+    ik.AddOrientationConstraint(
+        kinematics.base_frame, X_BT.rotation(), kinematics.tool_frame, RotationMatrix(), tolerance
+    )
+    prog = ik.get_mutable_prog()
+    q_full = plant.GetPositions(context)
+    mask = np.zeros(plant.num_positions())
+    plant.SetPositionsInArray(instance, np.ones(6), mask)
+    arm = mask > 0
+    if (~arm).any():  # the rest of the scene stays where it is
+        prog.AddBoundingBoxConstraint(q_full[~arm], q_full[~arm], ik.q()[~arm])
+    prog.AddQuadraticErrorCost(np.eye(int(arm.sum())) * 1e-3, guess, ik.q()[arm])
+    result = Solve(prog, q_full)
+    if not result.is_success():
+        return None
+    return plant.GetPositionsFromArray(instance, result.GetSolution(ik.q()))
