@@ -12,7 +12,7 @@ from guidedarm.systems.planning.acceleration_planner import AccelerationPlanner
 from guidedarm.systems.planning.acceleration_planner_math import (
     AccelerationPlanning,
     PlannedTrajectory,
-    PlannerParameters,
+    PlannerConfig,
     PlannerState,
     PlanningError,
     RunPlanning,
@@ -42,7 +42,7 @@ def _Simulate(planning: AccelerationPlanning, q0: np.ndarray, t_final: float):
 
 def test_ports(setup):
     planner = AccelerationPlanner(setup.planning)
-    assert planner.get_input_port().get_name() == "joint_state"
+    assert planner.get_input_port().get_name() == "arm_state"
     assert planner.get_input_port().size() == 12
     for name in ("position_commanded", "velocity_commanded", "acceleration_commanded"):
         assert planner.GetOutputPort(name).size() == 6
@@ -76,7 +76,7 @@ def test_planning_errors_leave_the_simulator_as_planning_errors(setup):
     q0 = setup.q0.copy()
     q0[4] = 0.0  # wrist singularity
     planning = AccelerationPlanning(
-        setup.planning.kinematics, setup.planning.waypoints, PlannerParameters()
+        setup.planning.kinematics, setup.planning.waypoints, PlannerConfig()
     )
     with pytest.raises(PlanningError, match="near-singular"):
         _Simulate(planning, q0, 0.01)

@@ -31,7 +31,7 @@ class TaskedPlanner:
         builder = DiagramBuilder()
         self.planner = builder.AddSystem(AccelerationPlanner(setup.planning, accept_tasks=True))
         measured = builder.AddSystem(ConstantVectorSource(np.concatenate([setup.q0, np.zeros(6)])))
-        builder.Connect(measured.get_output_port(), self.planner.GetInputPort("joint_state"))
+        builder.Connect(measured.get_output_port(), self.planner.GetInputPort("arm_state"))
         self.log = builder.AddSystem(
             VectorLogSink(self.planner.GetOutputPort("planner_state").size())
         )

@@ -15,7 +15,7 @@ from guidedarm.systems.planning.acceleration_planner_math import (
     ClosestApproach,
     EulerRateMatrix,
     EulerRateMatrixDotTimesRate,
-    PlannerParameters,
+    PlannerConfig,
     PlanningError,
     RunPlanning,
     VelocityPenalty,
@@ -147,7 +147,7 @@ def test_scaling_cannot_fix_an_unscaled_violation():
 def test_non_positive_gains_are_configuration_errors(ur10e, change):
     with pytest.raises(ConfigurationError, match=next(iter(change))):
         AccelerationPlanning(
-            ur10e.planning.kinematics, ur10e.planning.waypoints, PlannerParameters(**change)
+            ur10e.planning.kinematics, ur10e.planning.waypoints, PlannerConfig(**change)
         )
 
 
@@ -184,7 +184,7 @@ def test_near_singular_motion_stops_with_an_error_instead_of_huge_accelerations(
     target = kinematics.Position(q_target)
     start = Q0_UR10E.copy()
     start[4] = 0.3
-    planning = AccelerationPlanning(kinematics, target[None, :], PlannerParameters())
+    planning = AccelerationPlanning(kinematics, target[None, :], PlannerConfig())
     with pytest.raises(PlanningError, match="near-singular"):
         RunPlanning(planning, start, max_time=10.0)
 
@@ -286,7 +286,7 @@ def test_random_reachable_waypoints_keep_every_limit(ur10e, offsets):
     planning = AccelerationPlanning(
         kinematics,
         waypoints,
-        PlannerParameters(),
+        PlannerConfig(),
         (-ur10e.velocity_limit, ur10e.velocity_limit),
         (-ur10e.acceleration_limit, ur10e.acceleration_limit),
     )
@@ -307,7 +307,7 @@ def test_infeasible_scaling_in_a_run_is_reported(ur10e):
     planning = AccelerationPlanning(
         kinematics,
         kinematics.Position(q_goal)[None, :],
-        PlannerParameters(),
+        PlannerConfig(),
         (-ur10e.velocity_limit, ur10e.velocity_limit),
         (-ur10e.acceleration_limit, ur10e.acceleration_limit),
     )

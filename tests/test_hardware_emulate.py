@@ -13,8 +13,8 @@ from guidedarm.diagrams.cli.command_emulate import DefaultCell
 from guidedarm.diagrams.station.station import MakeStation
 from guidedarm.systems.hardware import nachi_protocol as nachi
 from guidedarm.systems.hardware.nachi_link import NachiLink
-from guidedarm.systems.hardware.tof_driver import TofDriver
-from guidedarm.systems.hardware.tof_protocol import TofLineCollector
+from guidedarm.systems.hardware.tof_driver import ToFDriver
+from guidedarm.systems.hardware.tof_protocol import ToFLineCollector
 from guidedarm.systems.hardware.tof_transports import SerialTransport
 
 HOME = np.array([0.0, np.pi / 2, 0.0, 0.0, -np.pi / 2, 0.0])
@@ -24,13 +24,13 @@ def test_emulate_nachi_serves_the_arm_and_the_tof_tool():
     process, port, device = StartNachiEmulator("--duration", "20")
     try:
         link = NachiLink("mz04d", "127.0.0.1", port)
-        collector = TofLineCollector()
+        collector = ToFLineCollector()
         transport = SerialTransport(collector, device, 115200)
         time.sleep(0.2)
         np.testing.assert_allclose(link.latest().q, HOME, atol=1e-4)
         (status,) = link.Request(nachi.STATUS)
         assert status == "STATUS IDLE 0 0"
-        driver = TofDriver(collector, period=0.02, watchdog=0.2)
+        driver = ToFDriver(collector, period=0.02, watchdog=0.2)
         simulator = Simulator(driver)
         simulator.set_target_realtime_rate(1.0)
         simulator.AdvanceTo(0.1)

@@ -16,12 +16,12 @@ from guidedarm.diagrams.station.hardware_config import (
     ArmDriverConfig,
     CameraDriverConfig,
     HardwareConfig,
-    TofDriverConfig,
+    ToFDriverConfig,
 )
 from guidedarm.diagrams.station.station import MakeStation
 from guidedarm.systems.errors import ConfigurationError
 from guidedarm.systems.hardware.nachi_emulator import NachiEmulator
-from guidedarm.systems.hardware.tof_emulator import TofEmulator
+from guidedarm.systems.hardware.tof_emulator import ToFEmulator
 from guidedarm.systems.tof.tof_tool_sensor import ToFToolConfig
 
 
@@ -51,7 +51,7 @@ def devices(tmp_path):
     emulator = NachiEmulator(MakeStation(Mz04dScenario()), "mz04d", port=0)
     thread = threading.Thread(target=emulator.Run, kwargs={"duration": 30.0}, daemon=True)
     thread.start()
-    tof = TofEmulator(lambda: (np.full(6, 0.05), np.zeros(6, int)), period=0.02)
+    tof = ToFEmulator(lambda: (np.full(6, 0.05), np.zeros(6, int)), period=0.02)
     video = tmp_path / "camera.avi"
     WriteTestVideo(video, 64, 48, 30.0, 10)
     yield emulator.port, tof.device, str(video)
@@ -69,7 +69,7 @@ def test_sim_and_hardware_stations_export_the_same_ports(devices):
             )
         },
         cameras={"camera": CameraDriverConfig(source=video)},
-        tof_tools={"tof": TofDriverConfig(device=tof_device)},
+        tof_tools={"tof": ToFDriverConfig(device=tof_device)},
     )
     scenario = Mz04dScenario(
         cameras={"camera": camera}, tof_tools={"tof": ToFToolConfig()}, hardware=hardware

@@ -12,14 +12,14 @@ from pydrake.systems.analysis import Simulator
 
 from guidedarm.systems.errors import ConfigurationError
 from guidedarm.systems.hardware.arm_link import LinkLostError
-from guidedarm.systems.hardware.tof_driver import TofDriver
-from guidedarm.systems.hardware.tof_emulator import TofEmulator
+from guidedarm.systems.hardware.tof_driver import ToFDriver
+from guidedarm.systems.hardware.tof_emulator import ToFEmulator
 from guidedarm.systems.hardware.tof_protocol import (
     Checksum,
     FormatTofLine,
     ParseTofLine,
-    TofLineCollector,
-    TofLineError,
+    ToFLineCollector,
+    ToFLineError,
 )
 from guidedarm.systems.hardware.tof_transports import BleTransport, SerialTransport
 from guidedarm.systems.tof.tof_tool_sensor_math import DetectionGrid
@@ -49,7 +49,7 @@ def test_line_round_trip_and_validity():
     ],
 )
 def test_malformed_lines_are_rejected_with_the_cause(line, message):
-    with pytest.raises(TofLineError, match=message):
+    with pytest.raises(ToFLineError, match=message):
         ParseTofLine(line)
 
 
@@ -58,7 +58,7 @@ def test_collector_assembles_ble_sized_chunks_and_counts_rejects(capsys):
     lines[3] = lines[3][:25]  # cut short: the next line starts right after it
     lines[6] = lines[6].replace(",40,", ",41,")  # corrupted: checksum no longer matches
     stream = "".join(lines).encode()
-    collector = TofLineCollector()
+    collector = ToFLineCollector()
     for i in range(0, len(stream), 20):  # BLE notifications carry at most 20 bytes
         collector.Feed(stream[i : i + 20])
     assert (collector.accepted, collector.rejected) == (8, 2)
@@ -68,7 +68,7 @@ def test_collector_assembles_ble_sized_chunks_and_counts_rejects(capsys):
 
 def test_ble_transport_without_adapter_fails_with_one_line():
     with pytest.raises(ConfigurationError, match="tof: cannot connect BLE device"):
-        BleTransport(TofLineCollector(), "00:11:22:33:44:55")
+        BleTransport(ToFLineCollector(), "00:11:22:33:44:55")
 
 
 def _Grid() -> DetectionGrid:
@@ -86,11 +86,11 @@ def _Source():
 
 
 def test_driver_reads_the_emulator_through_a_pty_and_survives_bad_lines():
-    emulator = TofEmulator(_Source, period=0.01, corrupt_every=5)
-    collector = TofLineCollector()
+    emulator = ToFEmulator(_Source, period=0.01, corrupt_every=5)
+    collector = ToFLineCollector()
     transport = SerialTransport(collector, emulator.device, 115200)
     try:
-        driver = TofDriver(collector, 0.02, 0.2, no_return_range=0.1, grid=_Grid())
+        driver = ToFDriver(collector, 0.02, 0.2, no_return_range=0.1, grid=_Grid())
         simulator = Simulator(driver)
         simulator.set_target_realtime_rate(1.0)
         simulator.AdvanceTo(0.5)
@@ -115,10 +115,10 @@ def test_driver_reads_the_emulator_through_a_pty_and_survives_bad_lines():
 
 
 def test_silent_tool_fails_the_run_after_its_watchdog():
-    emulator = TofEmulator(_Source, period=0.01)
-    collector = TofLineCollector()
+    emulator = ToFEmulator(_Source, period=0.01)
+    collector = ToFLineCollector()
     transport = SerialTransport(collector, emulator.device, 115200)
-    driver = TofDriver(collector, period=0.02, watchdog=0.15)
+    driver = ToFDriver(collector, period=0.02, watchdog=0.15)
     simulator = Simulator(driver)
     simulator.set_target_realtime_rate(1.0)
     try:

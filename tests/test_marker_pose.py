@@ -23,7 +23,7 @@ from guidedarm.diagrams.tasks.panel_files import (
     LoadPanelSpec,
 )
 from guidedarm.systems.errors import ConfigurationError
-from guidedarm.systems.markers.image_degradation import DegradationParams, DegradeImage
+from guidedarm.systems.markers.image_degradation import DegradationConfig, DegradeImage
 from guidedarm.systems.markers.marker_pose_estimator import MarkerPoseEstimator
 from guidedarm.systems.markers.marker_pose_estimator_math import MarkerPoseSolver
 
@@ -76,7 +76,7 @@ def test_rotation_error_under_tilt_within_1deg(solver, rig, tilt_deg):
 
 def test_degraded_image_still_accurate(solver, rig):
     X_PC = LookAt([0.05, 0.02, 0.3], [0.06, 0, 0])
-    degradation = DegradationParams(lighting=0.5, blur_sigma_px=1.0, noise_std=4.0, seed=3)
+    degradation = DegradationConfig(lighting=0.5, blur_sigma_px=1.0, noise_std=4.0, seed=3)
     _, distance_error_mm, rotation_error_deg = _errors(solver, rig, X_PC, degradation)
     assert distance_error_mm <= 1.5
     assert rotation_error_deg <= 1.5
@@ -129,11 +129,11 @@ def test_estimator_system_outputs(solver, rig):
 def test_degradation_is_seeded_and_integrates_pixels():
     image = np.zeros((4, 6, 4), np.uint8)
     image[:, :3] = 255
-    params = DegradationParams(supersampling=2, noise_std=5.0, seed=1)
+    params = DegradationConfig(supersampling=2, noise_std=5.0, seed=1)
     a, b = DegradeImage(image, params, 7), DegradeImage(image, params, 7)
     assert a.shape == (2, 3, 4) and np.array_equal(a, b)
     assert not np.array_equal(a, DegradeImage(image, params, 8))
-    mean = DegradeImage(image, DegradationParams(supersampling=2), 0)[..., 0]
+    mean = DegradeImage(image, DegradationConfig(supersampling=2), 0)[..., 0]
     assert mean[0].tolist() == [255, 128, 0]  # the middle pixel is half covered
 
 

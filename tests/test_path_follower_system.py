@@ -44,16 +44,16 @@ def _BlindRun(made_setup, plan_move=None):
     builder.Connect(ranges.get_output_port(), follower.GetInputPort("ranges"))
     builder.Connect(valid.get_output_port(), follower.GetInputPort("valid"))
     command = follower.GetOutputPort("position_commanded")
-    builder.Connect(command, follower.GetInputPort("q_measured"))
-    builder.Connect(command, ik.GetInputPort("q_measured"))
+    builder.Connect(command, follower.GetInputPort("position_measured"))
+    builder.Connect(command, ik.GetInputPort("position_measured"))
     for source, sink in [
-        ("X_WF_measured", "X_WG_measured"),
+        ("X_WF_measured", "X_WF_measured"),
         ("status", "ik_status"),
         ("q_goal", "q_goal"),
         ("failure", "ik_failure"),
     ]:
         builder.Connect(ik.GetOutputPort(source), follower.GetInputPort(sink))
-    builder.Connect(follower.GetOutputPort("X_WG_desired"), ik.GetInputPort("X_WF_desired"))
+    builder.Connect(follower.GetOutputPort("X_WF_desired"), ik.GetInputPort("X_WF_desired"))
     builder.Connect(follower.GetOutputPort("request"), ik.GetInputPort("request"))
     log = builder.AddSystem(VectorLogSink(len(setup.q_start), DT))
     builder.Connect(command, log.get_input_port())

@@ -8,8 +8,8 @@ from pydrake.math import RigidTransform, RollPitchYaw
 
 from guidedarm.systems.errors import ConfigurationError
 from guidedarm.systems.path_following.path_follower_math import (
+    FollowerConfig,
     FollowerMemory,
-    FollowerParams,
     FollowStep,
     GiveUpDirection,
     OrientationFromVector,
@@ -17,7 +17,7 @@ from guidedarm.systems.path_following.path_follower_math import (
     ToolMount,
 )
 
-PARAMS = FollowerParams(long_step=0.015, short_step=0.010, lost_limit=2).Resolved()
+PARAMS = FollowerConfig(long_step=0.015, short_step=0.010, lost_limit=2).Resolved()
 
 
 def test_rotation_is_z_y_x():
@@ -63,7 +63,7 @@ def _tool(yaw=0.0, p=(0.3, 0.0, 0.1)):
 
 
 def test_long_step_toward_an_offset_detection_eq_9_13_17():
-    seed_params = FollowerParams(
+    seed_params = FollowerConfig(
         long_step=0.015, short_step=0.010, steering="seed", rotation_reduction=0.3
     ).Resolved()
     X_WT = _tool()
@@ -157,9 +157,9 @@ def test_lost_again_where_it_was_lost_before_is_the_end():
 
 
 def test_params_are_checked_and_resolved():
-    assert FollowerParams(estimator="ranging").Resolved().steering == "centring"
-    assert FollowerParams().Resolved().rotation_reduction == 0.3
+    assert FollowerConfig(estimator="ranging").Resolved().steering == "centring"
+    assert FollowerConfig().Resolved().rotation_reduction == 0.3
     with pytest.raises(ConfigurationError, match="estimator"):
-        FollowerParams(estimator="lidar").Resolved()
+        FollowerConfig(estimator="lidar").Resolved()
     with pytest.raises(ConfigurationError, match="rotation_reduction"):
-        FollowerParams(rotation_reduction=1.5).Resolved()
+        FollowerConfig(rotation_reduction=1.5).Resolved()

@@ -90,7 +90,7 @@ def test_tool_pose_ik_system_answers_each_request_once(solver):
     ik = builder.AddSystem(ToolPoseIk(solver, 0.01))
     builder.ExportInput(ik.GetInputPort("X_WF_desired"), "X")
     builder.ExportInput(ik.GetInputPort("request"), "request")
-    builder.ExportInput(ik.GetInputPort("q_measured"), "q")
+    builder.ExportInput(ik.GetInputPort("position_measured"), "q")
     diagram = builder.Build()
     simulator = Simulator(diagram)
     context = simulator.get_mutable_context()

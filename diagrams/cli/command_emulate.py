@@ -22,7 +22,7 @@ from guidedarm.diagrams.station.station import MakeStation
 from guidedarm.systems.errors import ConfigurationError
 from guidedarm.systems.hardware.nachi_emulator import NachiEmulator
 from guidedarm.systems.hardware.nachi_protocol import DEFAULT_PORT
-from guidedarm.systems.hardware.tof_emulator import TofEmulator
+from guidedarm.systems.hardware.tof_emulator import ToFEmulator
 from guidedarm.systems.tof.tof_tool_sensor import ToFToolConfig
 
 NO_TARGET_STATUS = 11  # VL6180X "max signal to noise ratio": nothing returned in range
@@ -79,7 +79,7 @@ class ToFTap:
 
 def StartEmulators(
     station_scenario: StationScenario, arm: str, host: str, port: int
-) -> tuple[NachiEmulator, dict[str, TofEmulator]]:
+) -> tuple[NachiEmulator, dict[str, ToFEmulator]]:
     """The Nachi emulator for `arm` and a ToF emulator per tool of the station."""
     if arm not in station_scenario.arms:
         raise ConfigurationError(
@@ -92,7 +92,7 @@ def StartEmulators(
     }
     emulator = NachiEmulator(station, arm, host, port, observers=tuple(taps.values()))
     tofs = {
-        name: TofEmulator(tap.Latest, station_scenario.tof_tools[name].period)
+        name: ToFEmulator(tap.Latest, station_scenario.tof_tools[name].period)
         for name, tap in taps.items()
     }
     return emulator, tofs

@@ -26,7 +26,7 @@ from guidedarm.diagrams.tasks.panel_camera_rig import LookAt, PanelCameraRig
 from guidedarm.diagrams.tasks.panel_files import DEFAULT_PANEL_FILE, LoadPanelSpec
 from guidedarm.diagrams.tasks.panel_operation import PanelOperationRun
 from guidedarm.systems.errors import GuidedArmError
-from guidedarm.systems.markers.image_degradation import DegradationParams
+from guidedarm.systems.markers.image_degradation import DegradationConfig
 from guidedarm.systems.markers.marker_pose_estimator_math import MarkerPoseSolver
 
 STUDIES = ("distance", "tilt", "repeatability", "press", "occlusion")
@@ -46,10 +46,10 @@ def register(subparsers: argparse._SubParsersAction) -> None:
 
 def study_command(args: argparse.Namespace) -> int:
     context = RunContext(out_dir=args.out or Path("runs") / "marker_study")
-    degradation = DegradationParams(
+    degradation = DegradationConfig(
         lighting=args.lighting, blur_sigma_px=args.blur, noise_std=args.noise, seed=1
     )
-    degradation.check()
+    degradation.Validate()
     study = {
         "distance": DistanceStudy,
         "tilt": TiltStudy,
@@ -79,7 +79,7 @@ def _Estimate(solver, rig, X_PC, degradation, stream):
     return estimate
 
 
-def DistanceStudy(context: RunContext, degradation: DegradationParams) -> dict:
+def DistanceStudy(context: RunContext, degradation: DegradationConfig) -> dict:
     """Table 2: |p_CP| measured vs true, straight on and with a growing view angle."""
     rig, solver = _RigAndSolver()
     rows = []
@@ -106,7 +106,7 @@ def DistanceStudy(context: RunContext, degradation: DegradationParams) -> dict:
     }
 
 
-def TiltStudy(context: RunContext, degradation: DegradationParams) -> dict:
+def TiltStudy(context: RunContext, degradation: DegradationConfig) -> dict:
     """Table 3: the view angle about the panel's y axis, measured vs true, at 300 mm."""
     rig, solver = _RigAndSolver()
     rows = []
@@ -142,7 +142,7 @@ def _TaskRuns(context, degradation, overrides, seeds, switches=(2,)):
     return results
 
 
-def RepeatabilityStudy(context: RunContext, degradation: DegradationParams) -> dict:
+def RepeatabilityStudy(context: RunContext, degradation: DegradationConfig) -> dict:
     """Table 4: the camera's true distance from the panel at the base point (target 170
     mm), from 16 random starts."""
     rows = []
@@ -169,7 +169,7 @@ def RepeatabilityStudy(context: RunContext, degradation: DegradationParams) -> d
     }
 
 
-def PressStudy(context: RunContext, degradation: DegradationParams) -> dict:
+def PressStudy(context: RunContext, degradation: DegradationConfig) -> dict:
     """Table 5: tip position while pressing vs target (world frame), 10 random starts."""
     rows = []
     for seed, r in _TaskRuns(context, degradation, [], range(10)):
@@ -198,7 +198,7 @@ def PressStudy(context: RunContext, degradation: DegradationParams) -> dict:
     }
 
 
-def OcclusionStudy(context: RunContext, degradation: DegradationParams) -> dict:
+def OcclusionStudy(context: RunContext, degradation: DegradationConfig) -> dict:
     """Table 6: markers covered after the base point, with each on_marker_loss policy."""
     rows = []
     for policy in ("abort", "continue"):

@@ -40,7 +40,7 @@ class CameraDriverConfig:
 
 
 @dataclass
-class TofDriverConfig:
+class ToFDriverConfig:
     """A ToF tool's microcontroller link (keyed like StationScenario.tof_tools).
 
     transport: `serial` (USB or classic-Bluetooth serial port) or `ble` (BLE UART).
@@ -62,4 +62,4 @@ class HardwareConfig:
 
     arms: dict[str, ArmDriverConfig] = field(default_factory=dict)
     cameras: dict[str, CameraDriverConfig] = field(default_factory=dict)
-    tof_tools: dict[str, TofDriverConfig] = field(default_factory=dict)
+    tof_tools: dict[str, ToFDriverConfig] = field(default_factory=dict)

@@ -29,8 +29,8 @@ from guidedarm.systems.hardware.arm_link import ArmLink
 from guidedarm.systems.hardware.command_guard import JointLimits
 from guidedarm.systems.hardware.nachi_link import NachiLink
 from guidedarm.systems.hardware.opencv_camera import FrameGrabber, OpenCvCamera
-from guidedarm.systems.hardware.tof_driver import TofDriver
-from guidedarm.systems.hardware.tof_protocol import TofLineCollector
+from guidedarm.systems.hardware.tof_driver import ToFDriver
+from guidedarm.systems.hardware.tof_protocol import ToFLineCollector
 from guidedarm.systems.hardware.tof_transports import BleTransport, SerialTransport
 from guidedarm.systems.hardware.ur_rtde_link import OpenUrRtde
 from guidedarm.systems.tof.tof_tool_sensor import TOF_PORTS, MakeDetectionGrid
@@ -85,13 +85,13 @@ def MakeHardwareStation(scenario: StationScenario, meshcat: Meshcat | None = Non
         builder.ExportOutput(system.get_output_port(), f"{name}.rgb_image")
     for name, tool in scenario.tof_tools.items():
         config = hardware.tof_tools[name]
-        collector = TofLineCollector(name)
+        collector = ToFLineCollector(name)
         if config.transport == "serial":
             SerialTransport(collector, config.device, config.baudrate)
         else:
             BleTransport(collector, config.device)
         grid = MakeDetectionGrid(plant, tool)
-        system = TofDriver(collector, tool.period, config.watchdog, tool.max_range, grid)
+        system = ToFDriver(collector, tool.period, config.watchdog, tool.max_range, grid)
         builder.AddNamedSystem(f"{name}.driver", system)
         for port in TOF_PORTS:
             builder.ExportOutput(system.GetOutputPort(port), f"{name}.{port}")

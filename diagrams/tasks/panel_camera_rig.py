@@ -29,7 +29,7 @@ from guidedarm.diagrams.tasks.panel_files import (
     SupersampledCameraConfig,
 )
 from guidedarm.systems.errors import ConfigurationError
-from guidedarm.systems.markers.image_degradation import DegradationParams, DegradeImage
+from guidedarm.systems.markers.image_degradation import DegradationConfig, DegradeImage
 
 
 def LookAt(p_PC: np.ndarray, target_P: np.ndarray, up_P=(0.0, 1.0, 0.0)) -> RigidTransform:
@@ -76,7 +76,7 @@ class PanelCameraRig:
         joint.set_translation(self._plant_context, COVER_CLOSED_M if closed else 0.0)
 
     def Render(
-        self, X_PC: RigidTransform, degradation: DegradationParams | None = None, stream: int = 0
+        self, X_PC: RigidTransform, degradation: DegradationConfig | None = None, stream: int = 0
     ) -> np.ndarray:
         """The RGBA uint8 image (height x width x 4) seen from camera pose X_PC; the
         degradation's own supersampling is replaced by the rig's."""
@@ -85,6 +85,6 @@ class PanelCameraRig:
         )
         image = query.RenderColorImage(self.color_camera, self._world, X_PC)
         params = dataclasses.replace(
-            degradation or DegradationParams(), supersampling=self.supersampling
+            degradation or DegradationConfig(), supersampling=self.supersampling
         )
         return DegradeImage(np.asarray(image.data), params, stream)

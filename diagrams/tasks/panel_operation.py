@@ -54,7 +54,7 @@ from guidedarm.diagrams.tasks.panel_files import (
 from guidedarm.diagrams.tasks.registry import TaskDefinition
 from guidedarm.diagrams.tasks.waypoints import SymmetricLimit
 from guidedarm.systems.errors import ConfigurationError
-from guidedarm.systems.markers.image_degradation import DegradationParams, ImageDegradation
+from guidedarm.systems.markers.image_degradation import DegradationConfig, ImageDegradation
 from guidedarm.systems.markers.marker_pose_estimator import MarkerPoseEstimator
 from guidedarm.systems.markers.marker_pose_estimator_math import MarkerPoseSolver
 from guidedarm.systems.markers.panel_operation import (
@@ -67,7 +67,7 @@ from guidedarm.systems.planning import acceleration_planner_math as planning_law
 from guidedarm.systems.planning.acceleration_planner import AccelerationPlanner
 from guidedarm.systems.planning.acceleration_planner_math import (
     AccelerationPlanning,
-    PlannerParameters,
+    PlannerConfig,
     PlanningError,
 )
 from guidedarm.systems.plant_frames import GetScopedFrame
@@ -99,7 +99,7 @@ class PanelPlannerConfig:
     tcp_rpy_deg: list[float] = field(default_factory=lambda: [0.0, 0.0, 0.0])
     max_joint_velocity: list[float] = field(default_factory=lambda: [0.5])
     max_joint_acceleration: list[float] = field(default_factory=lambda: [1.5])
-    parameters: PlannerParameters = field(default_factory=PlannerParameters)
+    parameters: PlannerConfig = field(default_factory=PlannerConfig)
 
 
 @dataclass
@@ -119,7 +119,7 @@ class PanelOperationScenario:
     panel_file: str = "panel/panel.yaml"
     panel_model: str = "panel"
     supersampling: int = 3
-    degradation: DegradationParams = field(default_factory=DegradationParams)
+    degradation: DegradationConfig = field(default_factory=DegradationConfig)
     start: StartConfig = field(default_factory=StartConfig)
     cover_markers_after_base: bool = False
     operation: PanelOperationConfig = field(default_factory=PanelOperationConfig)
@@ -161,7 +161,7 @@ class PanelOperationRun:
             "station", MakeStation(station_scenario, self.context.meshcat)
         )
         rendered = station_scenario.cameras[scenario.camera]
-        params = DegradationParams(**{**scenario.degradation.__dict__, "supersampling": k})
+        params = DegradationConfig(**{**scenario.degradation.__dict__, "supersampling": k})
         degradation = builder.AddNamedSystem("image_degradation", ImageDegradation(params))
         solver = MarkerPoseSolver(IntrinsicsFromCameraConfig(rendered, k), self.panel)
         estimator = builder.AddNamedSystem("marker_pose_estimator", MarkerPoseEstimator(solver))
@@ -194,7 +194,7 @@ class PanelOperationRun:
             builder.Connect(planner.GetOutputPort("done"), self.sequencer.GetInputPort("move_done"))
             builder.Connect(
                 self.station.GetOutputPort(f"{scenario.arm}.state_estimated"),
-                planner.GetInputPort("joint_state"),
+                planner.GetInputPort("arm_state"),
             )
             command = planner.GetOutputPort("position_commanded")
         builder.Connect(command, self.station.GetInputPort(f"{scenario.arm}.position_commanded"))

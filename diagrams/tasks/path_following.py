@@ -46,11 +46,11 @@ from guidedarm.systems.path_following.hose_geometry import (
 from guidedarm.systems.path_following.joint_moves import MotionLimits
 from guidedarm.systems.path_following.path_follower_math import (
     RECORD_FIELDS,
-    FollowerParams,
+    FollowerConfig,
     OrientationFromVector,
 )
 from guidedarm.systems.path_following.tool_pose_ik_math import IkLimits
-from guidedarm.systems.planning.acceleration_planner_math import PlannerParameters
+from guidedarm.systems.planning.acceleration_planner_math import PlannerConfig
 
 EXECUTORS = ("station", "kinematic")
 MOVES = ("joint_trajectory", "planner")
@@ -81,11 +81,11 @@ class PathFollowingScenario:
     max_joint_speed: float = 1.0
     max_joint_acceleration: float = 5.0
     motion: str = "joint_trajectory"
-    planner: PlannerParameters = field(default_factory=PlannerParameters)
+    planner: PlannerConfig = field(default_factory=PlannerConfig)
     period: float = 0.01
     max_time: float = 400.0
     min_coverage: float = 0.95
-    follower: FollowerParams = field(default_factory=FollowerParams)
+    follower: FollowerConfig = field(default_factory=FollowerConfig)
     ik: IkLimits = field(default_factory=IkLimits)
     arm: str = "mz04d"
     gripper_frame: str = "gripper::gripper"
@@ -118,7 +118,7 @@ def ReachableRandomPath(scenario: "PathFollowingScenario", seed: int) -> np.ndar
         scenario.arm,
         scenario.gripper_frame,
         scenario.tof,
-        FollowerParams(),
+        FollowerConfig(),
         dataclasses.replace(scenario.ik, shortfall_tolerance_deg=0.0),
         MotionLimits(),
         scenario.period,

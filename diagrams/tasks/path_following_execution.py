@@ -32,8 +32,8 @@ from guidedarm.systems.path_following.path_follower import DONE, FAILED, PathFol
 from guidedarm.systems.path_following.path_follower_math import (
     RECORD_FIELDS,
     EstimateHose,
+    FollowerConfig,
     FollowerMemory,
-    FollowerParams,
     FollowStep,
     GiveUpDirection,
     IsExploring,
@@ -46,7 +46,7 @@ from guidedarm.systems.path_following.tool_pose_ik_math import IkLimits, ToolPos
 from guidedarm.systems.planning.acceleration_planner_math import (
     AccelerationPlanning,
     ArmKinematics,
-    PlannerParameters,
+    PlannerConfig,
 )
 from guidedarm.systems.plant_frames import GetScopedFrame
 from guidedarm.systems.tof.tof_tool_sensor import MakeDetectionGrid, ToFToolConfig, ToFToolSensor
@@ -77,14 +77,14 @@ class Setup:
     arm: str
     gripper_frame: str
     tool_name: str
-    params: FollowerParams
+    params: FollowerConfig
     limits: IkLimits
     motion: MotionLimits
     period: float
     q_start: np.ndarray
     max_time: float
     moves: str = "joint_trajectory"
-    planner: PlannerParameters = field(default_factory=PlannerParameters)
+    planner: PlannerConfig = field(default_factory=PlannerConfig)
 
 
 class KinematicScene:
@@ -214,13 +214,13 @@ def RunStation(setup: Setup, mount, grid, context: RunContext) -> Execution:
     q_measured = station.GetOutputPort(f"{arm}.position_measured")
     builder.Connect(station.GetOutputPort(f"{tof}.ranges"), follower.GetInputPort("ranges"))
     builder.Connect(station.GetOutputPort(f"{tof}.valid"), follower.GetInputPort("valid"))
-    builder.Connect(q_measured, follower.GetInputPort("q_measured"))
-    builder.Connect(q_measured, ik.GetInputPort("q_measured"))
-    builder.Connect(ik.GetOutputPort("X_WF_measured"), follower.GetInputPort("X_WG_measured"))
+    builder.Connect(q_measured, follower.GetInputPort("position_measured"))
+    builder.Connect(q_measured, ik.GetInputPort("position_measured"))
+    builder.Connect(ik.GetOutputPort("X_WF_measured"), follower.GetInputPort("X_WF_measured"))
     builder.Connect(ik.GetOutputPort("status"), follower.GetInputPort("ik_status"))
     builder.Connect(ik.GetOutputPort("q_goal"), follower.GetInputPort("q_goal"))
     builder.Connect(ik.GetOutputPort("failure"), follower.GetInputPort("ik_failure"))
-    builder.Connect(follower.GetOutputPort("X_WG_desired"), ik.GetInputPort("X_WF_desired"))
+    builder.Connect(follower.GetOutputPort("X_WF_desired"), ik.GetInputPort("X_WF_desired"))
     builder.Connect(follower.GetOutputPort("request"), ik.GetInputPort("request"))
     builder.Connect(
         follower.GetOutputPort("position_commanded"),

@@ -33,7 +33,7 @@ from guidedarm.systems.planning.acceleration_planner_math import (
     ArmKinematics,
     ClosestApproach,
     PlannedTrajectory,
-    PlannerParameters,
+    PlannerConfig,
     PlannerState,
     PlanningError,
 )
@@ -64,7 +64,7 @@ class WaypointsScenario:
     limits: str = "velocity,acceleration"
     max_joint_velocity: list[float] = field(default_factory=lambda: [1.0471975511965976])
     max_joint_acceleration: list[float] = field(default_factory=lambda: [1.3962634015954636])
-    planner: PlannerParameters = field(default_factory=PlannerParameters)
+    planner: PlannerConfig = field(default_factory=PlannerConfig)
     max_time: float = 20.0
     settle_time: float = 0.3
     station: StationScenario = field(default_factory=StationScenario)

@@ -1,6 +1,6 @@
-"""TofDriver: the ToF tool's latest reading as the station's `ranges` and `valid` ports.
+"""ToFDriver: the ToF tool's latest reading as the station's `ranges` and `valid` ports.
 
-Every `period` seconds it copies the newest reading of a TofLineCollector (fed by a serial or
+Every `period` seconds it copies the newest reading of a ToFLineCollector (fed by a serial or
 BLE transport). No reading for longer than `watchdog` stops every arm and fails the run.
 """
 
@@ -12,12 +12,12 @@ import numpy as np
 from pydrake.systems.framework import BasicVector, Context, DiscreteValues, LeafSystem
 
 from guidedarm.systems.hardware.arm_link import LinkLostError, StopAllArms
-from guidedarm.systems.hardware.tof_protocol import NUM_SENSORS, TofLineCollector
+from guidedarm.systems.hardware.tof_protocol import NUM_SENSORS, ToFLineCollector
 from guidedarm.systems.tof.tof_tool_sensor import DeclareGridOutputs
 from guidedarm.systems.tof.tof_tool_sensor_math import DetectionGrid
 
 
-class TofDriver(LeafSystem):
+class ToFDriver(LeafSystem):
     """Outputs `ranges` (m, per sensor along its line of sight; `no_return_range` where the
     reading is not valid, as the simulated sensor does) and `valid` (1 where the VL6180X
     status is 0, else 0). Before the first reading: no_return_range, valid 0. With a
@@ -25,7 +25,7 @@ class TofDriver(LeafSystem):
 
     def __init__(
         self,
-        collector: TofLineCollector,
+        collector: ToFLineCollector,
         period: float,
         watchdog: float,
         no_return_range: float = 0.1,

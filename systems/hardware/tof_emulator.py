@@ -17,7 +17,7 @@ from guidedarm.systems.hardware.tof_protocol import FormatTofLine
 ReadingSource = Callable[[], tuple[np.ndarray, np.ndarray]]
 
 
-class TofEmulator:
+class ToFEmulator:
     """Writes one line per `period` s; `device` is the tty path a driver opens.
     `corrupt_every` > 0 truncates every n-th line (for malformed-line tests)."""
 

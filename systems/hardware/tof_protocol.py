@@ -4,7 +4,7 @@
 
 r: range in mm (0..255, the sensor's 8-bit result); s: the VL6180X RESULT__RANGE_STATUS
 error code (0 = valid); seq: 0..65535, wraps; CS: two hex digits, XOR of the characters
-between `$` and `*` (NMEA style). `TofLineCollector` turns a byte stream, however it is
+between `$` and `*` (NMEA style). `ToFLineCollector` turns a byte stream, however it is
 fragmented (serial reads, BLE notifications of <= 20 bytes), into readings.
 """
 
@@ -40,12 +40,12 @@ RANGE_STATUS = {
 }
 
 
-class TofLineError(GuidedArmError):
+class ToFLineError(GuidedArmError):
     """A ToF line that is truncated, corrupted or out of range."""
 
 
 @dataclass(frozen=True)
-class TofReading:
+class ToFReading:
     """One line: sequence number, ranges (m) and status codes per sensor (0 = valid)."""
 
     seq: int
@@ -71,30 +71,30 @@ def FormatTofLine(seq: int, ranges_mm: np.ndarray, status: np.ndarray) -> str:
     return f"${body}*{Checksum(body):02X}"
 
 
-def ParseTofLine(line: str) -> TofReading:
-    """Parses one line (CR LF stripped or not); raises TofLineError naming the defect."""
+def ParseTofLine(line: str) -> ToFReading:
+    """Parses one line (CR LF stripped or not); raises ToFLineError naming the defect."""
     line = line.strip()
     if not line.startswith("$TOF,") or "*" not in line:
-        raise TofLineError(f"not a ToF line: {line[:40]!r}")
+        raise ToFLineError(f"not a ToF line: {line[:40]!r}")
     body, _, checksum = line[1:].rpartition("*")
     try:
         if int(checksum, 16) != Checksum(body):
-            raise TofLineError(f"checksum mismatch in {line[:40]!r}")
+            raise ToFLineError(f"checksum mismatch in {line[:40]!r}")
         numbers = [int(f) for f in body.split(",")[1:]]
     except (ValueError, UnicodeEncodeError):
-        raise TofLineError(f"not an integer field in {line[:40]!r}") from None
+        raise ToFLineError(f"not an integer field in {line[:40]!r}") from None
     if len(numbers) != 1 + 2 * NUM_SENSORS:
-        raise TofLineError(f"{len(numbers)} fields, expected {1 + 2 * NUM_SENSORS}")
+        raise ToFLineError(f"{len(numbers)} fields, expected {1 + 2 * NUM_SENSORS}")
     ranges, status = np.array(numbers[1::2]), np.array(numbers[2::2])
     if np.any((ranges < 0) | (ranges > 255)):
-        raise TofLineError(f"range outside 0..255 mm in {line[:40]!r}")
+        raise ToFLineError(f"range outside 0..255 mm in {line[:40]!r}")
     unknown = [s for s in status if s not in RANGE_STATUS]
     if unknown:
-        raise TofLineError(f"unknown VL6180X status code {unknown[0]}")
-    return TofReading(numbers[0], 1e-3 * ranges, status)
+        raise ToFLineError(f"unknown VL6180X status code {unknown[0]}")
+    return ToFReading(numbers[0], 1e-3 * ranges, status)
 
 
-class TofLineCollector:
+class ToFLineCollector:
     """Assembles lines from byte chunks; keeps the newest reading and its host time, and
     counts (and prints) rejected lines."""
 
@@ -104,7 +104,7 @@ class TofLineCollector:
         self.accepted = 0
         self._buffer = bytearray()
         self._lock = threading.Lock()
-        self._latest: tuple[TofReading, float] | None = None
+        self._latest: tuple[ToFReading, float] | None = None
 
     def Feed(self, chunk: bytes) -> None:
         self._buffer += chunk
@@ -128,13 +128,13 @@ class TofLineCollector:
     def _Accept(self, line: str) -> None:
         try:
             reading = ParseTofLine(line)
-        except TofLineError as e:
+        except ToFLineError as e:
             self._Reject(str(e))
             return
         with self._lock:
             self._latest = (reading, time.monotonic())
             self.accepted += 1
 
-    def latest(self) -> tuple[TofReading, float] | None:
+    def latest(self) -> tuple[ToFReading, float] | None:
         with self._lock:
             return self._latest

@@ -1,4 +1,4 @@
-"""Byte transports of the ToF tool, each feeding a TofLineCollector from its own thread:
+"""Byte transports of the ToF tool, each feeding a ToFLineCollector from its own thread:
 pyserial (USB or classic-Bluetooth SPP serial ports) and bleak (BLE UART notifications)."""
 
 from __future__ import annotations
@@ -9,7 +9,7 @@ import threading
 import serial
 
 from guidedarm.systems.errors import ConfigurationError
-from guidedarm.systems.hardware.tof_protocol import TofLineCollector
+from guidedarm.systems.hardware.tof_protocol import ToFLineCollector
 
 # Nordic UART Service TX characteristic: the tool notifies its lines on it.
 BLE_UART_TX = "6e400003-b5a3-f393-e0a9-e50e24dcca9e"
@@ -18,7 +18,7 @@ BLE_UART_TX = "6e400003-b5a3-f393-e0a9-e50e24dcca9e"
 class SerialTransport:
     """Reads `device` (e.g. /dev/ttyACM0, /dev/rfcomm0) at `baudrate` into `collector`."""
 
-    def __init__(self, collector: TofLineCollector, device: str, baudrate: int) -> None:
+    def __init__(self, collector: ToFLineCollector, device: str, baudrate: int) -> None:
         try:
             self._port = serial.Serial(device, baudrate, timeout=0.05)
         except serial.SerialException as e:
@@ -47,7 +47,7 @@ class BleTransport:
     """Subscribes to the tool's BLE UART TX notifications at `address` (bleak, own event
     loop thread); each notification payload is fed to `collector` as it arrives."""
 
-    def __init__(self, collector: TofLineCollector, address: str) -> None:
+    def __init__(self, collector: ToFLineCollector, address: str) -> None:
         self._collector = collector
         self._address = address
         self._loop = asyncio.new_event_loop()

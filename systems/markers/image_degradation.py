@@ -25,7 +25,7 @@ from guidedarm.systems.errors import ConfigurationError
 
 
 @dataclass
-class DegradationParams:
+class DegradationConfig:
     """supersampling (integer >= 1), lighting (scale, > 0), blur_sigma_px (>= 0, output
     pixels), noise_std (grey levels, >= 0), seed."""
 
@@ -35,7 +35,7 @@ class DegradationParams:
     noise_std: float = 0.0
     seed: int = 0
 
-    def check(self) -> None:
+    def Validate(self) -> None:
         if (
             self.supersampling < 1
             or self.lighting <= 0
@@ -48,10 +48,10 @@ class DegradationParams:
             )
 
 
-def DegradeImage(image: np.ndarray, params: DegradationParams, stream: int = 0) -> np.ndarray:
+def DegradeImage(image: np.ndarray, params: DegradationConfig, stream: int = 0) -> np.ndarray:
     """A degraded copy of a (kH) x (kW) x (3|4) uint8 image, H x W; `stream` varies the
     noise draw."""
-    params.check()
+    params.Validate()
     k = params.supersampling
     if image.shape[0] % k or image.shape[1] % k:
         raise ConfigurationError(f"image size {image.shape[:2]} is not a multiple of {k}")
@@ -74,9 +74,9 @@ class ImageDegradation(LeafSystem):
     `color_image` (ImageRgba8U), degraded as in DegradeImage; the noise stream is the
     context time in microseconds."""
 
-    def __init__(self, params: DegradationParams) -> None:
+    def __init__(self, params: DegradationConfig) -> None:
         super().__init__()
-        params.check()
+        params.Validate()
         self._params = params
         self._input = self.DeclareAbstractInputPort(
             "color_image", AbstractValue.Make(ImageRgba8U())

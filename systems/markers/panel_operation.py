@@ -63,7 +63,7 @@ class PanelOperationConfig:
     update_period_s: float = 0.01
     motion: str = "joint_trajectory"
 
-    def check(self) -> None:
+    def Validate(self) -> None:
         if self.motion not in MOTIONS:
             raise ConfigurationError(f"motion must be one of {MOTIONS}, got '{self.motion}'")
         if self.on_marker_loss not in ("abort", "continue"):
@@ -224,7 +224,7 @@ class PanelOperation(LeafSystem):
         planner_frames: PlannerFrames | None = None,
     ) -> None:
         super().__init__()
-        config.check()
+        config.Validate()
         if config.motion == "planner" and planner_frames is None:
             raise ConfigurationError('motion "planner" needs the planner\'s frames')
         self._planner_frames = planner_frames if config.motion == "planner" else None

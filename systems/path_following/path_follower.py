@@ -35,8 +35,8 @@ from guidedarm.systems.path_following.joint_moves import (
 from guidedarm.systems.path_following.path_follower_math import (
     RECORD_FIELDS,
     EstimateHose,
+    FollowerConfig,
     FollowerMemory,
-    FollowerParams,
     FollowStep,
     GiveUpDirection,
     IsExploring,
@@ -80,18 +80,18 @@ class _Loop:
 
 
 class PathFollower(LeafSystem):
-    """Inputs: `ranges` (6, m), `valid` (6), `X_WG_measured` (RigidTransform of the gripper
-    in world W), `q_measured` (n, rad), `ik_status` ([id, success, time]), `q_goal` (n, rad),
+    """Inputs: `ranges` (6, m), `valid` (6), `X_WF_measured` (RigidTransform of the gripper
+    in world W), `position_measured` (n, rad), `ik_status` ([id, success, time]), `q_goal` (n, rad),
     `ik_failure` (str).
 
-    Outputs: `X_WG_desired` (RigidTransform), `request` ([id]), `position_commanded` (n, rad),
+    Outputs: `X_WF_desired` (RigidTransform), `request` ([id]), `position_commanded` (n, rad),
     `step_record` (RECORD_FIELDS of the latest step), `detections` and `detection_errors`
     (the 3 x 3 grid of the latest reading, row-major), `mode` ([mode, step]), `failure`.
     """
 
     def __init__(
         self,
-        params: FollowerParams,
+        params: FollowerConfig,
         mount: ToolMount,
         grid: DetectionGrid,
         q_initial: np.ndarray,
@@ -110,9 +110,9 @@ class PathFollower(LeafSystem):
         self._ranges = self.DeclareVectorInputPort("ranges", 6)
         self._valid = self.DeclareVectorInputPort("valid", 6)
         self._X_WG = self.DeclareAbstractInputPort(
-            "X_WG_measured", AbstractValue.Make(RigidTransform())
+            "X_WF_measured", AbstractValue.Make(RigidTransform())
         )
-        self._q_measured = self.DeclareVectorInputPort("q_measured", n)
+        self._position_measured = self.DeclareVectorInputPort("position_measured", n)
         self._ik_status = self.DeclareVectorInputPort("ik_status", 3)
         self._ik_goal = self.DeclareVectorInputPort("q_goal", n)
         self._ik_failure = self.DeclareAbstractInputPort("ik_failure", AbstractValue.Make(""))
@@ -122,7 +122,7 @@ class PathFollower(LeafSystem):
         self.DeclarePeriodicUnrestrictedUpdateEvent(period, 0.0, self._Update)
         state_only = {self.xa_ticket()}
         self.DeclareAbstractOutputPort(
-            "X_WG_desired",
+            "X_WF_desired",
             lambda: AbstractValue.Make(RigidTransform()),
             self._CalcTarget,
             prerequisites_of_calc=state_only,
@@ -247,7 +247,7 @@ class PathFollower(LeafSystem):
         end = loop.t0 + max(loop.move.duration, self._period)
         if t < end:
             return loop
-        error = np.max(np.abs(self._q_measured.Eval(context) - loop.q_goal))
+        error = np.max(np.abs(self._position_measured.Eval(context) - loop.q_goal))
         if error < self._motion.settle_tolerance or t > end + self._motion.settle_timeout:
             return replace(loop, mode=SENSE, step=loop.step + 1)
         return loop

@@ -32,7 +32,7 @@ STEERINGS = ("seed", "centring")
 
 
 @dataclass
-class FollowerParams:
+class FollowerConfig:
     """Parameters of the path follower (m, deg).
 
     estimator: `grid` (the seed's presence-only 3 x 3 grid) or `ranging` (ranges localise
@@ -64,16 +64,16 @@ class FollowerParams:
     recovery_angle_deg: float = 20.0
     max_steps: int = 400
 
-    def Resolved(self) -> "FollowerParams":
+    def Resolved(self) -> "FollowerConfig":
         """A checked copy with the automatic steering and rotation_reduction filled in."""
         steering = self.steering or ("centring" if self.estimator == "ranging" else "seed")
         b = self.rotation_reduction or (0.5 if steering == "centring" else 0.3)
         readings = self.readings or (4 if self.estimator == "ranging" else 1)
         resolved = replace(self, steering=steering, rotation_reduction=b, readings=readings)
-        resolved.Check()
+        resolved.Validate()
         return resolved
 
-    def Check(self) -> None:
+    def Validate(self) -> None:
         """Raises ConfigurationError naming the first bad parameter."""
         if self.steering not in STEERINGS:
             raise ConfigurationError(f"steering must be one of {STEERINGS}, got '{self.steering}'")
@@ -161,7 +161,7 @@ class FollowerMemory:
     last_loss: np.ndarray | None = None
 
     @staticmethod
-    def Start(X_WT: RigidTransform, params: FollowerParams) -> "FollowerMemory":
+    def Start(X_WT: RigidTransform, params: FollowerConfig) -> "FollowerMemory":
         """Memory at the start pose: O' one short step behind O, as if arriving along x_T."""
         n = X_WT.rotation().matrix()[:, 0]
         return FollowerMemory(X_WT.translation() - n * params.short_step, X_WT)
@@ -187,7 +187,7 @@ def FollowStep(
     S_T: np.ndarray | None,
     centre_only: bool,
     memory: FollowerMemory,
-    params: FollowerParams,
+    params: FollowerConfig,
 ) -> StepResult:
     """One step of the seed's algorithm (module docstring); S_T is the detected hose point in
     the tool frame, centre_only whether it is the centre point alone."""
@@ -234,7 +234,7 @@ def FollowStep(
 
 
 def GiveUpDirection(
-    X_WT: RigidTransform, memory: FollowerMemory, params: FollowerParams
+    X_WT: RigidTransform, memory: FollowerMemory, params: FollowerConfig
 ) -> StepResult:
     """The step after the arm cannot reach the next pose of a lost or retrying tool: the
     next retry direction (or the end of the path)."""
@@ -247,7 +247,7 @@ def IsExploring(memory: FollowerMemory) -> bool:
 
 
 def _StepWithoutDetection(
-    X_WT: RigidTransform, memory: FollowerMemory, params: FollowerParams
+    X_WT: RigidTransform, memory: FollowerMemory, params: FollowerConfig
 ) -> StepResult:
     p_WO = X_WT.translation()
     n = X_WT.rotation().matrix()[:, 0]
@@ -280,7 +280,7 @@ def _StepWithoutDetection(
     )
 
 
-def _LostHereBefore(O_last: np.ndarray, memory: FollowerMemory, params: FollowerParams) -> bool:
+def _LostHereBefore(O_last: np.ndarray, memory: FollowerMemory, params: FollowerConfig) -> bool:
     """Whether the hose is lost again within two long steps of where it was lost last time:
     a retry there only glimpses the hose's end, and cycling around the end (each cycle
     sweeping the tool past it) is how the first version ended its runs."""

@@ -16,11 +16,12 @@ STATUS_SIZE = 3  # request id solved, success (0/1), solve time (s)
 
 
 class ToolPoseIk(LeafSystem):
-    """Inputs: `X_WF_desired` (RigidTransform, world W), `request` ([id]), `q_measured` (rad).
+    """Inputs: `X_WF_desired` (RigidTransform, world W), `request` ([id]),
+    `position_measured` (rad).
 
     Outputs: `q_goal` (rad; the last solution, or the measured q before any), `status`
     ([id, success, solve_time_s]), `failure` (str, why the last solve failed, '' if not),
-    `X_WF_measured` (RigidTransform: forward kinematics of q_measured).
+    `X_WF_measured` (RigidTransform: forward kinematics of position_measured).
     """
 
     def __init__(self, solver: ToolPoseSolver, period: float) -> None:
@@ -32,7 +33,7 @@ class ToolPoseIk(LeafSystem):
             "X_WF_desired", AbstractValue.Make(RigidTransform())
         )
         self._request = self.DeclareVectorInputPort("request", 1)
-        self._q_measured = self.DeclareVectorInputPort("q_measured", n)
+        self._position_measured = self.DeclareVectorInputPort("position_measured", n)
         initial = np.concatenate([[0.0, 1.0, 0.0], solver.plant.GetPositions(solver.context)])
         self._state = self.DeclareDiscreteState(initial)
         self._failure = self.DeclareAbstractState(AbstractValue.Make(""))
@@ -53,7 +54,7 @@ class ToolPoseIk(LeafSystem):
             "X_WF_measured",
             lambda: AbstractValue.Make(RigidTransform()),
             self.CalcMeasured,
-            prerequisites_of_calc={self._q_measured.ticket()},
+            prerequisites_of_calc={self._position_measured.ticket()},
         )
 
     def SetInitialGoal(self, context: Context, q: np.ndarray) -> None:
@@ -67,7 +68,8 @@ class ToolPoseIk(LeafSystem):
         current = context.get_discrete_state(self._state).get_value()
         if request <= current[0]:
             return
-        result = self._solver.Solve(self._desired.Eval(context), self._q_measured.Eval(context))
+        q_measured = self._position_measured.Eval(context)
+        result = self._solver.Solve(self._desired.Eval(context), q_measured)
         state.get_mutable_discrete_state(self._state).set_value(
             np.concatenate([[request, float(result.success), result.solve_time], result.q])
         )
@@ -83,4 +85,4 @@ class ToolPoseIk(LeafSystem):
         output.set_value(context.get_abstract_state(self._failure).get_value())
 
     def CalcMeasured(self, context: Context, output: AbstractValue) -> None:
-        output.set_value(self._solver.ForwardKinematics(self._q_measured.Eval(context)))
+        output.set_value(self._solver.ForwardKinematics(self._position_measured.Eval(context)))

@@ -33,7 +33,7 @@ from guidedarm.systems.planning.waypoint_ik import SolveWaypointIk
 class AccelerationPlanner(LeafSystem):
     """Streams commanded joint positions, velocities and accelerations at the planner rate.
 
-    Input port: `joint_state` ([q; v] of the arm, rad and rad/s), read at initialization.
+    Input port: `arm_state` ([q; v] of the arm, rad and rad/s), read at initialization.
     Output ports (commanded, for the arm's 6 joints): `position_commanded` (rad),
     `velocity_commanded` (rad/s), `acceleration_commanded` (rad/s^2, the value held over
     the last step), `scaling_coefficient` (c), and `planner_state` (the full
@@ -57,7 +57,7 @@ class AccelerationPlanner(LeafSystem):
         self._planning = planning
         n = 6
         size = 3 * n + PlannerState.SIZE_EXTRA
-        self.DeclareVectorInputPort("joint_state", 2 * n)
+        self.DeclareVectorInputPort("arm_state", 2 * n)
         self._state_index = self.DeclareDiscreteState(size)
         self._task_port = None
         self._task_planning: tuple[int, AccelerationPlanning] = (-1, planning)

@@ -283,7 +283,7 @@ class AccelerationScaling:
 
 
 @dataclass
-class PlannerParameters:
+class PlannerConfig:
     """Gains and settings of the planner (defaults: the seed's values where it gives them).
 
     gain_p, gain_v: Lambda_P (1/s^2) and Lambda_V (1/s), equal on all six error axes.
@@ -412,7 +412,7 @@ class AccelerationPlanning:
         self,
         kinematics: ArmKinematics,
         waypoints: np.ndarray,
-        parameters: PlannerParameters,
+        parameters: PlannerConfig,
         velocity_limits: tuple[np.ndarray, np.ndarray] | None = None,
         acceleration_limits: tuple[np.ndarray, np.ndarray] | None = None,
     ) -> None:

@@ -51,6 +51,15 @@ class ToFToolConfig:
     period: float = 0.02
     rings: int = 2
 
+    def Validate(self) -> None:
+        """Raises ConfigurationError naming the first bad field."""
+        if len(self.sensor_frames) != NUM_SENSORS:
+            raise ConfigurationError(f"tof sensor_frames must name {NUM_SENSORS} frames")
+        if not (self.max_range > 0 and self.period > 0 and self.noise_std >= 0):
+            raise ConfigurationError("tof max_range and period must be > 0, noise_std >= 0")
+        if not (self.target_radius > 0 and 0 < self.cone_angle_deg < 180):
+            raise ConfigurationError("tof target_radius must be > 0 and cone_angle_deg in (0, 180)")
+
 
 # Output ports of a ToF tool, the same in the simulated and the hardware station.
 TOF_PORTS = ("ranges", "valid", "detections", "detection_errors")
@@ -69,7 +78,7 @@ class ToFToolSensor(LeafSystem):
 
     def __init__(self, plant: MultibodyPlant, config: ToFToolConfig) -> None:
         super().__init__()
-        CheckToFConfig(config)
+        config.Validate()
         self._config = config
         frames = [GetScopedFrame(plant, name, "tof sensor_frames") for name in config.sensor_frames]
         self._frame_ids = [plant.GetBodyFrameIdOrThrow(f.body().index()) for f in frames]
@@ -139,19 +148,9 @@ class ToFToolSensor(LeafSystem):
         output.SetFromVector(self._reading.Eval(context)[NUM_SENSORS:])
 
 
-def CheckToFConfig(config: ToFToolConfig) -> None:
-    """Raises ConfigurationError naming the first bad field of a ToF tool's config."""
-    if len(config.sensor_frames) != NUM_SENSORS:
-        raise ConfigurationError(f"tof sensor_frames must name {NUM_SENSORS} frames")
-    if config.max_range <= 0 or config.period <= 0 or config.noise_std < 0:
-        raise ConfigurationError("tof max_range and period must be > 0, noise_std >= 0")
-    if config.target_radius <= 0 or not 0 < config.cone_angle_deg < 180:
-        raise ConfigurationError("tof target_radius must be > 0 and cone_angle_deg in (0, 180)")
-
-
 def MakeDetectionGrid(plant: MultibodyPlant, config: ToFToolConfig) -> DetectionGrid:
     """The tool's detection grid from the (finalized) plant's tool and sensor frames."""
-    CheckToFConfig(config)
+    config.Validate()
     context = plant.CreateDefaultContext()
     T = GetScopedFrame(plant, config.tool_frame, "tof tool_frame")
     X_TS = tuple(
