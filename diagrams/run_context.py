@@ -21,6 +21,9 @@ from guidedarm.systems.errors import GuidedArmError
 
 REPLAY_FILE = "replay.html"
 SUMMARY_FILE = "summary.json"
+# The fully resolved scenario (overrides applied, defaults written out): running it again
+# with `guidedarm run DIR/scenario.yaml` reproduces the run.
+RESOLVED_SCENARIO_FILE = "scenario.yaml"
 
 
 @dataclass
@@ -52,6 +55,13 @@ class RunContext:
         path = self.out_dir / f"{name}.png"
         figure.savefig(path, dpi=110, bbox_inches="tight")
         plt.close(figure)
+        self.written.append(path)
+        return path
+
+    def write_text(self, name: str, text: str) -> Path:
+        """Writes DIR/name."""
+        path = self.out_dir / name
+        path.write_text(text)
         self.written.append(path)
         return path
 

@@ -3,15 +3,18 @@
 from __future__ import annotations
 
 import argparse
+import importlib.metadata
 import json
+import shlex
 import sys
 import time
 from pathlib import Path
 from typing import Any
 
+from pydrake.common.yaml import yaml_dump_typed
 from pydrake.geometry import Meshcat
 
-from guidedarm.diagrams.run_context import RunContext
+from guidedarm.diagrams.run_context import RESOLVED_SCENARIO_FILE, RunContext
 from guidedarm.diagrams.scenario_loading import (
     ScenarioError,
     apply_overrides,
@@ -21,6 +24,7 @@ from guidedarm.diagrams.scenario_loading import (
     resolve_scenario_path,
 )
 from guidedarm.diagrams.tasks.registry import GetTask
+from guidedarm.systems.errors import ConfigurationError, RunFailedError
 
 FAILED = 1
 
@@ -63,16 +67,22 @@ def run_command(args: argparse.Namespace) -> int:
     if getattr(args, "path_csv", None) is not None:
         args.overrides.append(f"path_csv={json.dumps(str(args.path_csv.resolve()))}")
     task, scenario, name = LoadScenario(args.scenario, args.overrides)
-    out_dir = args.out or Path("runs") / name
+    out_dir = PrepareOutputDirectory(args.out or Path("runs") / name)
     meshcat = Meshcat()
     if args.meshcat:
         print(f"Meshcat: {meshcat.web_url()}", flush=True)
     context = RunContext(out_dir=out_dir, meshcat=meshcat, hardware=args.hardware)
+    context.write_text(RESOLVED_SCENARIO_FILE, yaml_dump_typed(scenario))
     print(f"guidedarm: running '{name}' (task {task.name}) -> {out_dir}", flush=True)
     wall_start = time.perf_counter()
-    metrics = task.run(scenario, context)
+    try:
+        metrics = task.run(scenario, context)
+    except RunFailedError as e:
+        metrics = {"success": False, "failure": str(e)}
+    except KeyboardInterrupt:
+        metrics = {"success": False, "failure": "interrupted"}
     metrics["wall_time_s"] = round(time.perf_counter() - wall_start, 3)
-    metrics = {"scenario": name, "task": task.name, **metrics}
+    metrics = {"scenario": name, "task": task.name, **metrics, **RunProvenance()}
     context.write_summary(metrics)
     _print_summary(metrics, context)
     if args.meshcat and sys.stdin.isatty():
@@ -82,6 +92,30 @@ def run_command(args: argparse.Namespace) -> int:
         print(f"guidedarm: run failed: {failure}", file=sys.stderr)
         return FAILED
     return 0
+
+
+def PrepareOutputDirectory(out_dir: Path) -> Path:
+    """Creates the run's output directory, or refuses (ConfigurationError) before the run
+    when it names a file, lies under a file, or cannot be written."""
+    for parent in [out_dir, *out_dir.parents]:
+        if parent.exists() and not parent.is_dir():
+            raise ConfigurationError(f"--out {out_dir}: '{parent}' is a file, not a directory")
+    try:
+        out_dir.mkdir(parents=True, exist_ok=True)
+        probe = out_dir / ".guidedarm_write_probe"
+        probe.write_text("")
+        probe.unlink()
+    except OSError as e:
+        raise ConfigurationError(f"--out {out_dir}: cannot write there ({e.strerror})") from None
+    return out_dir
+
+
+def RunProvenance() -> dict[str, Any]:
+    """What summary.json records of how the run was made: the command line and version."""
+    return {
+        "command": " ".join(shlex.quote(a) for a in ["guidedarm", *sys.argv[1:]]),
+        "version": importlib.metadata.version("guidedarm"),
+    }
 
 
 def _print_summary(metrics: dict[str, Any], context: RunContext) -> None:
