@@ -1,13 +1,13 @@
 """Task `panel_operation`: the rover arm presses a panel switch guided by its camera (seed 003).
 
-Diagram: station (arm, gripper camera rendered at `supersampling` x its resolution, panel)
--> ImageDegradation (pixel integration, lighting, blur, noise) -> MarkerPoseEstimator ->
-PanelOperation -> the arm's position command (operation.motion "joint_trajectory"), or
-PanelOperation -> AccelerationPlanner (seed 001) -> the arm's position command
-(operation.motion "planner"; the planner's frames, limits and parameters under `planner`).
-The start is a random camera pose in front of
-the panel (seeded: distance, tilt, aim point) solved by inverse kinematics, so a marker is
-in view; or an explicit joint vector.
+Diagram (AddPanelOperation, diagrams/tasks/panel_operation_builder.py): station (arm,
+gripper camera rendered at `supersampling` x its resolution, panel) -> ImageDegradation
+(pixel integration, lighting, blur, noise) -> MarkerPoseEstimator -> PanelOperation -> the
+arm's position command (operation.motion "joint_trajectory"), or PanelOperation ->
+AccelerationPlanner (seed 001) -> the arm's position command (operation.motion "planner";
+the planner's frames, limits and parameters under `planner`). The start is a random camera
+pose in front of the panel (seeded: distance, tilt, aim point) solved by inverse
+kinematics, so a marker is in view; or an explicit joint vector.
 
 Metrics (ground truth from the simulation; frames as in
 systems/markers/marker_pose_estimator_math.py):
@@ -27,39 +27,39 @@ With `cover_markers_after_base` a cover slides in front of the markers once the 
 measurement is taken (the seed's Table 6 case).
 """
 
+import dataclasses
 from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
 from pydrake.math import RigidTransform, RollPitchYaw
-from pydrake.multibody.parsing import LoadModelDirectives, ProcessModelDirectives
 from pydrake.multibody.plant import MultibodyPlant
 from pydrake.multibody.tree import FixedOffsetFrame
 from pydrake.systems.analysis import ApplySimulatorConfig, Simulator
 from pydrake.systems.framework import DiagramBuilder
 from pydrake.systems.primitives import VectorLogSink
 
-from guidedarm.diagrams.plots import PlotJointSeries
 from guidedarm.diagrams.run_context import RunContext
-from guidedarm.diagrams.station.model_paths import MODELS_DIR, MakeParser
+from guidedarm.diagrams.station.model_paths import MODELS_DIR
 from guidedarm.diagrams.station.scenario import StationScenario
 from guidedarm.diagrams.station.station import MakeStation
+from guidedarm.diagrams.station.station_plant import AddStationModels
 from guidedarm.diagrams.tasks.panel_assets import COVER_CLOSED_M
 from guidedarm.diagrams.tasks.panel_camera_rig import LookAt
 from guidedarm.diagrams.tasks.panel_files import (
-    IntrinsicsFromCameraConfig,
     LoadPanelSpec,
     SupersampledCameraConfig,
+)
+from guidedarm.diagrams.tasks.panel_operation_builder import AddPanelOperation
+from guidedarm.diagrams.tasks.panel_operation_report import (
+    PanelOperationMetrics,
+    PlotPanelOperation,
 )
 from guidedarm.diagrams.tasks.registry import TaskDefinition
 from guidedarm.diagrams.tasks.waypoints import SymmetricLimit
 from guidedarm.systems.errors import ConfigurationError
-from guidedarm.systems.markers.image_degradation import DegradationConfig, ImageDegradation
-from guidedarm.systems.markers.marker_pose_estimator import MarkerPoseEstimator
-from guidedarm.systems.markers.marker_pose_estimator_math import MarkerPoseSolver
+from guidedarm.systems.markers.image_degradation import DegradationConfig
 from guidedarm.systems.markers.panel_operation import (
-    CameraArmKinematics,
-    PanelOperation,
     PanelOperationConfig,
     PlannerFrames,
 )
@@ -107,15 +107,15 @@ class PanelOperationScenario:
     """switch: 1-based index into the panel file's switches. camera: the key of
     station.cameras on the arm (1920 x 1080 C920 by default), rendered at `supersampling`
     times its resolution. panel_file: PANEL.yaml relative to models/; panel_model: its
-    model instance in the directives. arm_directives: the arm as its controller knows it
-    (kinematics for IK), without the panel. time_limit_s: simulated time allowed."""
+    model instance in the directives. time_limit_s: simulated time allowed. The controller
+    (IK, planner) knows the arm from the station's own models without the panel
+    (MakeMultibodyPlant of the arm and the model instances of its camera and tip)."""
 
     task: str = "panel_operation"
     arm: str = "rover_arm"
     switch: int = 2
     camera: str = "camera"
     tip_frame: str = "rover_gripper::gripper_tip"
-    arm_directives: str = "package://guidedarm/directives/rover_arm.dmd.yaml"
     panel_file: str = "panel/panel.yaml"
     panel_model: str = "panel"
     supersampling: int = 3
@@ -136,19 +136,12 @@ class PanelOperationRun:
         self.scenario = scenario
         self.context = context
         self.panel = LoadPanelSpec(MODELS_DIR / scenario.panel_file)
-        if not 1 <= scenario.switch <= len(self.panel.switches):
-            raise ConfigurationError(
-                f"switch must be 1 .. {len(self.panel.switches)}, got {scenario.switch}"
-            )
         if scenario.camera not in scenario.station.cameras:
             raise ConfigurationError(f"camera '{scenario.camera}' is not in station.cameras")
-        if scenario.arm not in scenario.station.arms:
-            raise ConfigurationError(f"arm '{scenario.arm}' is not in station.arms")
         if scenario.degradation.supersampling != 1 or scenario.supersampling < 1:
             raise ConfigurationError(
                 "set the camera's supersampling (>= 1) with the top-level key 'supersampling'"
             )
-        self.kinematics = _MakeArmKinematics(scenario)
         self._Build()
 
     def _Build(self) -> None:
@@ -160,44 +153,24 @@ class PanelOperationRun:
         self.station = builder.AddNamedSystem(
             "station", MakeStation(station_scenario, self.context.meshcat)
         )
-        rendered = station_scenario.cameras[scenario.camera]
-        params = DegradationConfig(**{**scenario.degradation.__dict__, "supersampling": k})
-        degradation = builder.AddNamedSystem("image_degradation", ImageDegradation(params))
-        solver = MarkerPoseSolver(IntrinsicsFromCameraConfig(rendered, k), self.panel)
-        estimator = builder.AddNamedSystem("marker_pose_estimator", MarkerPoseEstimator(solver))
-        switch = self.panel.switches[scenario.switch - 1]
-        planner, frames = None, None
+        planner = None
         if scenario.operation.motion == "planner":
-            planner, frames = _MakePlanner(scenario)
-        self.sequencer = builder.AddNamedSystem(
-            "panel_operation",
-            PanelOperation(self.kinematics, self.panel, switch, scenario.operation, frames),
+            planner = _MakePlanner(scenario)
+        systems = AddPanelOperation(
+            builder,
+            self.station,
+            station_scenario,
+            self.panel,
+            scenario.switch,
+            arm=scenario.arm,
+            camera=scenario.camera,
+            tip_frame=scenario.tip_frame,
+            operation=scenario.operation,
+            degradation=dataclasses.replace(scenario.degradation, supersampling=k),
+            planner=planner,
         )
-        builder.Connect(
-            self.station.GetOutputPort(f"{scenario.camera}.rgb_image"),
-            degradation.get_input_port(),
-        )
-        builder.Connect(degradation.get_output_port(), estimator.get_input_port())
-        builder.Connect(
-            estimator.GetOutputPort("estimate"), self.sequencer.GetInputPort("marker_estimate")
-        )
-        builder.Connect(
-            self.station.GetOutputPort(f"{scenario.arm}.state_estimated"),
-            self.sequencer.GetInputPort("arm_state"),
-        )
-        command = self.sequencer.get_output_port()
-        if planner is not None:
-            builder.AddNamedSystem("planner", planner)
-            builder.Connect(
-                self.sequencer.GetOutputPort("planner_task"), planner.GetInputPort("task")
-            )
-            builder.Connect(planner.GetOutputPort("done"), self.sequencer.GetInputPort("move_done"))
-            builder.Connect(
-                self.station.GetOutputPort(f"{scenario.arm}.state_estimated"),
-                planner.GetInputPort("arm_state"),
-            )
-            command = planner.GetOutputPort("position_commanded")
-        builder.Connect(command, self.station.GetInputPort(f"{scenario.arm}.position_commanded"))
+        self.sequencer = systems.sequencer
+        self.kinematics = systems.kinematics
         self.joint_log = builder.AddNamedSystem(
             "joint_log", VectorLogSink(self.kinematics.plant.num_positions(), 0.02)
         )
@@ -277,93 +250,8 @@ class PanelOperationRun:
             self.context.progress(f"simulated {t:.1f} s, step {state.step}")
         self.context.write_replay()
         state = self.sequencer.GetSequencerState(sequencer_context)
-        self._Plot(state, context)
-        return self._Metrics(state, context, planner_failure)
-
-    def _Plot(self, state, context) -> None:
-        """joints.png (measured joints) and tip_distance.png (tip to panel plane, with the
-        instants at which images were analysed)."""
-        import matplotlib.pyplot as plt  # after guidedarm.diagrams.plots chose Agg
-
-        log = self.joint_log.FindLog(context)
-        times, q = log.sample_times(), log.data()
-        if times.size < 2:
-            return
-        self.context.save_figure(PlotJointSeries(times, {"measured": q}, "q (rad)"), "joints")
-        X_PW = self.X_WP.inverse()
-        depth = [
-            1e3 * (X_PW @ self.kinematics.X_WT(q[:, i])).translation()[2] for i in range(times.size)
-        ]
-        figure, axes = plt.subplots(figsize=(7, 3))
-        axes.plot(times, depth, label="tip in front of the panel plane")
-        for record in state.measurements:
-            axes.axvline(record["t_s"], color="g" if record["valid"] else "r", linestyle="--")
-        axes.set_xlabel("t (s)")
-        axes.set_ylabel("z of the tip in P (mm)")
-        axes.set_title("panel operation: dashed = image analysed (green valid, red lost)")
-        axes.grid(True, alpha=0.3)
-        self.context.save_figure(figure, "tip_distance")
-
-    def _Metrics(self, state, context, planner_failure: str | None = None) -> dict[str, Any]:
-        scenario = self.scenario
-        plant_context = self.plant.GetMyContextFromRoot(context)
-        travels = [
-            -self.plant.GetJointByName(s.name, self.panel_instance).get_translation(plant_context)
-            for s in self.panel.switches
-        ]
-        pressed = [
-            i + 1
-            for i, (s, travel) in enumerate(zip(self.panel.switches, travels, strict=True))
-            if travel >= s.on_travel_m
-        ]
-        failure = planner_failure or state.failure
-        if failure is None and not state.done:
-            failure = f"the sequence did not finish within {scenario.time_limit_s} s"
-        if failure is None and pressed != [scenario.switch]:
-            failure = f"pressed switches {pressed}, expected [{scenario.switch}]"
-        targets = self.sequencer.targets
-        X_PW = self.X_WP.inverse()
-        base_error = base_distance = None
-        if "measure_base" in state.q_at:
-            X_PC = X_PW @ self.kinematics.X_WC(np.array(state.q_at["measure_base"]))
-            X_PC_target = targets.base() @ self.kinematics.X_CT.inverse()
-            base_error = _mm(np.linalg.norm(X_PC.translation() - X_PC_target.translation()))
-            base_distance = _mm(X_PC.translation()[2])
-        press_error = press_tip = None
-        target_W = self.X_WP @ targets.at_switch(-scenario.operation.press_depth_m)
-        if "press" in state.q_at:
-            X_WT = self.kinematics.X_WT(np.array(state.q_at["press"]))
-            p_PT = (X_PW @ X_WT).translation()
-            target = targets.at_switch(-scenario.operation.press_depth_m).translation()
-            press_error = dict(zip("xyz", (_mm(abs(e)) for e in p_PT - target), strict=True))
-            press_tip = [_mm(v) for v in X_WT.translation()]
-        for record in state.measurements:
-            if "p_CP_mm" in record:
-                X_WC = self.kinematics.X_WC(np.array(state.q_at[f"measure_{record['point']}"]))
-                p_CP = (X_WC.inverse() @ self.X_WP).translation()
-                record["estimate_error_mm"] = _mm(
-                    np.linalg.norm(1e-3 * np.array(record["p_CP_mm"]) - p_CP)
-                )
-        lost = [m for m in state.measurements if not m["valid"]]
-        return {
-            "success": failure is None,
-            "switch": scenario.switch,
-            "switch_pressed": pressed[0] if len(pressed) == 1 else (pressed or None),
-            "switch_travel_mm": [_mm(t) for t in travels],
-            "base_position_error_mm": base_error,
-            "base_camera_distance_mm": base_distance,
-            "press_error_mm": press_error,
-            "press_tip_W_mm": press_tip,
-            "press_target_W_mm": [_mm(v) for v in target_W.translation()],
-            "measurements": state.measurements,
-            "marker_loss": scenario.operation.on_marker_loss if lost else None,
-            "failure": failure,
-            "sim_time_s": round(context.get_time(), 3),
-        }
-
-
-def _mm(value: float) -> float:
-    return round(1000.0 * float(value), 3)
+        PlotPanelOperation(self, state, context)
+        return PanelOperationMetrics(self, state, context, planner_failure)
 
 
 def _replace_camera(station: StationScenario, name: str, camera, k: int) -> StationScenario:
@@ -373,15 +261,11 @@ def _replace_camera(station: StationScenario, name: str, camera, k: int) -> Stat
 
 
 def _LoadArmPlant(scenario: PanelOperationScenario) -> MultibodyPlant:
-    """The arm as its controller knows it (not finalized)."""
+    """The arm as its controller knows it (not finalized): the station's models of the arm
+    and of the tip frame's instance, without the panel."""
     plant = MultibodyPlant(0.0)
-    try:
-        directives = LoadModelDirectives(
-            MakeParser(plant).package_map().ResolveUrl(scenario.arm_directives)
-        )
-        ProcessModelDirectives(directives, MakeParser(plant))
-    except Exception as e:
-        raise ConfigurationError(f"arm_directives: {str(e).splitlines()[0]}") from None
+    names = [scenario.arm, scenario.tip_frame.rpartition("::")[0]]
+    AddStationModels(scenario.station, plant, [n for n in dict.fromkeys(names) if n], False)
     return plant
 
 
@@ -396,8 +280,6 @@ def _MakePlanner(scenario: PanelOperationScenario) -> tuple[AccelerationPlanner,
     tcp = plant.AddFrame(FixedOffsetFrame("planner_tcp", tip, X_TN))
     plant.Finalize()
     base = GetScopedFrame(plant, config.base_frame, "planner.base_frame")
-    if not plant.HasModelInstanceNamed(scenario.arm):
-        raise ConfigurationError(f"arm '{scenario.arm}' is not in {scenario.arm_directives}")
     kinematics = planning_law.ArmKinematics(
         plant,
         plant.GetModelInstanceByName(scenario.arm),
@@ -418,19 +300,6 @@ def _MakePlanner(scenario: PanelOperationScenario) -> tuple[AccelerationPlanner,
     )
     X_WB = base.CalcPoseInWorld(plant.CreateDefaultContext())
     return AccelerationPlanner(planning, accept_tasks=True), PlannerFrames(X_WB, X_TN)
-
-
-def _MakeArmKinematics(scenario: PanelOperationScenario) -> CameraArmKinematics:
-    plant = _LoadArmPlant(scenario)
-    plant.Finalize()
-    camera = scenario.station.cameras[scenario.camera].X_PB.base_frame or ""
-    frames = []
-    for scoped in (camera, scenario.tip_frame):
-        instance, _, name = scoped.rpartition("::")
-        if not instance or not plant.HasModelInstanceNamed(instance):
-            raise ConfigurationError(f"frame '{scoped}' is not in {scenario.arm_directives}")
-        frames.append(plant.GetFrameByName(name, plant.GetModelInstanceByName(instance)))
-    return CameraArmKinematics(plant, *frames)
 
 
 def RunPanelOperation(scenario: PanelOperationScenario, context: RunContext) -> dict[str, Any]:

@@ -76,12 +76,20 @@ class PanelOperationConfig:
 
 class CameraArmKinematics:
     """Camera and tip poses of one arm of `plant` (all its positions are that arm's joints),
-    and inverse kinematics for the tip."""
+    and inverse kinematics for the tip. The camera frame C is `camera_frame` F moved by
+    X_FC (m)."""
 
-    def __init__(self, plant: MultibodyPlant, camera_frame: Frame, tip_frame: Frame) -> None:
+    def __init__(
+        self,
+        plant: MultibodyPlant,
+        camera_frame: Frame,
+        tip_frame: Frame,
+        X_FC: RigidTransform | None = None,
+    ) -> None:
         self.plant = plant
         self.camera_frame = camera_frame
         self.tip_frame = tip_frame
+        self._X_FC = X_FC if X_FC is not None else RigidTransform()
         self._context = plant.CreateDefaultContext()
         self.X_CT = self.X_WC(plant.GetPositions(self._context)).inverse() @ self.X_WT(
             plant.GetPositions(self._context)
@@ -89,7 +97,7 @@ class CameraArmKinematics:
 
     def X_WC(self, q: np.ndarray) -> RigidTransform:
         self.plant.SetPositions(self._context, q)
-        return self.camera_frame.CalcPoseInWorld(self._context)
+        return self.camera_frame.CalcPoseInWorld(self._context) @ self._X_FC
 
     def X_WT(self, q: np.ndarray) -> RigidTransform:
         self.plant.SetPositions(self._context, q)

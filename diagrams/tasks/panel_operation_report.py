@@ -1,0 +1,110 @@
+"""Summary metrics and plots of one `panel_operation` run (ground truth from the simulation;
+frames as in systems/markers/marker_pose_estimator_math.py: W world, P panel, C camera,
+T gripper tip)."""
+
+from __future__ import annotations
+
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
+from pydrake.systems.framework import Context
+
+from guidedarm.diagrams.plots import PlotJointSeries
+from guidedarm.systems.markers.panel_operation import SequencerState
+
+if TYPE_CHECKING:
+    from guidedarm.diagrams.tasks.panel_operation import PanelOperationRun
+
+
+def PlotPanelOperation(run: PanelOperationRun, state: SequencerState, context: Context) -> None:
+    """joints.png (measured joints) and tip_distance.png (tip to panel plane, with the
+    instants at which images were analysed)."""
+    import matplotlib.pyplot as plt  # after guidedarm.diagrams.plots chose Agg
+
+    log = run.joint_log.FindLog(context)
+    times, q = log.sample_times(), log.data()
+    if times.size < 2:
+        return
+    run.context.save_figure(PlotJointSeries(times, {"measured": q}, "q (rad)"), "joints")
+    X_PW = run.X_WP.inverse()
+    depth = [
+        1e3 * (X_PW @ run.kinematics.X_WT(q[:, i])).translation()[2] for i in range(times.size)
+    ]
+    figure, axes = plt.subplots(figsize=(7, 3))
+    axes.plot(times, depth, label="tip in front of the panel plane")
+    for record in state.measurements:
+        axes.axvline(record["t_s"], color="g" if record["valid"] else "r", linestyle="--")
+    axes.set_xlabel("t (s)")
+    axes.set_ylabel("z of the tip in P (mm)")
+    axes.set_title("panel operation: dashed = image analysed (green valid, red lost)")
+    axes.grid(True, alpha=0.3)
+    run.context.save_figure(figure, "tip_distance")
+
+
+def PanelOperationMetrics(
+    run: PanelOperationRun,
+    state: SequencerState,
+    context: Context,
+    planner_failure: str | None = None,
+) -> dict[str, Any]:
+    """The summary metrics of a finished run (see the task's module docstring), from the
+    sequencer's state and the simulation's ground truth."""
+    scenario = run.scenario
+    plant_context = run.plant.GetMyContextFromRoot(context)
+    travels = [
+        -run.plant.GetJointByName(s.name, run.panel_instance).get_translation(plant_context)
+        for s in run.panel.switches
+    ]
+    pressed = [
+        i + 1
+        for i, (s, travel) in enumerate(zip(run.panel.switches, travels, strict=True))
+        if travel >= s.on_travel_m
+    ]
+    failure = planner_failure or state.failure
+    if failure is None and not state.done:
+        failure = f"the sequence did not finish within {scenario.time_limit_s} s"
+    if failure is None and pressed != [scenario.switch]:
+        failure = f"pressed switches {pressed}, expected [{scenario.switch}]"
+    targets = run.sequencer.targets
+    X_PW = run.X_WP.inverse()
+    base_error = base_distance = None
+    if "measure_base" in state.q_at:
+        X_PC = X_PW @ run.kinematics.X_WC(np.array(state.q_at["measure_base"]))
+        X_PC_target = targets.base() @ run.kinematics.X_CT.inverse()
+        base_error = _mm(np.linalg.norm(X_PC.translation() - X_PC_target.translation()))
+        base_distance = _mm(X_PC.translation()[2])
+    press_error = press_tip = None
+    target_W = run.X_WP @ targets.at_switch(-scenario.operation.press_depth_m)
+    if "press" in state.q_at:
+        X_WT = run.kinematics.X_WT(np.array(state.q_at["press"]))
+        p_PT = (X_PW @ X_WT).translation()
+        target = targets.at_switch(-scenario.operation.press_depth_m).translation()
+        press_error = dict(zip("xyz", (_mm(abs(e)) for e in p_PT - target), strict=True))
+        press_tip = [_mm(v) for v in X_WT.translation()]
+    for record in state.measurements:
+        if "p_CP_mm" in record:
+            X_WC = run.kinematics.X_WC(np.array(state.q_at[f"measure_{record['point']}"]))
+            p_CP = (X_WC.inverse() @ run.X_WP).translation()
+            record["estimate_error_mm"] = _mm(
+                np.linalg.norm(1e-3 * np.array(record["p_CP_mm"]) - p_CP)
+            )
+    lost = [m for m in state.measurements if not m["valid"]]
+    return {
+        "success": failure is None,
+        "switch": scenario.switch,
+        "switch_pressed": pressed[0] if len(pressed) == 1 else (pressed or None),
+        "switch_travel_mm": [_mm(t) for t in travels],
+        "base_position_error_mm": base_error,
+        "base_camera_distance_mm": base_distance,
+        "press_error_mm": press_error,
+        "press_tip_W_mm": press_tip,
+        "press_target_W_mm": [_mm(v) for v in target_W.translation()],
+        "measurements": state.measurements,
+        "marker_loss": scenario.operation.on_marker_loss if lost else None,
+        "failure": failure,
+        "sim_time_s": round(context.get_time(), 3),
+    }
+
+
+def _mm(value: float) -> float:
+    return round(1000.0 * float(value), 3)
