@@ -57,8 +57,12 @@ class ToFDriverConfig:
 
 @dataclass
 class HardwareConfig:
-    """Drivers of the hardware station, keyed like StationScenario.arms, .cameras and
-    .tof_tools."""
+    """Drivers of the hardware station.
+
+    arms: each arm's controller link, keyed like StationScenario.arms.
+    cameras: each camera's video source, keyed like StationScenario.cameras.
+    tof_tools: each ToF tool's link, keyed like StationScenario.tof_tools.
+    """
 
     arms: dict[str, ArmDriverConfig] = field(default_factory=dict)
     cameras: dict[str, CameraDriverConfig] = field(default_factory=dict)

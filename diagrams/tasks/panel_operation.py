@@ -75,9 +75,14 @@ from guidedarm.systems.plant_frames import GetScopedFrame
 
 @dataclass
 class StartConfig:
-    """position: explicit start joints (rad); empty draws a camera pose with `seed`:
-    distance to the aim point in distance_m [min, max] (m), tilt from the panel normal up to
-    max_tilt_deg, aim point within aim_offset_m of the markers' middle."""
+    """The start: explicit joints, or a random camera pose in front of the panel.
+
+    position: explicit start joints (rad); empty draws a camera pose with `seed`.
+    seed: seed of the random start pose.
+    distance_m: [min, max] camera distance to the aim point (m).
+    max_tilt_deg: largest angle of the camera's axis from the panel normal (deg).
+    aim_offset_m: the aim point lies within this of the markers' middle (m).
+    """
 
     position: list[float] = field(default_factory=list)
     seed: int = 0
@@ -88,12 +93,16 @@ class StartConfig:
 
 @dataclass
 class PanelPlannerConfig:
-    """The acceleration-level planner of operation.motion "planner". base_frame: its base B
-    (scoped frame name); its TCP N is the scenario's tip frame rotated by tcp_rpy_deg
-    (roll, pitch, yaw in deg), which only changes how orientations are expressed (keep the
-    Z-Y-X pitch of the targets away from +-90 deg). max_joint_velocity,
-    max_joint_acceleration: symmetric limits, one value or one per joint (rad/s, rad/s^2).
-    parameters: the law's gains and settings."""
+    """The acceleration-level planner of operation.motion "planner".
+
+    base_frame: the planner's base B (scoped frame name).
+    tcp_rpy_deg: the planner's TCP N is the scenario's tip frame rotated by these roll,
+        pitch, yaw (deg), which only changes how orientations are expressed (keep the
+        Z-Y-X pitch of the targets away from +-90 deg).
+    max_joint_velocity, max_joint_acceleration: symmetric limits, one value or one per
+        joint (rad/s, rad/s^2).
+    parameters: the law's gains and settings.
+    """
 
     base_frame: str = ""
     tcp_rpy_deg: list[float] = field(default_factory=lambda: [0.0, 0.0, 0.0])
@@ -104,12 +113,27 @@ class PanelPlannerConfig:
 
 @dataclass
 class PanelOperationScenario:
-    """switch: 1-based index into the panel file's switches. camera: the key of
-    station.cameras on the arm (1920 x 1080 C920 by default), rendered at `supersampling`
-    times its resolution. panel_file: PANEL.yaml relative to models/; panel_model: its
-    model instance in the directives. time_limit_s: simulated time allowed. The controller
-    (IK, planner) knows the arm from the station's own models without the panel
-    (MakeMultibodyPlant of the arm and the model instances of its camera and tip)."""
+    """The panel task's scenario. The controller (IK, planner) knows the arm from the
+    station's own models without the panel (MakeMultibodyPlant of the arm and the model
+    instances of its camera and tip).
+
+    arm: the key of station.arms that presses.
+    switch: 1-based index into the panel file's switches.
+    camera: the key of station.cameras on the arm (1920 x 1080 C920 by default).
+    tip_frame: the scoped frame T that presses (gripper tip).
+    panel_file: PANEL.yaml relative to models/.
+    panel_model: the panel's model instance in the directives.
+    supersampling: the camera renders this many times its resolution, and
+        ImageDegradation averages it back (degradation.supersampling must stay 1).
+    degradation: lighting, blur and noise of the camera image.
+    start: where the arm starts.
+    cover_markers_after_base: slide a cover over the markers once the base measurement is
+        taken (the seed's Table 6 case).
+    operation: the sequence's parameters.
+    planner: the planner of operation.motion "planner".
+    time_limit_s: simulated time allowed (s).
+    station: the station's models, arms and cameras.
+    """
 
     task: str = "panel_operation"
     arm: str = "rover_arm"

@@ -64,8 +64,9 @@ class PathFollowingScenario:
     overlaid (repeatability); executor: `station` or `kinematic`; motion: how the station
     moves between steps, `joint_trajectory` (rest-to-rest joint moves at tool_speed) or
     `planner` (seed 001's acceleration-level planner with the `planner` parameters; both
-    within max_joint_speed and max_joint_acceleration); tool_speed (m/s); max_joint_speed
-    (rad/s); max_joint_acceleration (rad/s^2); period: follower and IK tick (s); max_time:
+    within max_joint_speed and max_joint_acceleration); tool_speed: the tool's speed in
+    joint moves (m/s); max_joint_speed: joint speed limit (rad/s); max_joint_acceleration:
+    joint acceleration limit (rad/s^2); period: follower and IK tick (s); max_time:
     simulated time limit (s); min_coverage: success threshold; follower: the algorithm's parameters
     (estimator overrides follower.estimator); ik: IK tolerances (the cell walls come from
     the path: models/hoses/NAME.yaml); arm, gripper_frame, tof: names in the station."""

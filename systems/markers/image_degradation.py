@@ -26,8 +26,15 @@ from guidedarm.systems.errors import ConfigurationError
 
 @dataclass
 class DegradationConfig:
-    """supersampling (integer >= 1), lighting (scale, > 0), blur_sigma_px (>= 0, output
-    pixels), noise_std (grey levels, >= 0), seed."""
+    """The degradation of a rendered image (see the module docstring).
+
+    supersampling: k >= 1; the input is k times the output's resolution, each k x k block
+        is averaged into one pixel.
+    lighting: scale of the pixel values (> 0; 1 = as rendered).
+    blur_sigma_px: standard deviation of the Gaussian blur (>= 0, output pixels).
+    noise_std: standard deviation of the additive Gaussian noise (>= 0, grey levels of 255).
+    seed: seed of the noise generator.
+    """
 
     supersampling: int = 1
     lighting: float = 1.0

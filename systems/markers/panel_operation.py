@@ -49,7 +49,22 @@ MOTIONS = ("joint_trajectory", "planner")
 
 @dataclass
 class PanelOperationConfig:
-    """Parameters of the sequence (see the module docstring); lengths in m, speeds rad/s."""
+    """Parameters of the sequence (see the module docstring).
+
+    base_distance_m: camera distance from the panel plane at the base point (m).
+    measure_standoff_m: tip distance in front of the switch at the last measurement (m).
+    press_depth_m: how far the tip goes past the switch cap's rest face (m).
+    retract_standoff_m: tip distance in front of the switch after the press (m).
+    max_joint_speed: peak joint speed of the joint-trajectory moves (rad/s).
+    settle_time_s: wait after a move before an image is analysed (s).
+    stationary_speed: every joint slower than this counts as standing still (rad/s).
+    press_hold_s: time the tip is held pressed (s).
+    on_marker_loss: `abort` (stop and fail) or `continue` (keep the last valid estimate)
+        when no marker is seen at a later measurement point.
+    update_period_s: period of the sequencer's update (s).
+    motion: `joint_trajectory` (IK + minimum-jerk joint segments) or `planner` (each move
+        a task of the acceleration-level planner).
+    """
 
     base_distance_m: float = 0.17
     measure_standoff_m: float = 0.09

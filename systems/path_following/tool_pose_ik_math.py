@@ -42,10 +42,23 @@ from guidedarm.systems.errors import ConfigurationError
 
 @dataclass
 class IkLimits:
-    """Tolerances (m, deg), the frame's axis that should point down, the cell's virtual
-    walls (m, world frame), the weight of the stay-near-previous-q cost and the number of
-    perturbed restarts after a failed solve. shortfall_tolerance_deg: the orientation
-    tolerance of the second solve (module docstring); 0 disables it."""
+    """The IK's tolerances, constraints and costs (see the module docstring).
+
+    position_tolerance: of the frame's point Q (m).
+    orientation_tolerance_deg: largest orientation error of a solution (deg).
+    shortfall_tolerance_deg: the orientation tolerance of the second solve (deg); 0
+        disables it.
+    orientation_cost_weight: weight of the orientation-error cost.
+    max_step_rotation_deg: largest rotation of the frame in one step (deg).
+    max_tilt_deg: largest angle between the frame's down_axis and world -z (deg).
+    down_axis: the frame's axis that should point down.
+    x, y: [lo, hi] of the cell's virtual walls for every moved body's origin (m, world).
+    z_min: the cell's floor for every moved body's origin (m, world).
+    max_swing: largest distance of the frame from the straight line between two
+        consecutive poses during the joint move (m).
+    joint_cost_weight: weight of the stay-near-the-previous-q cost.
+    retries: perturbed restarts after a failed solve.
+    """
 
     position_tolerance: float = 0.0005
     orientation_tolerance_deg: float = 0.5

@@ -297,7 +297,8 @@ class PlannerConfig:
     scaling_recovery_rate: rate of the exponential return (18) of c to 1 (1/s).
     stop_at_waypoints: stop at every waypoint instead of blending through it; the next
         elementary task starts once the TCP is within the tolerances and slower than
-        rest_speed (m/s), i.e. practically at rest as boundary condition (3) asks.
+        rest_speed, i.e. practically at rest as boundary condition (3) asks.
+    rest_speed: the TCP speed below which it counts as at rest (m/s).
     time_step: planner period (s), 0.002 s = 500 Hz as UR servoJ.
     min_singular_value: smallest admissible singular value of J_g before the planner
         stops with an error (m or rad per rad).
