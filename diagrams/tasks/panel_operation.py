@@ -1,10 +1,12 @@
-"""Task `panel_operation`: the rover arm presses a panel switch guided by its camera (seed 003).
+"""Task `panel_operation`: the rover arm presses a panel switch guided by its camera
+(Annusewicz-Mistal et al., "Autonomous Manipulator of a Mobile Robot Based on a Vision
+System").
 
 Diagram (AddPanelOperation, diagrams/tasks/panel_operation_builder.py): station (arm,
 gripper camera rendered at `supersampling` x its resolution, panel) -> ImageDegradation
 (pixel integration, lighting, blur, noise) -> MarkerPoseEstimator -> PanelOperation -> the
 arm's position command (operation.motion "joint_trajectory"), or PanelOperation ->
-AccelerationPlanner (seed 001) -> the arm's position command (operation.motion "planner";
+AccelerationPlanner (Pająk's planner) -> the arm's position command (operation.motion "planner";
 the planner's frames, limits and parameters under `planner`). The start is a random camera
 pose in front of the panel (seeded: distance, tilt, aim point) solved by inverse
 kinematics, so a marker is in view; or an explicit joint vector.
@@ -18,13 +20,13 @@ systems/markers/marker_pose_estimator_math.py):
   base_camera_distance_mm the true camera distance from the panel plane there;
   press_error_mm      {x, y, z}: |true tip position in P while pressing - its target|;
   press_tip_W_mm, press_target_W_mm  that tip position and its target in the world
-                      (the parked rover's) frame, as in the seed's Tables 5 and 6;
+                      (the parked rover's) frame, as in the paper's Tables 5 and 6;
   measurements        one record per image analysed (point, validity, ids, distance, the
                       estimated p_CP and its true error estimate_error_mm);
   marker_loss         what the sequencer did when markers were not visible ("abort" or
                       "continue" with the last valid estimate), None if they always were.
 With `cover_markers_after_base` a cover slides in front of the markers once the base
-measurement is taken (the seed's Table 6 case).
+measurement is taken (the paper's Table 6 case).
 """
 
 import dataclasses
@@ -59,7 +61,7 @@ from guidedarm.diagrams.tasks.registry import TaskDefinition
 from guidedarm.diagrams.tasks.waypoints import SymmetricLimit
 from guidedarm.systems.errors import ConfigurationError
 from guidedarm.systems.markers.image_degradation import DegradationConfig
-from guidedarm.systems.markers.panel_operation import (
+from guidedarm.systems.markers.panel_operation_math import (
     PanelOperationConfig,
     PlannerFrames,
 )
@@ -128,7 +130,7 @@ class PanelOperationScenario:
     degradation: lighting, blur and noise of the camera image.
     start: where the arm starts.
     cover_markers_after_base: slide a cover over the markers once the base measurement is
-        taken (the seed's Table 6 case).
+        taken (the paper's Table 6 case).
     operation: the sequence's parameters.
     planner: the planner of operation.motion "planner".
     time_limit_s: simulated time allowed (s).
@@ -338,5 +340,5 @@ TASK = TaskDefinition(
     name="panel_operation",
     scenario_type=PanelOperationScenario,
     run=RunPanelOperation,
-    description="rover arm presses a panel switch guided by fiducial markers (seed 003)",
+    description="rover arm presses a panel switch guided by markers (Annusewicz-Mistal et al.)",
 )

@@ -31,9 +31,9 @@ from guidedarm.systems.markers.marker_pose_estimator_math import (
     MarkerPoseSolver,
     PanelSpec,
 )
-from guidedarm.systems.markers.panel_operation import (
+from guidedarm.systems.markers.panel_operation import PanelOperation
+from guidedarm.systems.markers.panel_operation_math import (
     CameraArmKinematics,
-    PanelOperation,
     PanelOperationConfig,
     PlannerFrames,
 )

@@ -1,4 +1,4 @@
-"""MarkerPoseEstimator: the panel pose X_CP from a camera's colour image (seed 003).
+"""MarkerPoseEstimator: the panel pose X_CP from a camera's colour image (Annusewicz-Mistal et al.).
 
 The mathematics is MarkerPoseSolver (systems/markers/marker_pose_estimator_math.py). Outputs
 are computed on demand and cached per image, so a camera is rendered only when a consumer

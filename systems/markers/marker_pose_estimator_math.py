@@ -1,9 +1,11 @@
-"""Pose of a fiducial-marker panel in a camera frame, from one colour image (seed 003).
+"""Pose of a fiducial-marker panel in a camera frame, from one colour image, as in
+Annusewicz-Mistal et al., "Autonomous Manipulator of a Mobile Robot Based on a Vision
+System" (section 2.3).
 
 Frames (all right-handed, metres):
   M  a marker: origin at its centre, x to the right and y up as printed, z out of the panel
      towards the viewer (OpenCV's convention).
-  P  the panel: the frame of one marker (the left one on the seed's panel); every marker's
+  P  the panel: the frame of one marker (the left one on the paper's panel); every marker's
      pose X_PM is known.
   C  the camera: Drake's and OpenCV's optical frame, x right, y down, z forward.
 
@@ -11,7 +13,7 @@ Method: OpenCV's ArucoDetector with sub-pixel corner refinement finds the marker
 whose id is not on the panel are ignored. Each known marker gives an IPPE-square pose (two
 candidates each); the candidate with the smallest reprojection error over the corners of
 ALL known markers seeds a Levenberg-Marquardt refinement over those corners at once (up to
-8 points with two markers, as in the seed).
+8 points with two markers, as in the paper).
 
 The YAML schemas of the camera and panel files are the dataclasses below (loaded with
 Drake's yaml_load_typed; no `from __future__ import annotations` here on purpose).
