@@ -21,7 +21,9 @@ import argparse
 import dataclasses
 import functools
 import inspect
+import os
 import re
+import sys
 import types
 import typing
 from dataclasses import dataclass
@@ -52,6 +54,10 @@ FALLBACK_DOCS = {
     "Transform.base_frame": "the frame the pose is relative to (scoped name; empty: world)",
     "Transform.translation": "position of the frame's origin in the base frame (m)",
 }
+
+
+# Column widths are capped (key, type, value); a longer cell pushes the rest of its row.
+WIDTHS = (("key", 48), ("type", 28), ("value", 24))
 
 
 @dataclass
@@ -107,13 +113,19 @@ def describe_command(args: argparse.Namespace) -> int:
     else:
         print(f"scenario {name} (task {task.name}): its values, {type(scenario).__name__}")
     rows = DescribeScenario(scenario)
-    width_key = min(max(len(r.key) for r in rows), 48)
-    width_type = min(max(len(r.type) for r in rows), 28)
-    width_value = min(max(len(r.value) for r in rows), 24)
-    print(f"{'key':{width_key}}  {'type':{width_type}}  {'value':{width_value}}  doc")
-    for r in rows:
-        print(f"{r.key:{width_key}}  {r.type:{width_type}}  {r.value:{width_value}}  {r.doc}")
+    widths = [min(max(len(getattr(r, a)) for r in rows), w) for a, w in WIDTHS]
+    lines = [_Row(["key", "type", "value", "doc"], widths)]
+    lines += [_Row([r.key, r.type, r.value, r.doc], widths) for r in rows]
+    try:
+        print("\n".join(lines), flush=True)
+    except BrokenPipeError:
+        # The reader stopped early (`| head`): not an error. Later flushes go nowhere.
+        os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
     return 0
+
+
+def _Row(cells: list[str], widths: list[int]) -> str:
+    return "  ".join(f"{c:{w}}" for c, w in zip(cells, [*widths, 0], strict=True)).rstrip()
 
 
 def DescribeScenario(scenario: Any) -> list[KeyDoc]:
