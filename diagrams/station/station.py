@@ -71,9 +71,9 @@ def _AddArm(builder: DiagramBuilder, plant: MultibodyPlant, name: str, arm: ArmC
             f"arms.{name}: every joint must have an actuator ({n} actuators, "
             f"{plant.num_velocities(instance)} joints)"
         )
-    if arm.control_period <= 0:
+    if not 0 < arm.control_period < np.inf:
         raise ConfigurationError(f"arms.{name}.control_period must be positive")
-    if arm.kp <= 0:
+    if not 0 < arm.kp < np.inf:
         raise ConfigurationError(f"arms.{name}: servo gains must be positive, got kp={arm.kp}")
     kd = arm.kd if arm.kd > 0 else 2.0 * np.sqrt(arm.kp)
     servo = builder.AddNamedSystem(
