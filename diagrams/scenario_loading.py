@@ -63,7 +63,9 @@ def parse_overrides(items: list[str]) -> dict[str, Any]:
         try:
             overrides[key] = yaml_load_data(f"value: {value}")["value"]
         except Exception as e:  # the YAML parser's own message is the useful part
-            raise ScenarioError(f"--set {key}: cannot parse value '{value}': {e}") from None
+            raise ScenarioError(
+                f"--set {key}: cannot parse value '{value}': {_first_line(e)}"
+            ) from None
     return overrides
 
 

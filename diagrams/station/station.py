@@ -29,6 +29,19 @@ from guidedarm.systems.joint_servo import ComputedTorqueLaw, JointServo
 from guidedarm.systems.tof.tof_tool_sensor import TOF_PORTS, ToFToolSensor
 
 RENDERER_NAME = "vtk"
+# CameraConfig fields the station does not honour: it renders colour images on demand with
+# its own VTK renderer and publishes nothing; a value other than the default is refused.
+UNSUPPORTED_CAMERA_FIELDS = (
+    "fps",
+    "capture_offset",
+    "output_delay",
+    "rgb",
+    "depth",
+    "label",
+    "show_rgb",
+    "do_compress",
+    "lcm_bus",
+)
 
 
 def MakeStation(
@@ -103,6 +116,17 @@ def _AddCamera(
     name: str,
     config: CameraConfig,
 ) -> None:
+    default = CameraConfig()
+    unsupported = [
+        f for f in UNSUPPORTED_CAMERA_FIELDS if getattr(config, f) != getattr(default, f)
+    ]
+    if config.renderer_name not in (default.renderer_name, RENDERER_NAME):
+        unsupported.append("renderer_name")
+    if unsupported:
+        raise ConfigurationError(
+            f"cameras.{name}.{unsupported[0]}: the station renders colour images on demand "
+            f"with its own renderer; {unsupported[0]} cannot be set"
+        )
     config.renderer_name = RENDERER_NAME
     color, depth = config.MakeCameras()
     base = config.X_PB.base_frame or "world"

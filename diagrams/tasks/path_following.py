@@ -280,6 +280,11 @@ def RefuseIgnoredSettings(scenario: PathFollowingScenario, hardware: bool) -> No
         raise ConfigurationError(
             "follower.estimator is set from the top-level key 'estimator': set that instead"
         )
+    hose = scenario.station.hose
+    if hose is not None and hose.centerline != HoseConfig.centerline:
+        raise ConfigurationError(
+            "station.hose.centerline is set from the keys 'path' and 'path_csv': set those"
+        )
     tof = scenario.station.tof_tools.get(scenario.tof)
     if tof is not None and tof.seed not in (ToFToolConfig.seed, scenario.seed):
         raise ConfigurationError(
