@@ -84,12 +84,12 @@ NON_NEGATIVE = Bound(low=0.0)
 UNIT_INTERVAL = Bound(low=0.0, high=1.0)
 
 
-def Positive(default: Any = MISSING, *, factory: Any = MISSING, allow_inf: bool = False):
+def Positive(default: Any = MISSING, *, factory: Any = MISSING, allow_inf: bool = False) -> Any:
     """A dataclass field whose value (or each element) must be > 0."""
     return Bounded(Bound(low=0.0, low_open=True, allow_inf=allow_inf), default, factory)
 
 
-def NonNegative(default: Any = MISSING, *, factory: Any = MISSING):
+def NonNegative(default: Any = MISSING, *, factory: Any = MISSING) -> Any:
     """A dataclass field whose value (or each element) must be >= 0."""
     return Bounded(NON_NEGATIVE, default, factory)
 
@@ -102,12 +102,12 @@ def InRange(
     factory: Any = MISSING,
     low_open: bool = False,
     high_open: bool = False,
-):
+) -> Any:
     """A dataclass field whose value (or each element) must lie between low and high."""
     return Bounded(Bound(low, high, low_open, high_open), default, factory)
 
 
-def Bounded(bound: Bound, default: Any = MISSING, factory: Any = MISSING):
+def Bounded(bound: Bound, default: Any = MISSING, factory: Any = MISSING) -> Any:
     """A dataclass field carrying `bound` (see the module docstring)."""
     return dataclasses.field(default=default, default_factory=factory, metadata={_BOUND: bound})
 

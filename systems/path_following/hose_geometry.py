@@ -19,7 +19,7 @@ from pydrake.geometry import Box, Capsule, Cylinder
 from pydrake.math import RigidTransform, RotationMatrix
 from pydrake.multibody.plant import CoulombFriction, MultibodyPlant
 
-from guidedarm.systems.config_checks import Positive
+from guidedarm.systems.config_checks import CheckConfig, Positive
 from guidedarm.systems.errors import ConfigurationError
 
 HOSES_DIR = Path(__file__).resolve().parents[2] / "models" / "hoses"
@@ -81,9 +81,11 @@ def LoadPathLimits(name_or_file: str) -> PathLimits:
     if not sidecar.is_file():
         return PathLimits()
     try:
-        return yaml_load_typed(schema=PathLimits, filename=str(sidecar))
+        limits = yaml_load_typed(schema=PathLimits, filename=str(sidecar))
+        CheckConfig(limits)
     except Exception as e:
         raise ConfigurationError(f"{sidecar}: {str(e).splitlines()[0]}") from None
+    return limits
 
 
 def ReadCenterline(name_or_file: str) -> np.ndarray:
