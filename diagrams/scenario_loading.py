@@ -8,7 +8,8 @@ The typed result then goes through systems/config_checks.py (finite numbers, dec
 bounds, each config's Validate()) before anything is built from it.
 
 Numbers may be written in exponent notation (`1e-3`, `1.5e1`): YAML 1.1 reads those as
-strings, and `yaml_load_typed` converts them for float fields, as it does here.
+strings; a float field accepts them and `yaml_load_typed` converts them, as Drake's own
+loading of a scenario file does.
 """
 
 from __future__ import annotations
@@ -160,9 +161,8 @@ def _check_node(schema: Any, value: Any, key: str, source: str) -> None:
         if not isinstance(value, bool):
             fail(f"expected true or false, got {value!r}")
     elif schema is float:
-        if isinstance(value, bool) or not isinstance(value, int | float | str):
-            fail(f"expected a number, got {value!r}")
-        if isinstance(value, str) and not _is_number(value):
+        number = isinstance(value, int | float) or (isinstance(value, str) and _is_number(value))
+        if isinstance(value, bool) or not number:
             fail(f"expected a number, got {value!r}")
     elif schema is int:
         if isinstance(value, bool) or not isinstance(value, int):

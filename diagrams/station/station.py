@@ -86,8 +86,10 @@ def _AddArm(builder: DiagramBuilder, plant: MultibodyPlant, name: str, arm: ArmC
         )
     if not 0 < arm.control_period < np.inf:
         raise ConfigurationError(f"arms.{name}.control_period must be positive")
-    if not 0 < arm.kp < np.inf:
-        raise ConfigurationError(f"arms.{name}: servo gains must be positive, got kp={arm.kp}")
+    if not (0 < arm.kp < np.inf and np.isfinite(arm.kd)):
+        raise ConfigurationError(
+            f"arms.{name}: servo gains must be finite, kp > 0, got kp={arm.kp}, kd={arm.kd}"
+        )
     kd = arm.kd if arm.kd > 0 else 2.0 * np.sqrt(arm.kp)
     servo = builder.AddNamedSystem(
         f"{name}.servo", JointServo(ComputedTorqueLaw(plant, instance, arm.kp, kd))
