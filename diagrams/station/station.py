@@ -88,7 +88,7 @@ def _AddArm(builder: DiagramBuilder, plant: MultibodyPlant, name: str, arm: ArmC
         raise ConfigurationError(f"arms.{name}.control_period must be positive")
     if not (0 < arm.kp < np.inf and np.isfinite(arm.kd)):
         raise ConfigurationError(
-            f"arms.{name}: servo gains must be finite, kp > 0, got kp={arm.kp}, kd={arm.kd}"
+            f"arms.{name}: gains must be positive (kp) and finite, got kp={arm.kp}, kd={arm.kd}"
         )
     kd = arm.kd if arm.kd > 0 else 2.0 * np.sqrt(arm.kp)
     servo = builder.AddNamedSystem(
