@@ -2,11 +2,17 @@
 
 Every `guidedarm run` gets a RunContext. Tasks use it to record the Meshcat animation of
 their simulation, to save figures, and to report progress; the CLI writes the summary.
+
+Meshcat: Drake's Meshcat always listens on a port, even when it only records. MakeMeshcat
+serves a live page (on `localhost` unless another host is asked for) only when asked;
+otherwise it listens on 127.0.0.1 at an ephemeral port, announced nowhere, and is used
+only to write replay.html.
 """
 
 from __future__ import annotations
 
 import json
+import logging
 import math
 import sys
 import time
@@ -14,10 +20,10 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from pydrake.geometry import Meshcat
+from pydrake.geometry import Meshcat, MeshcatParams
 from pydrake.systems.analysis import Simulator
 
-from guidedarm.systems.errors import GuidedArmError
+from guidedarm.systems.errors import ConfigurationError, GuidedArmError
 
 REPLAY_FILE = "replay.html"
 SUMMARY_FILE = "summary.json"
@@ -38,7 +44,7 @@ class RunContext:
     _last_progress: float = 0.0
 
     def __post_init__(self) -> None:
-        self.out_dir.mkdir(parents=True, exist_ok=True)
+        PrepareOutputDirectory(self.out_dir)
 
     def progress(self, message: str, force: bool = False) -> None:
         """Prints a progress line to stderr, at most once a second unless forced."""
@@ -91,13 +97,56 @@ class RunContext:
 
     def write_summary(self, summary: dict[str, Any]) -> Path:
         """Writes DIR/summary.json; a NaN or infinity anywhere is an error, not a value."""
-        bad = _non_finite_keys(summary)
+        bad = NonFiniteKeys(summary)
         if bad:
             raise GuidedArmError(f"summary has non-finite values for {', '.join(bad)}")
         path = self.out_dir / SUMMARY_FILE
         path.write_text(json.dumps(summary, indent=2, sort_keys=False) + "\n")
         self.written.append(path)
         return path
+
+
+def PrepareOutputDirectory(out_dir: Path, name: str = "--out") -> Path:
+    """Creates an output directory, or refuses (ConfigurationError, naming the argument
+    `name`) before the run when it names a file, lies under a file, or cannot be written."""
+    for parent in [out_dir, *out_dir.parents]:
+        if parent.exists() and not parent.is_dir():
+            raise ConfigurationError(f"{name} {out_dir}: '{parent}' is a file, not a directory")
+    try:
+        out_dir.mkdir(parents=True, exist_ok=True)
+        probe = out_dir / ".guidedarm_write_probe"
+        probe.write_text("")
+        probe.unlink()
+    except OSError as e:
+        raise ConfigurationError(f"{name} {out_dir}: cannot write there ({e.strerror})") from None
+    return out_dir
+
+
+def MakeMeshcat(serve: bool = False, host: str = "localhost") -> Meshcat:
+    """A Meshcat that serves a live page on `host` (first free port from 7000) when `serve`,
+    else a recorder on 127.0.0.1 at an ephemeral port (see the module docstring)."""
+    params = MeshcatParams(host=host) if serve else MeshcatParams(host="127.0.0.1", port=0)
+    drake_log = logging.getLogger("drake")
+    level = drake_log.level
+    drake_log.setLevel(logging.WARNING)  # the caller announces a live page itself
+    try:
+        return Meshcat(params)
+    except RuntimeError as e:
+        raise ConfigurationError(f"Meshcat cannot listen on host '{host}': {e}") from None
+    finally:
+        drake_log.setLevel(level)
+
+
+def ServeMeshcat(meshcat: Meshcat, wait_s: float | None = None) -> None:
+    """Keeps serving `meshcat` until Ctrl-C, or for wait_s seconds; never reads stdin."""
+    until = f"for {wait_s:g} s or until Ctrl-C" if wait_s is not None else "until Ctrl-C"
+    print(f"Meshcat keeps serving at {meshcat.web_url()} {until}.", flush=True)
+    deadline = math.inf if wait_s is None else time.monotonic() + wait_s
+    try:
+        while (left := deadline - time.monotonic()) > 0:
+            time.sleep(min(left, 0.5))
+    except KeyboardInterrupt:
+        pass
 
 
 def AdvanceWithProgress(
@@ -127,11 +176,12 @@ def _csv_cell(value: Any) -> str:
     return str(value)
 
 
-def _non_finite_keys(value: Any, prefix: str = "") -> list[str]:
+def NonFiniteKeys(value: Any, prefix: str = "") -> list[str]:
+    """Dotted keys of the NaN and infinite floats in a nested summary."""
     if isinstance(value, float):
-        return [] if math.isfinite(value) else [prefix or "<value>"]
+        return [] if math.isfinite(value) else [prefix.rstrip(".") or "<value>"]
     if isinstance(value, dict):
-        return [k for key, v in value.items() for k in _non_finite_keys(v, f"{prefix}{key}.")]
+        return [k for key, v in value.items() for k in NonFiniteKeys(v, f"{prefix}{key}.")]
     if isinstance(value, list | tuple):
-        return [k for i, v in enumerate(value) for k in _non_finite_keys(v, f"{prefix}[{i}].")]
+        return [k for i, v in enumerate(value) for k in NonFiniteKeys(v, f"{prefix}[{i}].")]
     return []

@@ -4,6 +4,12 @@ A scenario file is YAML whose top level names its `task` and whose remaining key
 fields of that task's scenario dataclass. Loading is two passes: an untyped read (which keeps
 Drake's YAML tags such as `!Rpy`) to apply the command-line overrides and find the task, then
 `yaml_load_typed` against the task's dataclass, which rejects unknown keys and wrong types.
+The typed result then goes through systems/config_checks.py (finite numbers, declared
+bounds, each config's Validate()) before anything is built from it.
+
+Numbers may be written in exponent notation (`1e-3`, `1.5e1`): YAML 1.1 reads those as
+strings; a float field accepts them and `yaml_load_typed` converts them, as Drake's own
+loading of a scenario file does.
 """
 
 from __future__ import annotations
@@ -17,6 +23,7 @@ from typing import Any, TypeVar
 
 from pydrake.common.yaml import yaml_dump, yaml_load_data, yaml_load_file, yaml_load_typed
 
+from guidedarm.systems.config_checks import CheckConfig
 from guidedarm.systems.errors import ConfigurationError
 
 SCENARIO_DIR = Path(__file__).resolve().parent / "scenarios"
@@ -57,7 +64,9 @@ def parse_overrides(items: list[str]) -> dict[str, Any]:
         try:
             overrides[key] = yaml_load_data(f"value: {value}")["value"]
         except Exception as e:  # the YAML parser's own message is the useful part
-            raise ScenarioError(f"--set {key}: cannot parse value '{value}': {e}") from None
+            raise ScenarioError(
+                f"--set {key}: cannot parse value '{value}': {_first_line(e)}"
+            ) from None
     return overrides
 
 
@@ -88,12 +97,18 @@ def read_raw_scenario(path: Path) -> dict[str, Any]:
 
 
 def load_typed(schema: type[T], raw: dict[str, Any], source: str) -> T:
-    """Loads `raw` into the dataclass `schema`, naming the offending key on failure."""
+    """Loads `raw` into the dataclass `schema` and checks it (CheckConfig), naming the
+    offending key on failure."""
     _check_node(schema, raw, "", source)
     try:
-        return yaml_load_typed(schema=schema, data=yaml_dump(raw))
+        typed = yaml_load_typed(schema=schema, data=yaml_dump(raw))
     except Exception as e:
         raise ScenarioError(f"{source}: {_first_line(e)}") from None
+    try:
+        CheckConfig(typed)
+    except ConfigurationError as e:
+        raise ScenarioError(f"{source}: {e}") from None
+    return typed
 
 
 def _check_node(schema: Any, value: Any, key: str, source: str) -> None:
@@ -146,7 +161,8 @@ def _check_node(schema: Any, value: Any, key: str, source: str) -> None:
         if not isinstance(value, bool):
             fail(f"expected true or false, got {value!r}")
     elif schema is float:
-        if isinstance(value, bool) or not isinstance(value, int | float):
+        number = isinstance(value, int | float) or (isinstance(value, str) and _is_number(value))
+        if isinstance(value, bool) or not number:
             fail(f"expected a number, got {value!r}")
     elif schema is int:
         if isinstance(value, bool) or not isinstance(value, int):
@@ -181,6 +197,15 @@ def _check_bound_struct(schema: Any, value: Any, key: str, source: str) -> None:
             if "incompatible function arguments" in text:
                 text = f"wrong shape or type: {item!r}"
             raise ScenarioError(f"{source}: key '{_join(key, name)}': {text}") from None
+
+
+def _is_number(text: str) -> bool:
+    """Whether YAML text that was read as a string is a number (`1e-3`, `nan`)."""
+    try:
+        float(text)
+    except ValueError:
+        return False
+    return True
 
 
 def _join(prefix: str, name: str) -> str:

@@ -25,7 +25,7 @@ class ComputedTorqueLaw:
     def __init__(
         self, plant: MultibodyPlant, instance: ModelInstanceIndex, kp: float, kd: float
     ) -> None:
-        if kp <= 0 or kd <= 0:
+        if not (0 < kp < np.inf and 0 < kd < np.inf):
             raise ConfigurationError(f"servo gains must be positive, got kp={kp}, kd={kd}")
         self.plant = plant
         self.kp = kp

@@ -167,9 +167,9 @@ def test_moves_through_the_acceleration_level_planner(tmp_path, capsys):
     "override, message",
     [
         ("motion=teleport", "motion must be one of ('joint_trajectory', 'planner')"),
-        ("follower.readings=-1", "readings must be >= 0 and reading_period positive"),
-        ("max_joint_acceleration=0", "max_joint_acceleration and period must be positive"),
-        ("station.tof_tools.tof.cone_angle_deg=0", "cone_angle_deg in (0, 180)"),
+        ("follower.readings=-1", "key 'follower.readings': must be >= 0"),
+        ("max_joint_acceleration=0", "key 'max_joint_acceleration': must be > 0"),
+        ("station.tof_tools.tof.cone_angle_deg=0", "cone_angle_deg': must be in (0, 180)"),
         ("gripper_frame=nope::x", "gripper_frame: no frame 'nope::x' in the station"),
         ("station.tof_tools.tof.tool_frame=nope::x", "tool_frame: no frame 'nope::x'"),
     ],

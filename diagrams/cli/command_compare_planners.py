@@ -87,7 +87,13 @@ def TableRow(setup: PlannerSetup, trajectory: JointTrajectory) -> dict[str, Any]
 
 
 def compare_command(args: argparse.Namespace) -> int:
-    _, scenario, _ = LoadScenario(args.scenario, args.overrides)
+    task, scenario, _ = LoadScenario(args.scenario, args.overrides)
+    if task.name != "waypoints":
+        raise ConfigurationError(
+            f"--scenario {args.scenario}: compare-planners needs a waypoints scenario, "
+            f"this one runs task {task.name}"
+        )
+    context = RunContext(out_dir=args.out) if args.out else None
     setup = MakePlannerSetup(scenario)
     trajectories = ComparePlanners(setup, scenario.max_time)
     rows = {name: TableRow(setup, t) for name, t in trajectories.items()}
@@ -100,8 +106,7 @@ def compare_command(args: argparse.Namespace) -> int:
         line += f"{row['qdd_abs_max']:>11.3f}{row['jerk_abs_max']:>12.1f}"
         line += "".join(f"{d:>12.2f}" for d in row["waypoint_deviation_mm"])
         print(line)
-    if args.out:
-        context = RunContext(out_dir=args.out)
+    if context is not None:
         context.write_csv(
             "compare_planners",
             ["planner", "T_s", "qd_abs_max", "qdd_abs_max", "jerk_abs_max"]

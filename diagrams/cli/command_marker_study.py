@@ -25,11 +25,14 @@ from guidedarm.diagrams.run_context import RunContext
 from guidedarm.diagrams.tasks.panel_camera_rig import LookAt, PanelCameraRig
 from guidedarm.diagrams.tasks.panel_files import DEFAULT_PANEL_FILE, LoadPanelSpec
 from guidedarm.diagrams.tasks.panel_operation import PanelOperationRun
-from guidedarm.systems.errors import GuidedArmError
+from guidedarm.systems.config_checks import FieldError
+from guidedarm.systems.errors import ConfigurationError, GuidedArmError
 from guidedarm.systems.markers.image_degradation import DegradationConfig
 from guidedarm.systems.markers.marker_pose_estimator_math import MarkerPoseSolver
 
 STUDIES = ("distance", "tilt", "repeatability", "press", "occlusion")
+# The command-line flag of each DegradationConfig field.
+DEGRADATION_FLAGS = {"noise_std": "--noise", "blur_sigma_px": "--blur", "lighting": "--lighting"}
 
 
 def register(subparsers: argparse._SubParsersAction) -> None:
@@ -45,11 +48,14 @@ def register(subparsers: argparse._SubParsersAction) -> None:
 
 
 def study_command(args: argparse.Namespace) -> int:
-    context = RunContext(out_dir=args.out or Path("runs") / "marker_study")
     degradation = DegradationConfig(
         lighting=args.lighting, blur_sigma_px=args.blur, noise_std=args.noise, seed=1
     )
-    degradation.Validate()
+    try:
+        degradation.Validate()
+    except FieldError as e:
+        raise ConfigurationError(f"{DEGRADATION_FLAGS.get(e.key, e.key)}: {e.why}") from None
+    context = RunContext(out_dir=args.out or Path("runs") / "marker_study")
     study = {
         "distance": DistanceStudy,
         "tilt": TiltStudy,

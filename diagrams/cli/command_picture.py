@@ -9,6 +9,7 @@ import numpy as np
 from pydrake.common.schema import Transform
 from pydrake.systems.sensors import CameraConfig
 
+from guidedarm.diagrams.run_context import PrepareOutputDirectory
 from guidedarm.diagrams.station.scenario import StationScenario
 from guidedarm.diagrams.station.scene_views import (
     ARM_SCENES,
@@ -17,8 +18,11 @@ from guidedarm.diagrams.station.scene_views import (
     SceneDirectives,
 )
 from guidedarm.diagrams.station.station import MakeStation
+from guidedarm.systems.errors import ConfigurationError
 
 CAMERA = "view"
+MAX_VIEW_SIZE_PX = 8192
+IMAGE_SUFFIXES = (".png", ".jpg", ".jpeg", ".bmp", ".tif", ".tiff", ".webp")
 
 
 def register(subparsers: argparse._SubParsersAction) -> None:
@@ -45,8 +49,18 @@ def RenderScene(scene: str, width: int, height: int) -> np.ndarray:
 def picture_command(args: argparse.Namespace) -> int:
     import cv2
 
+    for flag, size in (("--width", args.width), ("--height", args.height)):
+        if not 1 <= size <= MAX_VIEW_SIZE_PX:
+            raise ConfigurationError(f"{flag} must be 1 .. {MAX_VIEW_SIZE_PX} px, got {size}")
+    if args.output.suffix.lower() not in IMAGE_SUFFIXES:
+        raise ConfigurationError(
+            f"{args.output}: the name must end in an image type ({', '.join(IMAGE_SUFFIXES)})"
+        )
+    PrepareOutputDirectory(args.output.parent, "output")
+    if args.output.is_dir():
+        raise ConfigurationError(f"{args.output} is a directory")
     views = [RenderScene(ARM_SCENES[arm], args.width, args.height) for arm in ARM_SCENES]
-    args.output.parent.mkdir(parents=True, exist_ok=True)
-    cv2.imwrite(str(args.output), cv2.cvtColor(np.hstack(views), cv2.COLOR_RGB2BGR))
+    if not cv2.imwrite(str(args.output), cv2.cvtColor(np.hstack(views), cv2.COLOR_RGB2BGR)):
+        raise ConfigurationError(f"cannot write {args.output}")
     print(f"wrote {args.output}")
     return 0

@@ -1,20 +1,37 @@
-"""`guidedarm run SCENARIO`: load a scenario, run its task, write summary, plots, replay."""
+"""`guidedarm run SCENARIO`: load a scenario, run its task, write summary, plots, replay.
+
+The run contract, all of it here:
+  - refused before the run (bad scenario, bad flags, an output directory that cannot be
+    written, a setting the task cannot honour): one line on stderr, exit 2, no summary;
+  - a run that started ends with DIR/summary.json: exit 0, or exit 1 with `failure` set
+    (a failed task, a RunFailedError such as a hardware fault, Ctrl-C as
+    `failure: interrupted`, non-finite metrics, or an internal error whose traceback goes
+    to DIR/traceback.txt).
+"""
 
 from __future__ import annotations
 
 import argparse
 import importlib.metadata
 import json
+import math
 import shlex
 import sys
 import time
+import traceback
 from pathlib import Path
 from typing import Any
 
 from pydrake.common.yaml import yaml_dump_typed
-from pydrake.geometry import Meshcat
 
-from guidedarm.diagrams.run_context import RESOLVED_SCENARIO_FILE, RunContext
+from guidedarm.diagrams.run_context import (
+    RESOLVED_SCENARIO_FILE,
+    MakeMeshcat,
+    NonFiniteKeys,
+    PrepareOutputDirectory,
+    RunContext,
+    ServeMeshcat,
+)
 from guidedarm.diagrams.scenario_loading import (
     ScenarioError,
     apply_overrides,
@@ -24,16 +41,17 @@ from guidedarm.diagrams.scenario_loading import (
     resolve_scenario_path,
 )
 from guidedarm.diagrams.tasks.registry import GetTask
-from guidedarm.systems.errors import ConfigurationError, RunFailedError
+from guidedarm.systems.errors import ConfigurationError, GuidedArmError, RunFailedError
 
 FAILED = 1
+TRACEBACK_FILE = "traceback.txt"
 
 
 def register(subparsers: argparse._SubParsersAction) -> None:
     parser = subparsers.add_parser("run", help="run a named scenario or a scenario YAML file")
     parser.add_argument("scenario", help="scenario name (see `guidedarm list`) or YAML file")
     parser.add_argument("--out", type=Path, help="output directory (default runs/SCENARIO)")
-    parser.add_argument("--meshcat", action="store_true", help="serve Meshcat live and wait")
+    AddMeshcatArguments(parser)
     parser.add_argument("--hardware", action="store_true", help="drive the real hardware")
     parser.add_argument(
         "--set",
@@ -52,6 +70,38 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     parser.set_defaults(func=run_command)
 
 
+def AddMeshcatArguments(parser: argparse.ArgumentParser) -> None:
+    """--meshcat, --meshcat-host and --meshcat-wait (see CheckMeshcatArguments)."""
+    parser.add_argument(
+        "--meshcat",
+        action="store_true",
+        help="serve Meshcat live during the run and keep serving after it",
+    )
+    parser.add_argument(
+        "--meshcat-host",
+        metavar="HOST",
+        help="with --meshcat: the address Meshcat listens on (default localhost)",
+    )
+    parser.add_argument(
+        "--meshcat-wait",
+        type=float,
+        metavar="SECONDS",
+        help="with --meshcat: stop serving this long after the run (default: at Ctrl-C)",
+    )
+
+
+def CheckMeshcatArguments(args: argparse.Namespace) -> None:
+    """Refuses --meshcat-host or --meshcat-wait without --meshcat, and a bad wait."""
+    given = {"--meshcat-host": args.meshcat_host, "--meshcat-wait": args.meshcat_wait}
+    for flag, value in given.items():
+        if value is not None and not args.meshcat:
+            raise ConfigurationError(f"{flag} needs --meshcat")
+    if args.meshcat_wait is not None and not 0 <= args.meshcat_wait < math.inf:
+        raise ConfigurationError(f"--meshcat-wait must be >= 0 s, got {args.meshcat_wait}")
+    if args.meshcat_host is not None and not args.meshcat_host.strip():
+        raise ConfigurationError("--meshcat-host must not be empty")
+
+
 def LoadScenario(name_or_path: str, overrides: list[str]) -> tuple[Any, Any, str]:
     """Returns (task, typed scenario, scenario name) for a scenario and `--set` overrides."""
     path = resolve_scenario_path(name_or_path)
@@ -64,29 +114,26 @@ def LoadScenario(name_or_path: str, overrides: list[str]) -> tuple[Any, Any, str
 
 
 def run_command(args: argparse.Namespace) -> int:
+    CheckMeshcatArguments(args)
     if getattr(args, "path_csv", None) is not None:
         args.overrides.append(f"path_csv={json.dumps(str(args.path_csv.resolve()))}")
     task, scenario, name = LoadScenario(args.scenario, args.overrides)
-    out_dir = PrepareOutputDirectory(args.out or Path("runs") / name)
-    meshcat = Meshcat()
+    context = RunContext(
+        out_dir=PrepareOutputDirectory(args.out or Path("runs") / name), hardware=args.hardware
+    )
+    context.meshcat = MakeMeshcat(args.meshcat, args.meshcat_host or "localhost")
     if args.meshcat:
-        print(f"Meshcat: {meshcat.web_url()}", flush=True)
-    context = RunContext(out_dir=out_dir, meshcat=meshcat, hardware=args.hardware)
+        print(f"Meshcat: {context.meshcat.web_url()}", flush=True)
     context.write_text(RESOLVED_SCENARIO_FILE, yaml_dump_typed(scenario))
-    print(f"guidedarm: running '{name}' (task {task.name}) -> {out_dir}", flush=True)
+    print(f"guidedarm: running '{name}' (task {task.name}) -> {context.out_dir}", flush=True)
     wall_start = time.perf_counter()
-    try:
-        metrics = task.run(scenario, context)
-    except RunFailedError as e:
-        metrics = {"success": False, "failure": str(e)}
-    except KeyboardInterrupt:
-        metrics = {"success": False, "failure": "interrupted"}
+    metrics = RunTask(task, scenario, context)
     metrics["wall_time_s"] = round(time.perf_counter() - wall_start, 3)
     metrics = {"scenario": name, "task": task.name, **metrics, **RunProvenance()}
     context.write_summary(metrics)
     _print_summary(metrics, context)
-    if args.meshcat and sys.stdin.isatty():
-        input("Meshcat is serving the replay; press Enter to exit.\n")
+    if args.meshcat:
+        ServeMeshcat(context.meshcat, args.meshcat_wait)
     failure = metrics.get("failure")
     if failure:
         print(f"guidedarm: run failed: {failure}", file=sys.stderr)
@@ -94,20 +141,39 @@ def run_command(args: argparse.Namespace) -> int:
     return 0
 
 
-def PrepareOutputDirectory(out_dir: Path) -> Path:
-    """Creates the run's output directory, or refuses (ConfigurationError) before the run
-    when it names a file, lies under a file, or cannot be written."""
-    for parent in [out_dir, *out_dir.parents]:
-        if parent.exists() and not parent.is_dir():
-            raise ConfigurationError(f"--out {out_dir}: '{parent}' is a file, not a directory")
+def RunTask(task: Any, scenario: Any, context: RunContext) -> dict[str, Any]:
+    """The task's metrics, with `failure` set when the run failed in any way once started;
+    any other GuidedArmError (a refusal before any motion, e.g. a ConfigurationError)
+    passes through."""
     try:
-        out_dir.mkdir(parents=True, exist_ok=True)
-        probe = out_dir / ".guidedarm_write_probe"
-        probe.write_text("")
-        probe.unlink()
-    except OSError as e:
-        raise ConfigurationError(f"--out {out_dir}: cannot write there ({e.strerror})") from None
-    return out_dir
+        metrics = dict(task.run(scenario, context))
+    except RunFailedError as e:
+        metrics = {"success": False, "failure": str(e)}
+    except KeyboardInterrupt:
+        metrics = {"success": False, "failure": "interrupted"}
+    except GuidedArmError:
+        raise
+    except Exception as e:  # a bug: keep its traceback beside the summary, not on screen
+        context.write_text(TRACEBACK_FILE, traceback.format_exc())
+        first = str(e).strip().splitlines()[0] if str(e).strip() else ""
+        failure = f"internal error {type(e).__name__}: {first} (see {TRACEBACK_FILE})"
+        metrics = {"success": False, "failure": failure}
+    bad = NonFiniteKeys(metrics)
+    if bad:
+        metrics = _WithoutNonFinite(metrics)
+        metrics["failure"] = metrics.get("failure") or f"non-finite values of {', '.join(bad)}"
+        metrics["success"] = False
+    return metrics
+
+
+def _WithoutNonFinite(value: Any) -> Any:
+    if isinstance(value, float):
+        return value if math.isfinite(value) else None
+    if isinstance(value, dict):
+        return {key: _WithoutNonFinite(v) for key, v in value.items()}
+    if isinstance(value, list | tuple):
+        return [_WithoutNonFinite(v) for v in value]
+    return value
 
 
 def RunProvenance() -> dict[str, Any]:

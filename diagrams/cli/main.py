@@ -1,25 +1,38 @@
 """The `guidedarm` command line. Each `diagrams/cli/command_*.py` module adds one subcommand.
 
-Exit codes: 0 done, 1 the run failed (summary.json says why), 2 bad input or configuration.
+Exit codes, for every subcommand: 0 done; 1 a run that started failed (its summary.json
+says why); 2 bad input or configuration, refused with one line on stderr (argument errors
+included); 130 interrupted outside a run; 141 stdout closed early (e.g. `| head -1`).
 """
 
 from __future__ import annotations
 
 import argparse
 import importlib
+import os
 import pkgutil
 import sys
 
 import guidedarm.diagrams.cli as cli_package
-from guidedarm.systems.errors import GuidedArmError
+from guidedarm.systems.errors import ConfigurationError, GuidedArmError
 
 EXIT_RUN_FAILED = 1
 EXIT_BAD_INPUT = 2
+EXIT_INTERRUPTED = 130
+EXIT_BROKEN_PIPE = 141
+
+
+class OneLineArgumentParser(argparse.ArgumentParser):
+    """An ArgumentParser whose errors are one line (a ConfigurationError), not usage text
+    and SystemExit; its subcommand parsers are of the same class."""
+
+    def error(self, message: str):
+        raise ConfigurationError(f"{self.prog}: {message} (see {self.prog} --help)")
 
 
 def MakeArgumentParser() -> argparse.ArgumentParser:
     """The parser with every discovered subcommand."""
-    parser = argparse.ArgumentParser(
+    parser = OneLineArgumentParser(
         prog="guidedarm", description="Drake diagrams for sensor-guided industrial arms."
     )
     subparsers = parser.add_subparsers(dest="command", required=True)
@@ -32,15 +45,21 @@ def MakeArgumentParser() -> argparse.ArgumentParser:
 
 def main(argv: list[str] | None = None) -> int:
     """Entry point of the `guidedarm` console script."""
-    args = MakeArgumentParser().parse_args(argv)
     try:
-        return int(args.func(args) or 0)
+        args = MakeArgumentParser().parse_args(argv)
+        code = int(args.func(args) or 0)
+        sys.stdout.flush()  # a closed pipe shows here, not at interpreter exit
+        return code
     except GuidedArmError as e:
         print(f"guidedarm: error: {e}", file=sys.stderr)
         return EXIT_BAD_INPUT
     except KeyboardInterrupt:
         print("guidedarm: interrupted", file=sys.stderr)
-        return 130
+        return EXIT_INTERRUPTED
+    except BrokenPipeError:
+        # The reader left; send what Python still has to flush into the void, silently.
+        os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
+        return EXIT_BROKEN_PIPE
 
 
 def _name(module_info: pkgutil.ModuleInfo) -> str:

@@ -4,6 +4,8 @@ tool, and where to reach it. Loaded with `yaml_load_typed` as `StationScenario.h
 
 from dataclasses import dataclass, field
 
+from guidedarm.systems.config_checks import InRange, Positive
+
 
 @dataclass
 class ArmDriverConfig:
@@ -19,12 +21,12 @@ class ArmDriverConfig:
 
     driver: str = "ur_rtde"
     host: str = "127.0.0.1"
-    port: int = 0
-    watchdog: float = 0.1
-    stale_after: float = 0.02
-    acceleration_limits: list[float] = field(default_factory=list)
-    lookahead_time: float = 0.1
-    gain: float = 300.0
+    port: int = InRange(0, 65535, 0)
+    watchdog: float = Positive(0.1)
+    stale_after: float = Positive(0.02)
+    acceleration_limits: list[float] = Positive(factory=list)
+    lookahead_time: float = Positive(0.1)
+    gain: float = Positive(300.0)
 
 
 @dataclass
@@ -36,7 +38,7 @@ class CameraDriverConfig:
     """
 
     source: str = "0"
-    watchdog: float = 2.0
+    watchdog: float = Positive(2.0)
 
 
 @dataclass
@@ -51,8 +53,8 @@ class ToFDriverConfig:
 
     transport: str = "serial"
     device: str = ""
-    baudrate: int = 115200
-    watchdog: float = 0.5
+    baudrate: int = Positive(115200)
+    watchdog: float = Positive(0.5)
 
 
 @dataclass

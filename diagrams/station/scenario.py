@@ -9,6 +9,7 @@ from pydrake.systems.sensors import CameraConfig
 from pydrake.visualization import VisualizationConfig
 
 from guidedarm.diagrams.station.hardware_config import HardwareConfig
+from guidedarm.systems.config_checks import Positive
 from guidedarm.systems.path_following.hose_geometry import HoseConfig
 from guidedarm.systems.tof.tof_tool_sensor import ToFToolConfig
 
@@ -25,9 +26,9 @@ class ArmConfig:
     """
 
     initial_position: list[float] = field(default_factory=list)
-    kp: float = 1600.0
+    kp: float = Positive(1600.0)
     kd: float = 0.0
-    control_period: float = 0.002
+    control_period: float = Positive(0.002)
 
 
 def _default_plant_config() -> MultibodyPlantConfig:

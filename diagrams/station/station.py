@@ -29,6 +29,19 @@ from guidedarm.systems.joint_servo import ComputedTorqueLaw, JointServo
 from guidedarm.systems.tof.tof_tool_sensor import TOF_PORTS, ToFToolSensor
 
 RENDERER_NAME = "vtk"
+# CameraConfig fields the station does not honour: it renders colour images on demand with
+# its own VTK renderer and publishes nothing; a value other than the default is refused.
+UNSUPPORTED_CAMERA_FIELDS = (
+    "fps",
+    "capture_offset",
+    "output_delay",
+    "rgb",
+    "depth",
+    "label",
+    "show_rgb",
+    "do_compress",
+    "lcm_bus",
+)
 
 
 def MakeStation(
@@ -71,10 +84,12 @@ def _AddArm(builder: DiagramBuilder, plant: MultibodyPlant, name: str, arm: ArmC
             f"arms.{name}: every joint must have an actuator ({n} actuators, "
             f"{plant.num_velocities(instance)} joints)"
         )
-    if arm.control_period <= 0:
+    if not 0 < arm.control_period < np.inf:
         raise ConfigurationError(f"arms.{name}.control_period must be positive")
-    if arm.kp <= 0:
-        raise ConfigurationError(f"arms.{name}: servo gains must be positive, got kp={arm.kp}")
+    if not (0 < arm.kp < np.inf and np.isfinite(arm.kd)):
+        raise ConfigurationError(
+            f"arms.{name}: gains must be positive (kp) and finite, got kp={arm.kp}, kd={arm.kd}"
+        )
     kd = arm.kd if arm.kd > 0 else 2.0 * np.sqrt(arm.kp)
     servo = builder.AddNamedSystem(
         f"{name}.servo", JointServo(ComputedTorqueLaw(plant, instance, arm.kp, kd))
@@ -103,6 +118,17 @@ def _AddCamera(
     name: str,
     config: CameraConfig,
 ) -> None:
+    default = CameraConfig()
+    unsupported = [
+        f for f in UNSUPPORTED_CAMERA_FIELDS if getattr(config, f) != getattr(default, f)
+    ]
+    if config.renderer_name not in (default.renderer_name, RENDERER_NAME):
+        unsupported.append("renderer_name")
+    if unsupported:
+        raise ConfigurationError(
+            f"cameras.{name}.{unsupported[0]}: the station renders colour images on demand "
+            f"with its own renderer; {unsupported[0]} cannot be set"
+        )
     config.renderer_name = RENDERER_NAME
     color, depth = config.MakeCameras()
     base = config.X_PB.base_frame or "world"

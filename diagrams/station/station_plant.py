@@ -83,12 +83,26 @@ def ArmInitialPosition(plant: MultibodyPlant, name: str, arm: ArmConfig) -> np.n
     instance = GetArmInstance(plant, name)
     if len(arm.initial_position) == 0:
         return plant.GetDefaultPositions(instance)
-    if len(arm.initial_position) != plant.num_positions(instance):
-        raise ConfigurationError(
-            f"arms.{name}.initial_position has {len(arm.initial_position)} values, "
-            f"the model has {plant.num_positions(instance)} joints"
-        )
+    CheckJointPositions(plant, name, arm.initial_position, f"arms.{name}.initial_position")
     return np.asarray(arm.initial_position, float)
+
+
+def CheckJointPositions(plant: MultibodyPlant, name: str, q: list[float], key: str) -> None:
+    """Refuses (ConfigurationError naming `key`) joint positions of the arm `name` of a
+    finalized plant that have the wrong count or lie outside the joint limits."""
+    instance = GetArmInstance(plant, name)
+    lower = plant.GetPositionsFromArray(instance, plant.GetPositionLowerLimits())
+    upper = plant.GetPositionsFromArray(instance, plant.GetPositionUpperLimits())
+    if len(q) != len(lower):
+        raise ConfigurationError(f"{key} has {len(q)} values, the model has {len(lower)} joints")
+    values = np.asarray(q, float)
+    outside = np.flatnonzero(~((lower <= values) & (values <= upper)))
+    if outside.size:
+        j = int(outside[0])
+        raise ConfigurationError(
+            f"{key}[{j}] = {values[j]:g} rad is outside the joint limits "
+            f"[{lower[j]:.4g}, {upper[j]:.4g}] of {name}"
+        )
 
 
 def GetArmInstance(plant: MultibodyPlant, name: str) -> ModelInstanceIndex:

@@ -19,21 +19,29 @@ from guidedarm.diagrams.plots import PlotJointSeries
 from guidedarm.diagrams.run_context import AdvanceWithProgress, RunContext
 from guidedarm.diagrams.station.scenario import StationScenario
 from guidedarm.diagrams.station.station import MakeStation
+from guidedarm.diagrams.station.station_plant import (
+    ArmInitialPosition,
+    CheckJointPositions,
+    MakeMultibodyPlant,
+)
 from guidedarm.diagrams.tasks.registry import TaskDefinition
+from guidedarm.systems.config_checks import NonNegative, Positive
 from guidedarm.systems.errors import ConfigurationError
 
 
 @dataclass
 class JointTourScenario:
     """arm: the arm of `station.arms` to move; waypoints: joint vectors (rad) visited after
-    the arm's initial position; max_speed: joint speed cap (rad/s); settle_time: time held
-    at the end (s)."""
+    the arm's initial position, within its joint limits; max_speed: joint speed cap
+    (rad/s); settle_time: time held at the end (s); max_final_error: the run fails if the
+    measured arm ends farther than this from the last waypoint on any joint (rad)."""
 
     task: str = "joint_tour"
     arm: str = ""
     waypoints: list[list[float]] = field(default_factory=list)
-    max_speed: float = 0.5
-    settle_time: float = 0.5
+    max_speed: float = Positive(0.5)
+    settle_time: float = NonNegative(0.5)
+    max_final_error: float = Positive(0.01)
     station: StationScenario = field(default_factory=StationScenario)
 
 
@@ -42,12 +50,17 @@ def MakeTourTrajectory(
 ) -> PiecewisePolynomial:
     """Cubic segments with zero end velocities; a segment's duration is 1.5 x its largest
     joint move over max_speed, which bounds the cubic's peak speed by max_speed."""
-    if max_speed <= 0:
+    if not 0 < max_speed < np.inf:
         raise ConfigurationError(f"max_speed must be positive, got {max_speed}")
+    if not waypoints:
+        raise ConfigurationError("waypoints: at least one waypoint is needed")
     knots = [np.asarray(start, float)] + [np.asarray(w, float) for w in waypoints]
     times = [0.0]
-    for a, b in itertools.pairwise(knots):
-        times.append(times[-1] + max(1.5 * np.max(np.abs(b - a)) / max_speed, 1e-3))
+    with np.errstate(over="ignore"):  # a tiny max_speed overflows to inf, refused below
+        for a, b in itertools.pairwise(knots):
+            times.append(times[-1] + max(1.5 * np.max(np.abs(b - a)) / max_speed, 1e-3))
+    if not np.isfinite(times[-1]):
+        raise ConfigurationError(f"max_speed {max_speed} rad/s is too small to time the tour")
     samples = np.column_stack(knots)
     zero = np.zeros_like(knots[0])
     return (
@@ -57,22 +70,26 @@ def MakeTourTrajectory(
     )
 
 
-def RunJointTour(scenario: JointTourScenario, context: RunContext) -> dict[str, Any]:
-    """Simulates the tour and returns tracking metrics (rad)."""
+def TourStart(scenario: JointTourScenario) -> np.ndarray:
+    """The arm's start (rad), after refusing waypoints that do not fit the arm's model: a
+    wrong number of joints, or positions outside its joint limits."""
     arms = scenario.station.arms
     if scenario.arm not in arms:
         raise ConfigurationError(f"arm '{scenario.arm}' is not in station.arms {list(arms)}")
+    plant = MakeMultibodyPlant(scenario.station, [scenario.arm])
+    for i, w in enumerate(scenario.waypoints):
+        CheckJointPositions(plant, scenario.arm, w, f"waypoints[{i}]")
+    return ArmInitialPosition(plant, scenario.arm, arms[scenario.arm])
+
+
+def RunJointTour(scenario: JointTourScenario, context: RunContext) -> dict[str, Any]:
+    """Simulates the tour and returns tracking metrics (rad)."""
+    trajectory = MakeTourTrajectory(TourStart(scenario), scenario.waypoints, scenario.max_speed)
+    n = trajectory.rows()
     builder = DiagramBuilder()
     station = builder.AddNamedSystem(
         "station", MakeStation(scenario.station, context.meshcat, context.hardware)
     )
-    n = station.GetOutputPort(f"{scenario.arm}.position_measured").size()
-    for i, w in enumerate(scenario.waypoints):
-        if len(w) != n:
-            raise ConfigurationError(f"waypoints[{i}] has {len(w)} values, the arm has {n}")
-    initial = arms[scenario.arm].initial_position
-    start = np.asarray(initial if len(initial) > 0 else np.zeros(n), float)
-    trajectory = MakeTourTrajectory(start, scenario.waypoints, scenario.max_speed)
     source = builder.AddNamedSystem("tour", TrajectorySource(trajectory))
     builder.Connect(
         source.get_output_port(), station.GetInputPort(f"{scenario.arm}.position_commanded")
@@ -99,11 +116,18 @@ def RunJointTour(scenario: JointTourScenario, context: RunContext) -> dict[str, 
     context.save_figure(
         PlotJointSeries(times, {"commanded": q_cmd, "measured": q_meas}, "q (rad)"), "joints"
     )
+    final_error = float(np.max(error[:, -1]))
+    failure = None
+    if not final_error <= scenario.max_final_error:
+        failure = (
+            f"the measured arm ended {final_error:.4g} rad from the last waypoint "
+            f"(max_final_error {scenario.max_final_error} rad)"
+        )
     return {
         "sim_time_s": round(t_end, 4),
         "tracking_error_max_rad": float(np.max(error)),
-        "final_error_rad": float(np.max(error[:, -1])),
-        "failure": None,
+        "final_error_rad": final_error,
+        "failure": failure,
     }
 
 

@@ -27,11 +27,7 @@ DEFAULT_CAMERA_FILE = MODELS_PANEL_DIR / "c920_camera.yaml"
 
 def LoadCameraIntrinsics(path: str | Path) -> CameraIntrinsics:
     """The intrinsics in a CAMERA.yaml file."""
-    intrinsics = load_typed(CameraIntrinsics, _ReadMapping(path), str(path))
-    if intrinsics.width <= 0 or intrinsics.height <= 0 or intrinsics.fx <= 0:
-        raise ConfigurationError(f"{path}: width, height and fx must be positive")
-    intrinsics.distortion_vector()
-    return intrinsics
+    return load_typed(CameraIntrinsics, _ReadMapping(path), str(path))
 
 
 def LoadPanelSpec(path: str | Path) -> PanelSpec:

@@ -59,6 +59,7 @@ from guidedarm.diagrams.tasks.panel_operation_report import (
 )
 from guidedarm.diagrams.tasks.registry import TaskDefinition
 from guidedarm.diagrams.tasks.waypoints import SymmetricLimit
+from guidedarm.systems.config_checks import CheckFields, InRange, NonNegative, Positive
 from guidedarm.systems.errors import ConfigurationError
 from guidedarm.systems.markers.image_degradation import DegradationConfig
 from guidedarm.systems.markers.panel_operation_math import (
@@ -88,9 +89,15 @@ class StartConfig:
 
     position: list[float] = field(default_factory=list)
     seed: int = 0
-    distance_m: list[float] = field(default_factory=lambda: [0.30, 0.40])
-    max_tilt_deg: float = 30.0
-    aim_offset_m: float = 0.02
+    distance_m: list[float] = Positive(factory=lambda: [0.30, 0.40])
+    max_tilt_deg: float = InRange(0.0, 90.0, 30.0, high_open=True)
+    aim_offset_m: float = NonNegative(0.02)
+
+    def Validate(self) -> None:
+        """Raises ConfigurationError naming the first bad value."""
+        CheckFields(self)
+        if len(self.distance_m) != 2 or not self.distance_m[0] <= self.distance_m[1]:
+            raise ConfigurationError(f"distance_m must be [min, max], got {self.distance_m}")
 
 
 @dataclass
@@ -108,8 +115,8 @@ class PanelPlannerConfig:
 
     base_frame: str = ""
     tcp_rpy_deg: list[float] = field(default_factory=lambda: [0.0, 0.0, 0.0])
-    max_joint_velocity: list[float] = field(default_factory=lambda: [0.5])
-    max_joint_acceleration: list[float] = field(default_factory=lambda: [1.5])
+    max_joint_velocity: list[float] = Positive(factory=lambda: [0.5])
+    max_joint_acceleration: list[float] = Positive(factory=lambda: [1.5])
     parameters: PlannerConfig = field(default_factory=PlannerConfig)
 
 
@@ -139,18 +146,18 @@ class PanelOperationScenario:
 
     task: str = "panel_operation"
     arm: str = "rover_arm"
-    switch: int = 2
+    switch: int = Positive(2)
     camera: str = "camera"
     tip_frame: str = "rover_gripper::gripper_tip"
     panel_file: str = "panel/panel.yaml"
     panel_model: str = "panel"
-    supersampling: int = 3
+    supersampling: int = Positive(3)
     degradation: DegradationConfig = field(default_factory=DegradationConfig)
     start: StartConfig = field(default_factory=StartConfig)
     cover_markers_after_base: bool = False
     operation: PanelOperationConfig = field(default_factory=PanelOperationConfig)
     planner: PanelPlannerConfig = field(default_factory=PanelPlannerConfig)
-    time_limit_s: float = 40.0
+    time_limit_s: float = Positive(40.0)
     station: StationScenario = field(default_factory=StationScenario)
 
 
@@ -330,6 +337,10 @@ def _MakePlanner(scenario: PanelOperationScenario) -> tuple[AccelerationPlanner,
 
 def RunPanelOperation(scenario: PanelOperationScenario, context: RunContext) -> dict[str, Any]:
     """Builds the diagram, picks the start and simulates one operation."""
+    if context.hardware:
+        raise ConfigurationError(
+            "panel_operation runs in simulation only (the rover arm has no driver): drop --hardware"
+        )
     run = PanelOperationRun(scenario, context)
     start = scenario.start
     q_start = np.asarray(start.position, float) if start.position else run.SampleStart(start.seed)

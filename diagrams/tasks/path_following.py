@@ -34,6 +34,7 @@ from guidedarm.diagrams.tasks.path_following_report import (
     Repeatability,
 )
 from guidedarm.diagrams.tasks.registry import TaskDefinition
+from guidedarm.systems.config_checks import InRange, Positive
 from guidedarm.systems.errors import ConfigurationError, GuidedArmError
 from guidedarm.systems.path_following.hose_geometry import (
     HoseConfig,
@@ -51,6 +52,7 @@ from guidedarm.systems.path_following.path_follower_math import (
 )
 from guidedarm.systems.path_following.tool_pose_ik_math import IkLimits
 from guidedarm.systems.planning.acceleration_planner_math import PlannerConfig
+from guidedarm.systems.tof.tof_tool_sensor import ToFToolConfig
 
 EXECUTORS = ("station", "kinematic")
 MOVES = ("joint_trajectory", "planner")
@@ -78,14 +80,14 @@ class PathFollowingScenario:
     seed: int = 0
     repeat_seed: int | None = None
     executor: str = "station"
-    tool_speed: float = 0.05
-    max_joint_speed: float = 1.0
-    max_joint_acceleration: float = 5.0
+    tool_speed: float = Positive(0.05)
+    max_joint_speed: float = Positive(1.0)
+    max_joint_acceleration: float = Positive(5.0)
     motion: str = "joint_trajectory"
     planner: PlannerConfig = field(default_factory=PlannerConfig)
-    period: float = 0.01
-    max_time: float = 400.0
-    min_coverage: float = 0.95
+    period: float = Positive(0.01)
+    max_time: float = Positive(400.0)
+    min_coverage: float = InRange(0.0, 1.0, 0.95)
     follower: FollowerConfig = field(default_factory=FollowerConfig)
     ik: IkLimits = field(default_factory=IkLimits)
     arm: str = "mz04d"
@@ -99,10 +101,12 @@ def LoadHose(scenario: PathFollowingScenario, out_dir: Path) -> tuple[np.ndarray
     if scenario.path_csv:
         return ReadCenterline(scenario.path_csv), scenario.path_csv, PathLimits()
     if scenario.path.startswith("random_"):
-        try:
-            seed = int(scenario.path.removeprefix("random_"))
-        except ValueError:
-            raise ConfigurationError(f"path '{scenario.path}': expected random_<seed>") from None
+        digits = scenario.path.removeprefix("random_")
+        if not (digits.isascii() and digits.isdigit()):
+            raise ConfigurationError(
+                f"path '{scenario.path}': expected random_<seed>, a seed of digits 0-9"
+            )
+        seed = int(digits)
         csv = out_dir / "hose.csv"
         WriteCenterline(ReachableRandomPath(scenario, seed), csv)
         return ReadCenterline(str(csv)), str(csv), PathLimits()
@@ -172,7 +176,7 @@ def MakeSetup(scenario: PathFollowingScenario, out_dir: Path) -> tuple[Setup, np
     if scenario.motion not in MOVES:
         raise ConfigurationError(f"motion must be one of {MOVES}, got '{scenario.motion}'")
     rates = (scenario.tool_speed, scenario.period, scenario.max_joint_speed)
-    if min(*rates, scenario.max_joint_acceleration) <= 0:
+    if not all(0 < r < np.inf for r in (*rates, scenario.max_joint_acceleration)):
         raise ConfigurationError(
             "tool_speed, max_joint_speed, max_joint_acceleration and period must be positive"
         )
@@ -261,8 +265,48 @@ def _CountCollisions(execution: Execution, scene: KinematicScene) -> int:
     return len(hit_steps)
 
 
+def RefuseIgnoredSettings(scenario: PathFollowingScenario, hardware: bool) -> None:
+    """Refuses settings that this task would silently override or not use."""
+    if scenario.executor == "kinematic" and hardware:
+        raise ConfigurationError(
+            "executor=kinematic writes IK solutions into a model and drives no arm: "
+            "it cannot run with --hardware (use executor=station)"
+        )
+    if scenario.executor == "kinematic" and scenario.motion == "planner":
+        raise ConfigurationError(
+            "executor=kinematic applies each IK solution directly: motion=planner needs "
+            "executor=station"
+        )
+    if scenario.follower.estimator not in (FollowerConfig.estimator, scenario.estimator):
+        raise ConfigurationError(
+            "follower.estimator is set from the top-level key 'estimator': set that instead"
+        )
+    hose = scenario.station.hose
+    if hose is not None and hose.centerline != HoseConfig.centerline:
+        raise ConfigurationError(
+            "station.hose.centerline is set from the keys 'path' and 'path_csv': set those"
+        )
+    tof = scenario.station.tof_tools.get(scenario.tof)
+    if tof is not None and tof.seed not in (ToFToolConfig.seed, scenario.seed):
+        raise ConfigurationError(
+            f"station.tof_tools.{scenario.tof}.seed is set from the top-level key 'seed': "
+            "set that instead"
+        )
+    if tof is not None and tof.target_radius != ToFToolConfig.target_radius:
+        raise ConfigurationError(
+            f"station.tof_tools.{scenario.tof}.target_radius is set from station.hose.diameter"
+        )
+    walls = IkLimits()
+    if (scenario.ik.x, scenario.ik.y, scenario.ik.z_min) != (walls.x, walls.y, walls.z_min):
+        raise ConfigurationError(
+            "ik.x, ik.y and ik.z_min are the path's cell walls (models/hoses/NAME.yaml); "
+            "they cannot be set in the scenario"
+        )
+
+
 def RunPathFollowing(scenario: PathFollowingScenario, context: RunContext) -> dict[str, Any]:
     """Runs the follower (twice with repeat_seed) and returns the summary metrics."""
+    RefuseIgnoredSettings(scenario, context.hardware)
     repeat_seed = scenario.repeat_seed
     execution, centerline = Execute(scenario, context, scenario.seed)
     metrics = Metrics(execution.records, centerline)

@@ -1,9 +1,12 @@
 """Ground-truth metrics and figures of a path-following run (seed 000, figures 11-21).
 
-Errors are distances to the true centerline (m in, mm in the summary). Steps whose tool
-centre O lies beyond either end of the hose (the follower looking for more hose after the
-end) are left out of the tracking and detection errors; coverage is the fraction of the
-centerline that lies within TRACKING_BOUND of some sensing position O.
+Errors are distances to the true centerline (m in, mm in the summary). Each step is compared
+with the part of the centerline near its own arc length (CenterlineMatch), so that a closed or
+self-crossing hose is judged where the tool is on its way, not against another branch
+passing nearby. Steps whose tool centre O lies beyond either end of the hose (the follower
+looking for more hose after the end) are left out of the tracking and detection errors;
+coverage is the fraction of the centerline that lies within TRACKING_BOUND of a sensing
+position O matched near it.
 """
 
 from __future__ import annotations
@@ -11,10 +14,19 @@ from __future__ import annotations
 import numpy as np
 
 from guidedarm.diagrams import plots  # noqa: F401  (selects the Agg backend)
-from guidedarm.systems.path_following.hose_geometry import DistanceToCenterline, Resample
+from guidedarm.systems.path_following.hose_geometry import (
+    ArcLength,
+    DistanceToCenterline,
+    Resample,
+)
 from guidedarm.systems.path_following.path_follower_math import RECORD_FIELDS
 
 TRACKING_BOUND = 0.025
+# A step is matched within this arc length (m) of the previous step's match: more than a
+# step and the retreat of a recovery (a few long steps), less than the arc length between
+# two branches of a self-crossing hose.
+MATCH_WINDOW = 0.1
+MATCH_SPACING = 0.002
 
 
 def Column(records: np.ndarray, name: str) -> np.ndarray:
@@ -27,13 +39,52 @@ def Positions(records: np.ndarray, prefix: str) -> np.ndarray:
     return np.column_stack([Column(records, f"{prefix}_{a}") for a in "xyz"]).reshape(-1, 3)
 
 
-def OnHose(points: np.ndarray, centerline: np.ndarray) -> np.ndarray:
-    """Whether each point projects inside the centerline (not beyond an end)."""
-    start_dir = centerline[1] - centerline[0]
-    end_dir = centerline[-1] - centerline[-2]
-    before = (points - centerline[0]) @ start_dir < 0
-    after = (points - centerline[-1]) @ end_dir > 0
-    return ~(before | after)
+class CenterlineMatch:
+    """The tool centres O of a run (in step order, starting at the hose's first point)
+    matched to the centerline: `s` (m), each step's arc length, the closest centerline
+    point within MATCH_WINDOW of the previous step's; `beyond`, whether O lies beyond an
+    end of the hose; `pieces`, each step's index range of the resampled centerline."""
+
+    def __init__(self, p_WO: np.ndarray, centerline: np.ndarray) -> None:
+        self.fine = Resample(centerline, MATCH_SPACING)
+        self.s_fine = ArcLength(self.fine)
+        count = len(p_WO)
+        self.s = np.zeros(count)
+        self.beyond = np.zeros(count, bool)
+        self.pieces = []
+        s_previous, last = 0.0, len(self.fine) - 1
+        for i, p in enumerate(p_WO):
+            lo, hi = self._Piece(s_previous)
+            k = lo + int(np.argmin(np.linalg.norm(self.fine[lo : hi + 1] - p, axis=1)))
+            self.s[i] = s_previous = self.s_fine[k]
+            self.pieces.append(self._Piece(s_previous))
+            self.beyond[i] = (
+                k == 0 and (p - self.fine[0]) @ (self.fine[1] - self.fine[0]) < 0
+            ) or (k == last and (p - self.fine[-1]) @ (self.fine[-1] - self.fine[-2]) > 0)
+
+    def _Piece(self, s: float) -> tuple[int, int]:
+        lo = int(np.searchsorted(self.s_fine, s - MATCH_WINDOW))
+        hi = int(np.searchsorted(self.s_fine, s + MATCH_WINDOW, side="right")) - 1
+        return lo, max(hi, lo + 1)
+
+    def Distances(self, points: np.ndarray, steps: np.ndarray) -> np.ndarray:
+        """Distance (m) of points[i] to the centerline piece of step i, for the steps
+        selected by the boolean mask `steps`."""
+        return np.array(
+            [
+                DistanceToCenterline(points[i], self.fine[lo : hi + 1])[0]
+                for i, (lo, hi) in enumerate(self.pieces)
+                if steps[i]
+            ]
+        )
+
+    def Coverage(self, p_WO: np.ndarray) -> float:
+        """Fraction of the centerline within TRACKING_BOUND of a step matched near it."""
+        covered = np.zeros(len(self.fine), bool)
+        for p, (lo, hi) in zip(p_WO, self.pieces, strict=True):
+            near = np.linalg.norm(self.fine[lo : hi + 1] - p, axis=1) <= TRACKING_BOUND
+            covered[lo : hi + 1] |= near
+        return float(np.mean(covered))
 
 
 def Metrics(records: np.ndarray, centerline: np.ndarray) -> dict:
@@ -41,16 +92,12 @@ def Metrics(records: np.ndarray, centerline: np.ndarray) -> dict:
     p_WO = Positions(records, "O")
     S = Positions(records, "S")
     detected = Column(records, "detected") > 0.5
-    inside = OnHose(p_WO, centerline) if len(p_WO) else np.zeros(0, bool)
-    tracking = DistanceToCenterline(p_WO[inside], centerline) if inside.any() else np.zeros(1)
+    match = CenterlineMatch(p_WO, centerline)
+    inside = ~match.beyond
+    tracking = match.Distances(p_WO, inside) if inside.any() else np.zeros(1)
     use = detected & inside
-    detection = DistanceToCenterline(S[use], centerline) if use.any() else np.zeros(1)
-    fine = Resample(centerline, 0.002)
-    if len(p_WO):
-        nearest = np.min(np.linalg.norm(fine[:, None, :] - p_WO[None], axis=2), axis=1)
-        coverage = float(np.mean(nearest <= TRACKING_BOUND))
-    else:
-        coverage = 0.0
+    detection = match.Distances(S, use) if use.any() else np.zeros(1)
+    coverage = match.Coverage(p_WO) if len(p_WO) else 0.0
     ik = Column(records, "ik_time")
     ik = ik[ik > 0] if (ik > 0).any() else np.zeros(1)
     return {

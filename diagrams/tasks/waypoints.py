@@ -26,6 +26,7 @@ from guidedarm.diagrams.station.station_plant import (
 )
 from guidedarm.diagrams.tasks.planner_plots import PlotScaling, PlotTcpPath
 from guidedarm.diagrams.tasks.registry import TaskDefinition
+from guidedarm.systems.config_checks import NonNegative, Positive
 from guidedarm.systems.errors import ConfigurationError
 from guidedarm.systems.planning.acceleration_planner import AccelerationPlanner
 from guidedarm.systems.planning.acceleration_planner_math import (
@@ -54,6 +55,8 @@ class WaypointsScenario:
         value for every joint or one per joint.
     planner: the planner's gains and settings. max_time: the run fails if the task has not
         ended by then (s); settle_time: simulated after the end (s).
+    max_tracking_error: the run fails if the measured TCP is ever farther than this from
+        the commanded one (m): the planner's success alone says nothing of the arm.
     """
 
     task: str = "waypoints"
@@ -62,11 +65,12 @@ class WaypointsScenario:
     tool_frame: str = ""
     waypoints: list[list[float]] = field(default_factory=list)
     limits: str = "velocity,acceleration"
-    max_joint_velocity: list[float] = field(default_factory=lambda: [1.0471975511965976])
-    max_joint_acceleration: list[float] = field(default_factory=lambda: [1.3962634015954636])
+    max_joint_velocity: list[float] = Positive(factory=lambda: [1.0471975511965976])
+    max_joint_acceleration: list[float] = Positive(factory=lambda: [1.3962634015954636])
     planner: PlannerConfig = field(default_factory=PlannerConfig)
-    max_time: float = 20.0
-    settle_time: float = 0.3
+    max_time: float = Positive(20.0)
+    settle_time: float = NonNegative(0.3)
+    max_tracking_error: float = Positive(0.01)
     station: StationScenario = field(default_factory=StationScenario)
 
 
@@ -175,6 +179,12 @@ def RunWaypoints(scenario: WaypointsScenario, context: RunContext) -> dict[str, 
     if failure is None and trajectory.done_time < 0:
         failure = f"the TCP did not reach the final waypoint within max_time {scenario.max_time} s"
     metrics = TrajectoryMetrics(setup, trajectory, measured)
+    tracking = metrics.get("tcp_tracking_error_max_m", np.nan)
+    if failure is None and not tracking <= scenario.max_tracking_error:
+        failure = (
+            f"the measured TCP strayed {tracking:.4g} m from the commanded one "
+            f"(max_tracking_error {scenario.max_tracking_error} m)"
+        )
     SavePlannerFigures(context, scenario, setup, trajectory, measured)
     return {"sim_time_s": round(t_end, 4), **metrics, "failure": failure}
 

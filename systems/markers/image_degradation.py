@@ -21,6 +21,7 @@ from pydrake.common.value import AbstractValue
 from pydrake.systems.framework import Context, LeafSystem
 from pydrake.systems.sensors import ImageRgba8U
 
+from guidedarm.systems.config_checks import CheckFields, NonNegative, Positive
 from guidedarm.systems.errors import ConfigurationError
 
 
@@ -36,23 +37,15 @@ class DegradationConfig:
     seed: seed of the noise generator.
     """
 
-    supersampling: int = 1
-    lighting: float = 1.0
-    blur_sigma_px: float = 0.0
-    noise_std: float = 0.0
+    supersampling: int = Positive(1)
+    lighting: float = Positive(1.0)
+    blur_sigma_px: float = NonNegative(0.0)
+    noise_std: float = NonNegative(0.0)
     seed: int = 0
 
     def Validate(self) -> None:
-        if (
-            self.supersampling < 1
-            or self.lighting <= 0
-            or self.blur_sigma_px < 0
-            or self.noise_std < 0
-        ):
-            raise ConfigurationError(
-                "image degradation needs supersampling >= 1, lighting > 0, blur_sigma_px >= 0"
-                f", noise_std >= 0, got {self}"
-            )
+        """Raises ConfigurationError naming the first bad parameter."""
+        CheckFields(self)
 
 
 def DegradeImage(image: np.ndarray, params: DegradationConfig, stream: int = 0) -> np.ndarray:

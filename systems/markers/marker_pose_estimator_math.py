@@ -26,6 +26,7 @@ import numpy as np
 from pydrake.common.schema import Transform
 from pydrake.math import RigidTransform, RotationMatrix
 
+from guidedarm.systems.config_checks import CheckFields, Positive
 from guidedarm.systems.errors import ConfigurationError
 
 # A pose whose corners reproject worse than this (RMS, pixels) is reported invalid: it means
@@ -35,15 +36,26 @@ MAX_VALID_REPROJECTION_ERROR_PX = 2.0
 
 @dataclass
 class CameraIntrinsics:
-    """Pinhole intrinsics of a camera image (pixels); distortion is OpenCV's k1 k2 p1 p2 k3."""
+    """Pinhole intrinsics of a camera image (pixels); distortion is OpenCV's k1 k2 p1 p2 k3.
+    The principal point (cx, cy) lies inside the image."""
 
-    width: int = 1920
-    height: int = 1080
-    fx: float = 1000.0
-    fy: float = 1000.0
+    width: int = Positive(1920)
+    height: int = Positive(1080)
+    fx: float = Positive(1000.0)
+    fy: float = Positive(1000.0)
     cx: float = 959.5
     cy: float = 539.5
     distortion: list[float] = field(default_factory=lambda: [0.0] * 5)
+
+    def Validate(self) -> None:
+        """Raises ConfigurationError naming the first bad value."""
+        CheckFields(self)
+        for name, value, size in (("cx", self.cx, self.width), ("cy", self.cy, self.height)):
+            if not -0.5 <= value <= size - 0.5:
+                raise ConfigurationError(
+                    f"{name} = {value} lies outside the image (-0.5 .. {size - 0.5} px)"
+                )
+        self.distortion_vector()
 
     def camera_matrix(self) -> np.ndarray:
         return np.array([[self.fx, 0, self.cx], [0, self.fy, self.cy], [0, 0, 1]], float)
@@ -61,7 +73,7 @@ class MarkerSpec:
     """One square marker: its dictionary id, black-border side length (m), pose in P."""
 
     id: int = 0
-    size_m: float = 0.05
+    size_m: float = Positive(0.05)
     X_PM: Transform = field(default_factory=Transform)
 
 
@@ -72,9 +84,17 @@ class SwitchSpec:
 
     name: str = ""
     position: list[float] = field(default_factory=lambda: [0.0, 0.0, 0.0])
-    radius_m: float = 0.007
-    travel_m: float = 0.008
-    on_travel_m: float = 0.004
+    radius_m: float = Positive(0.007)
+    travel_m: float = Positive(0.008)
+    on_travel_m: float = Positive(0.004)
+
+    def Validate(self) -> None:
+        """Raises ConfigurationError naming the first bad value."""
+        CheckFields(self)
+        if len(self.position) != 3:
+            raise ConfigurationError(f"position needs 3 values (m), got {self.position}")
+        if not self.on_travel_m <= self.travel_m:
+            raise ConfigurationError("on_travel_m must not exceed travel_m")
 
 
 @dataclass
@@ -122,7 +142,7 @@ class MarkerPoseSolver:
             raise ConfigurationError(f"marker ids on the panel must be unique, got {ids}")
         dictionary = GetDictionary(panel.dictionary)
         for m in panel.markers:
-            if not 0 <= m.id < dictionary.bytesList.shape[0] or m.size_m <= 0:
+            if not (0 <= m.id < dictionary.bytesList.shape[0] and m.size_m > 0):
                 raise ConfigurationError(
                     f"marker {m.id}: id outside {panel.dictionary} or size_m <= 0"
                 )

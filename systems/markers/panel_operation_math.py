@@ -17,6 +17,7 @@ from pydrake.multibody.plant import MultibodyPlant
 from pydrake.multibody.tree import Frame
 from pydrake.solvers import Solve
 
+from guidedarm.systems.config_checks import CheckFields, NonNegative, Positive
 from guidedarm.systems.errors import ConfigurationError
 from guidedarm.systems.markers.marker_pose_estimator_math import PanelSpec, SwitchSpec
 
@@ -44,27 +45,27 @@ class PanelOperationConfig:
         a task of the acceleration-level planner).
     """
 
-    base_distance_m: float = 0.17
-    measure_standoff_m: float = 0.09
-    press_depth_m: float = 0.006
-    retract_standoff_m: float = 0.06
-    max_joint_speed: float = 0.75
-    settle_time_s: float = 0.3
-    stationary_speed: float = 0.002
-    press_hold_s: float = 0.3
+    base_distance_m: float = Positive(0.17)
+    measure_standoff_m: float = Positive(0.09)
+    press_depth_m: float = Positive(0.006)
+    retract_standoff_m: float = Positive(0.06)
+    max_joint_speed: float = Positive(0.75)
+    settle_time_s: float = NonNegative(0.3)
+    stationary_speed: float = Positive(0.002)
+    press_hold_s: float = NonNegative(0.3)
     on_marker_loss: str = "continue"
-    update_period_s: float = 0.01
+    update_period_s: float = Positive(0.01)
     motion: str = "joint_trajectory"
 
     def Validate(self) -> None:
+        """Raises ConfigurationError naming the first bad parameter."""
+        CheckFields(self)
         if self.motion not in MOTIONS:
             raise ConfigurationError(f"motion must be one of {MOTIONS}, got '{self.motion}'")
         if self.on_marker_loss not in ("abort", "continue"):
             raise ConfigurationError(
                 f"on_marker_loss must be 'abort' or 'continue', got '{self.on_marker_loss}'"
             )
-        if min(self.base_distance_m, self.max_joint_speed, self.update_period_s) <= 0:
-            raise ConfigurationError("base_distance_m, max_joint_speed, update_period_s > 0")
 
 
 class CameraArmKinematics:

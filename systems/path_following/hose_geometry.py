@@ -19,6 +19,7 @@ from pydrake.geometry import Box, Capsule, Cylinder
 from pydrake.math import RigidTransform, RotationMatrix
 from pydrake.multibody.plant import CoulombFriction, MultibodyPlant
 
+from guidedarm.systems.config_checks import CheckConfig, Positive
 from guidedarm.systems.errors import ConfigurationError
 
 HOSES_DIR = Path(__file__).resolve().parents[2] / "models" / "hoses"
@@ -40,8 +41,8 @@ class HoseConfig:
     """
 
     centerline: str = "paper_path_1"
-    diameter: float = 0.020
-    segment_length: float = 0.010
+    diameter: float = Positive(0.020)
+    segment_length: float = Positive(0.010)
     brackets: bool = True
 
 
@@ -80,16 +81,26 @@ def LoadPathLimits(name_or_file: str) -> PathLimits:
     if not sidecar.is_file():
         return PathLimits()
     try:
-        return yaml_load_typed(schema=PathLimits, filename=str(sidecar))
+        limits = yaml_load_typed(schema=PathLimits, filename=str(sidecar))
+        CheckConfig(limits)
     except Exception as e:
         raise ConfigurationError(f"{sidecar}: {str(e).splitlines()[0]}") from None
+    return limits
 
 
 def ReadCenterline(name_or_file: str) -> np.ndarray:
-    """Reads and validates a centerline CSV (x, y, z in m per row, header optional)."""
+    """Reads and validates a centerline CSV (x, y, z in m per row, header optional; UTF-8,
+    with or without a byte-order mark)."""
     path = ResolveCenterlinePath(name_or_file)
+    try:
+        lines = path.read_bytes().decode("utf-8-sig").splitlines()
+    except UnicodeDecodeError as e:
+        raise ConfigurationError(f"{path}: not a text CSV (byte {e.start} is not UTF-8)") from None
+    except OSError as e:
+        raise ConfigurationError(f"{path}: cannot read ({e.strerror})") from None
+    content = [n for n, line in enumerate(lines, 1) if line.strip() and line.strip()[0] != "#"]
     rows = []
-    for number, line in enumerate(path.read_text().splitlines(), start=1):
+    for number, line in enumerate(lines, start=1):
         text = line.strip()
         if not text or text.startswith("#"):
             continue
@@ -97,9 +108,9 @@ def ReadCenterline(name_or_file: str) -> np.ndarray:
         try:
             values = [float(c) for c in cells]
         except ValueError:
-            if not rows and number == _first_content_line(path):
+            if not rows and number == content[0]:
                 continue  # a header row
-            raise ConfigurationError(f"{path}:{number}: not three numbers: '{text}'") from None
+            raise ConfigurationError(f"{path}:{number}: not three numbers: {text[:60]!r}") from None
         if len(values) != 3:
             raise ConfigurationError(f"{path}:{number}: expected x,y,z, got {len(values)} values")
         rows.append(values)
@@ -254,7 +265,7 @@ def RegisterHose(plant: MultibodyPlant, centerline: np.ndarray, config: HoseConf
 
     Returns the GeometryIds of the hose capsules (proximity role), for contact checks.
     """
-    if config.diameter <= 0 or config.segment_length <= 0:
+    if not (config.diameter > 0 and config.segment_length > 0):
         raise ConfigurationError("hose diameter and segment_length must be positive")
     radius = config.diameter / 2
     points = Resample(centerline, config.segment_length)
@@ -299,10 +310,3 @@ def _SegmentPose(a: np.ndarray, b: np.ndarray) -> RigidTransform:
     """Pose whose z axis runs from a to b, centred between them."""
     axis = (b - a) / np.linalg.norm(b - a)
     return RigidTransform(RotationMatrix.MakeFromOneVector(axis, 2), (a + b) / 2)
-
-
-def _first_content_line(path: Path) -> int:
-    for number, line in enumerate(path.read_text().splitlines(), start=1):
-        if line.strip() and not line.strip().startswith("#"):
-            return number
-    return 0

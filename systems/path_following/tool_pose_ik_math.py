@@ -37,6 +37,7 @@ from pydrake.multibody.plant import MultibodyPlant
 from pydrake.multibody.tree import Frame, ModelInstanceIndex
 from pydrake.solvers import SnoptSolver, Solve
 
+from guidedarm.systems.config_checks import CheckFields, InRange, NonNegative, Positive
 from guidedarm.systems.errors import ConfigurationError
 
 
@@ -55,24 +56,34 @@ class IkLimits:
     x, y: [lo, hi] of the cell's virtual walls for every moved body's origin (m, world).
     z_min: the cell's floor for every moved body's origin (m, world).
     max_swing: largest distance of the frame from the straight line between two
-        consecutive poses during the joint move (m).
+        consecutive poses during the joint move (m); inf turns the swing check off.
     joint_cost_weight: weight of the stay-near-the-previous-q cost.
     retries: perturbed restarts after a failed solve.
     """
 
-    position_tolerance: float = 0.0005
-    orientation_tolerance_deg: float = 0.5
-    shortfall_tolerance_deg: float = 45.0
-    orientation_cost_weight: float = 10.0
-    max_step_rotation_deg: float = 89.0
-    max_tilt_deg: float = 85.0
+    position_tolerance: float = Positive(0.0005)
+    orientation_tolerance_deg: float = Positive(0.5)
+    shortfall_tolerance_deg: float = NonNegative(45.0)
+    orientation_cost_weight: float = NonNegative(10.0)
+    max_step_rotation_deg: float = InRange(0.0, 180.0, 89.0, low_open=True)
+    max_tilt_deg: float = InRange(0.0, 180.0, 85.0)
     down_axis: list[float] = field(default_factory=lambda: [0.0, 0.0, 1.0])
     x: list[float] = field(default_factory=lambda: [-0.55, 0.55])
     y: list[float] = field(default_factory=lambda: [-0.55, 0.55])
     z_min: float = 0.005
-    max_swing: float = 0.025
-    joint_cost_weight: float = 0.01
+    max_swing: float = Positive(0.025, allow_inf=True)
+    joint_cost_weight: float = NonNegative(0.01)
     retries: int = 3
+
+    def Validate(self) -> None:
+        """Raises ConfigurationError naming the first bad limit."""
+        CheckFields(self)
+        if len(self.down_axis) != 3 or not np.linalg.norm(self.down_axis) > 0:
+            raise ConfigurationError(f"down_axis must be a nonzero 3-vector, got {self.down_axis}")
+        for name in ("x", "y"):
+            wall = getattr(self, name)
+            if len(wall) != 2 or not wall[0] < wall[1]:
+                raise ConfigurationError(f"{name} must be [low, high] with low < high, got {wall}")
 
 
 @dataclass(frozen=True)

@@ -30,6 +30,7 @@ from pydrake.math import RollPitchYaw
 from pydrake.multibody.plant import MultibodyPlant
 from pydrake.multibody.tree import Frame, JacobianWrtVariable, ModelInstanceIndex
 
+from guidedarm.systems.config_checks import CheckFields, InRange, Positive
 from guidedarm.systems.errors import ConfigurationError, GuidedArmError
 
 
@@ -106,7 +107,7 @@ class ArmKinematics:
                 f"the planner needs a 6-DoF arm; {plant.GetModelInstanceName(instance)} has "
                 f"{plant.num_velocities(instance)} joints"
             )
-        if min_singular_value <= 0:
+        if not min_singular_value > 0:
             raise ConfigurationError(
                 f"min_singular_value must be positive, got {min_singular_value}"
             )
@@ -196,9 +197,9 @@ class VelocityPenalty:
     ) -> None:
         lower, upper = np.asarray(lower, float), np.asarray(upper, float)
         _CheckLimits("velocity limits", lower, upper)
-        if theta <= 0 or theta >= 0.5:
+        if not 0 < theta < 0.5:
             raise ConfigurationError(f"velocity threshold theta must be in (0, 0.5), got {theta}")
-        if rho <= 0:
+        if not rho > 0:
             raise ConfigurationError(f"penalty strength rho must be positive, got {rho}")
         self.lower, self.upper = lower, upper
         self.range = upper - lower
@@ -307,39 +308,23 @@ class PlannerConfig:
         law open; docs/planner.md compares the choices against Table 2).
     """
 
-    gain_p: float = 20.0
-    gain_v: float = 9.392
-    neighbourhood_radius: float = 0.05
-    position_tolerance: float = 0.001
-    orientation_tolerance: float = 0.001
-    velocity_threshold: float = 0.1
-    penalty_strength: float = 0.003
-    scaling_recovery_rate: float = 1.0
+    gain_p: float = Positive(20.0)
+    gain_v: float = Positive(9.392)
+    neighbourhood_radius: float = Positive(0.05)
+    position_tolerance: float = Positive(0.001)
+    orientation_tolerance: float = Positive(0.001)
+    velocity_threshold: float = InRange(0.0, 0.5, 0.1, low_open=True, high_open=True)
+    penalty_strength: float = Positive(0.003)
+    scaling_recovery_rate: float = Positive(1.0)
     stop_at_waypoints: bool = False
-    rest_speed: float = 0.001
-    time_step: float = 0.002
-    min_singular_value: float = 0.01
-    blend_length: float = 0.05
+    rest_speed: float = Positive(0.001)
+    time_step: float = Positive(0.002)
+    min_singular_value: float = Positive(0.01)
+    blend_length: float = Positive(0.05)
 
     def Validate(self) -> None:
-        """Raises ConfigurationError for non-positive gains or settings."""
-        for name in (
-            "gain_p",
-            "gain_v",
-            "neighbourhood_radius",
-            "position_tolerance",
-            "orientation_tolerance",
-            "velocity_threshold",
-            "penalty_strength",
-            "scaling_recovery_rate",
-            "time_step",
-            "min_singular_value",
-            "blend_length",
-            "rest_speed",
-        ):
-            value = getattr(self, name)
-            if not np.isfinite(value) or value <= 0:
-                raise ConfigurationError(f"planner.{name} must be positive, got {value}")
+        """Raises ConfigurationError for a gain or setting out of its bounds."""
+        CheckFields(self)
 
 
 @dataclass

@@ -1,0 +1,533 @@
+"""Bad input of every command and every schema section: one line on stderr, exit 2, never a
+traceback, a Drake "Failure at", a summary or a silent wrong result (the run contract in
+README.md). Most cases run in-process through main(); a few through real subprocesses,
+among them those that aborted natively before the validation layer."""
+
+from __future__ import annotations
+
+import copy
+import dataclasses
+import json
+import math
+import os
+import signal
+import subprocess
+import sys
+import time
+import urllib.request
+from pathlib import Path
+
+import cv2
+import numpy as np
+import pytest
+
+from guidedarm.diagrams.cli.command_run import LoadScenario, RunTask
+from guidedarm.diagrams.run_context import MakeMeshcat, RunContext
+from guidedarm.diagrams.scenario_loading import list_named_scenarios
+from guidedarm.diagrams.tasks.panel_files import DEFAULT_PANEL_FILE
+from guidedarm.diagrams.tasks.registry import TaskDefinition
+from guidedarm.systems.config_checks import CheckConfig, FieldError
+from guidedarm.systems.errors import ConfigurationError, RunFailedError
+from guidedarm.systems.path_following.hose_geometry import ReadCenterline
+
+GUIDEDARM = str(Path(sys.executable).parent / "guidedarm")
+BAD_OUTPUT = ["Traceback", "Failure at"]
+
+GOOD_CAMERA = "width: 64\nheight: 48\nfx: 50.0\nfy: 50.0\ncx: 31.5\ncy: 23.5\n"
+GOOD_PANEL = DEFAULT_PANEL_FILE.read_text()
+BINARY = bytes(range(128, 256)) * 4 + b"\x00\x89PNG\r\n\x1a\n"
+NAN_FRAME_SCENARIO = """\
+task: joint_tour
+arm: ur10e
+waypoints: [[-1.2, -1.3, -2.0, -1.2, 1.5708, 0.4]]
+station:
+  directives:
+  - add_directives: {file: package://guidedarm/directives/ur10e.dmd.yaml}
+  - add_frame:
+      name: mark
+      X_PF: {base_frame: world, translation: [.nan, 0, 0]}
+  arms: {ur10e: {}}
+"""
+
+
+@pytest.fixture(scope="module")
+def files(tmp_path_factory) -> Path:
+    """Malformed, binary and out-of-range input files, and a few good ones beside them."""
+    root = tmp_path_factory.mktemp("bad_input")
+    texts = {
+        "afile": "a file, not a directory\n",
+        "malformed.yaml": "task: [joint_tour\n",
+        "list.yaml": "- 1\n- 2\n",
+        "nan_frame.yaml": NAN_FRAME_SCENARIO,
+        "nul.csv": "\x00" * 64,
+        "camera.yaml": GOOD_CAMERA,
+        "camera_nan_fx.yaml": GOOD_CAMERA.replace("fx: 50.0", "fx: .nan"),
+        "camera_negative_fy.yaml": GOOD_CAMERA.replace("fy: 50.0", "fy: -1360.2"),
+        "camera_inf_cy.yaml": GOOD_CAMERA.replace("cy: 23.5", "cy: .inf"),
+        "camera_zero_width.yaml": GOOD_CAMERA.replace("width: 64", "width: 0"),
+        "camera_cx_outside.yaml": GOOD_CAMERA.replace("cx: 31.5", "cx: 500.0"),
+        "camera_distortion.yaml": GOOD_CAMERA + "distortion: [0, 0, 0]\n",
+        "camera_wrong_type.yaml": GOOD_CAMERA.replace("fx: 50.0", "fx: wide"),
+        "camera_unknown_key.yaml": GOOD_CAMERA + "skew: 0\n",
+        "panel_negative_size.yaml": GOOD_PANEL.replace("size_m: 0.05", "size_m: -0.05", 1),
+        "panel_nan_pose.yaml": GOOD_PANEL.replace("[0.12, 0.0, 0.0]", "[0.12, .nan, 0.0]"),
+        "panel_dictionary.yaml": GOOD_PANEL.replace("DICT_ARUCO_ORIGINAL", "DICT_NOPE"),
+        "panel_travel.yaml": GOOD_PANEL.replace(
+            "  position: [0.03, -0.05, 0.012]",
+            "  position: [0.03, -0.05, 0.012]\n  on_travel_m: 0.02",
+        ),
+        "not_an_image.png": "hello",
+    }
+    for name, text in texts.items():
+        (root / name).write_text(text)
+    (root / "binary.csv").write_bytes(BINARY)
+    (root / "binary.yaml").write_bytes(BINARY)
+    (root / "camera_binary.yaml").write_bytes(BINARY)
+    cv2.imwrite(str(root / "blank.png"), np.full((48, 64, 3), 200, np.uint8))
+    (root / "a_directory.png").mkdir()
+    return root
+
+
+def Run(scenario: str, *settings: str, flags: tuple[str, ...] = ()) -> list[str]:
+    """`run SCENARIO --out {out} [flags] --set s ...`."""
+    sets = [a for s in settings for a in ("--set", s)]
+    return ["run", scenario, "--out", "{out}", *flags, *sets]
+
+
+def Estimate(camera: str, panel: str = str(DEFAULT_PANEL_FILE), image: str = "{f}/blank.png"):
+    return ["estimate-marker-pose", image, "--camera", camera, "--panel", panel]
+
+
+JT, WP, PF, PO = "ur10e_joint_tour", "ur10e_waypoints", "path_following", "panel_operation"
+
+# (id, arguments, a part of the one-line message); {f}: the files, {out}: a fresh directory.
+BAD_INPUTS = [
+    # --- the command line itself
+    ("no-command", [], "required: command"),
+    ("unknown-command", ["juggle"], "invalid choice: 'juggle'"),
+    ("list-extra-argument", ["list", "extra"], "unrecognized arguments: extra"),
+    ("run-no-scenario", ["run"], "required: scenario"),
+    ("run-unknown-flag", ["run", JT, "--fast"], "unrecognized arguments: --fast"),
+    # --- scenario files
+    ("unknown-scenario", Run("juggling"), "unknown scenario 'juggling'"),
+    ("missing-file", Run("{f}/missing.yaml"), "scenario file not found"),
+    ("malformed-yaml", Run("{f}/malformed.yaml"), "malformed YAML"),
+    ("binary-yaml", Run("{f}/binary.yaml"), "malformed YAML"),
+    ("yaml-not-a-mapping", Run("{f}/list.yaml"), "the top level must be a mapping"),
+    ("nan-in-directive-transform", Run("{f}/nan_frame.yaml"), "directives[1].add_frame.X_PF"),
+    # --- --set syntax and types
+    ("set-without-equals", Run(JT, "max_speed"), "--set expects key=value"),
+    ("set-bad-yaml", Run(JT, "waypoints=[[1,"), "cannot parse value"),
+    ("unknown-key", Run(JT, "speed=1"), "unknown key 'speed'"),
+    ("wrong-type-string", Run(JT, "max_speed=fast"), "key 'max_speed': expected a number"),
+    ("wrong-type-list", Run(JT, "max_speed=[1]"), "key 'max_speed': expected a number"),
+    ("bad-exponent", Run(JT, "max_speed=1e-3x"), "expected a number, got '1e-3x'"),
+    ("int-as-exponent", Run(PF, "seed=1e3"), "key 'seed': expected an integer"),
+    ("int-as-float", Run(PF, "seed=1.5"), "key 'seed': expected an integer"),
+    ("unknown-task", Run(JT, "task=juggling"), "unknown task 'juggling'"),
+    # --- joint_tour
+    ("joint-tour-nan-speed", Run(JT, "max_speed=.nan"), "key 'max_speed': must be a finite"),
+    ("joint-tour-inf-speed", Run(JT, "max_speed=.inf"), "key 'max_speed': must be a finite"),
+    ("joint-tour-zero-speed", Run(JT, "max_speed=0"), "key 'max_speed': must be > 0"),
+    ("joint-tour-tiny-speed", Run(JT, "max_speed=1e-320"), "too small to time the tour"),
+    ("joint-tour-nan-settle", Run(JT, "settle_time=.nan"), "key 'settle_time'"),
+    ("joint-tour-negative-settle", Run(JT, "settle_time=-1"), "must be >= 0"),
+    ("joint-tour-no-waypoints", Run(JT, "waypoints=[]"), "at least one waypoint"),
+    ("joint-tour-nan-waypoint", Run(JT, "waypoints=[[.nan,0,0,0,0,0]]"), "waypoints[0][0]"),
+    ("joint-tour-out-of-limits", Run(JT, "waypoints=[[100,0,0,0,0,0]]"), "outside the joint"),
+    ("joint-tour-short-waypoint", Run(JT, "waypoints=[[1,0,0]]"), "has 3 values"),
+    ("joint-tour-unknown-arm", Run(JT, "arm=kuka"), "arm 'kuka' is not in station.arms"),
+    # --- station.arms, .plant_config, .simulator_config, .visualization, .cameras
+    ("arm-nan-kp", Run(JT, "station.arms.ur10e.kp=.nan"), "station.arms.ur10e.kp"),
+    ("arm-negative-kp", Run(JT, "station.arms.ur10e.kp=-5"), "must be > 0"),
+    ("arm-zero-period", Run(JT, "station.arms.ur10e.control_period=0"), "control_period"),
+    (
+        "arm-nan-initial",
+        Run(JT, "station.arms.ur10e.initial_position=[.nan,0,0,0,0,0]"),
+        "initial_position[0]': must be a finite",
+    ),
+    (
+        "arm-initial-out-of-limits",
+        Run(JT, "station.arms.ur10e.initial_position=[9,0,0,0,0,0]"),
+        "initial_position[0] = 9 rad is outside the joint limits",
+    ),
+    ("plant-negative-step", Run(JT, "station.plant_config.time_step=-1"), "time_step'"),
+    ("plant-nan-step", Run(JT, "station.plant_config.time_step=.nan"), "time_step'"),
+    ("plant-contact-model", Run(JT, "station.plant_config.contact_model=foo"), "contact_model"),
+    ("plant-zero-stiction", Run(WP, "station.plant_config.stiction_tolerance=0"), "> 0"),
+    ("simulator-scheme", Run(JT, "station.simulator_config.integration_scheme=x"), "scheme"),
+    ("simulator-zero-step", Run(JT, "station.simulator_config.max_step_size=0"), "> 0"),
+    ("simulator-nan-rate", Run(JT, "station.simulator_config.target_realtime_rate=.nan"), "rate"),
+    ("visualization-period", Run(JT, "station.visualization.publish_period=-1"), "> 0"),
+    ("camera-zero-width", Run(JT, "station.cameras.top.width=0"), "cameras.top.width"),
+    ("camera-nan-focal", Run(PO, "station.cameras.camera.focal.x=.nan"), "focal.x"),
+    ("camera-clipping", Run(JT, "station.cameras.top.clipping_near=-1"), "clipping_near"),
+    ("camera-fps-ignored", Run(PO, "station.cameras.camera.fps=5"), "fps cannot be set"),
+    # --- station.hardware, .hose, .tof_tools
+    ("driver-port-range", Run(PF, "station.hardware.arms.mz04d.port=70000"), "[0, 65535]"),
+    ("driver-negative-port", Run(PF, "station.hardware.arms.mz04d.port=-1"), "port'"),
+    ("driver-nan-watchdog", Run(PF, "station.hardware.arms.mz04d.watchdog=.nan"), "watchdog'"),
+    ("tof-driver-baudrate", Run(PF, "station.hardware.tof_tools.tof.baudrate=0"), "baudrate'"),
+    ("camera-driver-watchdog", Run(PF, "station.hardware.cameras.c.watchdog=-2"), "watchdog'"),
+    ("hose-zero-diameter", Run(PF, "station.hose.diameter=0"), "station.hose.diameter"),
+    ("hose-centerline-ignored", Run(PF, "station.hose.centerline={f}/binary.csv"), "'path'"),
+    ("tof-cone-range", Run(PF, "station.tof_tools.tof.cone_angle_deg=180"), "(0, 180)"),
+    ("tof-nan-range", Run(PF, "station.tof_tools.tof.max_range=.nan"), "max_range"),
+    ("tof-negative-rings", Run(PF, "station.tof_tools.tof.rings=-1"), "rings'"),
+    ("tof-seed-ignored", Run(PF, "station.tof_tools.tof.seed=4"), "top-level key 'seed'"),
+    # --- waypoints and planner
+    ("waypoints-inf-time", Run(WP, "max_time=.inf"), "key 'max_time': must be a finite"),
+    ("waypoints-no-waypoints", Run(WP, "waypoints=[]"), "at least one waypoint"),
+    ("waypoints-limit-count", Run(WP, "max_joint_velocity=[1,2]"), "1 or 6 positive"),
+    ("waypoints-negative-limit", Run(WP, "max_joint_velocity=[-1]"), "[0]': must be > 0"),
+    ("waypoints-limits-choice", Run(WP, "limits=fast"), "limits must be one of"),
+    ("waypoints-nan-tracking", Run(WP, "max_tracking_error=.nan"), "max_tracking_error"),
+    ("planner-zero-gain", Run(WP, "planner.gain_p=0"), "planner.gain_p': must be > 0"),
+    ("planner-nan-singular", Run(WP, "planner.min_singular_value=.nan"), "min_singular"),
+    ("planner-threshold-range", Run(WP, "planner.velocity_threshold=0.5"), "(0, 0.5)"),
+    # --- path_following, follower, ik
+    ("path-random-negative", Run(PF, "path=random_-1"), "random_<seed>"),
+    ("path-unknown", Run(PF, "path=paper_path_9"), "unknown hose path"),
+    ("path-csv-missing", Run(PF, "path_csv={f}/missing.csv"), "not found"),
+    ("path-csv-binary", Run(PF, flags=("--path-csv", "{f}/binary.csv")), "not a text CSV"),
+    ("path-csv-nul", Run(PF, "path_csv={f}/nul.csv"), "needs at least 2 points"),
+    ("path-nan-period", Run(PF, "period=.nan"), "key 'period'"),
+    ("path-negative-seed", Run(PF, "seed=-1"), "key 'seed': must be >= 0"),
+    ("path-negative-repeat", Run(PF, "repeat_seed=-3"), "key 'repeat_seed'"),
+    ("path-nan-acceleration", Run(PF, "max_joint_acceleration=.nan"), "max_joint_accel"),
+    ("path-nan-tool-speed", Run(PF, "tool_speed=.nan"), "tool_speed"),
+    ("path-inf-time", Run(PF, "max_time=.inf"), "max_time"),
+    ("path-coverage-range", Run(PF, "min_coverage=1.5"), "in [0, 1]"),
+    ("path-executor", Run(PF, "executor=teleport"), "executor must be one of"),
+    ("kinematic-hardware", Run(PF, "executor=kinematic", flags=("--hardware",)), "--hardware"),
+    ("kinematic-planner", Run(PF, "executor=kinematic", "motion=planner"), "motion=planner"),
+    ("follower-steps", Run(PF, "follower.long_step=0.001"), "short_step <= long_step"),
+    ("follower-reduction", Run(PF, "follower.rotation_reduction=1"), "[0, 1)"),
+    ("follower-readings", Run(PF, "follower.readings=-2"), "follower.readings"),
+    ("follower-estimator-ignored", Run(PF, "follower.estimator=ranging"), "'estimator'"),
+    ("ik-walls-ignored", Run(PF, "ik.z_min=0.1"), "cell walls"),
+    ("ik-nan-tolerance", Run(PF, "ik.position_tolerance=.nan"), "ik.position_tolerance"),
+    ("ik-down-axis", Run(PF, "ik.down_axis=[0,0,0]"), "nonzero 3-vector"),
+    # --- panel_operation, start, operation, degradation, planner
+    ("panel-hardware", Run(PO, flags=("--hardware",)), "drop --hardware"),
+    ("panel-zero-switch", Run(PO, "switch=0"), "key 'switch': must be > 0"),
+    ("panel-switch-range", Run(PO, "switch=9"), "switch must be 1 .. 3"),
+    ("panel-negative-time", Run(PO, "time_limit_s=-1"), "time_limit_s"),
+    ("start-negative-seed", Run(PO, "start.seed=-1"), "key 'start.seed': must be >= 0"),
+    ("start-distance-order", Run(PO, "start.distance_m=[0.4,0.3]"), "distance_m must be"),
+    ("start-tilt-range", Run(PO, "start.max_tilt_deg=90"), "[0, 90)"),
+    ("operation-nan-distance", Run(PO, "operation.base_distance_m=.nan"), "base_distance_m"),
+    ("operation-motion", Run(PO, "operation.motion=teleport"), "motion must be one of"),
+    ("degradation-noise", Run(PO, "degradation.noise_std=-1"), "degradation.noise_std"),
+    ("panel-planner-inf", Run(PO, "planner.tcp_rpy_deg=[.inf,0,0]"), "tcp_rpy_deg[0]"),
+    ("panel-file-missing", Run(PO, "panel_file=panel/nope.yaml"), "file not found"),
+    # --- output directories and Meshcat flags
+    ("out-is-a-file", ["run", JT, "--out", "{f}/afile"], "is a file, not a directory"),
+    ("out-under-a-file", ["run", JT, "--out", "{f}/afile/run"], "is a file, not a directory"),
+    ("out-unwritable", ["run", JT, "--out", "/sys/guidedarm_run"], "cannot write there"),
+    ("meshcat-wait-alone", Run(JT, flags=("--meshcat-wait", "3")), "needs --meshcat"),
+    ("meshcat-host-alone", Run(JT, flags=("--meshcat-host", "0.0.0.0")), "needs --meshcat"),
+    (
+        "meshcat-wait-negative",
+        Run(JT, flags=("--meshcat", "--meshcat-wait", "-1")),
+        "must be >= 0 s",
+    ),
+    ("meshcat-wait-nan", Run(JT, flags=("--meshcat", "--meshcat-wait", "nan")), ">= 0 s"),
+    ("meshcat-wait-text", Run(JT, flags=("--meshcat", "--meshcat-wait", "x")), "invalid float"),
+    (
+        "meshcat-host-unbindable",
+        Run(JT, flags=("--meshcat", "--meshcat-host", "192.0.2.1")),
+        "Meshcat cannot listen on host '192.0.2.1'",
+    ),
+    # --- estimate-marker-pose: camera and panel files, images
+    ("camera-missing", Estimate("{f}/missing.yaml"), "file not found"),
+    ("camera-binary", Estimate("{f}/camera_binary.yaml"), "malformed YAML"),
+    ("camera-nan-fx", Estimate("{f}/camera_nan_fx.yaml"), "key 'fx': must be a finite"),
+    ("camera-negative-fy", Estimate("{f}/camera_negative_fy.yaml"), "key 'fy': must be > 0"),
+    ("camera-inf-cy", Estimate("{f}/camera_inf_cy.yaml"), "key 'cy'"),
+    ("camera-zero-width", Estimate("{f}/camera_zero_width.yaml"), "key 'width'"),
+    ("camera-cx-outside", Estimate("{f}/camera_cx_outside.yaml"), "outside the image"),
+    ("camera-distortion", Estimate("{f}/camera_distortion.yaml"), "distortion needs 5"),
+    ("camera-wrong-type", Estimate("{f}/camera_wrong_type.yaml"), "expected a number"),
+    ("camera-unknown-key", Estimate("{f}/camera_unknown_key.yaml"), "unknown key 'skew'"),
+    (
+        "panel-negative-size",
+        Estimate("{f}/camera.yaml", "{f}/panel_negative_size.yaml"),
+        "markers[0].size_m",
+    ),
+    (
+        "panel-nan-pose",
+        Estimate("{f}/camera.yaml", "{f}/panel_nan_pose.yaml"),
+        "markers[1].X_PM.translation[1]",
+    ),
+    (
+        "panel-dictionary",
+        Estimate("{f}/camera.yaml", "{f}/panel_dictionary.yaml"),
+        "unknown marker dictionary",
+    ),
+    (
+        "panel-travel",
+        Estimate("{f}/camera.yaml", "{f}/panel_travel.yaml"),
+        "on_travel_m must not exceed travel_m",
+    ),
+    ("panel-binary", Estimate("{f}/camera.yaml", "{f}/binary.yaml"), "malformed YAML"),
+    ("image-missing", Estimate("{f}/camera.yaml", image="{f}/missing.png"), "cannot read"),
+    ("image-not-image", Estimate("{f}/camera.yaml", image="{f}/not_an_image.png"), "cannot"),
+    ("image-directory", Estimate("{f}/camera.yaml", image="{f}/a_directory.png"), "cannot"),
+    ("image-no-marker", Estimate("{f}/camera.yaml"), "no marker of the panel"),
+    (
+        "image-size",
+        Estimate(str(Path(__file__).parents[1] / "models/panel/c920_camera.yaml")),
+        "is 64 x 48 px",
+    ),
+    # --- marker-study, compare-planners, show, picture
+    ("study-unknown", ["marker-study", "speed"], "invalid choice: 'speed'"),
+    ("study-nan-noise", ["marker-study", "tilt", "--noise", "nan"], "--noise: must be a finite"),
+    ("study-negative-blur", ["marker-study", "tilt", "--blur", "-1"], "--blur: must be >= 0"),
+    ("study-zero-lighting", ["marker-study", "tilt", "--lighting", "0"], "--lighting"),
+    ("study-text-noise", ["marker-study", "tilt", "--noise", "loud"], "invalid float"),
+    ("study-out-file", ["marker-study", "tilt", "--out", "{f}/afile"], "is a file"),
+    ("compare-wrong-task", ["compare-planners", "--scenario", JT], "needs a waypoints"),
+    ("compare-unknown", ["compare-planners", "--scenario", "nope"], "unknown scenario"),
+    ("compare-nan-gain", ["compare-planners", "--set", "planner.gain_v=.nan"], "gain_v"),
+    ("compare-limits", ["compare-planners", "--set", "limits=none"], "velocity,acceleration"),
+    ("compare-out-file", ["compare-planners", "--out", "{f}/afile/x"], "is a file"),
+    ("show-unknown-arm", ["show", "kuka"], "unknown arm or scene 'kuka'"),
+    ("show-negative-timeout", ["show", "ur10e", "--timeout", "-1"], "--timeout must be"),
+    ("show-nan-timeout", ["show", "ur10e", "--timeout", "nan"], "--timeout must be"),
+    ("show-html-under-file", ["show", "ur10e", "--html", "{f}/afile/x.html"], "is a file"),
+    ("show-html-directory", ["show", "ur10e", "--html", "{f}/a_directory.png"], "directory"),
+    ("show-html-timeout", ["show", "ur10e", "--html", "{out}/x.html", "--timeout", "1"], "drop"),
+    ("picture-zero-width", ["picture", "{out}/p.png", "--width", "0"], "--width must be"),
+    ("picture-huge-height", ["picture", "{out}/p.png", "--height", "100000"], "--height"),
+    ("picture-text-width", ["picture", "{out}/p.png", "--width", "wide"], "invalid int"),
+    ("picture-not-image", ["picture", "{out}/p.txt"], "must end in an image type"),
+    ("picture-under-file", ["picture", "{f}/afile/p.png"], "is a file"),
+    ("picture-directory", ["picture", "{f}/a_directory.png"], "is a directory"),
+]
+
+
+@pytest.mark.parametrize("args, message", [pytest.param(a, m, id=i) for i, a, m in BAD_INPUTS])
+def test_bad_input_is_refused_in_one_line(run_cli, files, tmp_path, args, message):
+    out = tmp_path / "out"
+    code, _, err = run_cli(*[a.format(f=files, out=out) for a in args])
+    lines = err.strip().splitlines()
+    assert code == 2, err
+    assert len(lines) == 1, err
+    assert message in lines[0]
+    assert lines[0].startswith("guidedarm: error: ")
+    assert not (out / "summary.json").exists()
+
+
+def _ScalarKeys(config, prefix=""):
+    """(dotted key, kind) of every float, int and list-of-float value in a typed config tree
+    (dataclasses and Drake structs)."""
+    if dataclasses.is_dataclass(config):
+        names = [f.name for f in dataclasses.fields(config)]
+    elif hasattr(type(config), "__fields__"):
+        names = [f.name for f in type(config).__fields__]
+    else:
+        return
+    for name in names:
+        value, key = getattr(config, name), f"{prefix}{name}"
+        if isinstance(value, bool) or value is None:
+            continue
+        if isinstance(value, float | int):
+            yield key, type(value)
+        elif isinstance(value, list) and value and isinstance(value[0], float | int):
+            yield f"{key}[0]", float
+        elif isinstance(value, dict):
+            for item_name, item in value.items():
+                yield from _ScalarKeys(item, f"{key}.{item_name}.")
+        else:
+            yield from _ScalarKeys(value, f"{key}.")
+
+
+def _Set(config, key: str, value) -> None:
+    *path, last = key.replace("[0]", "").split(".")
+    for name in path:
+        config = config[name] if isinstance(config, dict) else getattr(config, name)
+    if key.endswith("[0]"):
+        getattr(config, last)[0] = value
+    else:
+        setattr(config, last, value)
+
+
+SCALARS = [
+    (name, key, kind)
+    for name in list_named_scenarios()
+    for key, kind in _ScalarKeys(LoadScenario(name, [])[1])
+]
+
+
+def test_every_schema_section_has_numbers_to_check():
+    sections = {key.split(".")[0] for _, key, _ in SCALARS}
+    assert {"station", "planner", "follower", "ik", "operation", "start"} <= sections
+    assert len(SCALARS) > 200
+
+
+@pytest.mark.parametrize("name, key, kind", SCALARS, ids=[f"{n}:{k}" for n, k, _ in SCALARS])
+def test_every_number_of_every_scenario_is_checked(name, key, kind):
+    """NaN in any float and -1 in any int of a named scenario (its whole typed tree,
+    Drake's structs included) is refused naming that key; max_swing says inf is allowed."""
+    scenario = copy.deepcopy(LoadScenario(name, [])[1])
+    _Set(scenario, key, math.nan if kind is float else -1)
+    with pytest.raises(FieldError) as error:
+        CheckConfig(scenario)
+    assert error.value.key == key
+    if key.endswith("max_swing"):
+        _Set(scenario, key, math.inf)
+        CheckConfig(scenario)
+
+
+def test_exponent_notation_is_accepted(tmp_path):
+    _, scenario, _ = LoadScenario(
+        "ur10e_waypoints", ["planner.min_singular_value=1e-3", "max_time=1.5e1"]
+    )
+    assert scenario.planner.min_singular_value == 0.001 and scenario.max_time == 15.0
+    path = tmp_path / "tour.yaml"
+    path.write_text(
+        (Path(LoadScenario.__code__.co_filename).parents[1] / "scenarios/ur10e_joint_tour.yaml")
+        .read_text()
+        .replace("max_speed: 0.8", "max_speed: 8e-1\nsettle_time: 2.5E-1")
+    )
+    _, tour, _ = LoadScenario(str(path), [])
+    assert tour.max_speed == 0.8 and tour.settle_time == 0.25
+
+
+def test_headerless_csv_with_a_byte_order_mark_keeps_its_first_point(tmp_path):
+    rows = "0.30,0.00,0.10\n0.30,0.10,0.10\n0.30,0.20,0.10\n"
+    for name, data in (("bom.csv", b"\xef\xbb\xbf" + rows.encode()), ("plain.csv", rows.encode())):
+        (tmp_path / name).write_bytes(data)
+        points = ReadCenterline(str(tmp_path / name))
+        assert points.shape == (3, 3) and points[0].tolist() == [0.30, 0.0, 0.10]
+    (tmp_path / "header.csv").write_bytes(b"\xef\xbb\xbfx,y,z\n" + rows.encode())
+    assert ReadCenterline(str(tmp_path / "header.csv")).shape == (3, 3)
+
+
+def _Task(run) -> TaskDefinition:
+    return TaskDefinition("probe", object, run, "a task for the run contract")
+
+
+def test_a_started_run_always_ends_with_metrics_and_a_failure(tmp_path):
+    """What RunTask makes of a task that fails in each way (the run command writes it as
+    summary.json and exits 1); a refusal before the run passes through (exit 2)."""
+    context = RunContext(tmp_path)
+
+    def lost(scenario, context):
+        raise RunFailedError("tof went quiet")
+
+    def bug(scenario, context):
+        raise ValueError("division by zero\nmore")
+
+    def interrupted(scenario, context):
+        raise KeyboardInterrupt
+
+    def nan_metric(scenario, context):
+        return {"error_mm": [1.0, math.nan], "failure": None}
+
+    def refused(scenario, context):
+        raise ConfigurationError("no such arm")
+
+    assert RunTask(_Task(lost), None, context)["failure"] == "tof went quiet"
+    failure = RunTask(_Task(bug), None, context)["failure"]
+    assert failure.startswith("internal error ValueError: division by zero (see traceback")
+    assert "Traceback" in (tmp_path / "traceback.txt").read_text()
+    assert RunTask(_Task(interrupted), None, context)["failure"] == "interrupted"
+    metrics = RunTask(_Task(nan_metric), None, context)
+    assert metrics["error_mm"] == [1.0, None] and "error_mm.[1]" in metrics["failure"]
+    assert metrics["success"] is False
+    with pytest.raises(ConfigurationError):
+        RunTask(_Task(refused), None, context)
+
+
+def test_meshcat_listens_on_loopback_only_unless_asked():
+    recorder = MakeMeshcat()
+    assert recorder.web_url().startswith("http://127.0.0.1:")
+    assert recorder.port() not in range(7000, 8000)  # an ephemeral port, announced nowhere
+    live = MakeMeshcat(serve=True)
+    assert live.web_url().startswith("http://localhost:7")
+    with pytest.raises(ConfigurationError, match="cannot listen on host"):
+        MakeMeshcat(serve=True, host="192.0.2.1")
+
+
+def _Subprocess(*args: str, **kwargs) -> subprocess.CompletedProcess:
+    return subprocess.run([GUIDEDARM, *args], capture_output=True, text=True, timeout=300, **kwargs)
+
+
+@pytest.mark.parametrize(
+    "setting",
+    ["max_speed=.nan", "station.plant_config.time_step=-1", "max_speed=1e-320"],
+)
+def test_formerly_native_aborts_are_one_line(tmp_path, setting):
+    """These aborted the interpreter (SIGABRT, `free(): invalid pointer`, or Drake's
+    `Failure at`) before the validation layer, so they run in a real process."""
+    result = _Subprocess("run", JT, "--out", str(tmp_path), "--set", setting)
+    assert result.returncode == 2, result.stderr
+    assert len(result.stderr.strip().splitlines()) == 1
+    for text in BAD_OUTPUT:
+        assert text not in result.stdout + result.stderr
+    assert not (tmp_path / "summary.json").exists()
+
+
+def test_estimate_marker_pose_refuses_a_mirrored_camera_in_a_process(files):
+    result = _Subprocess(*Estimate(str(files / "camera_negative_fy.yaml")))
+    assert result.returncode == 2 and result.stdout == ""
+    assert result.stderr.strip().endswith("key 'fy': must be > 0, got -1360.2")
+
+
+def test_list_into_a_closed_pipe_is_silent():
+    result = subprocess.run(
+        f"{GUIDEDARM} list | head -1", shell=True, capture_output=True, text=True, timeout=60
+    )
+    assert result.stdout == "scenarios:\n"
+    assert result.stderr == ""
+
+
+def test_meshcat_run_keeps_serving_without_a_terminal(tmp_path):
+    """--meshcat with stdin closed: the page is served after the run until --meshcat-wait
+    ends it (no EOFError), the summary is written and the exit code is the run's."""
+    process = subprocess.Popen(
+        [GUIDEDARM, "run", JT, "--out", str(tmp_path), "--meshcat", "--meshcat-wait", "30"],
+        stdin=subprocess.DEVNULL,
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+    )
+    url = None
+    for line in process.stdout:
+        if line.startswith("Meshcat keeps serving at "):
+            url = line.split()[4]
+            break
+    assert url is not None and url.startswith("http://localhost:7")
+    with urllib.request.urlopen(url, timeout=10) as page:
+        assert page.status == 200 and b"meshcat" in page.read().lower()
+    process.send_signal(signal.SIGINT)  # Ctrl-C ends the serving, not the run's result
+    out, err = process.communicate(timeout=60)
+    assert process.returncode == 0, err
+    assert json.loads((tmp_path / "summary.json").read_text())["failure"] is None
+    for text in [*BAD_OUTPUT, "EOFError"]:
+        assert text not in out + err
+
+
+def test_ctrl_c_during_a_run_writes_an_interrupted_summary(tmp_path):
+    process = subprocess.Popen(
+        [GUIDEDARM, "run", WP, "--out", str(tmp_path)],
+        stdin=subprocess.DEVNULL,
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+        env={**os.environ, "PYTHONUNBUFFERED": "1"},
+    )
+    for line in process.stdout:
+        if line.startswith("guidedarm: running"):
+            break
+    time.sleep(1.5)
+    process.send_signal(signal.SIGINT)
+    out, err = process.communicate(timeout=120)
+    assert process.returncode == 1, err
+    summary = json.loads((tmp_path / "summary.json").read_text())
+    assert summary["failure"] == "interrupted"
+    assert err.strip().splitlines()[-1] == "guidedarm: run failed: interrupted"
+    for text in BAD_OUTPUT:
+        assert text not in out + err
