@@ -14,6 +14,7 @@ loading of a scenario file does.
 
 from __future__ import annotations
 
+import argparse
 import dataclasses
 import re
 import types
@@ -52,6 +53,13 @@ def resolve_scenario_path(name_or_path: str) -> Path:
 def list_named_scenarios() -> list[str]:
     """Names of the scenarios shipped in diagrams/scenarios/."""
     return sorted(p.stem for p in SCENARIO_DIR.glob("*.yaml"))
+
+
+def AddOverridesArgument(parser: argparse.ArgumentParser, help: str) -> None:
+    """Adds the repeatable `--set KEY=VALUE` option (into `args.overrides`) to a command."""
+    parser.add_argument(
+        "--set", dest="overrides", action="append", default=[], metavar="KEY=VALUE", help=help
+    )
 
 
 def parse_overrides(items: list[str]) -> dict[str, Any]:

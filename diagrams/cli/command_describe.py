@@ -34,7 +34,7 @@ from pydrake.common.schema import Rotation
 from pydrake.geometry import Rgba
 
 from guidedarm.diagrams.cli.command_run import LoadScenario
-from guidedarm.diagrams.scenario_loading import list_named_scenarios
+from guidedarm.diagrams.scenario_loading import AddOverridesArgument, list_named_scenarios
 from guidedarm.diagrams.tasks.registry import AvailableTasks
 from guidedarm.systems.errors import ConfigurationError
 
@@ -84,14 +84,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         action="store_true",
         help="show the schema's defaults instead of the scenario's values",
     )
-    parser.add_argument(
-        "--set",
-        dest="overrides",
-        action="append",
-        default=[],
-        metavar="KEY=VALUE",
-        help="override a scenario key before describing it",
-    )
+    AddOverridesArgument(parser, "override a scenario key before describing it")
     parser.set_defaults(func=describe_command)
 
 

@@ -33,6 +33,7 @@ from guidedarm.diagrams.run_context import (
     ServeMeshcat,
 )
 from guidedarm.diagrams.scenario_loading import (
+    AddOverridesArgument,
     ScenarioError,
     apply_overrides,
     load_typed,
@@ -53,14 +54,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     parser.add_argument("--out", type=Path, help="output directory (default runs/SCENARIO)")
     AddMeshcatArguments(parser)
     parser.add_argument("--hardware", action="store_true", help="drive the real hardware")
-    parser.add_argument(
-        "--set",
-        dest="overrides",
-        action="append",
-        default=[],
-        metavar="KEY=VALUE",
-        help="override a scenario key (dotted keys reach nested fields)",
-    )
+    AddOverridesArgument(parser, "override a scenario key (dotted keys reach nested fields)")
     parser.add_argument(
         "--path-csv",
         type=Path,
