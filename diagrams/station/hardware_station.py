@@ -35,9 +35,6 @@ from guidedarm.systems.hardware.tof_transports import BleTransport, SerialTransp
 from guidedarm.systems.hardware.ur_rtde_link import OpenUrRtde
 from guidedarm.systems.tof.tof_tool_sensor import TOF_PORTS, MakeDetectionGrid
 
-ARM_DRIVERS = ("ur_rtde", "nachi_tcp")
-TOF_TRANSPORTS = ("serial", "ble")
-
 
 def MakeHardwareStation(scenario: StationScenario, meshcat: Meshcat | None = None) -> Diagram:
     """Builds the hardware station of `scenario`; connects to every configured device."""
@@ -103,22 +100,13 @@ def MakeHardwareStation(scenario: StationScenario, meshcat: Meshcat | None = Non
 
 
 def _CheckCovered(scenario: StationScenario, hardware: HardwareConfig) -> None:
-    """Every arm, camera and ToF tool of the scenario needs a driver: fail before connecting."""
+    """Every arm, camera and ToF tool of the scenario needs a valid driver entry: fail
+    before connecting."""
     for section in ("arms", "cameras", "tof_tools"):
         missing = sorted(set(getattr(scenario, section)) - set(getattr(hardware, section)))
         if missing:
             raise ConfigurationError(f"hardware.{section}: no driver for {missing}")
-    for name, arm in hardware.arms.items():
-        if arm.driver not in ARM_DRIVERS:
-            raise ConfigurationError(
-                f"hardware.arms.{name}.driver: '{arm.driver}' is not one of {ARM_DRIVERS}"
-            )
-    for name, tool in hardware.tof_tools.items():
-        if tool.transport not in TOF_TRANSPORTS:
-            raise ConfigurationError(
-                f"hardware.tof_tools.{name}.transport: '{tool.transport}' is not one of "
-                f"{TOF_TRANSPORTS}"
-            )
+    hardware.Validate()
 
 
 def _OpenArmLink(name: str, config: ArmDriverConfig, period: float) -> ArmLink:

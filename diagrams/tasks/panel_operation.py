@@ -435,6 +435,11 @@ def _MakeArmKinematics(scenario: PanelOperationScenario) -> CameraArmKinematics:
 
 def RunPanelOperation(scenario: PanelOperationScenario, context: RunContext) -> dict[str, Any]:
     """Builds the diagram, picks the start and simulates one operation."""
+    if context.hardware:
+        raise ConfigurationError(
+            "panel_operation cannot run with --hardware: its station, success and metrics "
+            "come from the simulated panel and rover (switch travel, true camera pose)"
+        )
     run = PanelOperationRun(scenario, context)
     start = scenario.start
     q_start = np.asarray(start.position, float) if start.position else run.SampleStart(start.seed)

@@ -262,6 +262,11 @@ def _CountCollisions(execution: Execution, scene: KinematicScene) -> int:
 
 def RunPathFollowing(scenario: PathFollowingScenario, context: RunContext) -> dict[str, Any]:
     """Runs the follower (twice with repeat_seed) and returns the summary metrics."""
+    if context.hardware and scenario.executor != "station":
+        raise ConfigurationError(
+            f"executor={scenario.executor} cannot run with --hardware: only the station "
+            "executor drives the arm; use executor=station"
+        )
     repeat_seed = scenario.repeat_seed
     execution, centerline = Execute(scenario, context, scenario.seed)
     metrics = Metrics(execution.records, centerline)
