@@ -73,9 +73,10 @@ def test_frozen_controller_is_sent_stop_within_watchdog_plus_a_period():
     stops = [t for t, line in controller.received_frozen if line == "STOP"]
     assert len(stops) == 1
     delay = stops[0] - controller.last_reply
-    print(f"last reply to STOP received: {delay:.3f} s")
-    # Scheduling on the shared 2-core machine adds a few ms to the period.
-    assert watchdog < delay < watchdog + period + 0.02
+    print(f"\nfrozen controller: last reply to STOP received {delay:.3f} s")
+    # Thread scheduling on the shared 2-core machine adds a few ms (up to tens under a load
+    # average of 10) to the period.
+    assert watchdog < delay < watchdog + period + 0.05
     # No target followed the STOP.
     after = [line for t, line in controller.received_frozen if t > stops[0]]
     assert not [line for line in after if line.startswith(("SET_TARGET", "MOVE"))]
@@ -178,7 +179,7 @@ class Run:
         return json.loads((self.out / "run" / "summary.json").read_text())["failure"]
 
 
-def _CheckEnded(run: Run, failure: str, fault_time: float) -> float:
+def _CheckEnded(run: Run, fault: str, failure: str, fault_time: float) -> float:
     """The run exited 1 with `failure` (a regex) in summary.json, no traceback; returns
     the seconds from the fault to the exit."""
     elapsed = run.Wait() - fault_time
@@ -187,7 +188,7 @@ def _CheckEnded(run: Run, failure: str, fault_time: float) -> float:
     assert "Traceback" not in output and "Failure at" not in output, output
     assert re.fullmatch(failure, run.Failure()), run.Failure()
     assert f"guidedarm: run failed: {run.Failure()}" in output
-    print(f"fault to exit: {elapsed:.3f} s")
+    print(f"\n{fault}: fault to exit {elapsed:.3f} s")
     return elapsed
 
 
@@ -220,7 +221,7 @@ def test_controller_fault_ends_the_run_with_a_summary(fault, cell, tmp_path):
         cell.process.send_signal(signal.SIGSTOP)
     else:
         assert cell.Request("STOP") == "OK"
-    elapsed = _CheckEnded(run, ARM_FAULTS[fault], fault_time)
+    elapsed = _CheckEnded(run, fault, ARM_FAULTS[fault], fault_time)
     assert elapsed < WATCHDOG + 1.0
     if fault == "freeze":
         # The STOP sent while the controller was frozen waits in its socket: it is executed
@@ -246,7 +247,7 @@ def test_tof_fault_stops_the_arm_and_ends_the_run(fault, cell, tmp_path):
         run.WaitUntilStreaming(cell)
         fault_time = time.monotonic()
         relay.mode = fault
-        elapsed = _CheckEnded(run, TOF_FAULTS[fault], fault_time)
+        elapsed = _CheckEnded(run, f"tof {fault}", TOF_FAULTS[fault], fault_time)
     finally:
         relay.close()
     assert elapsed < WATCHDOG + 1.0
@@ -266,7 +267,7 @@ def test_refused_command_is_not_sent_and_ends_the_run(cell, tmp_path):
         r"command refused before sending: joint joint\d acceleration \S+ \|a\| > limit 0\.05; "
         "arm stopped"
     )
-    elapsed = _CheckEnded(run, failure, time.monotonic())
+    elapsed = _CheckEnded(run, "refused command", failure, time.monotonic())
     assert elapsed < WATCHDOG + 1.0
     # Nothing beyond the limits reached the controller: every target it accepted is one
     # the guard passed, and none after the STOP.
