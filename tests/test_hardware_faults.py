@@ -188,7 +188,7 @@ def _CheckEnded(run: Run, fault: str, failure: str, fault_time: float) -> float:
     assert "Traceback" not in output and "Failure at" not in output, output
     assert re.fullmatch(failure, run.Failure()), run.Failure()
     assert f"guidedarm: run failed: {run.Failure()}" in output
-    print(f"\n{fault}: fault to exit {elapsed:.3f} s")
+    print(f"\n{fault}: fault to exit {elapsed:.3f} s; failure: {run.Failure()}")
     return elapsed
 
 
@@ -201,7 +201,7 @@ def _WaitForState(cell: Cell, state: str, timeout: float = 3.0) -> str:
 
 ARM_FAULTS = {
     "kill": FAULT.format(device="mz04d")
-    + r"connection lost: .* \(stopping it also failed: STOP not sent: .*\)",
+    + r"connection lost: .* \(stopping it also failed: STOP not sent: the link is down\)",
     "freeze": FAULT.format(device="mz04d")
     + r"link quiet for 0\.5\d* s \(watchdog 0\.5 s\) "
     + r"\(stopping it also failed: no reply to STOP within 0\.25 s\)",

@@ -124,8 +124,8 @@ class NachiLink:
 
     def _SendLocked(self, lines: list[str] | tuple[str, ...]) -> list[PendingReply]:
         replies = [PendingReply(line) for line in lines]
-        if self._dead is not None:
-            raise ConnectionError(f"{replies[0].word} not sent: {self._dead}")
+        if self._dead is not None:  # the reason is the link's fault, reported already
+            raise ConnectionError(f"{replies[0].word} not sent: the link is down")
         self._pending_replies.extend(replies)
         try:
             self._socket.WriteLines(*lines)
