@@ -14,6 +14,7 @@ delivered: a client that sent STOP and vanished has stopped the arm.
 
 from __future__ import annotations
 
+import contextlib
 import socket
 import threading
 from collections.abc import Callable
@@ -203,9 +204,9 @@ class NachiEmulator:
                 connection, _ = self._server.accept()
             except OSError:
                 return
-            connection.setsockopt(socket.IPPROTO_TCP, socket.TCP_NODELAY, 1)
             threading.Thread(target=self._Serve, args=(connection,), daemon=True).start()
 
     def _Serve(self, connection: socket.socket) -> None:
-        with connection:
+        with connection, contextlib.suppress(OSError):  # a client gone before it was served
+            connection.setsockopt(socket.IPPROTO_TCP, socket.TCP_NODELAY, 1)
             ServeConnection(connection, self.logic)
