@@ -152,7 +152,14 @@ def test_stop_from_the_pendant_fails_the_run_and_a_new_run_resets_it(emulator):
 
 def test_malformed_replies_are_counted_and_the_link_keeps_reading():
     server = socket.create_server(("127.0.0.1", 0))
-    replies = ["OK", "JOINTS 1.0 a b c d e f", "JOINTS 2.0 1 2 3", "BANANA"]  # OK: RESET
+    replies = [  # OK: to RESET; then malformed, binary and non-ASCII replies to READ_JOINTS
+        "OK",
+        "JOINTS 1.0 a b c d e f",
+        "JOINTS 2.0 1 2 3",
+        "BANANA",
+        "JOINTS 3.0 1 2 3 4 5 \x00",
+        "JOINTS 4.0 1 2 3 4 5 6\u00e9",
+    ]
 
     def controller():
         connection, _ = server.accept()
@@ -165,7 +172,7 @@ def test_malformed_replies_are_counted_and_the_link_keeps_reading():
     threading.Thread(target=controller, daemon=True).start()
     link = NachiLink("mz04d", "127.0.0.1", server.getsockname()[1])
     time.sleep(0.1)
-    assert link.rejected_lines == 3
+    assert link.rejected_lines == 5 and link.fault() is None
     np.testing.assert_allclose(link.latest().q, np.deg2rad([1, 2, 3, 4, 5, 6]))
     assert time.monotonic() - link.latest().host_time < 0.02
     link.close()
