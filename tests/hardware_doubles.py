@@ -1,15 +1,25 @@
 """Test doubles shared by the hardware tests: a recording control side for UR links, a
-scripted ArmLink, and starting the loopback servers as separate processes."""
+scripted ArmLink, a Nachi controller that can freeze, a relay that silences or garbles a ToF
+stream between two pseudo-terminals, and starting the loopback servers as separate
+processes."""
 
 from __future__ import annotations
 
+import contextlib
+import os
+import select
+import socket
 import subprocess
 import sys
+import threading
 import time
+import tty
 
 import numpy as np
 
 from guidedarm.systems.hardware.arm_link import JointSample
+from guidedarm.systems.hardware.line_socket import LineSocket
+from guidedarm.systems.hardware.nachi_emulator import NachiControllerLogic
 
 
 class RecordingRtdeControl:
@@ -60,6 +70,41 @@ class ScriptedArmLink:
         pass
 
 
+class FreezingNachiController:
+    """A Nachi controller on 127.0.0.1 (NachiControllerLogic, the arm exactly where it is
+    commanded, the controller clock the host's) that can `freeze`: from then on it receives
+    and records request lines with their arrival times but answers none, as a controller
+    whose task hangs while its TCP stack still accepts bytes."""
+
+    def __init__(self, q0: np.ndarray) -> None:
+        self.logic = NachiControllerLogic(np.full(6, -np.pi), np.full(6, np.pi), q0)
+        self._server = socket.create_server(("127.0.0.1", 0))
+        self.port = self._server.getsockname()[1]
+        self.frozen = False
+        self.last_reply = 0.0  # host time of the last reply sent (time.monotonic(), s)
+        self.received_frozen: list[tuple[float, str]] = []
+        threading.Thread(target=self._Serve, daemon=True).start()
+
+    def _Serve(self) -> None:
+        connection, _ = self._server.accept()
+        connection.setsockopt(socket.IPPROTO_TCP, socket.TCP_NODELAY, 1)
+        lines = LineSocket(connection)
+        start = time.monotonic()
+        with connection, contextlib.suppress(OSError):
+            while True:
+                line = lines.ReadLine()
+                if self.frozen:
+                    self.received_frozen.append((time.monotonic(), line))
+                    continue
+                q = self.logic.commanded
+                self.logic.Measure(time.monotonic() - start, q, np.zeros(3), np.zeros(3))
+                lines.WriteLines(self.logic.Handle(line))
+                self.last_reply = time.monotonic()
+
+    def close(self) -> None:
+        self._server.close()
+
+
 def StartServer(module: str, *args: str, stderr=None) -> tuple[subprocess.Popen, int]:
     """Runs `python -m module args` and waits for its `listening HOST PORT` line."""
     process = subprocess.Popen(
@@ -72,7 +117,7 @@ def StartServer(module: str, *args: str, stderr=None) -> tuple[subprocess.Popen,
     return process, int(line[2])
 
 
-def StartNachiEmulator(*args: str) -> tuple[subprocess.Popen, int, str]:
+def StartNachiEmulator(*args: str, stderr=None) -> tuple[subprocess.Popen, int, str]:
     """Runs `guidedarm emulate nachi --port 0 args`: (process, TCP port, ToF pty device)."""
     command = [
         sys.executable,
@@ -83,10 +128,55 @@ def StartNachiEmulator(*args: str) -> tuple[subprocess.Popen, int, str]:
         "--port",
         "0",
     ]
-    process = subprocess.Popen([*command, *args], stdout=subprocess.PIPE, text=True)
+    process = subprocess.Popen([*command, *args], stdout=subprocess.PIPE, stderr=stderr, text=True)
     port = int(process.stdout.readline().split(":")[-1])
     device = process.stdout.readline().split()[-1]
     return process, port, device
+
+
+class ToFRelay:
+    """Copies the bytes of a ToF stream from `source` (a pty device) to a new pseudo-terminal,
+    `device`, until `mode` says otherwise: "forward", "silent" (the tool goes quiet: bytes are
+    dropped) or "garbage" (each chunk is replaced by binary noise and malformed lines)."""
+
+    GARBAGE = (
+        b"\x00\xff\xfe$TOF,1,\xc3\xa9,0*00\r\n",
+        b"$TOF,7,10,0,10,0,10,0,10,0,10,0,10,0*FF\r\n",  # checksum mismatch
+        bytes(range(256)) + b"\n",
+        b"x" * 300 + b"\r\n",
+    )
+
+    def __init__(self, source: str) -> None:
+        self._source = os.open(source, os.O_RDONLY | os.O_NOCTTY | os.O_NONBLOCK)
+        self._master, self._slave = os.openpty()
+        tty.setraw(self._slave)
+        self.device = os.ttyname(self._slave)
+        os.set_blocking(self._master, False)  # drop bytes while nobody reads the device
+        self.mode = "forward"
+        self._closing = threading.Event()
+        self._thread = threading.Thread(target=self._Run, name="tof-relay", daemon=True)
+        self._thread.start()
+
+    def _Run(self) -> None:
+        garbage = 0
+        while not self._closing.is_set():
+            if not select.select([self._source], [], [], 0.05)[0]:
+                continue
+            try:
+                chunk = os.read(self._source, 4096)
+            except BlockingIOError:
+                continue
+            if self.mode == "garbage":
+                chunk, garbage = self.GARBAGE[garbage % len(self.GARBAGE)], garbage + 1
+            if self.mode != "silent":
+                with contextlib.suppress(BlockingIOError):
+                    os.write(self._master, chunk)
+
+    def close(self) -> None:
+        self._closing.set()
+        self._thread.join(timeout=1.0)
+        for fd in (self._source, self._master, self._slave):
+            os.close(fd)
 
 
 def StopServer(process: subprocess.Popen) -> None:

@@ -199,7 +199,11 @@ BAD_INPUTS = [
     ("path-inf-time", Run(PF, "max_time=.inf"), "max_time"),
     ("path-coverage-range", Run(PF, "min_coverage=1.5"), "in [0, 1]"),
     ("path-executor", Run(PF, "executor=teleport"), "executor must be one of"),
-    ("kinematic-hardware", Run(PF, "executor=kinematic", flags=("--hardware",)), "--hardware"),
+    (
+        "kinematic-hardware",
+        Run(PF, "executor=kinematic", flags=("--hardware",)),
+        "executor=kinematic cannot run with --hardware",
+    ),
     ("kinematic-planner", Run(PF, "executor=kinematic", "motion=planner"), "motion=planner"),
     ("follower-steps", Run(PF, "follower.long_step=0.001"), "short_step <= long_step"),
     ("follower-reduction", Run(PF, "follower.rotation_reduction=1"), "[0, 1)"),
@@ -209,7 +213,11 @@ BAD_INPUTS = [
     ("ik-nan-tolerance", Run(PF, "ik.position_tolerance=.nan"), "ik.position_tolerance"),
     ("ik-down-axis", Run(PF, "ik.down_axis=[0,0,0]"), "nonzero 3-vector"),
     # --- panel_operation, start, operation, degradation, planner
-    ("panel-hardware", Run(PO, flags=("--hardware",)), "drop --hardware"),
+    (
+        "panel-hardware",
+        Run(PO, flags=("--hardware",)),
+        "panel_operation cannot run with --hardware",
+    ),
     ("panel-zero-switch", Run(PO, "switch=0"), "key 'switch': must be > 0"),
     ("panel-switch-range", Run(PO, "switch=9"), "switch must be 1 .. 3"),
     ("panel-negative-time", Run(PO, "time_limit_s=-1"), "time_limit_s"),

@@ -7,8 +7,7 @@ import pytest
 from hardware_doubles import VIDEO_COLOURS_BGR, WriteTestVideo
 from pydrake.systems.analysis import Simulator
 
-from guidedarm.systems.errors import ConfigurationError, GuidedArmError
-from guidedarm.systems.hardware.arm_link import LinkLostError
+from guidedarm.systems.errors import ConfigurationError, HardwareFaultError
 from guidedarm.systems.hardware.opencv_camera import FrameGrabber, OpenCvCamera
 
 FPS = 20.0
@@ -43,13 +42,17 @@ def test_frames_arrive_as_rgba_images_at_the_file_rate(video):
 
 def test_end_of_video_trips_the_watchdog(video):
     camera = OpenCvCamera(FrameGrabber(video), 64, 48, period=0.05, watchdog=0.2)
-    with pytest.raises(LinkLostError, match=r"no frame for 0\.2\d* s \(watchdog 0.2 s\)"):
+    with pytest.raises(
+        HardwareFaultError, match=r"at t = .* s: no frame for 0\.2\d* s \(watchdog 0.2 s\)"
+    ):
         _Run(camera, 3.0)
 
 
 def test_frame_size_other_than_the_scenario_fails(video):
     camera = OpenCvCamera(FrameGrabber(video), 640, 480, period=0.05, watchdog=1.0)
-    with pytest.raises(GuidedArmError, match="delivers 64x48, the scenario expects 640x480"):
+    with pytest.raises(
+        HardwareFaultError, match="delivers 64x48 frames, the scenario expects 640x480"
+    ):
         _Run(camera, 0.2)
 
 

@@ -72,6 +72,9 @@ def test_path_following_on_the_emulators_matches_simulation(tmp_path):
     finally:
         StopServer(emulator)
     assert hardware_run.returncode == 0, hardware_run.stderr
+    for run in (sim_run, hardware_run):
+        output = run.stdout + run.stderr
+        assert "Traceback" not in output and "Failure at" not in output, output
     # The emulated arm was driven (one target per 10 ms) and stopped when the run ended.
     state, moves, errors = status.split()[1:]
     assert state == "STOPPED" and int(moves) > 1000 and errors == "0"

@@ -21,8 +21,8 @@ from pydrake.trajectories import PiecewisePolynomial
 
 from guidedarm.diagrams.station.hardware_config import ArmDriverConfig, HardwareConfig
 from guidedarm.diagrams.station.station import MakeStation
+from guidedarm.systems.errors import HardwareFaultError
 from guidedarm.systems.hardware import nachi_protocol as nachi
-from guidedarm.systems.hardware.arm_link import LinkLostError
 from guidedarm.systems.hardware.nachi_emulator import NachiControllerLogic, NachiEmulator
 from guidedarm.systems.hardware.nachi_link import NachiLink
 
@@ -124,7 +124,10 @@ def test_frozen_controller_trips_the_watchdog_and_is_stopped(emulator):
     _, simulator = _Diagram(_Hardware(emulator.port, watchdog=0.1), ConstantVectorSource(HOME))
     simulator.AdvanceTo(0.2)
     emulator.Close()  # the simulation stops; the open connection answers with frozen joints
-    with pytest.raises(LinkLostError, match=r"mz04d: link quiet for 0.1\d* s"):
+    with pytest.raises(
+        HardwareFaultError,
+        match=r"mz04d at t = 0\.[23]\d* s: link quiet for 0.1\d* s .*; arm stopped$",
+    ):
         simulator.AdvanceTo(5.0)
     assert emulator.logic.stops == 1 and emulator.logic.State() == "STOPPED"
 
@@ -135,7 +138,10 @@ def test_stop_from_the_pendant_fails_the_run_and_a_new_run_resets_it(emulator):
     with socket.create_connection(("127.0.0.1", emulator.port)) as pendant:
         pendant.sendall(b"STOP\n")
         assert pendant.recv(16) == b"OK\n"
-    with pytest.raises(LinkLostError, match=r"mz04d: controller refused: 'NG E05 stopped"):
+    with pytest.raises(
+        HardwareFaultError,
+        match=r"mz04d at t = .*: controller refused: 'NG E05 stopped.*arm stopped$",
+    ):
         simulator.AdvanceTo(1.0)
     assert emulator.logic.State() == "STOPPED"
     moves = emulator.logic.moves
@@ -146,7 +152,14 @@ def test_stop_from_the_pendant_fails_the_run_and_a_new_run_resets_it(emulator):
 
 def test_malformed_replies_are_counted_and_the_link_keeps_reading():
     server = socket.create_server(("127.0.0.1", 0))
-    replies = ["OK", "JOINTS 1.0 a b c d e f", "JOINTS 2.0 1 2 3", "BANANA"]  # OK: RESET
+    replies = [  # OK: to RESET; then malformed, binary and non-ASCII replies to READ_JOINTS
+        "OK",
+        "JOINTS 1.0 a b c d e f",
+        "JOINTS 2.0 1 2 3",
+        "BANANA",
+        "JOINTS 3.0 1 2 3 4 5 \x00",
+        "JOINTS 4.0 1 2 3 4 5 6\u00e9",
+    ]
 
     def controller():
         connection, _ = server.accept()
@@ -159,7 +172,7 @@ def test_malformed_replies_are_counted_and_the_link_keeps_reading():
     threading.Thread(target=controller, daemon=True).start()
     link = NachiLink("mz04d", "127.0.0.1", server.getsockname()[1])
     time.sleep(0.1)
-    assert link.rejected_lines == 3
+    assert link.rejected_lines == 5 and link.fault() is None
     np.testing.assert_allclose(link.latest().q, np.deg2rad([1, 2, 3, 4, 5, 6]))
     assert time.monotonic() - link.latest().host_time < 0.02
     link.close()

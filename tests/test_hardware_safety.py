@@ -12,9 +12,8 @@ from pydrake.systems.primitives import TrajectorySource
 from pydrake.trajectories import PiecewisePolynomial
 
 from guidedarm.diagrams.station.model_paths import MakeParser
-from guidedarm.systems.errors import ConfigurationError
+from guidedarm.systems.errors import ConfigurationError, HardwareFaultError
 from guidedarm.systems.hardware.arm_driver import ArmDriver
-from guidedarm.systems.hardware.arm_link import LinkLostError
 from guidedarm.systems.hardware.command_guard import (
     CheckCommand,
     CommandRefusedError,
@@ -95,7 +94,9 @@ def test_refused_command_is_never_sent_and_stops_the_robot(limits):
     link = ScriptedArmLink(np.zeros(6))
     command = np.zeros(6)
     command[1] = 0.1  # 50 rad/s implied on joint2 in the first period
-    with pytest.raises(CommandRefusedError, match=r"joint2 velocity .* robot stopped"):
+    with pytest.raises(
+        HardwareFaultError, match=r"on scripted at t = 0.000 s: .*joint2 velocity .* arm stopped$"
+    ):
         _Simulate(link, limits, command, 0.01)
     assert link.sent == []
     assert link.stops == 1
@@ -115,7 +116,9 @@ def test_stale_measurements_command_no_motion(limits):
 def test_quiet_link_fails_with_the_watchdog_message(limits):
     link = ScriptedArmLink(np.zeros(6))
     link.age = 0.2
-    with pytest.raises(LinkLostError, match=r"scripted: link quiet for 0.2\d* s"):
+    with pytest.raises(
+        HardwareFaultError, match=r"scripted at t = 0.000 s: link quiet for 0.2\d* s"
+    ):
         _Simulate(link, limits, np.zeros(6), 0.1)
     assert link.stops == 1 and link.sent == []
 

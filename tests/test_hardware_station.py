@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import socket
 import threading
 
 import numpy as np
@@ -89,7 +90,7 @@ def test_station_without_a_driver_for_an_arm_fails_before_connecting():
 
 def test_unknown_driver_is_named():
     hardware = HardwareConfig(arms={"mz04d": ArmDriverConfig(driver="kuka_rsi")})
-    with pytest.raises(ConfigurationError, match=r"hardware\.arms\.mz04d\.driver: 'kuka_rsi'"):
+    with pytest.raises(ConfigurationError, match=r"hardware\.arms\.mz04d\.driver': 'kuka_rsi'"):
         MakeStation(Mz04dScenario(hardware=hardware), hardware=True)
 
 
@@ -116,3 +117,45 @@ def test_meshcat_draws_the_measured_configuration(devices):
     measured = station.GetOutputPort("mz04d.position_measured").Eval(context)
     np.testing.assert_allclose(positions[:6], measured)
     assert meshcat.HasPath("/drake/visualizer/mz04d")
+
+
+NACHI = {"driver": "nachi_tcp", "acceleration_limits": [10.0] * 6}
+
+
+@pytest.mark.parametrize(
+    "arm, tof, message",
+    [
+        ({"port": 70000}, {}, r"arms\.mz04d\.port': must be in \[0, 65535\], got 70000"),
+        ({"port": -1}, {}, r"arms\.mz04d\.port': must be in \[0, 65535\], got -1"),
+        ({"host": " "}, {}, r"arms\.mz04d\.host': must not be empty"),
+        ({"watchdog": float("nan")}, {}, r"arms\.mz04d\.watchdog': must be a finite number"),
+        ({"watchdog": 0.0}, {}, r"arms\.mz04d\.watchdog': must be > 0, got 0\.0"),
+        ({"stale_after": 0.2}, {}, r"arms\.mz04d\.stale_after': 0\.2 s exceeds the watchdog"),
+        (
+            {"acceleration_limits": [1.0] * 5 + [float("inf")]},
+            {},
+            r"arms\.mz04d\.acceleration_limits\[5\]': must be a finite number, got inf",
+        ),
+        ({"gain": 5000.0}, {}, r"arms\.mz04d\.gain': must be in \[100, 2000\], got 5000\.0"),
+        ({"lookahead_time": float("nan")}, {}, r"arms\.mz04d\.lookahead_time': must be a finite"),
+        ({}, {"transport": "usb"}, r"tof_tools\.tof\.transport': 'usb' is not one of"),
+        ({}, {"device": ""}, r"tof_tools\.tof\.device': must not be empty"),
+        ({}, {"watchdog": -1.0}, r"tof_tools\.tof\.watchdog': must be > 0, got -1\.0"),
+    ],
+)
+def test_bad_driver_settings_are_refused_before_connecting(arm, tof, message):
+    hardware = HardwareConfig(
+        arms={"mz04d": ArmDriverConfig(**{**NACHI, **arm})},
+        tof_tools={"tof": ToFDriverConfig(**{"device": "/dev/null", **tof})},
+    )
+    scenario = Mz04dScenario(hardware=hardware, tof_tools={"tof": ToFToolConfig()})
+    with pytest.raises(ConfigurationError, match=f"^key 'hardware\\.{message}"):
+        MakeStation(scenario, hardware=True)
+
+
+def test_unreachable_nachi_controller_is_refused_before_the_run():
+    with socket.create_server(("127.0.0.1", 0)) as server:
+        port = server.getsockname()[1]  # bound, closed below: nothing listens there
+    hardware = HardwareConfig(arms={"mz04d": ArmDriverConfig(**NACHI, port=port)})
+    with pytest.raises(ConfigurationError, match=f"mz04d: cannot reach 127.0.0.1:{port}: "):
+        MakeStation(Mz04dScenario(hardware=hardware), hardware=True)

@@ -14,9 +14,9 @@ from pydrake.multibody.plant import MultibodyPlant
 from pydrake.systems.analysis import Simulator
 
 from guidedarm.diagrams.station.model_paths import MakeParser
+from guidedarm.systems.errors import HardwareFaultError
 from guidedarm.systems.hardware import rtde_protocol as rtde
 from guidedarm.systems.hardware.arm_driver import ArmDriver
-from guidedarm.systems.hardware.arm_link import LinkLostError
 from guidedarm.systems.hardware.command_guard import JointLimits
 from guidedarm.systems.hardware.ur_rtde_link import RTDE_FREQUENCY, UrRtdeLink
 
@@ -81,7 +81,9 @@ def test_quiet_link_stops_the_robot_and_fails_the_run():
     process, _, control, link = _Connect("--quiet-after", "0.3")
     try:
         start = time.monotonic()
-        with pytest.raises(LinkLostError, match=r"ur10e: link quiet for .* \(watchdog 0.1 s\)"):
+        with pytest.raises(
+            HardwareFaultError, match=r"ur10e at .*: link quiet for .* \(watchdog 0.1 s\)"
+        ):
             _RunDriver(link, 5.0)
         assert time.monotonic() - start < 1.5
         assert control.Count("servoStop") == 1

@@ -9,6 +9,7 @@ Without --scenario the station is the seed-000 cell (MZ04D, gripper, ToF tool `t
 from __future__ import annotations
 
 import argparse
+import socket
 import threading
 
 import numpy as np
@@ -16,6 +17,7 @@ from pydrake.multibody.parsing import LoadModelDirectives
 from pydrake.systems.framework import Context
 
 from guidedarm.diagrams.cli.command_run import LoadScenario
+from guidedarm.diagrams.station.hardware_config import CheckPort
 from guidedarm.diagrams.station.model_paths import MODELS_DIR
 from guidedarm.diagrams.station.scenario import ArmConfig, StationScenario
 from guidedarm.diagrams.station.station import MakeStation
@@ -35,7 +37,9 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     parser.add_argument("--set", dest="overrides", action="append", default=[], metavar="K=V")
     parser.add_argument("--arm", default="mz04d", help="the arm served over TCP (nachi)")
     parser.add_argument("--host", default="127.0.0.1")
-    parser.add_argument("--port", type=int, default=DEFAULT_PORT, help="TCP port (0 = any)")
+    parser.add_argument(
+        "--port", type=int, help=f"TCP port of `nachi` (default {DEFAULT_PORT}; 0 = any free)"
+    )
     parser.add_argument("--duration", type=float, default=np.inf, help="simulated seconds")
     parser.set_defaults(func=emulate_command)
 
@@ -98,13 +102,28 @@ def StartEmulators(
     return emulator, tofs
 
 
+def CheckArguments(args: argparse.Namespace) -> None:
+    """Refuses, before the station is built, a port outside 0..65535, a host that does not
+    resolve, a duration that is not positive, and --port for `tof` (which serves no TCP)."""
+    if args.port is not None and args.device != "nachi":
+        raise ConfigurationError("--port applies to `emulate nachi` only")
+    CheckPort("--port", DEFAULT_PORT if args.port is None else args.port)
+    try:
+        socket.getaddrinfo(args.host, None, type=socket.SOCK_STREAM)
+    except (OSError, UnicodeError) as e:
+        raise ConfigurationError(f"--host {args.host!r}: cannot be resolved ({e})") from None
+    if not args.duration > 0:
+        raise ConfigurationError(f"--duration {args.duration}: must be positive")
+
+
 def emulate_command(args: argparse.Namespace) -> int:
+    CheckArguments(args)
     if args.scenario:
         _, scenario, _ = LoadScenario(args.scenario, args.overrides)
         station_scenario = scenario.station
     else:
         station_scenario = DefaultCell()
-    port = args.port if args.device == "nachi" else 0
+    port = 0 if args.device != "nachi" else DEFAULT_PORT if args.port is None else args.port
     emulator, tofs = StartEmulators(station_scenario, args.arm, args.host, port)
     if args.device == "nachi":
         print(f"nachi: {args.arm} listening on {args.host}:{emulator.port}", flush=True)

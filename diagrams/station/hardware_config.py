@@ -1,10 +1,31 @@
 """Scenario schema of the hardware branch: which driver serves each arm, camera and the ToF
-tool, and where to reach it. Loaded with `yaml_load_typed` as `StationScenario.hardware`.
+tool, and where to reach it. Loaded with `yaml_load_typed` as `StationScenario.hardware`;
+each section checks itself in `Validate()` (comparisons written so that NaN fails).
 """
 
 from dataclasses import dataclass, field
 
-from guidedarm.systems.config_checks import InRange, Positive
+from guidedarm.systems.config_checks import CheckFields, FieldError, InRange, Positive
+from guidedarm.systems.errors import ConfigurationError
+
+ARM_DRIVERS = ("ur_rtde", "nachi_tcp")
+TOF_TRANSPORTS = ("serial", "ble")
+
+
+def CheckPort(key: str, port: int) -> None:
+    """A TCP port number, 0..65535 (0: any free port, or the driver's default)."""
+    if isinstance(port, bool) or not isinstance(port, int) or not 0 <= port <= 65535:
+        raise ConfigurationError(f"{key}: {port} is not a TCP port (0..65535)")
+
+
+def _CheckChoice(key: str, value: str, choices: tuple[str, ...]) -> None:
+    if value not in choices:
+        raise FieldError(key, f"'{value}' is not one of {choices}")
+
+
+def _CheckText(key: str, value: str) -> None:
+    if not value.strip():
+        raise FieldError(key, "must not be empty")
 
 
 @dataclass
@@ -14,9 +35,10 @@ class ArmDriverConfig:
     driver: `ur_rtde` (UR RTDE, servoJ) or `nachi_tcp` (Nachi CFD User Task line protocol).
     host, port: controller address; port 0 = the driver's default (RTDE 30004, Nachi 48000).
     watchdog: a measurement older than this (s) stops the arm and fails the run.
-    stale_after: a measurement older than this (s) is not acted on (no command sent).
+    stale_after: a measurement older than this (s, at most `watchdog`) is not acted on (no
+    command sent).
     acceleration_limits: rad/s^2 per joint, used where the model has none.
-    lookahead_time, gain: servoJ parameters (UR only; s, 1/s).
+    lookahead_time, gain: servoJ parameters (UR only; s in [0.03, 0.2], 1/s in [100, 2000]).
     """
 
     driver: str = "ur_rtde"
@@ -25,8 +47,19 @@ class ArmDriverConfig:
     watchdog: float = Positive(0.1)
     stale_after: float = Positive(0.02)
     acceleration_limits: list[float] = Positive(factory=list)
-    lookahead_time: float = Positive(0.1)
-    gain: float = Positive(300.0)
+    # URScript servoJ admits lookahead_time in [0.03, 0.2] s and gain in [100, 2000].
+    lookahead_time: float = InRange(0.03, 0.2, 0.1)
+    gain: float = InRange(100.0, 2000.0, 300.0)
+
+    def Validate(self) -> None:
+        """Raises ConfigurationError naming the first bad field."""
+        CheckFields(self)
+        _CheckChoice("driver", self.driver, ARM_DRIVERS)
+        _CheckText("host", self.host)
+        if not self.stale_after <= self.watchdog:
+            raise FieldError(
+                "stale_after", f"{self.stale_after} s exceeds the watchdog {self.watchdog} s"
+            )
 
 
 @dataclass
@@ -39,6 +72,11 @@ class CameraDriverConfig:
 
     source: str = "0"
     watchdog: float = Positive(2.0)
+
+    def Validate(self) -> None:
+        """Raises ConfigurationError naming the first bad field."""
+        CheckFields(self)
+        _CheckText("source", self.source)
 
 
 @dataclass
@@ -55,6 +93,12 @@ class ToFDriverConfig:
     device: str = ""
     baudrate: int = Positive(115200)
     watchdog: float = Positive(0.5)
+
+    def Validate(self) -> None:
+        """Raises ConfigurationError naming the first bad field."""
+        CheckFields(self)
+        _CheckChoice("transport", self.transport, TOF_TRANSPORTS)
+        _CheckText("device", self.device)
 
 
 @dataclass

@@ -22,6 +22,7 @@ from guidedarm.diagrams.station.station_plant import (
     GetArmInstance,
     SetInitialPositions,
 )
+from guidedarm.systems.config_checks import CheckConfig
 from guidedarm.systems.errors import ConfigurationError
 from guidedarm.systems.hardware import nachi_protocol
 from guidedarm.systems.hardware.arm_driver import ArmDriver
@@ -34,9 +35,6 @@ from guidedarm.systems.hardware.tof_protocol import ToFLineCollector
 from guidedarm.systems.hardware.tof_transports import BleTransport, SerialTransport
 from guidedarm.systems.hardware.ur_rtde_link import OpenUrRtde
 from guidedarm.systems.tof.tof_tool_sensor import TOF_PORTS, MakeDetectionGrid
-
-ARM_DRIVERS = ("ur_rtde", "nachi_tcp")
-TOF_TRANSPORTS = ("serial", "ble")
 
 
 def MakeHardwareStation(scenario: StationScenario, meshcat: Meshcat | None = None) -> Diagram:
@@ -103,22 +101,13 @@ def MakeHardwareStation(scenario: StationScenario, meshcat: Meshcat | None = Non
 
 
 def _CheckCovered(scenario: StationScenario, hardware: HardwareConfig) -> None:
-    """Every arm, camera and ToF tool of the scenario needs a driver: fail before connecting."""
+    """Every arm, camera and ToF tool of the scenario needs a valid driver entry: fail
+    before connecting."""
     for section in ("arms", "cameras", "tof_tools"):
         missing = sorted(set(getattr(scenario, section)) - set(getattr(hardware, section)))
         if missing:
             raise ConfigurationError(f"hardware.{section}: no driver for {missing}")
-    for name, arm in hardware.arms.items():
-        if arm.driver not in ARM_DRIVERS:
-            raise ConfigurationError(
-                f"hardware.arms.{name}.driver: '{arm.driver}' is not one of {ARM_DRIVERS}"
-            )
-    for name, tool in hardware.tof_tools.items():
-        if tool.transport not in TOF_TRANSPORTS:
-            raise ConfigurationError(
-                f"hardware.tof_tools.{name}.transport: '{tool.transport}' is not one of "
-                f"{TOF_TRANSPORTS}"
-            )
+    CheckConfig(hardware, "hardware")
 
 
 def _OpenArmLink(name: str, config: ArmDriverConfig, period: float) -> ArmLink:

@@ -339,7 +339,8 @@ def RunPanelOperation(scenario: PanelOperationScenario, context: RunContext) -> 
     """Builds the diagram, picks the start and simulates one operation."""
     if context.hardware:
         raise ConfigurationError(
-            "panel_operation runs in simulation only (the rover arm has no driver): drop --hardware"
+            "panel_operation cannot run with --hardware: its station, success and metrics "
+            "come from the simulated panel and rover (switch travel, true camera pose)"
         )
     run = PanelOperationRun(scenario, context)
     start = scenario.start

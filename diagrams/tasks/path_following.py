@@ -269,8 +269,8 @@ def RefuseIgnoredSettings(scenario: PathFollowingScenario, hardware: bool) -> No
     """Refuses settings that this task would silently override or not use."""
     if scenario.executor == "kinematic" and hardware:
         raise ConfigurationError(
-            "executor=kinematic writes IK solutions into a model and drives no arm: "
-            "it cannot run with --hardware (use executor=station)"
+            "executor=kinematic cannot run with --hardware: it writes IK solutions into a "
+            "model and drives no arm (use executor=station)"
         )
     if scenario.executor == "kinematic" and scenario.motion == "planner":
         raise ConfigurationError(

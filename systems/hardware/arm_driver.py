@@ -5,20 +5,24 @@ joint positions, with these safety rules:
 - a link reporting a fault (refused command, lost connection) stops the arm and fails the
   run with the link's reason;
 - a sample older than `watchdog` (host seconds) means the link is lost: the arm is stopped
-  and the run fails with LinkLostError;
+  and the run fails;
 - a sample older than `stale_after` is not acted on: no command is sent from it;
 - every command passes CheckCommand (position, velocity, acceleration limits) before it is
   sent; a refused command stops the arm and fails the run.
+Every failure is a HardwareFaultError naming the link, the fault and the diagram time; the
+errors of the stop itself (a dead link cannot confirm it) are recorded beside the cause.
 """
 
 from __future__ import annotations
 
 import time
+from typing import NoReturn
 
 import numpy as np
 from pydrake.systems.framework import BasicVector, Context, DiscreteValues, LeafSystem
 
-from guidedarm.systems.hardware.arm_link import ArmLink, JointSample, LinkLostError
+from guidedarm.systems.errors import HardwareFaultError
+from guidedarm.systems.hardware.arm_link import ArmLink, DescribeError, JointSample, StopArm
 from guidedarm.systems.hardware.command_guard import CheckCommand, CommandRefusedError, JointLimits
 
 
@@ -68,11 +72,12 @@ class ArmDriver(LeafSystem):
     def _Initialize(self, context: Context, state: DiscreteValues) -> None:
         deadline = time.monotonic() + self._watchdog
         sample = self._link.latest()
-        while sample is None and time.monotonic() < deadline:
+        while sample is None and time.monotonic() < deadline and not self._link.fault():
             time.sleep(0.001)
             sample = self._link.latest()
         if sample is None:
-            self._Fail(f"{self._link.name}: no measurement within the watchdog {self._watchdog} s")
+            reason = self._link.fault() or f"no measurement within the watchdog {self._watchdog} s"
+            self._Fail(context, reason)
         zeros = np.zeros(self._n)
         t = context.get_time() - self._period  # as if the current position had been sent
         state.set_value(
@@ -85,14 +90,11 @@ class ArmDriver(LeafSystem):
         x = context.get_discrete_state(self._state).value().copy()
         fault = self._link.fault()
         if fault is not None:
-            self._Fail(f"{self._link.name}: {fault}; robot stopped")
+            self._Fail(context, fault)
         sample = self._link.latest()
         age = SampleAge(sample, time.monotonic())
         if age > self._watchdog:
-            self._Fail(
-                f"{self._link.name}: link quiet for {age:.3f} s (watchdog {self._watchdog} s); "
-                "robot stopped"
-            )
+            self._Fail(context, f"link quiet for {age:.3f} s (watchdog {self._watchdog} s)")
         x[: 2 * n] = np.concatenate([sample.q, sample.v])
         if age > self._stale_after:
             self.stale_skips += 1
@@ -105,12 +107,17 @@ class ArmDriver(LeafSystem):
                     self._limits, q_command, x[2 * n : 3 * n], x[3 * n : 4 * n], dt, dt_sent
                 )
             except CommandRefusedError as e:
-                self._link.stop()
-                raise CommandRefusedError(f"{self._link.name}: {e}; robot stopped") from None
-            self._link.send_position(q_command, dt)
+                self._Fail(context, str(e))
+            try:
+                self._link.send_position(q_command, dt)
+            except Exception as e:  # a vendor or socket error: the arm must still be stopped
+                self._Fail(context, f"command not sent: {DescribeError(e)}")
             x[2 * n :] = np.concatenate([q_command, v, [context.get_time(), dt]])
         state.set_value(self._state, x)
 
-    def _Fail(self, message: str) -> None:
-        self._link.stop()
-        raise LinkLostError(message)
+    def _Fail(self, context: Context, what: str) -> NoReturn:
+        """Stops the arm and raises the fault with the stop's error beside it."""
+        stop_error = StopArm(self._link)
+        stop_errors = [stop_error] if stop_error else []
+        what = what if stop_errors else f"{what}; arm stopped"
+        raise HardwareFaultError(self._link.name, what, context.get_time(), stop_errors)

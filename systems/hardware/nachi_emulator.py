@@ -2,12 +2,19 @@
 simulation of the arm (the station's MultibodyPlant and position servo).
 
 `NachiControllerLogic` is the controller's bookkeeping (requests -> replies, target, stop
-latch, error log) and runs without a simulation; `NachiEmulator` steps the station in real
-time, feeds the logic the simulated joints and flange pose, and serves TCP clients.
+latch, error log) and runs without a simulation; `ServeConnection` answers one client's
+lines with it; `NachiEmulator` steps the station in real time, feeds the logic the
+simulated joints and flange pose, and serves TCP clients.
+
+Any bytes a client sends (non-ASCII, binary, NUL, overlong lines) get a reply, `NG <code>
+<text>` when they are not a request, and are counted; the connection keeps being served.
+A request is executed when it is received, whether or not its reply can still be
+delivered: a client that sent STOP and vanished has stopped the arm.
 """
 
 from __future__ import annotations
 
+import contextlib
 import socket
 import threading
 from collections.abc import Callable
@@ -17,6 +24,7 @@ from pydrake.math import RollPitchYaw
 from pydrake.systems.analysis import Simulator
 from pydrake.systems.framework import Context
 
+from guidedarm.systems.errors import ConfigurationError
 from guidedarm.systems.hardware import nachi_protocol as nachi
 from guidedarm.systems.hardware.line_socket import LineSocket
 
@@ -38,7 +46,8 @@ class NachiControllerLogic:
         self.stopped = False
         self.moves = 0
         self.stops = 0
-        self.errors: list[tuple[str, str]] = []
+        self.error_count = 0
+        self.last_error: tuple[str, str] | None = None
 
     def Measure(self, t: float, q: np.ndarray, xyz: np.ndarray, rpy: np.ndarray) -> np.ndarray:
         """Records the simulated state; returns the joint command for the next step."""
@@ -47,6 +56,7 @@ class NachiControllerLogic:
             return self.commanded.copy()
 
     def Handle(self, line: str) -> str:
+        """The reply line to one request line (ASCII, without its LF)."""
         with self.lock:
             try:
                 request = nachi.ParseRequest(line)
@@ -87,9 +97,9 @@ class NachiControllerLogic:
             self.stopped = False
             return "OK"
         if word == nachi.STATUS:
-            return f"STATUS {self.State()} {self.moves} {len(self.errors)}"
-        last = f" {self.errors[-1][0]} {self.errors[-1][1]}" if self.errors else ""
-        return f"ERRORS {len(self.errors)}{last}"
+            return f"STATUS {self.State()} {self.moves} {self.error_count}"
+        last = f" {self.last_error[0]} {self.last_error[1]}" if self.last_error else ""
+        return f"ERRORS {self.error_count}{last}"
 
     def State(self) -> str:
         if self.stopped:
@@ -98,8 +108,27 @@ class NachiControllerLogic:
         return "MOVING" if moving else "IDLE"
 
     def _Error(self, code: str, text: str) -> str:
-        self.errors.append((code, text))
+        self.error_count += 1
+        self.last_error = (code, text)
         return f"NG {code} {text}"
+
+
+def ServeConnection(connection: socket.socket, logic: NachiControllerLogic) -> None:
+    """Answers the client's request lines until it closes the connection. Once replies can
+    no longer be delivered, the requests already received are still executed."""
+    lines = LineSocket(connection, nachi.MAX_LINE)
+    replying = True
+    while True:
+        try:
+            line = lines.ReadLine()
+        except OSError:
+            return
+        reply = logic.Handle(line)
+        if replying:
+            try:
+                lines.WriteLines(reply)
+            except OSError:
+                replying = False
 
 
 class NachiEmulator:
@@ -140,7 +169,11 @@ class NachiEmulator:
         )
         self._command_port.FixValue(self.context, q0)
         self._period = period
-        self._server = socket.create_server((host, port), reuse_port=False)
+        try:
+            self._server = socket.create_server((host, port), reuse_port=False)
+        except (OSError, OverflowError) as e:
+            message = f"nachi emulator: cannot listen on {host}:{port}: {e}"
+            raise ConfigurationError(message) from None
         self.port = self._server.getsockname()[1]
         self._closing = threading.Event()
         threading.Thread(target=self._Accept, name="nachi-accept", daemon=True).start()
@@ -171,14 +204,9 @@ class NachiEmulator:
                 connection, _ = self._server.accept()
             except OSError:
                 return
-            connection.setsockopt(socket.IPPROTO_TCP, socket.TCP_NODELAY, 1)
             threading.Thread(target=self._Serve, args=(connection,), daemon=True).start()
 
     def _Serve(self, connection: socket.socket) -> None:
-        lines = LineSocket(connection, nachi.MAX_LINE)
-        with connection:
-            try:
-                while True:
-                    lines.WriteLines(self.logic.Handle(lines.ReadLine()))
-            except OSError:
-                return
+        with connection, contextlib.suppress(OSError):  # a client gone before it was served
+            connection.setsockopt(socket.IPPROTO_TCP, socket.TCP_NODELAY, 1)
+            ServeConnection(connection, self.logic)

@@ -1,93 +1,199 @@
 """Nachi CFD controllers through the User Task line protocol, behind the ArmLink interface.
 
-One I/O thread owns the socket: as soon as a joint target is pending (and at least every
-`poll_period`) it sends the newest target (SET_TARGET + MOVE) and reads the joints
-(READ_JOINTS). Velocities are differences of
-successive joint readings over the controller's clock. Malformed reply lines are printed,
-counted in `rejected_lines`, and skipped; the ArmDriver's watchdog covers a link that keeps
-failing. A controller that refuses a target or a move (`NG ...`, e.g. after a STOP from its
-pendant) or a lost connection is a fault: streaming ends and the ArmDriver fails the run.
-Connecting sends RESET: starting a run is the deliberate act that clears an earlier STOP.
+Requests are pipelined: a writer appends one pending reply per request line to a queue, in
+the order the lines are sent, and a reader thread hands each reply line to the oldest
+pending request. So a STOP goes out at once even while an earlier request waits for a
+controller that has frozen, and a late reply can never be taken for the reply to a later
+request. A poll thread sends the newest joint target (SET_TARGET + MOVE) as soon as one is
+pending, and READ_JOINTS at least every `poll_period`; it waits for its replies without a
+deadline of its own: the ArmDriver's watchdog judges a link that went quiet.
+
+Velocities are differences of successive joint readings over the controller's clock.
+Malformed reply lines are printed, counted in `rejected_lines`, and skipped. A controller
+that refuses a target or a move (`NG ...`, e.g. after a STOP from its pendant) or a lost
+connection is a fault: streaming ends and the ArmDriver fails the run. `stop` waits at most
+`stop_timeout` for the controller's OK. Connecting sends RESET: starting a run is the
+deliberate act that clears an earlier STOP.
 """
 
 from __future__ import annotations
 
+import collections
+import contextlib
 import socket
+import struct
 import threading
 
 import numpy as np
 
+from guidedarm.systems.errors import ConfigurationError
 from guidedarm.systems.hardware import nachi_protocol as nachi
-from guidedarm.systems.hardware.arm_link import JointSample, LatestSample, RegisterArmLink
+from guidedarm.systems.hardware.arm_link import (
+    JointSample,
+    LatestSample,
+    RegisterArmLink,
+    UnregisterArmLink,
+)
 from guidedarm.systems.hardware.line_socket import LineSocket
+
+WAIT_SLICE = 0.05  # s; how often a wait for a reply checks whether the link died or closes
+SEND_TIMEOUT = 1.0  # s; a controller that takes no bytes for this long is lost
+
+
+class PendingReply:
+    """The reply line to one request line, filled in by the reader thread."""
+
+    def __init__(self, request: str) -> None:
+        self.word = request.split(maxsplit=1)[0]
+        self._done = threading.Event()
+        self._line = ""
+        self._error: str | None = None
+
+    def Resolve(self, line: str | None, error: str | None = None) -> None:
+        self._line, self._error = line or "", error
+        self._done.set()
+
+    def Wait(self, timeout: float | None) -> str:
+        """The reply; TimeoutError after `timeout` s, ConnectionError if the link died."""
+        if not self._done.wait(timeout):
+            raise TimeoutError(f"no reply to {self.word} within {timeout} s")
+        if self._error is not None:
+            raise ConnectionError(f"{self.word} unanswered: {self._error}")
+        return self._line
 
 
 class NachiLink:
     """ArmLink of a Nachi arm at (host, port)."""
 
     def __init__(
-        self, name: str, host: str, port: int, poll_period: float = 0.002, timeout: float = 1.0
+        self,
+        name: str,
+        host: str,
+        port: int,
+        poll_period: float = 0.002,
+        connect_timeout: float = 1.0,
+        stop_timeout: float = 0.25,
     ) -> None:
         self.name = name
         self.rejected_lines = 0
         self._fault: str | None = None
+        self._dead: str | None = None  # why nothing more can be sent or received
+        self._stop_timeout = stop_timeout
         try:
-            connection = socket.create_connection((host, port), timeout=timeout)
-        except OSError as e:
-            raise nachi.NachiProtocolError(f"{name}: cannot reach {host}:{port}: {e}") from None
+            connection = socket.create_connection((host, port), timeout=connect_timeout)
+        except (OSError, OverflowError) as e:
+            raise ConfigurationError(f"{name}: cannot reach {host}:{port}: {e}") from None
         connection.setsockopt(socket.IPPROTO_TCP, socket.TCP_NODELAY, 1)
+        # Reads block (close() shuts the socket down); sends give up after SEND_TIMEOUT.
+        connection.settimeout(None)
+        seconds = int(SEND_TIMEOUT)
+        microseconds = int(1e6 * (SEND_TIMEOUT - seconds))
+        connection.setsockopt(
+            socket.SOL_SOCKET, socket.SO_SNDTIMEO, struct.pack("ll", seconds, microseconds)
+        )
         self._socket = LineSocket(connection, nachi.MAX_LINE)
-        self._lock = threading.Lock()
-        self._unanswered = False
-        (reply,) = self.Request(nachi.RESET)
-        nachi.CheckOk(reply)
-        self._pending: np.ndarray | None = None
+        self._send_lock = threading.Lock()
+        self._pending_replies: collections.deque[PendingReply] = collections.deque()
+        self._closing = threading.Event()
+        self._reader = threading.Thread(target=self._Read, name=f"{name}-nachi-read", daemon=True)
+        self._reader.start()
+        try:
+            (reply,) = self.Request(nachi.RESET, timeout=connect_timeout)
+            nachi.CheckOk(reply)
+        except (OSError, nachi.NachiProtocolError) as e:
+            self.close()
+            raise ConfigurationError(f"{name}: {host}:{port} did not accept RESET: {e}") from None
+        self._target: np.ndarray | None = None
+        self._stopped = False
         self._poll_period = poll_period
         self._latest = LatestSample()
         self._previous: tuple[float, np.ndarray] | None = None
-        self._closing = threading.Event()
         self._wake = threading.Event()
-        self._thread = threading.Thread(target=self._Run, name=f"{name}-nachi", daemon=True)
-        self._thread.start()
+        self._poller = threading.Thread(target=self._Poll, name=f"{name}-nachi-poll", daemon=True)
+        self._poller.start()
         RegisterArmLink(self)
 
-    def Request(self, *lines: str) -> list[str]:
-        """Sends request lines and returns their replies (thread-safe)."""
-        with self._lock:
-            if self._unanswered:
-                self._socket.DiscardUnread()
-                self._unanswered = False
-            self._socket.WriteLines(*lines)
-            try:
-                return [self._socket.ReadLine() for _ in lines]
-            except OSError:
-                self._unanswered = True
-                raise
+    def Request(self, *lines: str, timeout: float | None = None) -> list[str]:
+        """Sends request lines and returns their replies (thread-safe); TimeoutError when a
+        reply does not come within `timeout` s (its late reply is then discarded)."""
+        return [reply.Wait(timeout) for reply in self._Send(lines)]
 
-    def _Run(self) -> None:
+    def _Send(self, lines: list[str] | tuple[str, ...]) -> list[PendingReply]:
+        with self._send_lock:
+            return self._SendLocked(lines)
+
+    def _SendLocked(self, lines: list[str] | tuple[str, ...]) -> list[PendingReply]:
+        replies = [PendingReply(line) for line in lines]
+        if self._dead is not None:  # the reason is the link's fault, reported already
+            raise ConnectionError(f"{replies[0].word} not sent: the link is down")
+        self._pending_replies.extend(replies)
+        try:
+            self._socket.WriteLines(*lines)
+        except OSError as e:
+            self._Lost(f"connection lost: {e}")
+            raise ConnectionError(f"{replies[0].word} not sent: connection lost: {e}") from None
+        return replies
+
+    def _Read(self) -> None:
+        try:
+            while True:
+                line = self._socket.ReadLine()
+                try:
+                    reply = self._pending_replies.popleft()
+                except IndexError:
+                    self._Reject(f"unrequested line {line[:80]!r}")
+                    continue
+                reply.Resolve(line)
+        except OSError as e:
+            self._Lost("link closed" if self._closing.is_set() else f"connection lost: {e}")
+
+    def _Lost(self, reason: str) -> None:
+        """Marks the link dead: every pending and later request fails with `reason`."""
+        self._dead = self._dead or reason
+        self._fault = self._fault or reason
+        while self._pending_replies:
+            with contextlib.suppress(IndexError):
+                self._pending_replies.popleft().Resolve(None, reason)
+
+    def _Poll(self) -> None:
         while not self._closing.is_set():
             self._wake.wait(self._poll_period)
             self._wake.clear()
-            target, self._pending = self._pending, None
             try:
-                if target is not None:
-                    for reply in self.Request(nachi.FormatSetTarget(target), nachi.MOVE):
-                        nachi.CheckOk(reply)
-                (reply,) = self.Request(nachi.READ_JOINTS)
-                self._Check(self._Measured, reply)
+                with self._send_lock:
+                    target, self._target = (None if self._stopped else self._target), None
+                    lines = [nachi.READ_JOINTS]
+                    if target is not None:
+                        lines = [nachi.FormatSetTarget(target), nachi.MOVE, *lines]
+                    replies = self._SendLocked(lines)
+                for reply in replies[:-1]:
+                    nachi.CheckOk(self._Await(reply))
+                self._Check(self._Measured, self._Await(replies[-1]))
             except nachi.NachiProtocolError as e:
-                self._fault = str(e)
+                self._fault = self._fault or str(e)
                 return
             except OSError as e:
-                self._fault = f"connection lost: {e}"
+                self._fault = self._fault or str(e)
                 return
+
+    def _Await(self, reply: PendingReply) -> str:
+        """The reply, however long the controller takes, unless the link dies or closes."""
+        while True:
+            try:
+                return reply.Wait(WAIT_SLICE)
+            except TimeoutError:
+                if self._dead is not None or self._closing.is_set():
+                    raise ConnectionError(self._dead or "link closed") from None
 
     def _Check(self, parse, reply: str) -> None:
         try:
             parse(reply)
         except nachi.NachiProtocolError as e:
-            self.rejected_lines += 1
-            print(f"{self.name}: rejected reply #{self.rejected_lines}: {e}", flush=True)
+            self._Reject(str(e))
+
+    def _Reject(self, why: str) -> None:
+        self.rejected_lines += 1
+        print(f"{self.name}: rejected reply #{self.rejected_lines}: {why}", flush=True)
 
     def _Measured(self, reply: str) -> None:
         t, q = nachi.ParseJoints(reply)
@@ -108,16 +214,29 @@ class NachiLink:
         return self._fault
 
     def send_position(self, q: np.ndarray, period: float) -> None:
-        self._pending = np.array(q, float)
+        self._target = np.array(q, float)
         self._wake.set()
 
     def stop(self) -> None:
-        self._pending = None
-        (reply,) = self.Request(nachi.STOP)
-        nachi.CheckOk(reply)
+        """Sends STOP at once (no target follows it) and waits `stop_timeout` for its OK.
+        A STOP left unanswered marks the link dead: stopping again fails at once."""
+        with self._send_lock:
+            self._stopped = True
+            (reply,) = self._SendLocked([nachi.STOP])
+        try:
+            line = reply.Wait(self._stop_timeout)
+        except TimeoutError as e:
+            self._dead = self._dead or str(e)
+            raise
+        nachi.CheckOk(line)
 
     def close(self) -> None:
         self._closing.set()
         self._wake.set()
-        self._thread.join(timeout=1.0)
+        UnregisterArmLink(self)
+        with contextlib.suppress(OSError):
+            self._socket.connection.shutdown(socket.SHUT_RDWR)
+        for thread in (getattr(self, "_poller", None), self._reader):
+            if thread is not None and thread is not threading.current_thread():
+                thread.join(timeout=2 * WAIT_SLICE)
         self._socket.connection.close()

@@ -1,7 +1,9 @@
 """The line protocol between a PC and the Nachi CFD controller's User Task (docs/nachi_protocol.md).
 
-ASCII lines ending in LF; every request gets exactly one reply line, in order. Joints travel
-in degrees, positions in millimetres (the controller's units); this module converts to SI.
+Printable ASCII lines ending in LF; every request gets exactly one reply line, in order.
+Joints travel in degrees, positions in millimetres (the controller's units); this module
+converts to SI. Parsers take a line with one character per byte (LineSocket) and reject any
+other byte, quoting lines with `ascii()` so that messages and NG replies stay ASCII.
 """
 
 from __future__ import annotations
@@ -43,23 +45,40 @@ class Request:
     values: np.ndarray  # SI: rad for SET_TARGET, empty otherwise
 
 
+def Quote(line: str, limit: int = 80) -> str:
+    """The first `limit` characters of `line`, quoted, non-ASCII and control characters
+    escaped (ASCII only)."""
+    return ascii(line[:limit])
+
+
+def _Fields(line: str) -> list[str]:
+    """The space-separated fields of a line of printable ASCII of at most MAX_LINE bytes."""
+    if len(line) > MAX_LINE:
+        raise NachiProtocolError(f"line longer than {MAX_LINE} bytes")
+    bad = next((c for c in line if not " " <= c <= "~"), None)
+    if bad is not None:
+        raise NachiProtocolError(
+            f"byte 0x{ord(bad):02x} at column {line.index(bad) + 1} is not printable ASCII: "
+            f"{Quote(line)}"
+        )
+    return line.split(" ")
+
+
 def _Numbers(fields: list[str], count: int, line: str) -> np.ndarray:
     if len(fields) != count:
-        raise NachiProtocolError(f"expected {count} numbers, got {len(fields)}: {line!r}")
+        raise NachiProtocolError(f"expected {count} numbers, got {len(fields)}: {Quote(line)}")
     try:
         values = np.array([float(f) for f in fields])
     except ValueError:
-        raise NachiProtocolError(f"not a number in {line!r}") from None
+        raise NachiProtocolError(f"not a number in {Quote(line)}") from None
     if not np.all(np.isfinite(values)):
-        raise NachiProtocolError(f"non-finite number in {line!r}")
+        raise NachiProtocolError(f"non-finite number in {Quote(line)}")
     return values
 
 
 def ParseRequest(line: str) -> Request:
     """Server side: one request line (without LF)."""
-    if len(line) > MAX_LINE:
-        raise NachiProtocolError(f"line longer than {MAX_LINE} bytes")
-    fields = line.split()
+    fields = [f for f in _Fields(line) if f]
     if not fields:
         raise NachiProtocolError("empty line")
     word, arguments = fields[0], fields[1:]
@@ -68,7 +87,7 @@ def ParseRequest(line: str) -> Request:
     if word in (READ_JOINTS, READ_POSE, MOVE, STOP, RESET, STATUS, ERRORS):
         _Numbers(arguments, 0, line)
         return Request(word, np.zeros(0))
-    raise NachiProtocolError(f"unknown request {word!r}")
+    raise NachiProtocolError(f"unknown request {Quote(word)}")
 
 
 def FormatSetTarget(q: np.ndarray) -> str:
@@ -83,9 +102,9 @@ def FormatJoints(t: float, q: np.ndarray) -> str:
 
 def ParseJoints(line: str) -> tuple[float, np.ndarray]:
     """Client side: (controller time s, joints rad) from a JOINTS reply."""
-    fields = line.split()
+    fields = [f for f in _Fields(line) if f]
     if not fields or fields[0] != "JOINTS":
-        raise NachiProtocolError(f"expected JOINTS, got {line[:80]!r}")
+        raise NachiProtocolError(f"expected JOINTS, got {Quote(line)}")
     values = _Numbers(fields[1:], 1 + NUM_JOINTS, line)
     return float(values[0]), np.deg2rad(values[1:])
 
@@ -97,9 +116,9 @@ def FormatPose(xyz: np.ndarray, rpy: np.ndarray) -> str:
 
 def ParsePose(line: str) -> tuple[np.ndarray, np.ndarray]:
     """Client side: (xyz m, roll-pitch-yaw rad) of the flange in base from a POSE reply."""
-    fields = line.split()
+    fields = [f for f in _Fields(line) if f]
     if not fields or fields[0] != "POSE":
-        raise NachiProtocolError(f"expected POSE, got {line[:80]!r}")
+        raise NachiProtocolError(f"expected POSE, got {Quote(line)}")
     values = _Numbers(fields[1:], 6, line)
     return 1e-3 * values[:3], np.deg2rad(values[3:])
 
@@ -107,4 +126,4 @@ def ParsePose(line: str) -> tuple[np.ndarray, np.ndarray]:
 def CheckOk(line: str) -> None:
     """Client side: raises NachiProtocolError unless the reply is OK."""
     if line.strip() != "OK":
-        raise NachiProtocolError(f"controller refused: {line[:120]!r}")
+        raise NachiProtocolError(f"controller refused: {Quote(line, 120)}")

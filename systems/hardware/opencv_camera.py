@@ -18,8 +18,8 @@ from pydrake.common.value import AbstractValue
 from pydrake.systems.framework import Context, LeafSystem, State
 from pydrake.systems.sensors import ImageRgba8U
 
-from guidedarm.systems.errors import ConfigurationError, GuidedArmError
-from guidedarm.systems.hardware.arm_link import LinkLostError, StopAllArms
+from guidedarm.systems.errors import ConfigurationError
+from guidedarm.systems.hardware.arm_link import FailStoppingAllArms
 
 
 class FrameGrabber:
@@ -65,7 +65,8 @@ class FrameGrabber:
 
 class OpenCvCamera(LeafSystem):
     """Output `rgb_image`: ImageRgba8U(width, height) of the newest frame, sampled every
-    `period` s. A frame of another size, or no frame for `watchdog` s, fails the run."""
+    `period` s. A frame of another size, or no frame for `watchdog` s, stops every arm and
+    fails the run with a HardwareFaultError."""
 
     def __init__(
         self, grabber: FrameGrabber, width: int, height: int, period: float, watchdog: float
@@ -88,19 +89,22 @@ class OpenCvCamera(LeafSystem):
         self._start = self._start or now
         latest = self._grabber.latest()
         last_time = latest[1] if latest else self._start
+        device = f"camera '{self._grabber.source}'"
         if now - last_time > self._watchdog:
-            StopAllArms()
-            raise LinkLostError(
-                f"camera '{self._grabber.source}': no frame for {now - last_time:.2f} s "
-                f"(watchdog {self._watchdog} s); arms stopped"
+            FailStoppingAllArms(
+                device,
+                f"no frame for {now - last_time:.2f} s (watchdog {self._watchdog} s)",
+                context.get_time(),
             )
         if latest is None:
             return
         frame = latest[0]
         if (frame.shape[1], frame.shape[0]) != self._size:
-            raise GuidedArmError(
-                f"camera '{self._grabber.source}' delivers {frame.shape[1]}x{frame.shape[0]}, "
-                f"the scenario expects {self._size[0]}x{self._size[1]}"
+            FailStoppingAllArms(
+                device,
+                f"delivers {frame.shape[1]}x{frame.shape[0]} frames, the scenario expects "
+                f"{self._size[0]}x{self._size[1]}",
+                context.get_time(),
             )
         image = ImageRgba8U(*self._size)
         image.mutable_data[:] = frame

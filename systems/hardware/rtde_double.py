@@ -20,6 +20,7 @@ import time
 from guidedarm.systems.hardware import rtde_protocol as rtde
 
 CONTROLLER_VERSION = (5, 15, 0, 0)  # major, minor, bugfix, build: an e-Series controller
+MAX_FREQUENCY = 500.0  # Hz; an output recipe asking for more (or NaN) is refused
 
 
 class RtdeDoubleSession:
@@ -72,7 +73,7 @@ class RtdeDoubleSession:
             (frequency,) = struct.unpack_from(">d", packet.payload)
             names = [n for n in packet.payload[8:].decode("ascii", "replace").split(",") if n]
             types = [rtde.OUTPUT_TYPES.get(n, "NOT_FOUND") for n in names]
-            if "NOT_FOUND" not in types and frequency > 0:
+            if "NOT_FOUND" not in types and 0 < frequency <= MAX_FREQUENCY:
                 self._recipe, self._names = rtde.RecipeFormat(types), names
                 self._period = 1.0 / frequency
             recipe_id = 1 if self._recipe is not None else 0

@@ -1,7 +1,8 @@
 """ToFDriver: the ToF tool's latest reading as the station's `ranges` and `valid` ports.
 
 Every `period` seconds it copies the newest reading of a ToFLineCollector (fed by a serial or
-BLE transport). No reading for longer than `watchdog` stops every arm and fails the run.
+BLE transport). No valid line for longer than `watchdog` (a silent tool, or one sending
+only malformed lines) stops every arm and fails the run with a HardwareFaultError.
 """
 
 from __future__ import annotations
@@ -11,7 +12,7 @@ import time
 import numpy as np
 from pydrake.systems.framework import BasicVector, Context, DiscreteValues, LeafSystem
 
-from guidedarm.systems.hardware.arm_link import LinkLostError, StopAllArms
+from guidedarm.systems.hardware.arm_link import FailStoppingAllArms
 from guidedarm.systems.hardware.tof_protocol import NUM_SENSORS, ToFLineCollector
 from guidedarm.systems.tof.tof_tool_sensor import DeclareGridOutputs
 from guidedarm.systems.tof.tof_tool_sensor_math import DetectionGrid
@@ -60,11 +61,11 @@ class ToFDriver(LeafSystem):
         latest = self._collector.latest()
         last_time = latest[1] if latest else self._start
         if now - last_time > self._watchdog:
-            StopAllArms()
-            raise LinkLostError(
-                f"{self._collector.name}: no valid line for {now - last_time:.2f} s "
-                f"(watchdog {self._watchdog} s, {self._collector.rejected} rejected); "
-                "arms stopped"
+            FailStoppingAllArms(
+                self._collector.name,
+                f"no valid line for {now - last_time:.2f} s (watchdog {self._watchdog} s, "
+                f"{self._collector.rejected} lines rejected)",
+                context.get_time(),
             )
         if latest is not None:
             valid = latest[0].valid

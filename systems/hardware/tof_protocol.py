@@ -5,11 +5,13 @@
 r: range in mm (0..255, the sensor's 8-bit result); s: the VL6180X RESULT__RANGE_STATUS
 error code (0 = valid); seq: 0..65535, wraps; CS: two hex digits, XOR of the characters
 between `$` and `*` (NMEA style). `ToFLineCollector` turns a byte stream, however it is
-fragmented (serial reads, BLE notifications of <= 20 bytes), into readings.
+fragmented (serial reads, BLE notifications of <= 20 bytes), into readings; any other bytes
+(binary noise, NUL, non-ASCII, overlong lines) are rejected with a message and counted.
 """
 
 from __future__ import annotations
 
+import string
 import threading
 import time
 from dataclasses import dataclass
@@ -71,23 +73,41 @@ def FormatTofLine(seq: int, ranges_mm: np.ndarray, status: np.ndarray) -> str:
     return f"${body}*{Checksum(body):02X}"
 
 
+def _Quote(line: str) -> str:
+    """The start of a line, quoted, non-ASCII and control characters escaped."""
+    return ascii(line[:40])
+
+
+def _Integer(field: str, base: int = 10) -> int:
+    """A field of ASCII digits (int() alone would also take signs, spaces and underscores)."""
+    digits = string.hexdigits if base == 16 else string.digits
+    if not field or not all(c in digits for c in field):
+        raise ValueError(field)
+    return int(field, base)
+
+
 def ParseTofLine(line: str) -> ToFReading:
     """Parses one line (CR LF stripped or not); raises ToFLineError naming the defect."""
-    line = line.strip()
+    line = line.strip("\r\n")
     if not line.startswith("$TOF,") or "*" not in line:
-        raise ToFLineError(f"not a ToF line: {line[:40]!r}")
+        raise ToFLineError(f"not a ToF line: {_Quote(line)}")
+    bad = next((c for c in line if not " " <= c <= "~"), None)
+    if bad is not None:
+        raise ToFLineError(f"byte 0x{ord(bad):02x} is not printable ASCII in {_Quote(line)}")
     body, _, checksum = line[1:].rpartition("*")
     try:
-        if int(checksum, 16) != Checksum(body):
-            raise ToFLineError(f"checksum mismatch in {line[:40]!r}")
-        numbers = [int(f) for f in body.split(",")[1:]]
-    except (ValueError, UnicodeEncodeError):
-        raise ToFLineError(f"not an integer field in {line[:40]!r}") from None
+        if len(checksum) != 2 or _Integer(checksum, 16) != Checksum(body):
+            raise ToFLineError(f"checksum mismatch in {_Quote(line)}")
+        numbers = [_Integer(f) for f in body.split(",")[1:]]
+    except ValueError:
+        raise ToFLineError(f"not an integer field in {_Quote(line)}") from None
     if len(numbers) != 1 + 2 * NUM_SENSORS:
         raise ToFLineError(f"{len(numbers)} fields, expected {1 + 2 * NUM_SENSORS}")
     ranges, status = np.array(numbers[1::2]), np.array(numbers[2::2])
+    if numbers[0] > 65535:
+        raise ToFLineError(f"sequence number {numbers[0]} outside 0..65535")
     if np.any((ranges < 0) | (ranges > 255)):
-        raise ToFLineError(f"range outside 0..255 mm in {line[:40]!r}")
+        raise ToFLineError(f"range outside 0..255 mm in {_Quote(line)}")
     unknown = [s for s in status if s not in RANGE_STATUS]
     if unknown:
         raise ToFLineError(f"unknown VL6180X status code {unknown[0]}")
@@ -114,12 +134,14 @@ class ToFLineCollector:
             del self._buffer[: cut + 1]
             # A `$` inside a line means the line before it was cut short: reject the
             # fragment and resynchronise on the newest start.
-            *fragments, last = line.decode("ascii", "replace").split("$")
-            for fragment in fragments:
+            head, start, last = line.decode("latin-1").rpartition("$")
+            for fragment in head.split("$"):
                 if fragment.strip():
-                    self._Reject(f"truncated line {fragment[:40]!r}")
-            if last.strip():
-                self._Accept("$" + last)
+                    self._Reject(f"truncated line {_Quote(fragment)}")
+            if start:
+                self._Accept(start + last)
+            elif last.strip():
+                self._Reject(f"not a ToF line: {_Quote(last)}")
 
     def _Reject(self, why: str) -> None:
         self.rejected += 1

@@ -4,17 +4,33 @@ The vendor API is reached through two small protocols of ours, so each side can 
 `RtdeReceive` (the subset of rtde_receive.RTDEReceiveInterface we use) is tested against a
 loopback RTDE double speaking the wire protocol; `RtdeControl` (servoJ, servoStop of
 rtde_control.RTDEControlInterface) against a recording fake. A poll thread copies each new
-controller sample (a new RTDE `timestamp`) into LatestSample with the host time it arrived.
+controller sample (a new RTDE `timestamp`) into LatestSample with the host time it arrived;
+an error of the vendor interface in that thread is the link's fault. A servoJ or servoStop
+the controller does not accept raises, so the ArmDriver stops the arm and fails the run.
+
+Connecting is part of building the station, before any motion: a controller that cannot
+be reached is a ConfigurationError (one line, naming the host and the vendor's message).
 """
 
 from __future__ import annotations
 
+import contextlib
+import os
+import sys
+import tempfile
 import threading
 from typing import Protocol
 
 import numpy as np
 
-from guidedarm.systems.hardware.arm_link import JointSample, LatestSample, RegisterArmLink
+from guidedarm.systems.errors import ConfigurationError
+from guidedarm.systems.hardware.arm_link import (
+    DescribeError,
+    JointSample,
+    LatestSample,
+    RegisterArmLink,
+    UnregisterArmLink,
+)
 
 RTDE_FREQUENCY = 500.0  # Hz, e-Series controllers
 SERVO_STOP_DECELERATION = 10.0  # rad/s^2, the vendor's default for servoStop
@@ -60,6 +76,7 @@ class UrRtdeLink:
         self._lookahead_time = lookahead_time
         self._gain = gain
         self._poll_period = poll_period
+        self._fault: str | None = None
         self._latest = LatestSample()
         self._closing = threading.Event()
         self._thread = threading.Thread(target=self._Poll, name=f"{name}-rtde", daemon=True)
@@ -68,33 +85,40 @@ class UrRtdeLink:
 
     def _Poll(self) -> None:
         last_timestamp = None
-        while not self._closing.wait(self._poll_period):
-            if not self._receive.isConnected():
-                return
-            timestamp = self._receive.getTimestamp()
-            if timestamp != last_timestamp:
-                last_timestamp = timestamp
-                self._latest.put(self._receive.getActualQ(), self._receive.getActualQd())
+        try:
+            while not self._closing.wait(self._poll_period):
+                if not self._receive.isConnected():
+                    self._fault = "RTDE connection lost"
+                    return
+                timestamp = self._receive.getTimestamp()
+                if timestamp != last_timestamp:
+                    last_timestamp = timestamp
+                    self._latest.put(self._receive.getActualQ(), self._receive.getActualQd())
+        except Exception as e:  # the vendor raises RuntimeError; any error ends the stream
+            self._fault = f"RTDE receive failed: {DescribeError(e)}"
 
     def latest(self) -> JointSample | None:
         return self._latest.get()
 
     def fault(self) -> str | None:
-        return None if self._receive.isConnected() else "RTDE connection lost"
+        return self._fault
 
     def send_position(self, q: np.ndarray, period: float) -> None:
-        self._control.servoJ(
-            [float(x) for x in q], 0.0, 0.0, period, self._lookahead_time, self._gain
-        )
+        q = [float(x) for x in q]
+        if not self._control.servoJ(q, 0.0, 0.0, period, self._lookahead_time, self._gain):
+            raise RuntimeError("servoJ not accepted by the controller")
 
     def stop(self) -> None:
-        self._control.servoStop(SERVO_STOP_DECELERATION)
+        if not self._control.servoStop(SERVO_STOP_DECELERATION):
+            raise RuntimeError("servoStop not accepted by the controller")
 
     def close(self) -> None:
         self._closing.set()
+        UnregisterArmLink(self)
         self._thread.join(timeout=1.0)
-        self._receive.disconnect()
-        self._control.stopScript()
+        for release in (self._receive.disconnect, self._control.stopScript):
+            with contextlib.suppress(Exception):  # closing a dead vendor interface
+                release()
 
 
 def OpenUrRtde(name: str, host: str, lookahead_time: float, gain: float) -> UrRtdeLink:
@@ -103,6 +127,38 @@ def OpenUrRtde(name: str, host: str, lookahead_time: float, gain: float) -> UrRt
     import rtde_receive
 
     variables = ["timestamp", "actual_q", "actual_qd"]
-    receive = rtde_receive.RTDEReceiveInterface(host, RTDE_FREQUENCY, variables)
-    control = rtde_control.RTDEControlInterface(host, RTDE_FREQUENCY)
+    receive = control = None
+    with CapturedStderr() as vendor:
+        try:
+            receive = rtde_receive.RTDEReceiveInterface(host, RTDE_FREQUENCY, variables)
+            control = rtde_control.RTDEControlInterface(host, RTDE_FREQUENCY)
+        except RuntimeError as e:
+            error = str(e)
+    if control is None:
+        if receive is not None:
+            with contextlib.suppress(Exception):
+                receive.disconnect()
+        said = "; ".join(line for line in [*vendor.text.splitlines(), error] if line.strip())
+        raise ConfigurationError(f"{name}: cannot connect to the UR controller at {host}: {said}")
+    sys.stderr.write(vendor.text)
     return UrRtdeLink(name, receive, control, lookahead_time, gain)
+
+
+class CapturedStderr:
+    """Within `with`, what is written to file descriptor 2 (also by C++ libraries, which
+    print their connection errors themselves) goes to `text` instead of the terminal."""
+
+    def __enter__(self) -> CapturedStderr:
+        self.text = ""
+        sys.stderr.flush()
+        self._saved = os.dup(2)
+        self._capture = tempfile.TemporaryFile()
+        os.dup2(self._capture.fileno(), 2)
+        return self
+
+    def __exit__(self, *_) -> None:
+        os.dup2(self._saved, 2)
+        os.close(self._saved)
+        self._capture.seek(0)
+        self.text = self._capture.read().decode("utf-8", "replace")
+        self._capture.close()

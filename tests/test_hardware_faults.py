@@ -1,0 +1,310 @@
+"""Faults injected through real processes during `guidedarm run path_following --hardware`
+against `guidedarm emulate nachi` (a separate process): the controller killed (SIGKILL) or
+frozen (SIGSTOP), a second client sending STOP as the pendant would, the ToF stream silenced
+or garbled (a relay between the emulator's pseudo-terminal and the run's), a command beyond
+the acceleration limits. Each run exits 1 within the watchdog + 1 s of the fault with
+summary.json naming the link, the fault and its time, the emulated arm ends STOPPED when
+it is still reachable, and no output holds a traceback.
+
+Refusals before a run (a UR controller that cannot be reached, settings that cannot run on
+hardware) are one line and exit 2.
+"""
+
+from __future__ import annotations
+
+import json
+import re
+import signal
+import socket
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+import pytest
+from hardware_doubles import FreezingNachiController, StartNachiEmulator, ToFRelay
+from pydrake.multibody.plant import MultibodyPlant
+from pydrake.systems.analysis import Simulator
+from pydrake.systems.framework import DiagramBuilder
+from pydrake.systems.primitives import ConstantVectorSource
+
+from guidedarm.diagrams.cli.command_run import LoadScenario
+from guidedarm.diagrams.station.model_paths import MakeParser
+from guidedarm.diagrams.tasks.path_following import MakeSetup
+from guidedarm.systems.errors import HardwareFaultError
+from guidedarm.systems.hardware.arm_driver import ArmDriver
+from guidedarm.systems.hardware.command_guard import JointLimits
+from guidedarm.systems.hardware.nachi_link import NachiLink
+
+WATCHDOG = 0.5  # s, arm and ToF tool: the emulator shares the 2 cores with the run
+CLI = [sys.executable, "-m", "guidedarm.diagrams.cli.main"]
+FAULT = r"hardware fault on {device} at t = \d+\.\d{{3}} s: "
+
+
+def test_frozen_controller_is_sent_stop_within_watchdog_plus_a_period():
+    # In process, to see when STOP reaches the controller: the link is dead (no replies), its
+    # TCP connection open. A pending READ_JOINTS must not hold the STOP back.
+    period, watchdog = 0.01, 0.1
+    q0 = np.array([0.0, np.pi / 2, 0.0, 0.0, -np.pi / 2, 0.0])
+    controller = FreezingNachiController(q0)
+    plant = MultibodyPlant(0.0)
+    (instance,) = MakeParser(plant).AddModelsFromUrl("package://guidedarm/mz04d/mz04d.urdf")
+    plant.Finalize()
+    limits = JointLimits.FromPlant(plant, instance, [10.0] * 6)
+    link = NachiLink("mz04d", "127.0.0.1", controller.port, poll_period=period)
+    builder = DiagramBuilder()
+    driver = builder.AddSystem(ArmDriver(link, limits, period, watchdog, stale_after=0.05))
+    source = builder.AddSystem(ConstantVectorSource(q0))
+    builder.Connect(source.get_output_port(), driver.get_input_port())
+    simulator = Simulator(builder.Build())
+    simulator.set_target_realtime_rate(1.0)
+    simulator.AdvanceTo(0.3)
+    assert controller.logic.moves > 20  # streaming: about one target per period
+    controller.frozen = True
+    with pytest.raises(HardwareFaultError) as fault:
+        simulator.AdvanceTo(5.0)
+    controller.close()
+    assert re.fullmatch(
+        r"hardware fault on mz04d at t = 0\.\d{3} s: link quiet for 0\.1\d* s \(watchdog 0\.1 s\) "
+        r"\(stopping it also failed: no reply to STOP within 0\.25 s\)",
+        str(fault.value),
+    )
+    stops = [t for t, line in controller.received_frozen if line == "STOP"]
+    assert len(stops) == 1
+    delay = stops[0] - controller.last_reply
+    print(f"\nfrozen controller: last reply to STOP received {delay:.3f} s")
+    # Thread scheduling on the shared 2-core machine adds a few ms (up to tens under a load
+    # average of 10) to the period.
+    assert watchdog < delay < watchdog + period + 0.05
+    # No target followed the STOP.
+    after = [line for t, line in controller.received_frozen if t > stops[0]]
+    assert not [line for line in after if line.startswith(("SET_TARGET", "MOVE"))]
+
+
+@pytest.fixture(scope="module")
+def q_start(tmp_path_factory) -> list[float]:
+    """The task's start joints: the emulated arm starts there, as the real arm would be
+    brought there before the run."""
+    _, scenario, _ = LoadScenario("path_following", [])
+    setup, _, _ = MakeSetup(scenario, tmp_path_factory.mktemp("setup"))
+    return [float(q) for q in setup.q_start]
+
+
+class Cell:
+    """The emulator process, its port and ToF device; its stderr goes to a file."""
+
+    def __init__(self, q_start: list[float], tmp_path: Path) -> None:
+        self.log = tmp_path / "emulator.log"
+        with self.log.open("w") as log:
+            self.process, self.port, self.tof_device = StartNachiEmulator(
+                "--scenario",
+                "path_following",
+                "--set",
+                f"station.arms.mz04d.initial_position={q_start}",
+                stderr=log,
+            )
+
+    def Request(self, line: str) -> str:
+        """One request on a connection of its own (a second client, as a pendant)."""
+        with socket.create_connection(("127.0.0.1", self.port), timeout=2.0) as connection:
+            connection.sendall(f"{line}\n".encode())
+            return connection.recv(256).decode().strip()
+
+    def State(self) -> str:
+        return self.Request("STATUS").split()[1]
+
+    def Moves(self) -> int:
+        return int(self.Request("STATUS").split()[2])
+
+    def Close(self) -> str:
+        """Ends the emulator; returns everything it printed."""
+        if self.process.poll() is None:
+            self.process.send_signal(signal.SIGCONT)
+            self.process.terminate()
+        stdout, _ = self.process.communicate(timeout=10)
+        return stdout + self.log.read_text()
+
+
+@pytest.fixture
+def cell(q_start, tmp_path):
+    cell = Cell(q_start, tmp_path)
+    yield cell
+    output = cell.Close()
+    assert "Traceback" not in output and "Failure at" not in output, output
+
+
+class Run:
+    """`guidedarm run path_following --hardware` against the cell, outputs to files."""
+
+    def __init__(self, cell: Cell, out: Path, tof_device: str, *overrides: str) -> None:
+        self.out = out
+        out.mkdir()
+        arm = (
+            f"{{driver: nachi_tcp, port: {cell.port}, watchdog: {WATCHDOG}, "
+            "stale_after: 0.05, acceleration_limits: [10, 10, 10, 10, 10, 10]}"
+        )
+        settings = [
+            "station.arms.mz04d.control_period=0.01",
+            "max_time=30",
+            f"station.hardware.arms.mz04d={arm}",
+            f"station.hardware.tof_tools.tof={{device: {tof_device}, watchdog: {WATCHDOG}}}",
+            *overrides,
+        ]
+        command = [*CLI, "run", "path_following", "--hardware", "--out", str(out / "run")]
+        for setting in settings:
+            command += ["--set", setting]
+        self._stdout, self._stderr = (out / "stdout").open("w"), (out / "stderr").open("w")
+        self.process = subprocess.Popen(command, stdout=self._stdout, stderr=self._stderr)
+
+    def WaitUntilStreaming(self, cell: Cell, moves: int = 20) -> None:
+        """Until the run has sent `moves` targets (it starts in a few seconds)."""
+        deadline = time.monotonic() + 60.0
+        while cell.Moves() < moves:
+            assert self.process.poll() is None, self.Output()
+            assert time.monotonic() < deadline, "the run did not start streaming"
+            time.sleep(0.02)
+
+    def Wait(self) -> float:
+        """Waits for the exit; returns when it happened (time.monotonic())."""
+        self.process.wait(timeout=60)
+        return time.monotonic()
+
+    def Output(self) -> str:
+        self._stdout.flush()
+        self._stderr.flush()
+        return (self.out / "stdout").read_text() + (self.out / "stderr").read_text()
+
+    def Failure(self) -> str:
+        return json.loads((self.out / "run" / "summary.json").read_text())["failure"]
+
+
+def _CheckEnded(run: Run, fault: str, failure: str, fault_time: float) -> float:
+    """The run exited 1 with `failure` (a regex) in summary.json, no traceback; returns
+    the seconds from the fault to the exit."""
+    elapsed = run.Wait() - fault_time
+    output = run.Output()
+    assert run.process.returncode == 1, output
+    assert "Traceback" not in output and "Failure at" not in output, output
+    assert re.fullmatch(failure, run.Failure()), run.Failure()
+    assert f"guidedarm: run failed: {run.Failure()}" in output
+    print(f"\n{fault}: fault to exit {elapsed:.3f} s; failure: {run.Failure()}")
+    return elapsed
+
+
+def _WaitForState(cell: Cell, state: str, timeout: float = 3.0) -> str:
+    deadline = time.monotonic() + timeout
+    while (current := cell.State()) != state and time.monotonic() < deadline:
+        time.sleep(0.02)
+    return current
+
+
+ARM_FAULTS = {
+    "kill": FAULT.format(device="mz04d")
+    + r"connection lost: .* \(stopping it also failed: STOP not sent: the link is down\)",
+    "freeze": FAULT.format(device="mz04d")
+    + r"link quiet for 0\.5\d* s \(watchdog 0\.5 s\) "
+    + r"\(stopping it also failed: no reply to STOP within 0\.25 s\)",
+    "pendant": FAULT.format(device="mz04d")
+    + r"controller refused: 'NG E05 stopped; send RESET before MOVE'; arm stopped",
+}
+
+
+@pytest.mark.parametrize("fault", ARM_FAULTS)
+def test_controller_fault_ends_the_run_with_a_summary(fault, cell, tmp_path):
+    run = Run(cell, tmp_path / "out", cell.tof_device)
+    run.WaitUntilStreaming(cell)
+    fault_time = time.monotonic()
+    if fault == "kill":
+        cell.process.send_signal(signal.SIGKILL)
+    elif fault == "freeze":
+        cell.process.send_signal(signal.SIGSTOP)
+    else:
+        assert cell.Request("STOP") == "OK"
+    elapsed = _CheckEnded(run, fault, ARM_FAULTS[fault], fault_time)
+    assert elapsed < WATCHDOG + 1.0
+    if fault == "freeze":
+        # The STOP sent while the controller was frozen waits in its socket: it is executed
+        # as soon as the controller runs again.
+        cell.process.send_signal(signal.SIGCONT)
+    if fault != "kill":
+        assert _WaitForState(cell, "STOPPED") == "STOPPED"
+
+
+TOF_FAULTS = {
+    "silent": FAULT.format(device="tof")
+    + r"no valid line for 0\.5\d* s \(watchdog 0\.5 s, 0 lines rejected\); arms stopped",
+    "garbage": FAULT.format(device="tof")
+    + r"no valid line for 0\.5\d* s \(watchdog 0\.5 s, [1-9]\d* lines rejected\); arms stopped",
+}
+
+
+@pytest.mark.parametrize("fault", TOF_FAULTS)
+def test_tof_fault_stops_the_arm_and_ends_the_run(fault, cell, tmp_path):
+    relay = ToFRelay(cell.tof_device)
+    try:
+        run = Run(cell, tmp_path / "out", relay.device)
+        run.WaitUntilStreaming(cell)
+        fault_time = time.monotonic()
+        relay.mode = fault
+        elapsed = _CheckEnded(run, f"tof {fault}", TOF_FAULTS[fault], fault_time)
+    finally:
+        relay.close()
+    assert elapsed < WATCHDOG + 1.0
+    assert cell.State() == "STOPPED"
+
+
+def test_refused_command_is_not_sent_and_ends_the_run(cell, tmp_path):
+    # The follower accelerates its joints at up to 5 rad/s^2; the guard allows 0.05.
+    limits = "station.hardware.arms.mz04d.acceleration_limits=[0.05, 0.05, 0.05, 0.05, 0.05, 0.05]"
+    run = Run(cell, tmp_path / "out", cell.tof_device, limits)
+    deadline = time.monotonic() + 60.0
+    while cell.State() != "STOPPED":  # the refusal stops the arm: the fault's moment
+        assert run.process.poll() is None, run.Output()
+        assert time.monotonic() < deadline
+        time.sleep(0.01)
+    failure = FAULT.format(device="mz04d") + (
+        r"command refused before sending: joint joint\d acceleration \S+ \|a\| > limit 0\.05; "
+        "arm stopped"
+    )
+    elapsed = _CheckEnded(run, "refused command", failure, time.monotonic())
+    assert elapsed < WATCHDOG + 1.0
+    # Nothing beyond the limits reached the controller: every target it accepted is one
+    # the guard passed, and none after the STOP.
+    assert cell.Request("ERRORS") == "ERRORS 0"
+
+
+def _RunRefused(*args: str) -> subprocess.CompletedProcess:
+    return subprocess.run([*CLI, *args], capture_output=True, text=True, timeout=120)
+
+
+@pytest.mark.parametrize(
+    "args, message",
+    [
+        (
+            [
+                "run",
+                "ur10e_joint_tour",
+                "--hardware",
+                "--set",
+                "station.hardware.arms.ur10e={driver: ur_rtde, host: 127.0.0.9, "
+                "acceleration_limits: [5, 5, 5, 5, 5, 5]}",
+            ],
+            "ur10e: cannot connect to the UR controller at 127.0.0.9: connect: Connection "
+            "refused; Error: Could not connect to: 127.0.0.9 at 30004, verify the IP",
+        ),
+        (["emulate", "nachi", "--port", "70000"], "--port: 70000 is not a TCP port (0..65535)"),
+        (["emulate", "nachi", "--port", "-1"], "--port: -1 is not a TCP port (0..65535)"),
+        (["emulate", "nachi", "--host", "no.such.host.invalid"], "--host 'no.such.host.invalid'"),
+    ],
+)
+def test_refusals_before_a_run_are_one_line(args, message, tmp_path):
+    if args[0] == "run":
+        args = [*args, "--out", str(tmp_path / "run")]
+    result = _RunRefused(*args)
+    assert result.returncode == 2, result.stderr
+    lines = [line for line in result.stderr.splitlines() if not line.startswith("INFO:drake")]
+    assert len(lines) == 1 and lines[0].startswith("guidedarm: error: "), result.stderr
+    assert message in lines[0]
+    assert "Traceback" not in result.stdout + result.stderr
+    assert not (tmp_path / "run" / "summary.json").exists()
