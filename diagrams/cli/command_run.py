@@ -7,14 +7,12 @@ import importlib.metadata
 import json
 import shlex
 import sys
-import time
 from pathlib import Path
 from typing import Any
 
-from pydrake.common.yaml import yaml_dump_typed
 from pydrake.geometry import Meshcat
 
-from guidedarm.diagrams.run_context import RESOLVED_SCENARIO_FILE, RunContext
+from guidedarm.diagrams.run_context import RunContext
 from guidedarm.diagrams.scenario_loading import (
     ScenarioError,
     apply_overrides,
@@ -23,8 +21,9 @@ from guidedarm.diagrams.scenario_loading import (
     read_raw_scenario,
     resolve_scenario_path,
 )
+from guidedarm.diagrams.task_run import RunTask
 from guidedarm.diagrams.tasks.registry import GetTask
-from guidedarm.systems.errors import ConfigurationError, RunFailedError
+from guidedarm.systems.errors import ConfigurationError
 
 FAILED = 1
 
@@ -72,16 +71,8 @@ def run_command(args: argparse.Namespace) -> int:
     if args.meshcat:
         print(f"Meshcat: {meshcat.web_url()}", flush=True)
     context = RunContext(out_dir=out_dir, meshcat=meshcat, hardware=args.hardware)
-    context.write_text(RESOLVED_SCENARIO_FILE, yaml_dump_typed(scenario))
     print(f"guidedarm: running '{name}' (task {task.name}) -> {out_dir}", flush=True)
-    wall_start = time.perf_counter()
-    try:
-        metrics = task.run(scenario, context)
-    except RunFailedError as e:
-        metrics = {"success": False, "failure": str(e)}
-    except KeyboardInterrupt:
-        metrics = {"success": False, "failure": "interrupted"}
-    metrics["wall_time_s"] = round(time.perf_counter() - wall_start, 3)
+    metrics = RunTask(task, scenario, context)
     metrics = {"scenario": name, "task": task.name, **metrics, **RunProvenance()}
     context.write_summary(metrics)
     _print_summary(metrics, context)
