@@ -13,10 +13,12 @@ from pathlib import Path
 
 import psutil
 import pytest
+from distributed import Client
 
 from guidedarm.diagrams.campaigns.campaign import ListNamedCampaigns, LoadCampaign
+from guidedarm.diagrams.campaigns.engine import RunJobs
 from guidedarm.diagrams.campaigns.jobs import ExpandJobs
-from guidedarm.diagrams.campaigns.results import ParseCell
+from guidedarm.diagrams.campaigns.results import ParseCell, ResultsTable
 
 TOUR = "scenario: ur10e_joint_tour\nset: {settle_time: 0.2}\n"
 
@@ -196,3 +198,16 @@ def test_ctrl_c_leaves_a_consistent_table_and_the_rerun_finishes(tmp_path):
     assert sorted(r["max_speed"] for r in final) == [2.0, 2.2, 2.4, 2.6, 2.8, 3.0]
     assert len({r["job_id"] for r in final}) == 6
     assert all(r["success"] is True for r in final)
+
+
+def test_a_job_that_breaks_outside_its_task_is_a_lost_row_run_again(tmp_path):
+    jobs = ExpandJobs(LoadCampaign(str(_Write(tmp_path, TOUR + "grid: {max_speed: [2.5]}\n"))))
+    table = ResultsTable(tmp_path / "results.csv", ["max_speed"])
+    not_a_folder = _Write(tmp_path, "", "file")  # the job cannot make its run folder here
+    local = {"host": "127.0.0.1", "protocol": "tcp", "dashboard_address": None}
+    with Client(processes=False, n_workers=1, threads_per_worker=1, **local) as c:
+        outcome = RunJobs(c, jobs, table, None, runs_dir=not_a_folder, progress=print)
+    assert (outcome.ran, outcome.lost) == (1, 1)
+    (row,) = ReadRows(tmp_path / "results.csv")
+    assert row["success"] is False and row["failure"].startswith("engine: NotADirectoryError")
+    assert ResultsTable(tmp_path / "results.csv", ["max_speed"]).DoneIds() == set()

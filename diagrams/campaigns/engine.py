@@ -98,8 +98,8 @@ def RunJobs(
             job = by_key[future.key]
             if job.id in seen:
                 continue
-            if isinstance(result, BaseException):
-                result = _LostResult(job, result)
+            if future.status == "error":
+                result = _LostResult(job, future.exception())
                 outcome.lost += 1
             elif result["metrics"].get("failure") == INTERRUPTED:
                 continue
