@@ -11,8 +11,7 @@ from pathlib import Path
 
 import pytest
 from distributed import Client
-
-from tests.test_sweep import TOUR, ReadRows
+from test_sweep import TOUR, ReadRows
 
 BIN = Path(sys.executable).parent
 SPEEDS = [2.0, 2.2, 2.4, 2.6, 2.8, 3.0]

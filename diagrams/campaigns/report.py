@@ -89,10 +89,10 @@ def _SuccessByAxis(rows: list[dict[str, Any]], axes: list[str]) -> str:
 
 
 def _PlotSvg(rows: list[dict[str, Any]], metric: str, axis: str) -> str:
+    numeric = all(_Number(r.get(axis)) is not None for r in rows)
+    categories = sorted({_Key(r.get(axis)) for r in rows})  # every value, with a point or not
     points = [(r.get(axis), _Number(r.get(metric)), r.get("success") is True) for r in rows]
     points = [p for p in points if p[1] is not None]
-    numeric = all(_Number(x) is not None for x, _, _ in points)
-    categories = sorted({_Key(x) for x, _, _ in points})
     figure, ax = plt.subplots(figsize=(4.2, 3.0))
     for ok, colour, label in ((True, "tab:blue", "success"), (False, "tab:red", "failed")):
         chosen = [p for p in points if p[2] == ok]
