@@ -17,7 +17,7 @@ from collections.abc import Callable, Iterator
 from contextlib import contextmanager
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any, TextIO
+from typing import Any
 
 import dask
 from distributed import Client, LocalCluster, as_completed
@@ -100,9 +100,9 @@ def RunJobs(
                 continue
             if future.status == "error":
                 result = _LostResult(job, future.exception())
-                outcome.lost += 1
-            elif result["metrics"].get("failure") == INTERRUPTED:
-                continue
+            elif result["metrics"].get("failure") == INTERRUPTED:  # SIGINT on its worker
+                result = _LostResult(job, KeyboardInterrupt("the job was interrupted"))
+            outcome.lost += result["metrics"]["failure"].startswith(LOST_PREFIX)
             seen.add(job.id)
             row = RowOf(job.axes, result, metrics)
             table.Add(row)
@@ -118,14 +118,12 @@ def RunJobs(
 class ProgressMeter:
     """One line per finished job: count, failures, elapsed time and the ETA, to stderr."""
 
-    def __init__(
-        self, total: int, sink: Callable[[str], None] | None = None, stream: TextIO | None = None
-    ) -> None:
+    def __init__(self, total: int, sink: Callable[[str], None] | None = None) -> None:
         self.total = total
         self.done = 0
         self.failed = 0
         self.start = time.monotonic()
-        self.sink = sink or (lambda line: print(line, file=stream or sys.stderr, flush=True))
+        self.sink = sink or (lambda line: print(line, file=sys.stderr, flush=True))
 
     def Done(self, job: Job, row: dict[str, Any]) -> None:
         self.done += 1
