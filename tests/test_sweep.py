@@ -48,6 +48,7 @@ def ReadRows(path: Path) -> list[dict]:
         (TOUR + "grid: {max_speed: [1.0, 1.0]}\n", "resolve to the same scenario"),
         (TOUR + "random: {seed: 1, count: 2, draws: {max_speed: {normal: [0, 1]}}}\n", "uniform"),
         (TOUR + "repeat: {count: 3}\n", "repeat needs a scenario key"),
+        (TOUR + "metrics: coverage\n", "metrics must be a list"),
     ],
 )
 def test_bad_campaign_files_are_refused_in_one_line(tmp_path, run_cli, text, message):

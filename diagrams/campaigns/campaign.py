@@ -37,8 +37,17 @@ from guidedarm.diagrams.scenario_loading import read_raw_scenario
 from guidedarm.systems.errors import ConfigurationError
 
 CAMPAIGN_DIR = Path(__file__).resolve().parent
-CAMPAIGN_KEYS = ("name", "description", "scenario", "set", "grid", "zip", "random", "repeat")
-CAMPAIGN_KEYS += ("metrics",)
+CAMPAIGN_KEYS = (
+    "name",
+    "description",
+    "scenario",
+    "set",
+    "grid",
+    "zip",
+    "random",
+    "repeat",
+    "metrics",
+)
 DISTRIBUTIONS = ("uniform", "integers", "choice")
 # The axis that numbers the random draws.
 DRAW_AXIS = "draw"
@@ -84,9 +93,11 @@ class RandomDrawsConfig:
                         f"{source}: random.draws.{key}.{kind}: low and high must be numbers "
                         f"or lists of numbers of one shape, got {args!r}"
                     ) from None
-                if low.shape != high.shape or np.any(high < low):
+                empty = np.any(high < low) or (kind == "integers" and np.any(high <= low))
+                if low.shape != high.shape or empty:
                     raise CampaignError(
-                        f"{source}: random.draws.{key}.{kind}: need low <= high of one shape"
+                        f"{source}: random.draws.{key}.{kind}: need low <= high (integers: "
+                        "low < high) of one shape"
                     )
 
     def Draw(self) -> list[dict[str, Any]]:
@@ -165,7 +176,9 @@ class CampaignConfig:
                     raise CampaignError(f"{source}: key '{key}' is in both {seen[key]} and {block}")
                 seen[key] = block
         if self.metrics is not None and (
-            not self.metrics or not all(isinstance(m, str) and m for m in self.metrics)
+            not isinstance(self.metrics, list)
+            or not self.metrics
+            or not all(isinstance(m, str) and m for m in self.metrics)
         ):
             raise CampaignError(f"{source}: metrics must be a list of summary keys")
 
