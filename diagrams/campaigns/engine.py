@@ -102,7 +102,7 @@ def RunJobs(
                 result = _LostResult(job, future.exception())
             elif result["metrics"].get("failure") == INTERRUPTED:  # SIGINT on its worker
                 result = _LostResult(job, KeyboardInterrupt("the job was interrupted"))
-            outcome.lost += result["metrics"]["failure"].startswith(LOST_PREFIX)
+            outcome.lost += str(result["metrics"].get("failure") or "").startswith(LOST_PREFIX)
             seen.add(job.id)
             row = RowOf(job.axes, result, metrics)
             table.Add(row)
