@@ -196,6 +196,7 @@ def test_ctrl_c_leaves_a_consistent_table_and_the_rerun_finishes(tmp_path):
     assert 2 <= len(done) < 6 and len(rows) < 6
     assert all(r["failure"].startswith("engine: ") for r in rows if r not in done)
 
+    command[-1] = "1"  # --workers 1
     code = subprocess.run(command, capture_output=True, text=True, timeout=120)
     assert code.returncode == 0, code.stderr
     assert f"{len(done)} done already, {6 - len(done)} to run" in code.stderr

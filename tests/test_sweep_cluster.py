@@ -67,14 +67,14 @@ def _Comparable(rows: list[dict]) -> list[dict]:
     return [{k: v for k, v in r.items() if k not in PLACE_AND_TIME} for r in rows]
 
 
-def test_an_existing_cluster_gives_the_results_of_the_local_run(tmp_path, cluster):
+def test_an_existing_cluster_gives_the_results_of_the_local_run(tmp_path, cluster, run_cli):
     address, _ = cluster
     campaign = tmp_path / "campaign.yaml"
     campaign.write_text(TOUR + f"grid: {{max_speed: {SPEEDS[:3]}}}\n")
     remote = _Sweep(tmp_path, str(campaign), "--out", "remote", "--scheduler", address)
     assert remote.returncode == 0, remote.stderr
-    local = _Sweep(tmp_path, str(campaign), "--out", "local", "--workers", "2")
-    assert local.returncode == 0, local.stderr
+    code, _, err = run_cli("sweep", campaign, "--out", tmp_path / "local", "--workers", "1")
+    assert code == 0, err
     remote_rows = ReadRows(tmp_path / "remote" / "results.csv")
     local_rows = ReadRows(tmp_path / "local" / "results.csv")
     assert len(remote_rows) == 3 and all(r["success"] is True for r in remote_rows)
