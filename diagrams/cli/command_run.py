@@ -17,17 +17,11 @@ import json
 import math
 import shlex
 import sys
-import time
-import traceback
 from pathlib import Path
 from typing import Any
 
-from pydrake.common.yaml import yaml_dump_typed
-
 from guidedarm.diagrams.run_context import (
-    RESOLVED_SCENARIO_FILE,
     MakeMeshcat,
-    NonFiniteKeys,
     PrepareOutputDirectory,
     RunContext,
     ServeMeshcat,
@@ -41,11 +35,11 @@ from guidedarm.diagrams.scenario_loading import (
     read_raw_scenario,
     resolve_scenario_path,
 )
+from guidedarm.diagrams.task_run import RunTask
 from guidedarm.diagrams.tasks.registry import GetTask
-from guidedarm.systems.errors import ConfigurationError, GuidedArmError, RunFailedError
+from guidedarm.systems.errors import ConfigurationError
 
 FAILED = 1
-TRACEBACK_FILE = "traceback.txt"
 
 
 def register(subparsers: argparse._SubParsersAction) -> None:
@@ -118,11 +112,8 @@ def run_command(args: argparse.Namespace) -> int:
     context.meshcat = MakeMeshcat(args.meshcat, args.meshcat_host or "localhost")
     if args.meshcat:
         print(f"Meshcat: {context.meshcat.web_url()}", flush=True)
-    context.write_text(RESOLVED_SCENARIO_FILE, yaml_dump_typed(scenario))
     print(f"guidedarm: running '{name}' (task {task.name}) -> {context.out_dir}", flush=True)
-    wall_start = time.perf_counter()
     metrics = RunTask(task, scenario, context)
-    metrics["wall_time_s"] = round(time.perf_counter() - wall_start, 3)
     metrics = {"scenario": name, "task": task.name, **metrics, **RunProvenance()}
     context.write_summary(metrics)
     _print_summary(metrics, context)
@@ -133,41 +124,6 @@ def run_command(args: argparse.Namespace) -> int:
         print(f"guidedarm: run failed: {failure}", file=sys.stderr)
         return FAILED
     return 0
-
-
-def RunTask(task: Any, scenario: Any, context: RunContext) -> dict[str, Any]:
-    """The task's metrics, with `failure` set when the run failed in any way once started;
-    any other GuidedArmError (a refusal before any motion, e.g. a ConfigurationError)
-    passes through."""
-    try:
-        metrics = dict(task.run(scenario, context))
-    except RunFailedError as e:
-        metrics = {"success": False, "failure": str(e)}
-    except KeyboardInterrupt:
-        metrics = {"success": False, "failure": "interrupted"}
-    except GuidedArmError:
-        raise
-    except Exception as e:  # a bug: keep its traceback beside the summary, not on screen
-        context.write_text(TRACEBACK_FILE, traceback.format_exc())
-        first = str(e).strip().splitlines()[0] if str(e).strip() else ""
-        failure = f"internal error {type(e).__name__}: {first} (see {TRACEBACK_FILE})"
-        metrics = {"success": False, "failure": failure}
-    bad = NonFiniteKeys(metrics)
-    if bad:
-        metrics = _WithoutNonFinite(metrics)
-        metrics["failure"] = metrics.get("failure") or f"non-finite values of {', '.join(bad)}"
-        metrics["success"] = False
-    return metrics
-
-
-def _WithoutNonFinite(value: Any) -> Any:
-    if isinstance(value, float):
-        return value if math.isfinite(value) else None
-    if isinstance(value, dict):
-        return {key: _WithoutNonFinite(v) for key, v in value.items()}
-    if isinstance(value, list | tuple):
-        return [_WithoutNonFinite(v) for v in value]
-    return value
 
 
 def RunProvenance() -> dict[str, Any]:

@@ -1,0 +1,338 @@
+"""The campaign file: one scenario, fixed overrides and the axes it is swept along.
+
+```yaml
+name: joint_tour_speeds          # optional; default: the file's stem
+scenario: ur10e_joint_tour       # a named scenario or a scenario file (relative to this file)
+set: {settle_time: 0.2}          # overrides of every job (dotted keys reach nested fields)
+grid:                            # the cross product of these lists
+  max_speed: [0.5, 1.0, 1.5]     #   a list, or {linspace: [first, last, count]},
+                                 #   or {range: [start, stop, step]} (stop excluded)
+zip:                             # lists of one length, varied together (crossed with grid)
+  a: [1, 2, 3]
+  b: [4, 5, 6]
+random:                          # `count` seeded draws (crossed with grid and zip)
+  seed: 7
+  count: 20
+  draws:
+    some.key: {uniform: [low, high]}     # low, high: numbers, or nested lists of one shape
+    other.key: {integers: [low, high]}   # high excluded
+    third.key: {choice: [a, b, c]}
+repeat: {key: seed, count: 4, start: 0}  # key = start, start + 1, ... (crossed with the rest)
+metrics: [coverage, press_error_mm.x]    # dotted keys of the summary; default: every scalar
+```
+
+Every job is the scenario with `set` and one value of each axis applied, as `--set` would.
+"""
+
+from __future__ import annotations
+
+import itertools
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from guidedarm.diagrams.scenario_loading import read_raw_scenario
+from guidedarm.systems.errors import ConfigurationError
+
+CAMPAIGN_DIR = Path(__file__).resolve().parent
+CAMPAIGN_KEYS = (
+    "name",
+    "description",
+    "scenario",
+    "set",
+    "grid",
+    "zip",
+    "random",
+    "repeat",
+    "metrics",
+)
+DISTRIBUTIONS = ("uniform", "integers", "choice")
+# The axis that numbers the random draws.
+DRAW_AXIS = "draw"
+
+
+class CampaignError(ConfigurationError):
+    """A campaign file is malformed; the message names the file and the key."""
+
+
+@dataclass
+class RandomDrawsConfig:
+    """`count` draws of every key in `draws` from numpy's default_rng(seed), in file order.
+    A draw is {uniform: [low, high]}, {integers: [low, high]} (high excluded) or
+    {choice: [values]}."""
+
+    seed: int = 0
+    count: int = 0
+    draws: dict[str, dict[str, Any]] = field(default_factory=dict)
+
+    def Validate(self, source: str) -> None:
+        if self.count < 1:
+            raise CampaignError(f"{source}: random.count must be at least 1, got {self.count}")
+        if not isinstance(self.draws, dict) or not self.draws:
+            raise CampaignError(f"{source}: random.draws must map scenario keys to draws")
+        for key, spec in self.draws.items():
+            if (
+                not isinstance(spec, dict)
+                or len(spec) != 1
+                or next(iter(spec)) not in DISTRIBUTIONS
+            ):
+                raise CampaignError(
+                    f"{source}: random.draws.{key} must be one of "
+                    f"{{uniform: [low, high]}}, {{integers: [low, high]}}, {{choice: [values]}}"
+                )
+            (kind, args) = next(iter(spec.items()))
+            if not isinstance(args, list) or (kind != "choice" and len(args) != 2) or not args:
+                raise CampaignError(f"{source}: random.draws.{key}.{kind}: bad arguments {args!r}")
+            if kind != "choice":
+                try:
+                    low, high = (np.asarray(a, float) for a in args)
+                except (TypeError, ValueError):
+                    raise CampaignError(
+                        f"{source}: random.draws.{key}.{kind}: low and high must be numbers "
+                        f"or lists of numbers of one shape, got {args!r}"
+                    ) from None
+                empty = np.any(high < low) or (kind == "integers" and np.any(high <= low))
+                if low.shape != high.shape or empty:
+                    raise CampaignError(
+                        f"{source}: random.draws.{key}.{kind}: need low <= high (integers: "
+                        "low < high) of one shape"
+                    )
+
+    def Draw(self) -> list[dict[str, Any]]:
+        """The `count` draws, each a mapping key -> value (plain Python values)."""
+        rng = np.random.default_rng(self.seed)
+        draws = []
+        for _ in range(self.count):
+            values = {}
+            for key, spec in self.draws.items():
+                (kind, args) = next(iter(spec.items()))
+                if kind == "uniform":
+                    value = rng.uniform(np.asarray(args[0], float), np.asarray(args[1], float))
+                elif kind == "integers":
+                    value = rng.integers(np.asarray(args[0]), np.asarray(args[1]))
+                else:
+                    value = args[int(rng.integers(len(args)))]
+                values[key] = (
+                    value.tolist() if isinstance(value, np.ndarray | np.generic) else value
+                )
+            draws.append(values)
+        return draws
+
+
+@dataclass
+class RepeatConfig:
+    """`count` jobs with `key` set to start, start + 1, ... (a seed of the scenario)."""
+
+    key: str = ""
+    count: int = 0
+    start: int = 0
+
+    def Validate(self, source: str) -> None:
+        if not self.key or self.count < 1:
+            raise CampaignError(
+                f"{source}: repeat needs a scenario key (a seed) and a count >= 1, got "
+                f"key '{self.key}', count {self.count}"
+            )
+
+
+@dataclass
+class CampaignConfig:
+    """A campaign (see the module docstring). `scenario` is a scenario name or a resolved
+    path; `source` is the campaign file it came from."""
+
+    name: str
+    scenario: str
+    source: str = ""
+    description: str = ""
+    set: dict[str, Any] = field(default_factory=dict)
+    grid: dict[str, list[Any]] = field(default_factory=dict)
+    zip: dict[str, list[Any]] = field(default_factory=dict)
+    random: RandomDrawsConfig | None = None
+    repeat: RepeatConfig | None = None
+    metrics: list[str] | None = None
+
+    def Validate(self) -> None:
+        source = self.source or self.name
+        for block in ("grid", "zip"):
+            for key, values in getattr(self, block).items():
+                if not values:
+                    raise CampaignError(f"{source}: {block} key '{key}' has no values")
+        lengths = {len(v) for v in self.zip.values()}
+        if len(lengths) > 1:
+            raise CampaignError(
+                f"{source}: the zip lists must have one length, got "
+                + ", ".join(f"{k}: {len(v)}" for k, v in self.zip.items())
+            )
+        if self.random is not None:
+            self.random.Validate(source)
+        if self.repeat is not None:
+            self.repeat.Validate(source)
+        seen: dict[str, str] = {}
+        for block, keys in self.KeysByBlock().items():
+            for key in keys:
+                if key in seen:
+                    raise CampaignError(f"{source}: key '{key}' is in both {seen[key]} and {block}")
+                seen[key] = block
+        if self.metrics is not None and (
+            not isinstance(self.metrics, list)
+            or not self.metrics
+            or not all(isinstance(m, str) and m for m in self.metrics)
+        ):
+            raise CampaignError(f"{source}: metrics must be a list of summary keys")
+
+    def KeysByBlock(self) -> dict[str, list[str]]:
+        """The scenario keys each block of the campaign sets."""
+        return {
+            "set": list(self.set),
+            "grid": list(self.grid),
+            "zip": list(self.zip),
+            "random": list(self.random.draws) if self.random else [],
+            "repeat": [self.repeat.key] if self.repeat else [],
+        }
+
+    def AxisNames(self) -> list[str]:
+        """The columns that tell the jobs apart, in expansion order."""
+        random = [DRAW_AXIS, *self.random.draws] if self.random else []
+        repeat = [self.repeat.key] if self.repeat else []
+        return [*self.grid, *self.zip, *random, *repeat]
+
+    def AxisPoints(self) -> list[dict[str, Any]]:
+        """One mapping axis -> value per job: grid x zip x random draws x repeat."""
+        grid = [
+            dict(zip(self.grid, v, strict=True)) for v in itertools.product(*self.grid.values())
+        ]
+        count = len(next(iter(self.zip.values()))) if self.zip else 1
+        zipped = [{k: v[i] for k, v in self.zip.items()} for i in range(count)]
+        draws = (
+            [{DRAW_AXIS: i, **d} for i, d in enumerate(self.random.Draw())] if self.random else [{}]
+        )
+        repeat = self.repeat
+        repeats = [{repeat.key: repeat.start + i} for i in range(repeat.count)] if repeat else [{}]
+        return [
+            {**g, **z, **d, **r} for g, z, d, r in itertools.product(grid, zipped, draws, repeats)
+        ]
+
+    def Resolved(self) -> dict[str, Any]:
+        """The campaign with every list spelled out: what DIR/campaign.yaml records."""
+        resolved: dict[str, Any] = {"name": self.name, "scenario": self.scenario}
+        if self.description:
+            resolved["description"] = self.description
+        for block in ("set", "grid", "zip"):
+            if getattr(self, block):
+                resolved[block] = getattr(self, block)
+        if self.random:
+            resolved["random"] = vars(self.random)
+        if self.repeat:
+            resolved["repeat"] = vars(self.repeat)
+        if self.metrics is not None:
+            resolved["metrics"] = self.metrics
+        return resolved
+
+
+def ResolveCampaignPath(name_or_path: str) -> Path:
+    """The file of a named campaign (diagrams/campaigns/NAME.yaml) or a path."""
+    path = Path(name_or_path)
+    if path.suffix in (".yaml", ".yml"):
+        if not path.is_file():
+            raise CampaignError(f"campaign file not found: {path}")
+        return path
+    named = CAMPAIGN_DIR / f"{name_or_path}.yaml"
+    if not named.is_file():
+        known = ", ".join(ListNamedCampaigns())
+        raise CampaignError(f"unknown campaign '{name_or_path}' (known: {known})")
+    return named
+
+
+def ListNamedCampaigns() -> list[str]:
+    """Names of the campaigns shipped in diagrams/campaigns/."""
+    return sorted(p.stem for p in CAMPAIGN_DIR.glob("*.yaml"))
+
+
+def LoadCampaign(name_or_path: str) -> CampaignConfig:
+    """Reads and checks a campaign file; refuses unknown keys and empty or malformed axes
+    with one line naming the file and the key."""
+    path = ResolveCampaignPath(name_or_path)
+    raw = read_raw_scenario(path)
+    source = str(path)
+    unknown = sorted(set(raw) - set(CAMPAIGN_KEYS))
+    if unknown:
+        raise CampaignError(
+            f"{source}: unknown key '{unknown[0]}' (known keys: {', '.join(CAMPAIGN_KEYS)})"
+        )
+    scenario = raw.get("scenario")
+    if not isinstance(scenario, str) or not scenario:
+        raise CampaignError(f"{source}: missing key 'scenario' (a scenario name or file)")
+    beside = path.parent / scenario
+    if Path(scenario).suffix in (".yaml", ".yml") and beside.is_file():
+        scenario = str(beside.resolve())
+    campaign = CampaignConfig(
+        name=_Text(raw, "name", source) or path.stem,
+        scenario=scenario,
+        source=source,
+        description=_Text(raw, "description", source),
+        set=_Mapping(raw, "set", source),
+        grid={k: _Values(v, f"grid.{k}", source) for k, v in _Mapping(raw, "grid", source).items()},
+        zip={k: _Values(v, f"zip.{k}", source) for k, v in _Mapping(raw, "zip", source).items()},
+        random=_Struct(RandomDrawsConfig, raw, "random", source),
+        repeat=_Struct(RepeatConfig, raw, "repeat", source),
+        metrics=raw.get("metrics"),
+    )
+    campaign.Validate()
+    return campaign
+
+
+def _Text(raw: dict[str, Any], key: str, source: str) -> str:
+    value = raw.get(key, "")
+    if not isinstance(value, str):
+        raise CampaignError(f"{source}: key '{key}' must be a string, got {value!r}")
+    return value
+
+
+def _Mapping(raw: dict[str, Any], key: str, source: str) -> dict[str, Any]:
+    value = raw.get(key) or {}
+    if not isinstance(value, dict):
+        raise CampaignError(f"{source}: key '{key}' must be a mapping of scenario keys")
+    return value
+
+
+def _Values(value: Any, key: str, source: str) -> list[Any]:
+    """A grid or zip axis: a list, {linspace: [first, last, count]} or {range: [start, stop,
+    step]}."""
+    if isinstance(value, list):
+        return value
+    if isinstance(value, dict) and len(value) == 1:
+        (kind, args) = next(iter(value.items()))
+        numbers = isinstance(args, list) and all(
+            isinstance(a, int | float) and not isinstance(a, bool) for a in args
+        )
+        if kind == "linspace" and numbers and len(args) == 3 and int(args[2]) == args[2]:
+            return [round(float(v), 12) for v in np.linspace(args[0], args[1], int(args[2]))]
+        if kind == "range" and numbers and len(args) == 3 and args[2] != 0:
+            values = np.arange(args[0], args[1], args[2])
+            return [round(v, 12) if isinstance(v, float) else v for v in values.tolist()]
+    raise CampaignError(
+        f"{source}: {key} must be a list, {{linspace: [first, last, count]}} or "
+        f"{{range: [start, stop, step]}}, got {value!r}"
+    )
+
+
+def _Struct(schema: type, raw: dict[str, Any], key: str, source: str) -> Any:
+    value = raw.get(key)
+    if value is None:
+        return None
+    if not isinstance(value, dict):
+        raise CampaignError(f"{source}: key '{key}' must be a mapping")
+    known = list(schema.__dataclass_fields__)
+    for name in value:
+        if name not in known:
+            raise CampaignError(
+                f"{source}: unknown key '{key}.{name}' (known keys: {', '.join(known)})"
+            )
+    config = schema(**value)
+    for name, expected in (("seed", int), ("count", int), ("start", int), ("key", str)):
+        item = getattr(config, name, None)
+        if item is not None and (isinstance(item, bool) or not isinstance(item, expected)):
+            raise CampaignError(f"{source}: key '{key}.{name}' must be {expected.__name__}")
+    return config

@@ -1,0 +1,81 @@
+"""One campaign from file to report: expand and check the jobs, skip those already done in
+DIR, run the rest on Dask, write DIR/results.csv, DIR/campaign.yaml and DIR/report.html."""
+
+from __future__ import annotations
+
+import sys
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from pathlib import Path
+
+from pydrake.common.yaml import yaml_dump
+
+from guidedarm.diagrams.campaigns.campaign import CampaignConfig, CampaignError
+from guidedarm.diagrams.campaigns.engine import OpenClient, Outcome, RunJobs
+from guidedarm.diagrams.campaigns.jobs import ExpandJobs, Job
+from guidedarm.diagrams.campaigns.report import WriteReport
+from guidedarm.diagrams.campaigns.results import RESULTS_FILE, ResultsTable
+from guidedarm.diagrams.cli.command_run import PrepareOutputDirectory
+
+CAMPAIGN_FILE = "campaign.yaml"
+RUNS_DIR = "runs"
+
+
+@dataclass
+class SweepOptions:
+    """workers: processes of the embedded cluster (None: one per core); scheduler: the
+    address of an existing Dask scheduler instead; keep_runs: keep DIR/runs/<job id>/."""
+
+    workers: int | None = None
+    scheduler: str | None = None
+    keep_runs: bool = False
+    progress: Callable[[str], None] | None = None
+
+
+@dataclass
+class SweepResult:
+    """The campaign's jobs, its results table, and what this call ran."""
+
+    jobs: list[Job]
+    table: ResultsTable
+    outcome: Outcome = field(default_factory=Outcome)
+    written: list[Path] = field(default_factory=list)
+
+
+def Sweep(campaign: CampaignConfig, out_dir: Path, options: SweepOptions) -> SweepResult:
+    """Runs the jobs of `campaign` not yet done in `out_dir`. Bad input (the campaign, a
+    job's scenario, DIR, an unreachable scheduler) is refused before any job starts."""
+    jobs = ExpandJobs(campaign)
+    out_dir = PrepareOutputDirectory(out_dir)
+    table = ResultsTable(out_dir / RESULTS_FILE, campaign.AxisNames())
+    ids = {job.id for job in jobs}
+    foreign = {r["job_id"] for r in table.rows} - ids
+    if foreign:
+        raise CampaignError(
+            f"{out_dir / RESULTS_FILE} holds {len(foreign)} job(s) that are not in this "
+            "campaign: choose another --out"
+        )
+    table.Keep(table.DoneIds())
+    done = table.DoneIds()
+    pending = [job for job in jobs if job.id not in done]
+    (out_dir / CAMPAIGN_FILE).write_text(
+        f"# {campaign.source}, resolved: {len(jobs)} jobs\n{yaml_dump(campaign.Resolved())}\n"
+    )
+    result = SweepResult(jobs, table, written=[out_dir / CAMPAIGN_FILE, table.path])
+    where = options.scheduler or f"{options.workers or 'one per core'} local worker(s)"
+    print(
+        f"guidedarm: campaign '{campaign.name}': {len(jobs)} jobs, {len(jobs) - len(pending)} "
+        f"done already, {len(pending)} to run on {where}",
+        file=sys.stderr,
+        flush=True,
+    )
+    if pending:
+        runs_dir = out_dir / RUNS_DIR if options.keep_runs else None
+        with OpenClient(options.workers, options.scheduler) as client:
+            result.outcome = RunJobs(
+                client, pending, table, campaign.metrics, runs_dir, options.progress
+            )
+        if not result.outcome.interrupted:
+            table.Order([job.id for job in jobs])
+    result.written.append(WriteReport(out_dir, campaign, table, len(jobs)))
+    return result

@@ -1,0 +1,67 @@
+"""`guidedarm sweep CAMPAIGN [--out DIR] [--workers N] [--scheduler ADDRESS] [--keep-runs]`.
+
+Runs every job of a campaign (diagrams/campaigns/NAME.yaml or a campaign file) on Dask and
+writes DIR/results.csv, DIR/campaign.yaml and DIR/report.html (docs/campaigns.md). Exit 0
+when every job has its row (failed jobs included), 1 when some job's workers were lost,
+2 for bad input (before any job starts), 130 when interrupted (rerun to finish).
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import sys
+from pathlib import Path
+
+from guidedarm.diagrams.campaigns.campaign import LoadCampaign
+from guidedarm.diagrams.campaigns.sweep import Sweep, SweepOptions
+from guidedarm.systems.errors import ConfigurationError
+
+EXIT_LOST = 1
+EXIT_INTERRUPTED = 130
+
+
+def register(subparsers: argparse._SubParsersAction) -> None:
+    parser = subparsers.add_parser(
+        "sweep", help="run a campaign of scenarios on Dask into one results table"
+    )
+    parser.add_argument("campaign", help="campaign name (diagrams/campaigns/) or YAML file")
+    parser.add_argument("--out", type=Path, help="output directory (default runs/CAMPAIGN)")
+    parser.add_argument(
+        "--workers", type=int, help="worker processes of the embedded cluster (default: cores)"
+    )
+    parser.add_argument(
+        "--scheduler", metavar="ADDRESS", help="an existing Dask scheduler, tcp://host:port"
+    )
+    parser.add_argument(
+        "--keep-runs", action="store_true", help="keep each job's run folder in DIR/runs/"
+    )
+    parser.set_defaults(func=sweep_command)
+
+
+def sweep_command(args: argparse.Namespace) -> int:
+    if args.scheduler is not None and args.workers is not None:
+        raise ConfigurationError("--workers applies to the embedded cluster, not --scheduler")
+    if args.workers is not None and args.workers < 1:
+        raise ConfigurationError(f"--workers must be at least 1, got {args.workers}")
+    campaign = LoadCampaign(args.campaign)
+    out_dir = args.out or Path("runs") / campaign.name
+    options = SweepOptions(
+        workers=args.workers or (None if args.scheduler else os.cpu_count()),
+        scheduler=args.scheduler,
+        keep_runs=args.keep_runs,
+    )
+    result = Sweep(campaign, out_dir, options)
+    rows = result.table.rows
+    failed = sum(1 for r in rows if r["success"] is not True)
+    print(f"  jobs: {len(result.jobs)}, results: {len(rows)}, failed: {failed}")
+    print("wrote:")
+    for path in result.written:
+        print(f"  {path}")
+    if result.outcome.interrupted:
+        print("guidedarm: interrupted; run the same command again to finish", file=sys.stderr)
+        return EXIT_INTERRUPTED
+    if result.outcome.lost:
+        print(f"guidedarm: {result.outcome.lost} job(s) lost their workers", file=sys.stderr)
+        return EXIT_LOST
+    return 0

@@ -1,0 +1,59 @@
+"""Running one task on its resolved scenario: what `guidedarm run` and each campaign job do."""
+
+from __future__ import annotations
+
+import math
+import time
+import traceback
+from typing import Any
+
+from pydrake.common.yaml import yaml_dump_typed
+
+from guidedarm.diagrams.run_context import RESOLVED_SCENARIO_FILE, NonFiniteKeys, RunContext
+from guidedarm.diagrams.tasks.registry import TaskDefinition
+from guidedarm.systems.errors import GuidedArmError, RunFailedError
+
+# The `failure` of a run stopped by Ctrl-C.
+INTERRUPTED = "interrupted"
+# Where the traceback of an internal error goes, beside summary.json.
+TRACEBACK_FILE = "traceback.txt"
+
+
+def RunTask(task: TaskDefinition, scenario: Any, context: RunContext) -> dict[str, Any]:
+    """Writes DIR/scenario.yaml (the fully resolved scenario), runs the task and returns its
+    metrics plus `wall_time_s` (s), with `success` false and `failure` set when the run
+    failed in any way once started: a RunFailedError, Ctrl-C, a non-finite metric (written
+    as null), or a bug (its traceback in DIR/traceback.txt). Any other GuidedArmError (a
+    refusal before any motion, e.g. a ConfigurationError) passes through."""
+    context.write_text(RESOLVED_SCENARIO_FILE, yaml_dump_typed(scenario))
+    wall_start = time.perf_counter()
+    try:
+        metrics = dict(task.run(scenario, context))
+    except RunFailedError as e:
+        metrics = {"success": False, "failure": str(e)}
+    except KeyboardInterrupt:
+        metrics = {"success": False, "failure": INTERRUPTED}
+    except GuidedArmError:
+        raise
+    except Exception as e:  # a bug: keep its traceback beside the summary, not on screen
+        context.write_text(TRACEBACK_FILE, traceback.format_exc())
+        first = str(e).strip().splitlines()[0] if str(e).strip() else ""
+        failure = f"internal error {type(e).__name__}: {first} (see {TRACEBACK_FILE})"
+        metrics = {"success": False, "failure": failure}
+    bad = NonFiniteKeys(metrics)
+    if bad:
+        metrics = _WithoutNonFinite(metrics)
+        metrics["failure"] = metrics.get("failure") or f"non-finite values of {', '.join(bad)}"
+        metrics["success"] = False
+    metrics["wall_time_s"] = round(time.perf_counter() - wall_start, 3)
+    return metrics
+
+
+def _WithoutNonFinite(value: Any) -> Any:
+    if isinstance(value, float):
+        return value if math.isfinite(value) else None
+    if isinstance(value, dict):
+        return {key: _WithoutNonFinite(v) for key, v in value.items()}
+    if isinstance(value, list | tuple):
+        return [_WithoutNonFinite(v) for v in value]
+    return value

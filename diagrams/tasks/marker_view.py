@@ -1,0 +1,94 @@
+"""Task `marker_view`: one view of the marker panel from a free camera (seed 003, Tables 2-3).
+
+The seed's reference rig (an IRB 1600 holding the camera, section 3.2) in simulation:
+PanelCameraRig renders the panel from the camera pose X_PC = LookAt(p_PC, origin of P),
+p_PC = distance_m (sin a, 0, cos a) with a = angle_deg (a turn about the panel's y axis),
+and MarkerPoseSolver estimates X_CP from the image. Ground truth is exact, so the metrics
+are the estimator's errors:
+  reference_mm, vision_mm, abs_error_mm, rel_error_pct   |p_CP| true and estimated;
+  reference_deg, vision_deg, abs_angle_error_deg          the view angle a, true and
+      estimated (from the panel normal seen by the camera);
+  rotation_error_deg   angle of the whole rotation error; reprojection_error_px (RMS).
+A view without a valid pose is a failed run (RunFailedError).
+"""
+
+from dataclasses import dataclass, field
+from typing import Any
+
+import cv2
+import numpy as np
+from pydrake.systems.sensors import CameraConfig
+
+from guidedarm.diagrams.run_context import RunContext
+from guidedarm.diagrams.tasks.panel_camera_rig import LookAt, PanelCameraRig
+from guidedarm.diagrams.tasks.panel_files import DEFAULT_PANEL_FILE, LoadPanelSpec
+from guidedarm.diagrams.tasks.registry import TaskDefinition
+from guidedarm.systems.errors import ConfigurationError, RunFailedError
+from guidedarm.systems.markers.image_degradation import DegradationConfig
+from guidedarm.systems.markers.marker_pose_estimator_math import MarkerPoseSolver
+
+
+@dataclass
+class MarkerViewScenario:
+    """distance_m: camera to the origin of P (the left marker, m); angle_deg: the view's
+    turn about P's y axis (deg); camera: its CameraConfig (pose fields unused), rendered at
+    `supersampling` times its resolution; degradation: lighting, blur, noise (its
+    supersampling is the top-level one)."""
+
+    task: str = "marker_view"
+    distance_m: float = 0.3
+    angle_deg: float = 0.0
+    camera: CameraConfig = field(default_factory=CameraConfig)
+    supersampling: int = 3
+    degradation: DegradationConfig = field(default_factory=DegradationConfig)
+
+
+def RunMarkerView(scenario: MarkerViewScenario, context: RunContext) -> dict[str, Any]:
+    """Renders the view, estimates the panel pose and returns the errors (see above)."""
+    if scenario.distance_m <= 0 or scenario.supersampling < 1:
+        raise ConfigurationError(
+            f"distance_m must be > 0 and supersampling >= 1, got {scenario.distance_m}, "
+            f"{scenario.supersampling}"
+        )
+    scenario.degradation.Validate()
+    rig = PanelCameraRig(scenario.camera, scenario.supersampling)
+    solver = MarkerPoseSolver(rig.intrinsics, LoadPanelSpec(DEFAULT_PANEL_FILE))
+    a = np.radians(scenario.angle_deg)
+    d = scenario.distance_m
+    X_PC = LookAt(d * np.array([np.sin(a), 0.0, np.cos(a)]), [0.0, 0.0, 0.0])
+    image = rig.Render(X_PC, scenario.degradation)
+    path = context.out_dir / "view.png"
+    cv2.imwrite(str(path), cv2.cvtColor(image, cv2.COLOR_RGBA2BGR))
+    context.written.append(path)
+    estimate = solver.estimate(image)
+    if not estimate.valid:
+        raise RunFailedError(
+            f"no valid pose at {1e3 * d:.0f} mm, {scenario.angle_deg} deg (markers found: "
+            f"{estimate.ids})"
+        )
+    measured = float(np.linalg.norm(estimate.X_CP.translation()))
+    z_P = estimate.X_CP.inverse().rotation().matrix()[:, 2]  # P's normal seen from C
+    angle = float(np.degrees(np.arctan2(-z_P[0], -z_P[2])))
+    R_error = estimate.X_CP.rotation().inverse() @ X_PC.inverse().rotation()
+    return {
+        "success": True,
+        "reference_mm": round(1e3 * d, 4),
+        "vision_mm": round(1e3 * measured, 4),
+        "abs_error_mm": round(1e3 * abs(measured - d), 4),
+        "rel_error_pct": round(100 * abs(measured - d) / d, 5),
+        "reference_deg": scenario.angle_deg,
+        "vision_deg": round(angle, 5),
+        "abs_angle_error_deg": round(abs(angle - scenario.angle_deg), 5),
+        "rotation_error_deg": round(float(np.degrees(R_error.ToAngleAxis().angle())), 5),
+        "reprojection_error_px": round(float(estimate.reprojection_error_px), 4),
+        "ids": estimate.ids,
+        "failure": None,
+    }
+
+
+TASK = TaskDefinition(
+    name="marker_view",
+    scenario_type=MarkerViewScenario,
+    run=RunMarkerView,
+    description="estimate the marker panel's pose from one free-camera view (seed 003)",
+)
