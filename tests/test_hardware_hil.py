@@ -13,7 +13,7 @@ import pytest
 from hardware_doubles import StartNachiEmulator, StopServer
 
 from guidedarm.diagrams.cli.command_run import LoadScenario
-from guidedarm.diagrams.tasks.path_following import MakeSetup
+from guidedarm.diagrams.tasks.path_following_setup import MakeSetup
 
 # The follower's moves are rest to rest with joint accelerations of at most 5 rad/s^2
 # (joint_moves), so the acceleration guard runs at a plausible arm limit, 10 rad/s^2, the
@@ -49,7 +49,7 @@ def test_path_following_on_the_emulators_matches_simulation(tmp_path):
     # The real arm would be brought to the start pose before the run: the emulated arm
     # starts there.
     _, scenario, _ = LoadScenario("path_following", [])
-    setup, _, _ = MakeSetup(scenario, tmp_path / "setup")
+    setup = MakeSetup(scenario, tmp_path / "setup")
     q_start = [float(q) for q in setup.q_start]
     emulator, port, device = StartNachiEmulator(
         "--scenario", "path_following", "--set", f"station.arms.mz04d.initial_position={q_start}"

@@ -1,9 +1,9 @@
-"""End-to-end path following (seed 000): the paper paths through the simulated station, a
-random-path suite through the kinematic executor, and bad input.
+"""End-to-end path following (Wawrzyniak et al.): the paper paths through the simulated
+station, a random-path suite through the kinematic station, and bad input.
 
 The paper paths run the full station (servos at 2 ms); the 20 random paths use the
-kinematic executor (same algorithm, sensor and IK; IK solutions applied directly), which
-is about 30 times faster (docs/path_following.md).
+kinematic station (the same follower, IK and sensor; the arm is where it is commanded),
+which is about 5 times faster (docs/path_following.md).
 """
 
 import json
@@ -135,7 +135,7 @@ def _cli(tmp_path, capsys, *args) -> tuple[int, str]:
     [
         ("x,y,z\n0.3,0.0,0.1\n0.3,zero,0.1\n", "not three numbers"),
         ("0.3,0.0,0.1\n0.3,0.05,0.1\n", "too short"),
-        ("0.3,0.0,0.1\n0.9,0.0,0.1\n", "outside the cell walls"),
+        ("0.3,0.0,0.1\n0.9,0.0,0.1\n", "is outside the workspace (x [-0.55, 0.55]"),
         ("0.50,0.50,0.1\n0.50,0.30,0.1\n", "start pose out of reach"),
     ],
 )
@@ -170,11 +170,21 @@ def test_moves_through_the_acceleration_level_planner(tmp_path, capsys):
         ("follower.readings=-1", "readings must be >= 0 and reading_period positive"),
         ("max_joint_acceleration=0", "max_joint_acceleration and period must be positive"),
         ("station.tof_tools.tof.cone_angle_deg=0", "cone_angle_deg in (0, 180)"),
+        ("follower.estimator=ranging", "follower.estimator 'ranging' conflicts with estimator"),
+        ("station.tof_tools.tof.seed=3", "station.tof_tools.tof.seed (3) conflicts with seed (0)"),
+        ("station.hose.frame=world", "station.hose.frame 'world' conflicts with base_frame"),
+        ("station.hose.centerline=paper_path_2", "conflicts with the task's hose"),
+        ("workspace.z=[0.2, 0.1]", "workspace.z: need lower < upper"),
+        (
+            "base_frame=mz04d::mz04d_link1",
+            "base_frame: frame 'mz04d::mz04d_link1' is not fixed to the world",
+        ),
         ("gripper_frame=nope::x", "gripper_frame: no frame 'nope::x' in the station"),
         ("station.tof_tools.tof.tool_frame=nope::x", "tool_frame: no frame 'nope::x'"),
     ],
 )
 def test_bad_settings_end_with_one_line(tmp_path, capsys, override, message):
+    """Bad values, and scenario values the task would otherwise have to replace."""
     code, err = _cli(tmp_path, capsys, "--set", override, "--set", "executor=kinematic")
     assert code == 2
     assert message in err
@@ -192,3 +202,27 @@ def test_path_csv_flag_runs_a_file(tmp_path, capsys):
     assert code == 0, summary["failure"]
     assert summary["coverage"] >= 0.95
     assert (tmp_path / "out" / "detected_path.png").stat().st_size > 10000
+
+
+def test_values_the_task_derives_are_taken_when_they_agree(tmp_path):
+    """Set to what the task derives, the station's ToF seed, hose centerline and frame and
+    the follower's estimator are accepted; the setup keeps the ToF target radius given."""
+    from guidedarm.diagrams.tasks.path_following_setup import MakeSetup
+
+    _, scenario, _ = LoadScenario(
+        "path_following",
+        [
+            "seed=2",
+            "station.tof_tools.tof.seed=2",
+            "station.tof_tools.tof.target_radius=0.012",
+            "station.hose.centerline=paper_path_1",
+            "station.hose.frame=mz04d::base",
+            "follower.estimator=grid",
+        ],
+    )
+    setup = MakeSetup(scenario, tmp_path)
+    tof = setup.station.tof_tools["tof"]
+    assert tof.seed == 2 and tof.target_radius == 0.012 and setup.grid.hose_radius == 0.012
+    assert setup.station.hose.frame == "mz04d::base"
+    assert scenario.station.tof_tools["tof"].seed == 2  # the scenario itself is unchanged
+    assert scenario.station.arms["mz04d"].initial_position != setup.q_start.tolist()

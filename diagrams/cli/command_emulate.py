@@ -100,8 +100,8 @@ def StartEmulators(
 
 def emulate_command(args: argparse.Namespace) -> int:
     if args.scenario:
-        _, scenario, _ = LoadScenario(args.scenario, args.overrides)
-        station_scenario = scenario.station
+        task, scenario, _ = LoadScenario(args.scenario, args.overrides)
+        station_scenario = task.Station(scenario)
     else:
         station_scenario = DefaultCell()
     port = args.port if args.device == "nachi" else 0

@@ -1,4 +1,5 @@
-"""Inverse kinematics of a commanded frame pose with the seed's constraints (seed 000, 3.2).
+"""Inverse kinematics of a commanded frame pose with the constraints of Wawrzyniak et al.
+(section 3.2).
 
 One solve is a Drake InverseKinematics program on the arm's joints, started from the
 previous joint positions (as the seed's Matlab solver was):
@@ -14,8 +15,8 @@ previous joint positions (as the seed's Matlab solver was):
   - no step rotates the frame by 90 deg or more about any axis (no tool reversal): the
     angle between the new and the current orientation stays below max_step_rotation_deg;
   - a downward tool: the frame's `down_axis` stays within max_tilt_deg of world -z;
-  - the origin of every body the arm moves stays inside the cell's virtual walls
-    (x, y in limits, z >= z_min; the seed's controller walls and IK bounds);
+  - the origin of every body the arm moves stays inside the workspace, the cell's virtual
+    walls as a box in the arm's base frame B (the seed's controller walls and IK bounds);
   - joint limits (InverseKinematics' bounds);
   - the joint-space move from the previous q keeps the frame within max_swing of the
     straight line between its two poses: a solution on another branch (a wrist or elbow
@@ -38,14 +39,16 @@ from pydrake.multibody.tree import Frame, ModelInstanceIndex
 from pydrake.solvers import SnoptSolver, Solve
 
 from guidedarm.systems.errors import ConfigurationError
+from guidedarm.systems.path_following.workspace import WorkspaceConfig
 
 
 @dataclass
-class IkLimits:
-    """Tolerances (m, deg), the frame's axis that should point down, the cell's virtual
-    walls (m, world frame), the weight of the stay-near-previous-q cost and the number of
-    perturbed restarts after a failed solve. shortfall_tolerance_deg: the orientation
-    tolerance of the second solve (module docstring); 0 disables it."""
+class ToolPoseIkConfig:
+    """Tolerances (m, deg), the frame's axis that should point down, the weight of the
+    stay-near-previous-q cost and the number of perturbed restarts after a failed solve.
+    shortfall_tolerance_deg: the orientation tolerance of the second solve (module
+    docstring); 0 disables it. The walls are a WorkspaceConfig (systems/path_following/
+    workspace.py), given to the solver beside this."""
 
     position_tolerance: float = 0.0005
     orientation_tolerance_deg: float = 0.5
@@ -54,12 +57,24 @@ class IkLimits:
     max_step_rotation_deg: float = 89.0
     max_tilt_deg: float = 85.0
     down_axis: list[float] = field(default_factory=lambda: [0.0, 0.0, 1.0])
-    x: list[float] = field(default_factory=lambda: [-0.55, 0.55])
-    y: list[float] = field(default_factory=lambda: [-0.55, 0.55])
-    z_min: float = 0.005
     max_swing: float = 0.025
     joint_cost_weight: float = 0.01
     retries: int = 3
+
+    def Validate(self) -> None:
+        """Raises ConfigurationError naming the first bad field."""
+        if min(self.position_tolerance, self.orientation_tolerance_deg) <= 0:
+            raise ConfigurationError(
+                "ik position_tolerance and orientation_tolerance_deg must be > 0"
+            )
+        if not 0 < self.max_step_rotation_deg <= 180 or not 0 < self.max_tilt_deg <= 180:
+            raise ConfigurationError(
+                "ik max_step_rotation_deg and max_tilt_deg must be in (0, 180]"
+            )
+        if len(self.down_axis) != 3 or np.linalg.norm(self.down_axis) < 1e-9:
+            raise ConfigurationError("ik down_axis must be a nonzero 3-vector")
+        if self.max_swing <= 0 or self.joint_cost_weight < 0 or self.retries < 0:
+            raise ConfigurationError("ik max_swing must be > 0, joint_cost_weight and retries >= 0")
 
 
 @dataclass(frozen=True)
@@ -80,16 +95,24 @@ class ToolPoseSolver:
         plant: MultibodyPlant,
         instance: ModelInstanceIndex,
         frame: Frame,
-        limits: IkLimits,
+        limits: ToolPoseIkConfig,
         p_FQ: np.ndarray | None = None,
+        workspace: WorkspaceConfig | None = None,
+        X_WB: RigidTransform | None = None,
     ) -> None:
         """p_FQ: the point of the frame held on target (m, frame F; default its origin).
         With the tool centre there, an orientation shortfall turns the tool about its centre
         and leaves it on the path; about the gripper's origin it would move the centre
-        sideways by the tool's length times the shortfall."""
+        sideways by the tool's length times the shortfall. workspace: the walls (default the
+        seed's cell) in the arm's base frame B, whose pose in the world is X_WB (default the
+        identity)."""
+        limits.Validate()
         self.plant = plant
         self.frame = frame
         self.limits = limits
+        self.workspace = workspace or WorkspaceConfig()
+        self.workspace.Validate()
+        self.X_WB = X_WB or RigidTransform()
         self.p_FQ = np.zeros(3) if p_FQ is None else np.asarray(p_FQ, float)
         self.context = plant.CreateDefaultContext()
         self._q_start = plant.GetPositions(self.context).copy()
@@ -201,11 +224,12 @@ class ToolPoseSolver:
                 "downward tool",
             ),
         ]
-        lower = np.array([lim.x[0], lim.y[0], lim.z_min])
-        upper = np.array([lim.x[1], lim.y[1], np.inf])
+        lower, upper = self.workspace.Lower(), self.workspace.Upper()
         for body in self._bodies:
-            binding = ik.AddPositionConstraint(body.body_frame(), np.zeros(3), world, lower, upper)
-            described.append((binding, f"cell walls ({body.name()})"))
+            binding = ik.AddPositionConstraint(
+                body.body_frame(), np.zeros(3), world, self.X_WB, lower, upper
+            )
+            described.append((binding, f"workspace ({body.name()})"))
         for binding, description in described:
             binding.evaluator().set_description(description)
         ik.AddOrientationCost(
