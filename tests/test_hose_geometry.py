@@ -44,7 +44,7 @@ def test_path_4_raises_the_x_wall(tmp_path):
     workspace = LoadHoseWorkspace(str(tmp_path / "mine.csv"))
     assert workspace.y == [-0.6, 0.7] and workspace.x == [-0.55, 0.55]
     (tmp_path / "mine.yaml").write_text("y: [0.7, -0.6]\n")
-    with pytest.raises(ConfigurationError, match=r"workspace\.y: need lower < upper"):
+    with pytest.raises(ConfigurationError, match=r"y must be \[lower, upper\] with lower < upper"):
         LoadHoseWorkspace(str(tmp_path / "mine.csv"))
 
 

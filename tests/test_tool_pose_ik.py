@@ -191,7 +191,7 @@ def test_the_workspace_is_a_box_in_the_base_frame():
 
 
 def test_bad_ik_and_workspace_settings_are_refused():
-    with pytest.raises(ConfigurationError, match=r"workspace\.y: need lower < upper"):
+    with pytest.raises(ConfigurationError, match=r"y must be \[lower, upper\] with lower < upper"):
         WorkspaceConfig(y=[0.2, 0.1]).Validate()
     with pytest.raises(ConfigurationError, match="max_step_rotation_deg"):
         ToolPoseIkConfig(max_step_rotation_deg=0.0).Validate()

@@ -24,6 +24,8 @@ from guidedarm.diagrams.tasks.path_following_report import (
 )
 from guidedarm.diagrams.tasks.path_following_setup import MakeSetup, Setup
 from guidedarm.diagrams.tasks.registry import TaskDefinition
+from guidedarm.systems.config_checks import InRange, Positive
+from guidedarm.systems.errors import ConfigurationError
 from guidedarm.systems.path_following.hose_geometry import RandomPathConfig
 from guidedarm.systems.path_following.path_follower_math import RECORD_FIELDS, FollowerConfig
 from guidedarm.systems.path_following.tool_pose_ik_math import ToolPoseIkConfig
@@ -44,11 +46,12 @@ class PathFollowingScenario:
     or `kinematic`; motion: how the station moves between steps, `joint_trajectory`
     (rest-to-rest joint moves at tool_speed) or `planner` (Pajak et al.'s acceleration-level
     planner with the `planner` parameters; both within max_joint_speed and
-    max_joint_acceleration); tool_speed (m/s); max_joint_speed (rad/s);
-    max_joint_acceleration (rad/s^2); period: follower and IK tick (s); max_time: simulated
-    time limit (s); min_coverage: success threshold; follower: the algorithm's parameters;
+    max_joint_acceleration); period: follower and IK tick (s); max_time: simulated time
+    limit (s); min_coverage: success threshold; follower: the algorithm's parameters;
     ik: IK tolerances; arm, gripper_frame, tof: names in the station; base_frame: the arm's
-    base frame B (scoped name; empty: `<arm>::base`)."""
+    base frame B (scoped name; empty: `<arm>::base`).
+    tool_speed: the tool's speed in joint moves (m/s); max_joint_speed: joint speed limit
+    (rad/s); max_joint_acceleration: joint acceleration limit (rad/s^2)."""
 
     task: str = "path_following"
     path: str = "paper_path_1"
@@ -59,14 +62,14 @@ class PathFollowingScenario:
     seed: int = 0
     repeat_seed: int | None = None
     executor: str = "station"
-    tool_speed: float = 0.05
-    max_joint_speed: float = 1.0
-    max_joint_acceleration: float = 5.0
+    tool_speed: float = Positive(0.05)
+    max_joint_speed: float = Positive(1.0)
+    max_joint_acceleration: float = Positive(5.0)
     motion: str = "joint_trajectory"
     planner: PlannerConfig = field(default_factory=PlannerConfig)
-    period: float = 0.01
-    max_time: float = 400.0
-    min_coverage: float = 0.95
+    period: float = Positive(0.01)
+    max_time: float = Positive(400.0)
+    min_coverage: float = InRange(0.0, 1.0, 0.95)
     follower: FollowerConfig = field(default_factory=FollowerConfig)
     ik: ToolPoseIkConfig = field(default_factory=ToolPoseIkConfig)
     arm: str = "mz04d"
@@ -84,6 +87,11 @@ def Run(scenario: PathFollowingScenario, context: RunContext, seed: int) -> tupl
 
 def RunPathFollowing(scenario: PathFollowingScenario, context: RunContext) -> dict[str, Any]:
     """Runs the follower (twice with repeat_seed) and returns the summary metrics."""
+    if scenario.executor == "kinematic" and context.hardware:
+        raise ConfigurationError(
+            "executor=kinematic cannot run with --hardware: it poses a model and drives no "
+            "arm (use executor=station)"
+        )
     repeat_seed = scenario.repeat_seed
     execution, setup = Run(scenario, context, scenario.seed)
     centerline = setup.centerline

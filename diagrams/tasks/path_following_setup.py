@@ -29,6 +29,7 @@ from guidedarm.diagrams.station.station_plant import (
     GetArmInstance,
     MakeMultibodyPlant,
 )
+from guidedarm.systems.config_checks import CheckConfig
 from guidedarm.systems.errors import ConfigurationError, GuidedArmError
 from guidedarm.systems.path_following.hose_geometry import (
     HoseConfig,
@@ -148,24 +149,16 @@ def MakeSetup(scenario: PathFollowingScenario, out_dir: Path | None = None) -> S
 
 
 def _CheckScenario(scenario: PathFollowingScenario) -> None:
+    """The declared bounds of every field (config_checks), then the rules between them."""
+    CheckConfig(scenario)
     if scenario.executor not in EXECUTORS:
         raise ConfigurationError(f"executor must be one of {EXECUTORS}, got '{scenario.executor}'")
     if scenario.motion not in MOVES:
         raise ConfigurationError(f"motion must be one of {MOVES}, got '{scenario.motion}'")
-    rates = (scenario.tool_speed, scenario.period, scenario.max_joint_speed)
-    if min(*rates, scenario.max_joint_acceleration) <= 0:
-        raise ConfigurationError(
-            "tool_speed, max_joint_speed, max_joint_acceleration and period must be positive"
-        )
-    scenario.planner.Validate()
-    scenario.ik.Validate()
-    scenario.random_path.Validate()
-    if scenario.workspace is not None:
-        scenario.workspace.Validate()
     if scenario.follower.estimator not in ("", scenario.estimator):
         raise ConfigurationError(
-            f"follower.estimator '{scenario.follower.estimator}' conflicts with estimator "
-            f"'{scenario.estimator}': set the estimator with `estimator` only"
+            f"follower.estimator '{scenario.follower.estimator}' conflicts with the top-level "
+            f"key 'estimator' ('{scenario.estimator}'): set that only"
         )
     if scenario.arm not in scenario.station.arms or scenario.tof not in scenario.station.tof_tools:
         raise ConfigurationError(
@@ -180,13 +173,13 @@ def _ResolveToF(scenario: PathFollowingScenario, station: StationScenario) -> No
     key = f"station.tof_tools.{scenario.tof}.seed"
     if tof.seed is not None and tof.seed != scenario.seed:
         raise ConfigurationError(
-            f"{key} ({tof.seed}) conflicts with seed ({scenario.seed}), the noise seed of "
-            "path following: set `seed` only"
+            f"{key} ({tof.seed}) conflicts with the top-level key 'seed' ({scenario.seed}), "
+            "the noise seed of path following: set that only"
         )
     if tof.seed is not None and scenario.repeat_seed not in (None, tof.seed):
         raise ConfigurationError(
             f"{key} fixes the noise of both runs, repeat_seed ({scenario.repeat_seed}) needs "
-            "another: set `seed` only"
+            "another: set the top-level key 'seed' only"
         )
     station.hose = station.hose or HoseConfig()
     tof.seed = scenario.seed
@@ -212,10 +205,12 @@ def _LoadHose(scenario, workspace, solver, mount, q_home, out_dir) -> tuple[np.n
         if Path(source).suffix.lower() == ".csv" or Path(source).is_file():
             source = str(ResolveCenterlinePath(source).resolve())
     else:
-        try:
-            seed = int(scenario.path.removeprefix("random_"))
-        except ValueError:
-            raise ConfigurationError(f"path '{scenario.path}': expected random_<seed>") from None
+        digits = scenario.path.removeprefix("random_")
+        if not (digits.isascii() and digits.isdigit()):
+            raise ConfigurationError(
+                f"path '{scenario.path}': expected random_<seed>, a seed of digits 0-9"
+            )
+        seed = int(digits)
         centerline_B = ReachableRandomPath(scenario, seed, workspace, solver, mount, q_home)
         directory = Path(out_dir or tempfile.mkdtemp(prefix="guidedarm_hose_"))
         WriteCenterline(centerline_B, directory / "hose.csv")
@@ -236,7 +231,7 @@ def _ResolveHose(scenario, station: StationScenario, source: str, base_frame: st
     if hose.centerline and not _SameHose(hose.centerline, source):
         raise ConfigurationError(
             f"station.hose.centerline '{hose.centerline}' conflicts with the task's hose "
-            f"'{source}': set the hose with `path` or `path_csv` only"
+            f"'{source}': set the hose with the keys 'path' or 'path_csv' only"
         )
     if hose.frame not in ("", base_frame):
         raise ConfigurationError(

@@ -19,6 +19,13 @@ from pydrake.geometry import Box, Capsule, Cylinder
 from pydrake.math import RigidTransform, RotationMatrix
 from pydrake.multibody.plant import CoulombFriction, MultibodyPlant
 
+from guidedarm.systems.config_checks import (
+    CheckConfig,
+    CheckFields,
+    InRange,
+    NonNegative,
+    Positive,
+)
 from guidedarm.systems.errors import ConfigurationError
 from guidedarm.systems.path_following.workspace import WorkspaceConfig
 
@@ -45,8 +52,8 @@ class HoseConfig:
 
     centerline: str = ""
     frame: str = ""
-    diameter: float = 0.020
-    segment_length: float = 0.010
+    diameter: float = Positive(0.020)
+    segment_length: float = Positive(0.010)
     brackets: bool = True
 
 
@@ -74,17 +81,25 @@ def LoadHoseWorkspace(name_or_file: str) -> WorkspaceConfig | None:
         return None
     try:
         workspace = yaml_load_typed(schema=WorkspaceConfig, filename=str(sidecar))
+        CheckConfig(workspace)
     except Exception as e:
         raise ConfigurationError(f"{sidecar}: {str(e).splitlines()[0]}") from None
-    workspace.Validate()
     return workspace
 
 
 def ReadCenterline(name_or_file: str) -> np.ndarray:
-    """Reads and validates a centerline CSV (x, y, z in m per row, header optional)."""
+    """Reads and validates a centerline CSV (x, y, z in m per row, header optional; UTF-8,
+    with or without a byte-order mark)."""
     path = ResolveCenterlinePath(name_or_file)
+    try:
+        lines = path.read_bytes().decode("utf-8-sig").splitlines()
+    except UnicodeDecodeError as e:
+        raise ConfigurationError(f"{path}: not a text CSV (byte {e.start} is not UTF-8)") from None
+    except OSError as e:
+        raise ConfigurationError(f"{path}: cannot read ({e.strerror})") from None
+    content = [n for n, line in enumerate(lines, 1) if line.strip() and line.strip()[0] != "#"]
     rows = []
-    for number, line in enumerate(path.read_text().splitlines(), start=1):
+    for number, line in enumerate(lines, start=1):
         text = line.strip()
         if not text or text.startswith("#"):
             continue
@@ -92,9 +107,9 @@ def ReadCenterline(name_or_file: str) -> np.ndarray:
         try:
             values = [float(c) for c in cells]
         except ValueError:
-            if not rows and number == _first_content_line(path):
+            if not rows and number == content[0]:
                 continue  # a header row
-            raise ConfigurationError(f"{path}:{number}: not three numbers: '{text}'") from None
+            raise ConfigurationError(f"{path}:{number}: not three numbers: {text[:60]!r}") from None
         if len(values) != 3:
             raise ConfigurationError(f"{path}:{number}: expected x,y,z, got {len(values)} values")
         rows.append(values)
@@ -163,25 +178,22 @@ class RandomPathConfig:
     start_azimuth_centre_deg. The paths are smooth with curvature below 1 / min_bend_radius.
     """
 
-    length: float = 0.6
-    min_bend_radius: float = 0.10
-    radius_range: list[float] = field(default_factory=lambda: [0.29, 0.43])
+    length: float = Positive(0.6)
+    min_bend_radius: float = Positive(0.10)
+    radius_range: list[float] = NonNegative(factory=lambda: [0.29, 0.43])
     z_range: list[float] = field(default_factory=lambda: [0.08, 0.20])
-    max_slope_deg: float = 35.0
-    margin: float = 0.10
+    max_slope_deg: float = InRange(0.0, 90.0, 35.0, low_open=True)
+    margin: float = NonNegative(0.10)
     start_azimuth_centre_deg: float = 0.0
-    start_azimuth_deg: float = math.degrees(0.6)
+    start_azimuth_deg: float = InRange(0.0, 180.0, math.degrees(0.6))
 
     def Validate(self) -> None:
         """Raises ConfigurationError naming the first bad field."""
+        CheckFields(self)
         for key in ("radius_range", "z_range"):
             bounds = getattr(self, key)
             if len(bounds) != 2 or not bounds[0] < bounds[1]:
-                raise ConfigurationError(f"random_path.{key} must be [lower, upper], lower < upper")
-        if min(self.length, self.min_bend_radius, self.max_slope_deg) <= 0 or self.margin < 0:
-            raise ConfigurationError(
-                "random_path length, min_bend_radius, max_slope_deg must be > 0, margin >= 0"
-            )
+                raise ConfigurationError(f"{key} must be [lower, upper] with lower < upper")
 
 
 def RandomSmoothPath(
@@ -286,7 +298,7 @@ def RegisterHose(plant: MultibodyPlant, centerline: np.ndarray, config: HoseConf
 
     Returns the GeometryIds of the hose capsules (proximity role), for contact checks.
     """
-    if config.diameter <= 0 or config.segment_length <= 0:
+    if not (config.diameter > 0 and config.segment_length > 0):
         raise ConfigurationError("hose diameter and segment_length must be positive")
     radius = config.diameter / 2
     points = Resample(centerline, config.segment_length)
@@ -331,10 +343,3 @@ def _SegmentPose(a: np.ndarray, b: np.ndarray) -> RigidTransform:
     """Pose whose z axis runs from a to b, centred between them."""
     axis = (b - a) / np.linalg.norm(b - a)
     return RigidTransform(RotationMatrix.MakeFromOneVector(axis, 2), (a + b) / 2)
-
-
-def _first_content_line(path: Path) -> int:
-    for number, line in enumerate(path.read_text().splitlines(), start=1):
-        if line.strip() and not line.strip().startswith("#"):
-            return number
-    return 0

@@ -25,6 +25,7 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 from pydrake.math import RigidTransform, RollPitchYaw, RotationMatrix
 
+from guidedarm.systems.config_checks import CheckFields, InRange, Positive
 from guidedarm.systems.errors import ConfigurationError
 
 ESTIMATORS = ("grid", "ranging")
@@ -56,14 +57,14 @@ class FollowerConfig:
 
     estimator: str = ""
     steering: str = ""
-    long_step: float = 0.015
-    short_step: float = 0.010
-    rotation_reduction: float = 0.0
+    long_step: float = Positive(0.015)
+    short_step: float = Positive(0.010)
+    rotation_reduction: float = InRange(0.0, 1.0, 0.0, high_open=True)
     readings: int = 0
-    reading_period: float = 0.02
+    reading_period: float = Positive(0.02)
     lost_limit: int = 3
-    recovery_angle_deg: float = 20.0
-    max_steps: int = 400
+    recovery_angle_deg: float = InRange(0.0, 180.0, 20.0, low_open=True)
+    max_steps: int = Positive(400)
 
     def Resolved(self) -> "FollowerConfig":
         """A checked copy with the automatic estimator, steering, rotation_reduction and
@@ -79,21 +80,17 @@ class FollowerConfig:
         return resolved
 
     def Validate(self) -> None:
-        """Raises ConfigurationError naming the first bad parameter."""
-        if self.steering not in STEERINGS:
+        """Raises ConfigurationError naming the first bad parameter (the automatic values,
+        an empty estimator or steering and zeros, are accepted)."""
+        CheckFields(self)
+        if self.steering not in ("", *STEERINGS):
             raise ConfigurationError(f"steering must be one of {STEERINGS}, got '{self.steering}'")
-        if self.estimator not in ESTIMATORS:
+        if self.estimator not in ("", *ESTIMATORS):
             raise ConfigurationError(
                 f"estimator must be one of {ESTIMATORS}, got '{self.estimator}'"
             )
-        if not 0 < self.short_step <= self.long_step:
-            raise ConfigurationError("need 0 < short_step <= long_step")
-        if not 0 < self.rotation_reduction < 1:
-            raise ConfigurationError("rotation_reduction (the seed's b) must be in (0, 1)")
-        if self.readings < 0 or self.reading_period <= 0:
-            raise ConfigurationError("readings must be >= 0 and reading_period positive")
-        if self.lost_limit < 0 or self.max_steps < 1:
-            raise ConfigurationError("lost_limit must be >= 0 and max_steps >= 1")
+        if not self.short_step <= self.long_step:
+            raise ConfigurationError("need short_step <= long_step")
 
 
 def Rotation(roll: float, pitch: float, yaw: float) -> np.ndarray:

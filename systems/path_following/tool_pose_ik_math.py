@@ -38,43 +38,46 @@ from pydrake.multibody.plant import MultibodyPlant
 from pydrake.multibody.tree import Frame, ModelInstanceIndex
 from pydrake.solvers import SnoptSolver, Solve
 
+from guidedarm.systems.config_checks import CheckFields, InRange, NonNegative, Positive
 from guidedarm.systems.errors import ConfigurationError
 from guidedarm.systems.path_following.workspace import WorkspaceConfig
 
 
 @dataclass
 class ToolPoseIkConfig:
-    """Tolerances (m, deg), the frame's axis that should point down, the weight of the
-    stay-near-previous-q cost and the number of perturbed restarts after a failed solve.
-    shortfall_tolerance_deg: the orientation tolerance of the second solve (module
-    docstring); 0 disables it. The walls are a WorkspaceConfig (systems/path_following/
-    workspace.py), given to the solver beside this."""
+    """The IK's tolerances, constraints and costs (see the module docstring); the walls are
+    a WorkspaceConfig (systems/path_following/workspace.py), given to the solver beside this.
 
-    position_tolerance: float = 0.0005
-    orientation_tolerance_deg: float = 0.5
-    shortfall_tolerance_deg: float = 45.0
-    orientation_cost_weight: float = 10.0
-    max_step_rotation_deg: float = 89.0
-    max_tilt_deg: float = 85.0
+    position_tolerance: of the frame's point Q (m).
+    orientation_tolerance_deg: largest orientation error of a solution (deg).
+    shortfall_tolerance_deg: the orientation tolerance of the second solve (deg); 0
+        disables it.
+    orientation_cost_weight: weight of the orientation-error cost.
+    max_step_rotation_deg: largest rotation of the frame in one step (deg).
+    max_tilt_deg: largest angle between the frame's down_axis and world -z (deg).
+    down_axis: the frame's axis that should point down.
+    max_swing: largest distance of the frame from the straight line between two
+        consecutive poses during the joint move (m); inf turns the swing check off.
+    joint_cost_weight: weight of the stay-near-the-previous-q cost.
+    retries: perturbed restarts after a failed solve.
+    """
+
+    position_tolerance: float = Positive(0.0005)
+    orientation_tolerance_deg: float = Positive(0.5)
+    shortfall_tolerance_deg: float = NonNegative(45.0)
+    orientation_cost_weight: float = NonNegative(10.0)
+    max_step_rotation_deg: float = InRange(0.0, 180.0, 89.0, low_open=True)
+    max_tilt_deg: float = InRange(0.0, 180.0, 85.0)
     down_axis: list[float] = field(default_factory=lambda: [0.0, 0.0, 1.0])
-    max_swing: float = 0.025
-    joint_cost_weight: float = 0.01
+    max_swing: float = Positive(0.025, allow_inf=True)
+    joint_cost_weight: float = NonNegative(0.01)
     retries: int = 3
 
     def Validate(self) -> None:
-        """Raises ConfigurationError naming the first bad field."""
-        if min(self.position_tolerance, self.orientation_tolerance_deg) <= 0:
-            raise ConfigurationError(
-                "ik position_tolerance and orientation_tolerance_deg must be > 0"
-            )
-        if not 0 < self.max_step_rotation_deg <= 180 or not 0 < self.max_tilt_deg <= 180:
-            raise ConfigurationError(
-                "ik max_step_rotation_deg and max_tilt_deg must be in (0, 180]"
-            )
-        if len(self.down_axis) != 3 or np.linalg.norm(self.down_axis) < 1e-9:
-            raise ConfigurationError("ik down_axis must be a nonzero 3-vector")
-        if self.max_swing <= 0 or self.joint_cost_weight < 0 or self.retries < 0:
-            raise ConfigurationError("ik max_swing must be > 0, joint_cost_weight and retries >= 0")
+        """Raises ConfigurationError naming the first bad limit."""
+        CheckFields(self)
+        if len(self.down_axis) != 3 or not np.linalg.norm(self.down_axis) > 0:
+            raise ConfigurationError(f"down_axis must be a nonzero 3-vector, got {self.down_axis}")
 
 
 @dataclass(frozen=True)

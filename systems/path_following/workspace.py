@@ -7,31 +7,35 @@ The box is expressed in the arm's base frame B, so it travels with the arm.
 """
 
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 
 import numpy as np
 
+from guidedarm.systems.config_checks import Bound, Bounded, CheckFields
 from guidedarm.systems.errors import ConfigurationError
+
+# A wall may be left open (+-inf: the paper's z has no upper wall); NaN is refused.
+_WALL = Bound(allow_inf=True)
 
 
 @dataclass
 class WorkspaceConfig:
     """Axis-aligned walls (m, the arm's base frame B): [lower, upper] along x, y and z.
 
-    The default is the seed's cell: x, y in [-0.55, 0.55], z >= 0.005.
+    The default is the paper's cell: x, y in [-0.55, 0.55], z >= 0.005 (upper .inf: no
+    wall).
     """
 
-    x: list[float] = field(default_factory=lambda: [-0.55, 0.55])
-    y: list[float] = field(default_factory=lambda: [-0.55, 0.55])
-    z: list[float] = field(default_factory=lambda: [0.005, math.inf])
+    x: list[float] = Bounded(_WALL, factory=lambda: [-0.55, 0.55])
+    y: list[float] = Bounded(_WALL, factory=lambda: [-0.55, 0.55])
+    z: list[float] = Bounded(_WALL, factory=lambda: [0.005, math.inf])
 
     def Validate(self) -> None:
         """Raises ConfigurationError naming the first malformed axis."""
+        CheckFields(self)
         for axis, bounds in (("x", self.x), ("y", self.y), ("z", self.z)):
-            if len(bounds) != 2 or math.isnan(bounds[0]) or math.isnan(bounds[1]):
-                raise ConfigurationError(f"workspace.{axis} must be [lower, upper], got {bounds}")
-            if not bounds[0] < bounds[1]:
-                raise ConfigurationError(f"workspace.{axis}: need lower < upper, got {bounds}")
+            if len(bounds) != 2 or not bounds[0] < bounds[1]:
+                raise ConfigurationError(f"{axis} must be [lower, upper] with lower < upper")
 
     def Lower(self) -> np.ndarray:
         """[x, y, z] lower bounds (m)."""

@@ -1,8 +1,8 @@
 """ToFToolSensor: six VL6180X-like time-of-flight sensors reading SceneGraph geometry.
 
-The ray casting, noise and detection grid live in tof_tool_sensor_math.py. The outputs are what the
-tool's microcontroller streams, so the hardware driver can produce the same ports: the six
-ranges (m) and their validity flags (1 = a return within range, 0 = none).
+The ray casting, noise and detection grid live in tof_tool_sensor_math.py. The outputs are
+what the tool's microcontroller streams, so the hardware driver can produce the same ports:
+the six ranges (m) and their validity flags (1 = a return within range, 0 = none).
 """
 
 from collections.abc import Callable
@@ -15,6 +15,7 @@ from pydrake.math import RigidTransform
 from pydrake.multibody.plant import MultibodyPlant
 from pydrake.systems.framework import BasicVector, Context, LeafSystem, ValueProducer
 
+from guidedarm.systems.config_checks import CheckFields, InRange, NonNegative, Positive
 from guidedarm.systems.errors import ConfigurationError
 from guidedarm.systems.plant_frames import GetScopedFrame
 from guidedarm.systems.tof.tof_tool_sensor_math import ConeRays, DetectionGrid, Measure, RayCaster
@@ -46,25 +47,20 @@ class ToFToolConfig:
 
     sensor_frames: list[str] = field(default_factory=_default_frames)
     tool_frame: str = "tof_tool::tof_tool"
-    cone_angle_deg: float = 25.0
-    max_range: float = 0.100
-    target_radius: float = 0.0
-    noise_std: float = 0.002
-    quantization: float = 0.001
+    cone_angle_deg: float = InRange(0.0, 180.0, 25.0, low_open=True, high_open=True)
+    max_range: float = Positive(0.100)
+    target_radius: float = NonNegative(0.0)
+    noise_std: float = NonNegative(0.002)
+    quantization: float = NonNegative(0.001)
     seed: int | None = None
-    period: float = 0.02
+    period: float = Positive(0.02)
     rings: int = 2
 
     def Validate(self) -> None:
         """Raises ConfigurationError naming the first bad field."""
+        CheckFields(self)
         if len(self.sensor_frames) != NUM_SENSORS:
-            raise ConfigurationError(f"tof sensor_frames must name {NUM_SENSORS} frames")
-        if not (self.max_range > 0 and self.period > 0 and self.noise_std >= 0):
-            raise ConfigurationError("tof max_range and period must be > 0, noise_std >= 0")
-        if not (self.target_radius >= 0 and 0 < self.cone_angle_deg < 180):
-            raise ConfigurationError(
-                "tof target_radius must be >= 0 and cone_angle_deg in (0, 180)"
-            )
+            raise ConfigurationError(f"sensor_frames must name {NUM_SENSORS} frames")
 
     def TargetRadius(self) -> float:
         """The target radius in use (m): target_radius, or DEFAULT_TARGET_RADIUS for 0."""

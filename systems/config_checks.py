@@ -1,0 +1,259 @@
+"""Declared bounds of config fields, and the walk that checks a typed config tree.
+
+Every scenario, camera and panel file is checked by CheckConfig right after its typed load
+(diagrams/scenario_loading.py), before any model is built. The rules:
+  - every float is finite, unless its field is declared with `allow_inf=True` (and its doc
+    says what infinity means);
+  - every int is >= 0 (our ints are seeds, counts, indices, sizes and ports), unless its
+    field declares another bound;
+  - a field declared with Positive, NonNegative or InRange meets that bound (every element,
+    for a list field);
+  - Drake's structs inside a schema (MultibodyPlantConfig, SimulatorConfig, CameraConfig,
+    Transform, ...) are walked the same way, with the bounds of DRAKE_BOUNDS and the
+    checks of DRAKE_CHECKS;
+  - a dataclass with a `Validate()` method is checked by it: Validate() calls
+    CheckFields(self) first, then checks the rules between its fields.
+Every comparison is written so that NaN fails it (`not value > low`).
+Errors are FieldError: one line naming the dotted key, e.g. `key 'station.arms.ur10e.kp':
+must be > 0, got nan`.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+import numbers
+from collections.abc import Callable
+from dataclasses import MISSING, dataclass
+from typing import Any
+
+import numpy as np
+from pydrake.geometry import Rgba
+from pydrake.multibody.plant import MultibodyPlantConfig
+from pydrake.systems.analysis import GetIntegrationSchemes, SimulatorConfig
+from pydrake.systems.sensors import CameraConfig
+from pydrake.visualization import VisualizationConfig
+
+from guidedarm.systems.errors import ConfigurationError
+
+_BOUND = "guidedarm.bound"
+
+
+class FieldError(ConfigurationError):
+    """A config value is out of its bounds; `key` is its dotted path in the config tree."""
+
+    def __init__(self, key: str, why: str) -> None:
+        self.key = key
+        self.why = why
+        super().__init__(f"key '{key}': {why}" if key else why)
+
+
+@dataclass(frozen=True)
+class Bound:
+    """An interval for a number (both ends included unless open), and whether +-inf is
+    admissible."""
+
+    low: float = -math.inf
+    high: float = math.inf
+    low_open: bool = False
+    high_open: bool = False
+    allow_inf: bool = False
+
+    def Violation(self, value: float) -> str | None:
+        """Why `value` is out of bounds, or None; NaN is always out."""
+        if not (self.allow_inf or math.isfinite(value)):
+            return f"must be a finite number, got {value}"
+        above = value > self.low if self.low_open else value >= self.low
+        below = value < self.high if self.high_open else value <= self.high
+        if not (above and below):
+            return f"must be {self}, got {value}"
+        return None
+
+    def __str__(self) -> str:
+        if self.high == math.inf:
+            return f"{'>' if self.low_open else '>='} {self.low:g}"
+        if self.low == -math.inf:
+            return f"{'<' if self.high_open else '<='} {self.high:g}"
+        left, right = "(" if self.low_open else "[", ")" if self.high_open else "]"
+        return f"in {left}{self.low:g}, {self.high:g}{right}"
+
+
+FINITE = Bound()
+POSITIVE = Bound(low=0.0, low_open=True)
+NON_NEGATIVE = Bound(low=0.0)
+UNIT_INTERVAL = Bound(low=0.0, high=1.0)
+
+
+def Positive(default: Any = MISSING, *, factory: Any = MISSING, allow_inf: bool = False) -> Any:
+    """A dataclass field whose value (or each element) must be > 0."""
+    return Bounded(Bound(low=0.0, low_open=True, allow_inf=allow_inf), default, factory)
+
+
+def NonNegative(default: Any = MISSING, *, factory: Any = MISSING) -> Any:
+    """A dataclass field whose value (or each element) must be >= 0."""
+    return Bounded(NON_NEGATIVE, default, factory)
+
+
+def InRange(
+    low: float,
+    high: float,
+    default: Any = MISSING,
+    *,
+    factory: Any = MISSING,
+    low_open: bool = False,
+    high_open: bool = False,
+) -> Any:
+    """A dataclass field whose value (or each element) must lie between low and high."""
+    return Bounded(Bound(low, high, low_open, high_open), default, factory)
+
+
+def Bounded(bound: Bound, default: Any = MISSING, factory: Any = MISSING) -> Any:
+    """A dataclass field carrying `bound` (see the module docstring)."""
+    return dataclasses.field(default=default, default_factory=factory, metadata={_BOUND: bound})
+
+
+def CheckConfig(config: Any, key: str = "") -> None:
+    """Checks a whole typed config tree (see the module docstring); raises FieldError with
+    the dotted key prefixed by `key`."""
+    try:
+        _CheckValue(config, None)
+    except ConfigurationError as e:
+        raise _Under(key, e) from None
+
+
+def CheckFields(config: Any) -> None:
+    """Checks the fields of one dataclass or Drake struct: declared bounds, finiteness,
+    and every nested config (through its own Validate() when it has one)."""
+    for name, value, bound in _Fields(config):
+        try:
+            _CheckValue(value, bound)
+        except ConfigurationError as e:
+            raise _Under(name, e) from None
+
+
+def _Fields(config: Any) -> list[tuple[str, Any, Bound | None]]:
+    if dataclasses.is_dataclass(config):
+        return [
+            (f.name, getattr(config, f.name), f.metadata.get(_BOUND))
+            for f in dataclasses.fields(config)
+        ]
+    bounds = DRAKE_BOUNDS.get(type(config), {})
+    return [(f.name, getattr(config, f.name), bounds.get(f.name)) for f in type(config).__fields__]
+
+
+def _CheckValue(value: Any, bound: Bound | None) -> None:
+    if value is None or isinstance(value, str | bool):
+        return
+    if isinstance(value, numbers.Integral):
+        _CheckNumber(int(value), bound or NON_NEGATIVE)
+    elif isinstance(value, numbers.Real):
+        _CheckNumber(float(value), bound or FINITE)
+    elif isinstance(value, np.ndarray | list | tuple):
+        items = value.ravel().tolist() if isinstance(value, np.ndarray) else value
+        for i, item in enumerate(items):
+            try:
+                _CheckValue(item, bound)
+            except ConfigurationError as e:
+                raise _Under(f"[{i}]", e) from None
+    elif isinstance(value, dict):
+        for name, item in value.items():
+            try:
+                _CheckValue(item, bound)
+            except ConfigurationError as e:
+                raise _Under(str(name), e) from None
+    elif dataclasses.is_dataclass(value) or hasattr(type(value), "__fields__"):
+        validate = getattr(value, "Validate", None)
+        if callable(validate):
+            validate()
+        else:
+            CheckFields(value)
+        extra = DRAKE_CHECKS.get(type(value))
+        if extra is not None:
+            extra(value)
+
+
+def _CheckNumber(value: float, bound: Bound) -> None:
+    why = bound.Violation(value)
+    if why is not None:
+        raise FieldError("", why)
+
+
+def _Under(prefix: str, error: ConfigurationError) -> FieldError:
+    if not isinstance(error, FieldError):
+        return FieldError(prefix, str(error))
+    if not prefix:
+        return error
+    if not error.key:
+        return FieldError(prefix, error.why)
+    joiner = "" if error.key.startswith("[") else "."
+    return FieldError(f"{prefix}{joiner}{error.key}", error.why)
+
+
+def _CheckCamera(config: CameraConfig) -> None:
+    try:
+        config.MakeCameras()
+    except Exception as e:  # Drake lists every problem, one per line
+        raise FieldError("", " ".join(str(e).split())) from None
+
+
+def _CheckPlantConfig(config: MultibodyPlantConfig) -> None:
+    # Drake reads these names only when a plant is built; an empty one checks them.
+    from pydrake.multibody.plant import AddMultibodyPlant
+    from pydrake.systems.framework import DiagramBuilder
+
+    try:
+        AddMultibodyPlant(config, DiagramBuilder())
+    except Exception as e:
+        raise FieldError("", str(e).strip().splitlines()[0]) from None
+
+
+def _CheckSimulatorConfig(config: SimulatorConfig) -> None:
+    schemes = GetIntegrationSchemes()
+    if config.integration_scheme not in schemes:
+        raise FieldError(
+            "integration_scheme",
+            f"unknown scheme '{config.integration_scheme}' (known: {', '.join(schemes)})",
+        )
+
+
+# Bounds of the numeric fields of Drake's structs used inside our schemas (their floats
+# are finite and their ints >= 0 by the general rules).
+DRAKE_BOUNDS: dict[type, dict[str, Bound]] = {
+    MultibodyPlantConfig: {
+        "time_step": NON_NEGATIVE,
+        "penetration_allowance": POSITIVE,
+        "stiction_tolerance": POSITIVE,
+        "sap_near_rigid_threshold": NON_NEGATIVE,
+    },
+    SimulatorConfig: {
+        "max_step_size": POSITIVE,
+        "accuracy": POSITIVE,
+        "start_time": NON_NEGATIVE,
+        "target_realtime_rate": NON_NEGATIVE,
+    },
+    CameraConfig: {
+        "width": POSITIVE,
+        "height": POSITIVE,
+        "clipping_near": POSITIVE,
+        "clipping_far": POSITIVE,
+        "z_near": POSITIVE,
+        "z_far": POSITIVE,
+        "fps": POSITIVE,
+        "capture_offset": NON_NEGATIVE,
+        "output_delay": NON_NEGATIVE,
+    },
+    CameraConfig.FocalLength: {"x": POSITIVE, "y": POSITIVE},
+    CameraConfig.FovDegrees: {
+        "x": Bound(0.0, 180.0, True, True),
+        "y": Bound(0.0, 180.0, True, True),
+    },
+    VisualizationConfig: {"publish_period": POSITIVE, "initial_proximity_alpha": UNIT_INTERVAL},
+    Rgba: {"rgba": UNIT_INTERVAL},
+}
+
+# Rules between the fields of Drake's structs, checked after their bounds.
+DRAKE_CHECKS: dict[type, Callable[[Any], None]] = {
+    CameraConfig: _CheckCamera,
+    MultibodyPlantConfig: _CheckPlantConfig,
+    SimulatorConfig: _CheckSimulatorConfig,
+}
