@@ -251,3 +251,15 @@ def test_a_csv_hose_takes_the_walls_of_its_yaml_beside_it(tmp_path):
     assert MakeSetup(scenario, tmp_path).workspace.x == [-0.55, 0.85]
     _, scenario, _ = LoadScenario("path_following", [f"path_csv={csv}", "workspace.x=[-0.5, 0.7]"])
     assert MakeSetup(scenario, tmp_path).workspace.x == [-0.5, 0.7]
+
+
+def test_an_initial_position_at_the_start_pose_is_kept(tmp_path):
+    """An arm already at the start pose (the emulator's, or a real arm brought there) keeps
+    its exact joints: the start IK, solved from there, would move it by a few 1e-4 rad."""
+    from guidedarm.diagrams.tasks.path_following_setup import MakeSetup
+
+    _, scenario, _ = LoadScenario("path_following", [])
+    q_start = MakeSetup(scenario, tmp_path).q_start
+    at_start = f"station.arms.mz04d.initial_position={q_start.tolist()}"
+    _, scenario, _ = LoadScenario("path_following", [at_start])
+    np.testing.assert_array_equal(MakeSetup(scenario, tmp_path).q_start, q_start)

@@ -286,9 +286,13 @@ def StartPosition(
     solver: ToolPoseSolver, mount: ToolMount, centerline: np.ndarray, q_home: np.ndarray
 ) -> np.ndarray:
     """Joints (rad) with the tool centre on the hose's first point (world frame), its x axis
-    toward the point 4 rows on, solved from q_home (any rotation, any swing)."""
+    toward the point 4 rows on: q_home itself when it holds the tool there already (e.g. a
+    start pose in the scenario's initial_position), else solved from q_home (any rotation,
+    any swing)."""
     ahead = centerline[min(4, len(centerline) - 1)]
     X_WT = RigidTransform(OrientationFromVector(ahead - centerline[0]), centerline[0])
+    if solver.Reaches(mount.GripperPose(X_WT), q_home):
+        return np.asarray(q_home, float)
     limits = solver.limits
     solver.limits = dataclasses.replace(
         limits, max_step_rotation_deg=180.0, max_swing=np.inf, shortfall_tolerance_deg=0.0

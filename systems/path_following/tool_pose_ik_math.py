@@ -143,6 +143,18 @@ class ToolPoseSolver:
         self.plant.SetPositions(self.context, q)
         return self.frame.CalcPoseInWorld(self.context)
 
+    def Reaches(self, X_WF_desired: RigidTransform, q: np.ndarray) -> bool:
+        """Whether q already holds the frame's point Q within position_tolerance (per axis)
+        and the frame within orientation_tolerance_deg of X_WF_desired (plus the solver's
+        own slack: its solutions lie on those bounds)."""
+        X_WF = self.ForwardKinematics(q)
+        offset = np.abs(X_WF @ self.p_FQ - X_WF_desired @ self.p_FQ)
+        turn = X_WF.rotation().inverse().multiply(X_WF_desired.rotation()).ToAngleAxis().angle()
+        return bool(
+            np.all(offset <= self.limits.position_tolerance + 1e-9)
+            and math.degrees(turn) <= self.limits.orientation_tolerance_deg + 1e-6
+        )
+
     def Swing(self, q_from: np.ndarray, q_to: np.ndarray) -> float:
         """Largest distance (m) of the frame from the straight line between its end poses
         along the joint-space interpolation from q_from to q_to."""
