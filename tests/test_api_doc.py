@@ -112,7 +112,8 @@ def test_the_port_reader_matches_built_systems():
         PanelSpec,
     )
 
-    station = MakeStation(LoadScenario("path_following", [])[1].station)
+    task, scenario, _ = LoadScenario("path_following", [])
+    station = MakeStation(task.Station(scenario))
     panel = PanelSpec(markers=[MarkerSpec(id=7)])
     built = [
         station.GetSubsystemByName("mz04d.servo"),  # JointServo

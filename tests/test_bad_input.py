@@ -80,7 +80,7 @@ def files(tmp_path_factory) -> Path:
     }
     for name, text in texts.items():
         (root / name).write_text(text)
-    (root / "binary.csv").write_bytes(BINARY)
+    (root / "binary_hose.csv").write_bytes(BINARY)
     (root / "binary.yaml").write_bytes(BINARY)
     (root / "camera_binary.yaml").write_bytes(BINARY)
     cv2.imwrite(str(root / "blank.png"), np.full((48, 64, 3), 200, np.uint8))
@@ -170,7 +170,7 @@ BAD_INPUTS = [
     ("tof-driver-baudrate", Run(PF, "station.hardware.tof_tools.tof.baudrate=0"), "baudrate'"),
     ("camera-driver-watchdog", Run(PF, "station.hardware.cameras.c.watchdog=-2"), "watchdog'"),
     ("hose-zero-diameter", Run(PF, "station.hose.diameter=0"), "station.hose.diameter"),
-    ("hose-centerline-ignored", Run(PF, "station.hose.centerline={f}/binary.csv"), "'path'"),
+    ("hose-centerline-ignored", Run(PF, "station.hose.centerline={f}/binary_hose.csv"), "'path'"),
     ("tof-cone-range", Run(PF, "station.tof_tools.tof.cone_angle_deg=180"), "(0, 180)"),
     ("tof-nan-range", Run(PF, "station.tof_tools.tof.max_range=.nan"), "max_range"),
     ("tof-negative-rings", Run(PF, "station.tof_tools.tof.rings=-1"), "rings'"),
@@ -189,7 +189,7 @@ BAD_INPUTS = [
     ("path-random-negative", Run(PF, "path=random_-1"), "random_<seed>"),
     ("path-unknown", Run(PF, "path=paper_path_9"), "unknown hose path"),
     ("path-csv-missing", Run(PF, "path_csv={f}/missing.csv"), "not found"),
-    ("path-csv-binary", Run(PF, flags=("--path-csv", "{f}/binary.csv")), "not a text CSV"),
+    ("path-csv-binary", Run(PF, flags=("--path-csv", "{f}/binary_hose.csv")), "not a text CSV"),
     ("path-csv-nul", Run(PF, "path_csv={f}/nul.csv"), "needs at least 2 points"),
     ("path-nan-period", Run(PF, "period=.nan"), "key 'period'"),
     ("path-negative-seed", Run(PF, "seed=-1"), "key 'seed': must be >= 0"),
@@ -204,12 +204,11 @@ BAD_INPUTS = [
         Run(PF, "executor=kinematic", flags=("--hardware",)),
         "executor=kinematic cannot run with --hardware",
     ),
-    ("kinematic-planner", Run(PF, "executor=kinematic", "motion=planner"), "motion=planner"),
     ("follower-steps", Run(PF, "follower.long_step=0.001"), "short_step <= long_step"),
     ("follower-reduction", Run(PF, "follower.rotation_reduction=1"), "[0, 1)"),
     ("follower-readings", Run(PF, "follower.readings=-2"), "follower.readings"),
     ("follower-estimator-ignored", Run(PF, "follower.estimator=ranging"), "'estimator'"),
-    ("ik-walls-ignored", Run(PF, "ik.z_min=0.1"), "cell walls"),
+    ("ik-walls-gone", Run(PF, "ik.z_min=0.1"), "unknown key 'ik.z_min'"),
     ("ik-nan-tolerance", Run(PF, "ik.position_tolerance=.nan"), "ik.position_tolerance"),
     ("ik-down-axis", Run(PF, "ik.down_axis=[0,0,0]"), "nonzero 3-vector"),
     # --- panel_operation, start, operation, degradation, planner
@@ -421,6 +420,7 @@ def test_a_started_run_always_ends_with_metrics_and_a_failure(tmp_path):
     """What RunTask makes of a task that fails in each way (the run command writes it as
     summary.json and exits 1); a refusal before the run passes through (exit 2)."""
     context = RunContext(tmp_path)
+    scenario = LoadScenario("ur10e_joint_tour", [])[1]
 
     def lost(scenario, context):
         raise RunFailedError("tof went quiet")
@@ -437,16 +437,16 @@ def test_a_started_run_always_ends_with_metrics_and_a_failure(tmp_path):
     def refused(scenario, context):
         raise ConfigurationError("no such arm")
 
-    assert RunTask(_Task(lost), None, context)["failure"] == "tof went quiet"
-    failure = RunTask(_Task(bug), None, context)["failure"]
+    assert RunTask(_Task(lost), scenario, context)["failure"] == "tof went quiet"
+    failure = RunTask(_Task(bug), scenario, context)["failure"]
     assert failure.startswith("internal error ValueError: division by zero (see traceback")
     assert "Traceback" in (tmp_path / "traceback.txt").read_text()
-    assert RunTask(_Task(interrupted), None, context)["failure"] == "interrupted"
-    metrics = RunTask(_Task(nan_metric), None, context)
+    assert RunTask(_Task(interrupted), scenario, context)["failure"] == "interrupted"
+    metrics = RunTask(_Task(nan_metric), scenario, context)
     assert metrics["error_mm"] == [1.0, None] and "error_mm.[1]" in metrics["failure"]
     assert metrics["success"] is False
     with pytest.raises(ConfigurationError):
-        RunTask(_Task(refused), None, context)
+        RunTask(_Task(refused), scenario, context)
 
 
 def test_meshcat_listens_on_loopback_only_unless_asked():

@@ -32,6 +32,8 @@ def test_every_key_of_every_task_has_a_doc_line(task):
     for f in dataclasses.fields(schema):  # the top level is complete ...
         assert f.name in keys
     # ... and so is every nested level: the station's Drake structs with their fields
+    if "station" not in keys:
+        return
     for nested in ("station.plant_config.time_step", "station.cameras.<name>.X_PB.base_frame"):
         assert nested in keys
 

@@ -87,7 +87,7 @@ def q_start(tmp_path_factory) -> list[float]:
     """The task's start joints: the emulated arm starts there, as the real arm would be
     brought there before the run."""
     _, scenario, _ = LoadScenario("path_following", [])
-    setup, _, _ = MakeSetup(scenario, tmp_path_factory.mktemp("setup"))
+    setup = MakeSetup(scenario, tmp_path_factory.mktemp("setup"))
     return [float(q) for q in setup.q_start]
 
 

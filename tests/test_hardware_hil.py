@@ -12,9 +12,6 @@ import sys
 import pytest
 from hardware_doubles import StartNachiEmulator, StopServer
 
-from guidedarm.diagrams.cli.command_run import LoadScenario
-from guidedarm.diagrams.tasks.path_following import MakeSetup
-
 # The follower's moves are rest to rest with joint accelerations of at most 5 rad/s^2
 # (joint_moves), so the acceleration guard runs at a plausible arm limit, 10 rad/s^2, the
 # margin covering the driver's own timing (it streams at the follower's 10 ms period). The
@@ -46,14 +43,9 @@ def _Status(port: int) -> str:
 def test_path_following_on_the_emulators_matches_simulation(tmp_path):
     sim_run = _Run("--out", str(tmp_path / "sim"), *COMMON)
     assert sim_run.returncode == 0, sim_run.stderr
-    # The real arm would be brought to the start pose before the run: the emulated arm
-    # starts there.
-    _, scenario, _ = LoadScenario("path_following", [])
-    setup, _, _ = MakeSetup(scenario, tmp_path / "setup")
-    q_start = [float(q) for q in setup.q_start]
-    emulator, port, device = StartNachiEmulator(
-        "--scenario", "path_following", "--set", f"station.arms.mz04d.initial_position={q_start}"
-    )
+    # The real arm would be brought to the start pose before the run: the emulator
+    # simulates the station the task builds (task.Station), whose arm starts there.
+    emulator, port, device = StartNachiEmulator("--scenario", "path_following")
     try:
         hardware_run = _Run(
             "--hardware",

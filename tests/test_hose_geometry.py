@@ -8,13 +8,15 @@ from guidedarm.systems.errors import ConfigurationError
 from guidedarm.systems.path_following.hose_geometry import (
     ArcLength,
     HoseConfig,
-    LoadPathLimits,
+    LoadHoseWorkspace,
     MinBendRadius,
-    RandomPathSpec,
+    RandomPathConfig,
     RandomSmoothPath,
     ReadCenterline,
     RegisterHose,
+    WriteCenterline,
 )
+from guidedarm.systems.path_following.workspace import WorkspaceConfig
 
 
 @pytest.mark.parametrize(
@@ -33,9 +35,17 @@ def test_paper_paths(name, min_radius):
     assert points[:, 2].min() > 0.06
 
 
-def test_path_4_raises_the_x_wall():
-    assert LoadPathLimits("paper_path_4").x == [-0.55, 0.85]
-    assert LoadPathLimits("paper_path_1").x == [-0.55, 0.55]
+def test_path_4_raises_the_x_wall(tmp_path):
+    assert LoadHoseWorkspace("paper_path_4").x == [-0.55, 0.85]
+    assert LoadHoseWorkspace("paper_path_1") is None
+    # A CSV file's NAME.yaml beside it counts as a named path's does.
+    WriteCenterline(ReadCenterline("paper_path_1"), tmp_path / "mine.csv")
+    (tmp_path / "mine.yaml").write_text("y: [-0.6, 0.7]\n")
+    workspace = LoadHoseWorkspace(str(tmp_path / "mine.csv"))
+    assert workspace.y == [-0.6, 0.7] and workspace.x == [-0.55, 0.55]
+    (tmp_path / "mine.yaml").write_text("y: [0.7, -0.6]\n")
+    with pytest.raises(ConfigurationError, match=r"y must be \[lower, upper\] with lower < upper"):
+        LoadHoseWorkspace(str(tmp_path / "mine.csv"))
 
 
 @pytest.mark.parametrize(
@@ -66,7 +76,7 @@ def test_header_is_optional(tmp_path):
 
 
 def test_random_paths_are_smooth_and_inside_the_region():
-    spec = RandomPathSpec()
+    spec = RandomPathConfig()
     for seed in range(20):
         points = RandomSmoothPath(seed, spec)
         assert MinBendRadius(points) >= spec.min_bend_radius
@@ -75,6 +85,22 @@ def test_random_paths_are_smooth_and_inside_the_region():
         assert spec.z_range[0] <= points[:, 2].min() and points[:, 2].max() <= spec.z_range[1]
         assert ArcLength(points)[-1] == pytest.approx(spec.length, abs=0.01)
     np.testing.assert_array_equal(RandomSmoothPath(7), RandomSmoothPath(7))
+
+
+def test_random_paths_follow_the_workspace():
+    """The region is the annulus inside the workspace drawn in by the margin: an annulus
+    out to 0.75 m stays inside walls at 0.6 m (margin 0.1: |x|, |y| <= 0.5), and a
+    workspace with no room left is refused naming it."""
+    spec = RandomPathConfig(radius_range=[0.35, 0.75], start_azimuth_centre_deg=-90.0)
+    walls = WorkspaceConfig(x=[-0.6, 0.6], y=[-0.6, 0.6], z=[0.005, 0.15])
+    for seed in range(10):
+        points = RandomSmoothPath(seed, spec, walls)
+        assert np.max(np.abs(points[:, :2])) <= 0.5 + 1e-9
+        assert points[:, 2].max() <= 0.15 + 1e-9
+        assert np.hypot(points[0, 0], points[0, 1]) >= 0.35 - 1e-9
+        assert np.degrees(np.arctan2(points[0, 1], points[0, 0])) < -90 + 35
+    with pytest.raises(ConfigurationError, match="no room inside the workspace"):
+        RandomSmoothPath(0, spec, WorkspaceConfig(x=[-0.08, 0.08]))
 
 
 def test_hose_geometry_is_registered_with_roles():

@@ -1,18 +1,18 @@
-"""PathFollower as a LeafSystem with the real ToolPoseIk, the arm following its commands
-exactly and sensors that never see the hose: lost steps, then retries that first retrace
-the way back, every command within the joint speed and acceleration limits."""
+"""PathFollower as a LeafSystem with the real ToolPoseIk, wired by AddPathFollowing to a
+station whose arm follows its commands exactly and whose sensors never see the hose: lost
+steps, then retries that first retrace the way back, every command within the joint speed
+and acceleration limits."""
 
 import numpy as np
 import pytest
 from pydrake.systems.analysis import Simulator
 from pydrake.systems.framework import DiagramBuilder
-from pydrake.systems.primitives import ConstantVectorSource, VectorLogSink
+from pydrake.systems.primitives import ConstantVectorSource, LogVectorOutput, PassThrough
 
 from guidedarm.diagrams.cli.command_run import LoadScenario
-from guidedarm.diagrams.tasks.path_following import MakeSetup
-from guidedarm.diagrams.tasks.path_following_execution import MakeSolver
-from guidedarm.systems.path_following.path_follower import DONE, PathFollower
-from guidedarm.systems.path_following.tool_pose_ik import ToolPoseIk
+from guidedarm.diagrams.tasks.path_following_diagram import AddPathFollowing
+from guidedarm.diagrams.tasks.path_following_setup import MakeSetup
+from guidedarm.systems.path_following.path_follower import DONE
 from guidedarm.systems.planning.acceleration_planner_math import PlanningError
 
 DT = 0.002
@@ -29,39 +29,27 @@ def blind_run(blind_setup):
     return _BlindRun(blind_setup)
 
 
-def _BlindRun(made_setup, plan_move=None):
-    """Runs the follower for 30 s with nothing in sight: (setup, loop state, commands)."""
-    setup, _, (mount, grid) = made_setup
+def _BlindStation(setup):
+    """A station whose arm is where it is commanded and whose ToF tool sees nothing."""
     builder = DiagramBuilder()
-    ik = builder.AddSystem(ToolPoseIk(MakeSolver(setup), setup.period))
-    follower = builder.AddSystem(
-        PathFollower(
-            setup.params, mount, grid, setup.q_start, setup.motion, setup.period, plan_move
-        )
-    )
-    ranges = builder.AddSystem(ConstantVectorSource(np.full(6, 0.1)))
-    valid = builder.AddSystem(ConstantVectorSource(np.zeros(6)))
-    builder.Connect(ranges.get_output_port(), follower.GetInputPort("ranges"))
-    builder.Connect(valid.get_output_port(), follower.GetInputPort("valid"))
-    command = follower.GetOutputPort("position_commanded")
-    builder.Connect(command, follower.GetInputPort("position_measured"))
-    builder.Connect(command, ik.GetInputPort("position_measured"))
-    for source, sink in [
-        ("X_WF_measured", "X_WF_measured"),
-        ("status", "ik_status"),
-        ("q_goal", "q_goal"),
-        ("failure", "ik_failure"),
-    ]:
-        builder.Connect(ik.GetOutputPort(source), follower.GetInputPort(sink))
-    builder.Connect(follower.GetOutputPort("X_WF_desired"), ik.GetInputPort("X_WF_desired"))
-    builder.Connect(follower.GetOutputPort("request"), ik.GetInputPort("request"))
-    log = builder.AddSystem(VectorLogSink(len(setup.q_start), DT))
-    builder.Connect(command, log.get_input_port())
-    diagram = builder.Build()
-    simulator = Simulator(diagram)
-    root = simulator.get_mutable_context()
-    ik.SetInitialGoal(ik.GetMyMutableContextFromRoot(root), setup.q_start)
+    command = builder.AddSystem(PassThrough(len(setup.q_start)))
+    builder.ExportInput(command.get_input_port(), f"{setup.arm}.position_commanded")
+    builder.ExportOutput(command.get_output_port(), f"{setup.arm}.position_measured")
+    for port, value in (("ranges", np.full(6, 0.1)), ("valid", np.zeros(6))):
+        source = builder.AddSystem(ConstantVectorSource(value))
+        builder.ExportOutput(source.get_output_port(), f"{setup.tool_name}.{port}")
+    return builder.Build()
+
+
+def _BlindRun(setup, plan_move=None):
+    """Runs the follower for 30 s with nothing in sight: (setup, loop state, commands)."""
+    builder = DiagramBuilder()
+    station = builder.AddSystem(_BlindStation(setup))
+    follower, _ = AddPathFollowing(builder, station, setup, plan_move)
+    log = LogVectorOutput(follower.GetOutputPort("position_commanded"), builder, DT)
+    simulator = Simulator(builder.Build())
     simulator.AdvanceTo(30.0)
+    root = simulator.get_context()
     loop = follower.Loop(follower.GetMyContextFromRoot(root))
     return setup, loop, log.FindLog(root).data().T
 
@@ -92,7 +80,7 @@ def test_blind_follower_retraces_and_ends(blind_run):
         passes.append(int(np.argmin(distance)))
     assert passes == sorted(passes)
     # The turn in place at the start pose moves the tool centre by at most the IK's 0.5 mm.
-    solver = MakeSolver(setup)
+    solver = setup.solver
     p_start = solver.ForwardKinematics(q[stops[0]]) @ solver.p_FQ
     p_retry = solver.ForwardKinematics(q[stops[4]]) @ solver.p_FQ
     assert np.linalg.norm(p_retry - p_start) < 0.001

@@ -5,17 +5,16 @@ import pytest
 from pydrake.math import RigidTransform, RotationMatrix
 
 from guidedarm.diagrams.cli.command_run import LoadScenario
-from guidedarm.diagrams.tasks.path_following import MakeSetup
-from guidedarm.diagrams.tasks.path_following_execution import MakePlannerMoves, MakeSolver
+from guidedarm.diagrams.tasks.path_following_diagram import MakePlannerMoves
+from guidedarm.diagrams.tasks.path_following_setup import MakeSetup
 from guidedarm.systems.planning.acceleration_planner_math import PlanningError
 
 
 @pytest.fixture(scope="module")
 def planner_moves(tmp_path_factory):
     _, scenario, _ = LoadScenario("path_following", ["motion=planner"])
-    setup, _, (mount, _) = MakeSetup(scenario, tmp_path_factory.mktemp("planner"))
-    solver = MakeSolver(setup)
-    return setup, solver, mount, MakePlannerMoves(setup, solver.plant)
+    setup = MakeSetup(scenario, tmp_path_factory.mktemp("planner"))
+    return setup, setup.solver, setup.mount, MakePlannerMoves(setup)
 
 
 def test_a_retrace_and_turn_ends_on_the_ik_pose_within_the_limits(planner_moves):

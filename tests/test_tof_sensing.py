@@ -5,14 +5,13 @@ import numpy as np
 import pytest
 from pydrake.math import RigidTransform
 from pydrake.multibody.parsing import LoadModelDirectives
-from pydrake.multibody.plant import AddMultibodyPlant, MultibodyPlantConfig
-from pydrake.systems.framework import DiagramBuilder
 
 from guidedarm.diagrams.station.model_paths import MODELS_DIR
-from guidedarm.diagrams.station.scenario import StationScenario
-from guidedarm.diagrams.station.station_plant import AddStationModels
+from guidedarm.diagrams.station.scenario import ArmConfig, StationScenario
+from guidedarm.diagrams.station.station_plant import MakeMultibodyPlant
+from guidedarm.diagrams.tasks.path_following_diagram import MakeKinematicStation
 from guidedarm.systems.path_following.hose_geometry import HoseConfig
-from guidedarm.systems.tof.tof_tool_sensor import ToFToolConfig, ToFToolSensor
+from guidedarm.systems.tof.tof_tool_sensor import ToFToolConfig
 from guidedarm.systems.tof.tof_tool_sensor_math import (
     AverageReadings,
     ConeRays,
@@ -57,17 +56,16 @@ def test_average_of_readings_keeps_a_sensor_valid_in_most_of_them():
 
 @pytest.fixture(scope="module")
 def cell():
-    """The MZ04D cell with paper path 1, the tool teleported by setting joint positions."""
+    """The MZ04D cell with paper path 1 (a plant for frames and IK, and a kinematic station:
+    the tool goes where the joints are commanded, the sensor reads its SceneGraph)."""
     directives = LoadModelDirectives(str(MODELS_DIR / "directives/mz04d_cell.dmd.yaml"))
-    scenario = StationScenario(directives=directives.directives, hose=HoseConfig())
-    builder = DiagramBuilder()
-    plant, scene_graph = AddMultibodyPlant(MultibodyPlantConfig(time_step=0.0), builder)
-    AddStationModels(scenario, plant)
-    plant.Finalize()
-    sensor = builder.AddSystem(ToFToolSensor(plant, ToFToolConfig(noise_std=0.0)))
-    builder.Connect(scene_graph.get_query_output_port(), sensor.get_input_port())
-    diagram = builder.Build()
-    return plant, sensor, diagram
+    scenario = StationScenario(
+        directives=directives.directives,
+        arms={"mz04d": ArmConfig()},
+        tof_tools={"tof": ToFToolConfig(noise_std=0.0)},
+        hose=HoseConfig(centerline="paper_path_1"),
+    )
+    return MakeMultibodyPlant(scenario), MakeKinematicStation(scenario)
 
 
 def _grid(plant):
@@ -202,23 +200,27 @@ def test_far_returns_are_detection_errors(cell):
 def test_sensor_sees_the_hose_through_the_query_object(cell):
     """Tool centred over paper path 1 (IK-free: the tool body is placed by the joint
     positions found for that pose): the central sensors read hose surface ranges."""
-    plant, sensor, diagram = cell
+    plant, station = cell
     from guidedarm.systems.path_following.hose_geometry import ReadCenterline
     from guidedarm.systems.path_following.path_follower_math import OrientationFromVector, ToolMount
-    from guidedarm.systems.path_following.tool_pose_ik_math import IkLimits, ToolPoseSolver
-
-    context = diagram.CreateDefaultContext()
-    plant_context = plant.GetMyContextFromRoot(context)
-    solver = ToolPoseSolver(
-        plant, plant.GetModelInstanceByName("mz04d"), plant.GetFrameByName("gripper"), IkLimits()
+    from guidedarm.systems.path_following.tool_pose_ik_math import (
+        ToolPoseIkConfig,
+        ToolPoseSolver,
     )
-    X_GT = plant.GetFrameByName("tof_tool").CalcPose(plant_context, plant.GetFrameByName("gripper"))
+
+    gripper = plant.GetFrameByName("gripper")
+    solver = ToolPoseSolver(
+        plant, plant.GetModelInstanceByName("mz04d"), gripper, ToolPoseIkConfig()
+    )
+    X_GT = plant.GetFrameByName("tof_tool").CalcPose(plant.CreateDefaultContext(), gripper)
     mount = ToolMount.FromTransform(X_GT)
     c = ReadCenterline("paper_path_1")
     X_WT = RigidTransform(OrientationFromVector(c[30] - c[26]), c[28])
-    result = solver.Solve(mount.GripperPose(X_WT), plant.GetPositions(plant_context))
+    result = solver.Solve(mount.GripperPose(X_WT), plant.GetPositions(solver.context))
     assert result.success
-    plant.SetPositions(plant_context, result.q)
+    context = station.CreateDefaultContext()
+    station.GetInputPort("mz04d.position_commanded").FixValue(context, result.q)
+    sensor = station.GetSubsystemByName("tof.sensor")
     sensor_context = sensor.GetMyContextFromRoot(context)
     true = sensor.TrueRanges(sensor_context)
     # Sensors 2 and 5 look straight at the hose: surface at h - r = 45 mm.

@@ -7,34 +7,39 @@ import math
 
 import numpy as np
 import pytest
-from pydrake.math import RigidTransform
+from pydrake.math import RigidTransform, RollPitchYaw
 from pydrake.multibody.parsing import LoadModelDirectives
-from pydrake.multibody.plant import MultibodyPlant
 from pydrake.systems.analysis import Simulator
 from pydrake.systems.framework import DiagramBuilder
 
 from guidedarm.diagrams.station.model_paths import MODELS_DIR
 from guidedarm.diagrams.station.scenario import StationScenario
-from guidedarm.diagrams.station.station_plant import AddStationModels
+from guidedarm.diagrams.station.station_plant import MakeMultibodyPlant
+from guidedarm.systems.errors import ConfigurationError
 from guidedarm.systems.path_following.hose_geometry import ReadCenterline
 from guidedarm.systems.path_following.path_follower_math import OrientationFromVector, ToolMount
 from guidedarm.systems.path_following.tool_pose_ik import ToolPoseIk
-from guidedarm.systems.path_following.tool_pose_ik_math import IkLimits, ToolPoseSolver
+from guidedarm.systems.path_following.tool_pose_ik_math import ToolPoseIkConfig, ToolPoseSolver
+from guidedarm.systems.path_following.workspace import WorkspaceConfig
 
 HOME = np.array([0.0, math.pi / 2, 0.0, 0.0, -math.pi / 2, 0.0])
 
 
-@pytest.fixture(scope="module")
-def solver():
+def _MakeSolver(workspace=None, X_WB=None):
     directives = LoadModelDirectives(str(MODELS_DIR / "directives/mz04d_cell.dmd.yaml"))
-    plant = MultibodyPlant(0.0)
-    AddStationModels(StationScenario(directives=directives.directives), plant)
-    plant.Finalize()
+    scenario = StationScenario(directives=directives.directives)
+    plant = MakeMultibodyPlant(scenario, ["mz04d", "gripper", "tof_tool"])
     gripper = plant.GetFrameByName("gripper")
     p_GO = plant.GetFrameByName("tof_tool").CalcPose(plant.CreateDefaultContext(), gripper)
+    instance = plant.GetModelInstanceByName("mz04d")
     return ToolPoseSolver(
-        plant, plant.GetModelInstanceByName("mz04d"), gripper, IkLimits(), p_GO.translation()
+        plant, instance, gripper, ToolPoseIkConfig(), p_GO.translation(), workspace, X_WB
     )
+
+
+@pytest.fixture(scope="module")
+def solver():
+    return _MakeSolver()
 
 
 def _mount(solver):
@@ -71,7 +76,7 @@ def test_solutions_along_a_path_satisfy_the_constraints(solver):
         for body in solver._bodies:
             p = body.EvalPoseInWorld(context).translation()
             assert -0.55 - 1e-6 <= p[0] <= 0.55 + 1e-6 and -0.55 - 1e-6 <= p[1] <= 0.55 + 1e-6
-            assert p[2] >= 0.005 - 1e-6
+            assert p[2] >= 0.005 - 1e-6  # the paper's cell, the default workspace
         # Downward tool: the gripper's z axis within 85 deg of world -z.
         assert X.rotation().matrix()[:, 2] @ [0, 0, -1] >= math.cos(math.radians(85)) - 1e-6
         q = result.q
@@ -161,3 +166,32 @@ def test_a_turn_of_a_joint_is_taken_back_to_the_nearest_equivalent(solver):
         solver.ForwardKinematics(solver.NearestTurn(q, q_previous)),
     )
     np.testing.assert_allclose(X_before.GetAsMatrix4(), X_after.GetAsMatrix4(), atol=1e-9)
+
+
+def test_the_workspace_is_a_box_in_the_base_frame():
+    """Walls x <= 0.30 m in a base frame B turned 90 deg about z (B's x = world y): a pose
+    beyond world y = 0.30 is refused naming the workspace, one beyond world x = 0.30 is
+    reached, and every moving body's origin stays inside the box in B."""
+    X_WB = RigidTransform(RollPitchYaw(0.0, 0.0, math.pi / 2), [0.0, 0.0, 0.0])
+    walls = WorkspaceConfig(x=[-0.55, 0.30])
+    solver = _MakeSolver(walls, X_WB)
+    mount = _mount(solver)
+    solver.limits = dataclasses.replace(solver.limits, max_step_rotation_deg=180, max_swing=np.inf)
+    down = OrientationFromVector([1.0, 0.0, 0.0])
+    inside = solver.Solve(mount.GripperPose(RigidTransform(down, [0.40, 0.0, 0.10])), HOME)
+    assert inside.success, inside.reason
+    context = solver.plant.CreateDefaultContext()
+    solver.plant.SetPositions(context, inside.q)
+    for body in solver._bodies:
+        p_B = X_WB.inverse() @ body.EvalPoseInWorld(context).translation()
+        assert np.all(p_B >= walls.Lower() - 1e-6), (body.name(), p_B)
+        assert np.all(p_B <= walls.Upper() + 1e-6), (body.name(), p_B)
+    beyond = solver.Solve(mount.GripperPose(RigidTransform(down, [0.0, 0.40, 0.10])), HOME)
+    assert not beyond.success and "workspace" in beyond.reason
+
+
+def test_bad_ik_and_workspace_settings_are_refused():
+    with pytest.raises(ConfigurationError, match=r"y must be \[lower, upper\] with lower < upper"):
+        WorkspaceConfig(y=[0.2, 0.1]).Validate()
+    with pytest.raises(ConfigurationError, match="max_step_rotation_deg"):
+        ToolPoseIkConfig(max_step_rotation_deg=0.0).Validate()

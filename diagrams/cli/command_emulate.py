@@ -119,8 +119,8 @@ def CheckArguments(args: argparse.Namespace) -> None:
 def emulate_command(args: argparse.Namespace) -> int:
     CheckArguments(args)
     if args.scenario:
-        _, scenario, _ = LoadScenario(args.scenario, args.overrides)
-        station_scenario = scenario.station
+        task, scenario, _ = LoadScenario(args.scenario, args.overrides)
+        station_scenario = task.Station(scenario)
     else:
         station_scenario = DefaultCell()
     port = 0 if args.device != "nachi" else DEFAULT_PORT if args.port is None else args.port

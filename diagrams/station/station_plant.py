@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import numpy as np
 from pydrake.common.schema import Transform
+from pydrake.geometry import SceneGraph
 from pydrake.math import RigidTransform
 from pydrake.multibody.parsing import (
     FlattenModelDirectives,
@@ -27,6 +28,7 @@ from guidedarm.diagrams.station.model_paths import MakeParser
 from guidedarm.diagrams.station.scenario import ArmConfig, StationScenario
 from guidedarm.systems.errors import ConfigurationError
 from guidedarm.systems.path_following.hose_geometry import ReadCenterline, RegisterHose
+from guidedarm.systems.plant_frames import GetScopedFrame
 
 
 def MakeMultibodyPlant(
@@ -34,11 +36,19 @@ def MakeMultibodyPlant(
     model_instance_names: list[str] | None = None,
     with_hose: bool = False,
     time_step: float = 0.0,
+    scene_graph: SceneGraph | None = None,
 ) -> MultibodyPlant:
     """A finalized plant of the scenario's models (all, or only `model_instance_names`),
     the arms at their scenario initial positions. The hose is added only `with_hose`;
-    controller plants leave it out (IK and planners must not know where it truly is)."""
+    controller plants leave it out (IK and planners must not know where it truly is).
+    With `scene_graph` the plant is its geometry source (needed for any geometry query,
+    and for the hose); the caller adds both to a diagram, or poses the plant's geometry
+    with MultibodyPositionToGeometryPose."""
     plant = MultibodyPlant(time_step)
+    if scene_graph is not None:
+        plant.RegisterAsSourceForSceneGraph(scene_graph)
+    elif with_hose and scenario.hose is not None:
+        raise ConfigurationError("a plant with the hose needs a SceneGraph (scene_graph=...)")
     AddStationModels(scenario, plant, model_instance_names, with_hose)
     plant.Finalize()
     SetInitialPositions(scenario, plant, model_instance_names)
@@ -61,7 +71,30 @@ def AddStationModels(
         message = str(e).strip().splitlines()[0] if str(e).strip() else type(e).__name__
         raise ConfigurationError(f"model directives: {message}") from None
     if with_hose and scenario.hose is not None:
-        RegisterHose(plant, ReadCenterline(scenario.hose.centerline), scenario.hose)
+        RegisterHose(plant, HoseCenterlineInWorld(scenario), scenario.hose)
+
+
+def HoseCenterlineInWorld(scenario: StationScenario) -> np.ndarray:
+    """The hose's centerline (N, 3) in world coordinates (m): the CSV's points, given in
+    `hose.frame`, moved by that frame's pose X_WF in the station (the frame must be fixed
+    to the world)."""
+    hose = scenario.hose
+    if hose is None or not hose.centerline:
+        raise ConfigurationError("hose.centerline: no centerline given")
+    points = ReadCenterline(hose.centerline)
+    if not hose.frame or hose.frame == "world":
+        return points
+    return FixedFramePose(scenario, hose.frame, "hose.frame").multiply(points.T).T
+
+
+def FixedFramePose(scenario: StationScenario, scoped_name: str, key: str) -> RigidTransform:
+    """X_WF of a frame of the station that is welded to the world (ConfigurationError
+    naming `key` if it is missing or moves with a joint)."""
+    plant = MakeMultibodyPlant(scenario)
+    frame = GetScopedFrame(plant, scoped_name, key)
+    if frame.body().index() not in {b.index() for b in plant.GetBodiesWeldedTo(plant.world_body())}:
+        raise ConfigurationError(f"{key}: frame '{scoped_name}' is not fixed to the world")
+    return frame.CalcPoseInWorld(plant.CreateDefaultContext())
 
 
 def SetInitialPositions(

@@ -23,34 +23,33 @@ from guidedarm.diagrams.run_context import RunContext
 from guidedarm.diagrams.tasks.panel_camera_rig import LookAt, PanelCameraRig
 from guidedarm.diagrams.tasks.panel_files import DEFAULT_PANEL_FILE, LoadPanelSpec
 from guidedarm.diagrams.tasks.registry import TaskDefinition
-from guidedarm.systems.errors import ConfigurationError, RunFailedError
+from guidedarm.systems.config_checks import Positive
+from guidedarm.systems.errors import RunFailedError
 from guidedarm.systems.markers.image_degradation import DegradationConfig
 from guidedarm.systems.markers.marker_pose_estimator_math import MarkerPoseSolver
 
 
 @dataclass
 class MarkerViewScenario:
-    """distance_m: camera to the origin of P (the left marker, m); angle_deg: the view's
-    turn about P's y axis (deg); camera: its CameraConfig (pose fields unused), rendered at
-    `supersampling` times its resolution; degradation: lighting, blur, noise (its
-    supersampling is the top-level one)."""
+    """One view of the marker panel from a free camera.
+
+    distance_m: camera to the origin of P (the left marker, m).
+    angle_deg: the view's turn about P's y axis (deg).
+    camera: its CameraConfig (pose fields unused).
+    supersampling: the camera is rendered at this many times its resolution.
+    degradation: lighting, blur, noise (its supersampling is the top-level one).
+    """
 
     task: str = "marker_view"
-    distance_m: float = 0.3
+    distance_m: float = Positive(0.3)
     angle_deg: float = 0.0
     camera: CameraConfig = field(default_factory=CameraConfig)
-    supersampling: int = 3
+    supersampling: int = Positive(3)
     degradation: DegradationConfig = field(default_factory=DegradationConfig)
 
 
 def RunMarkerView(scenario: MarkerViewScenario, context: RunContext) -> dict[str, Any]:
     """Renders the view, estimates the panel pose and returns the errors (see above)."""
-    if scenario.distance_m <= 0 or scenario.supersampling < 1:
-        raise ConfigurationError(
-            f"distance_m must be > 0 and supersampling >= 1, got {scenario.distance_m}, "
-            f"{scenario.supersampling}"
-        )
-    scenario.degradation.Validate()
     rig = PanelCameraRig(scenario.camera, scenario.supersampling)
     solver = MarkerPoseSolver(rig.intrinsics, LoadPanelSpec(DEFAULT_PANEL_FILE))
     a = np.radians(scenario.angle_deg)

@@ -19,12 +19,20 @@ class TaskDefinition:
 
     run(scenario, context) simulates (or drives hardware) and returns the summary metrics;
     it raises GuidedArmError for bad input and reports run failures in the metrics.
+    station(scenario), when given, is the station scenario a run builds, with the values
+    the task derives filled in (e.g. the hose and start pose of path following); without
+    it, scenario.station.
     """
 
     name: str
     scenario_type: type
     run: Callable[[Any, RunContext], dict[str, Any]]
     description: str
+    station: Callable[[Any], Any] | None = None
+
+    def Station(self, scenario: Any) -> Any:
+        """The station scenario a run of `scenario` builds (see the class docstring)."""
+        return self.station(scenario) if self.station else scenario.station
 
 
 def AvailableTasks() -> dict[str, TaskDefinition]:

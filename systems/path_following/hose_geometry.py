@@ -1,17 +1,17 @@
 """The followed hose: centerline files, a random smooth path generator, and SceneGraph geometry.
 
-A centerline is an (N, 3) array of points (m) in the robot base frame, which the cell
-scenes weld to the world with the identity, so base = world. The hose is registered on the
-plant's world body as a chain of capsules (radius = hose radius, one per centerline
-segment) with proximity, illustration and perception roles, so that the ToF sensors, contact
-checks and cameras all see it; a bracket (a collar 50 mm from the hose end and a post down
-to the table at z = 0) holds each end, as the seed's metal brackets do.
+A centerline is an (N, 3) array of points (m) in a frame named by HoseConfig.frame: the
+world, or (path following) the arm's base frame B, which the station turns into world
+coordinates with the frame's pose X_WB. The hose is registered on the plant's world body as
+a chain of capsules (radius = hose radius, one per centerline segment) with proximity,
+illustration and perception roles, so that the ToF sensors, contact checks and cameras all
+see it; a bracket (a collar 50 mm from the hose end and a post down to the table at world
+z = 0) holds each end, as the metal brackets of Wawrzyniak et al. do.
 """
 
-import dataclasses
 import itertools
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
@@ -19,8 +19,15 @@ from pydrake.geometry import Box, Capsule, Cylinder
 from pydrake.math import RigidTransform, RotationMatrix
 from pydrake.multibody.plant import CoulombFriction, MultibodyPlant
 
-from guidedarm.systems.config_checks import CheckConfig, Positive
+from guidedarm.systems.config_checks import (
+    CheckConfig,
+    CheckFields,
+    InRange,
+    NonNegative,
+    Positive,
+)
 from guidedarm.systems.errors import ConfigurationError
+from guidedarm.systems.path_following.workspace import WorkspaceConfig
 
 HOSES_DIR = Path(__file__).resolve().parents[2] / "models" / "hoses"
 MIN_HOSE_LENGTH = 0.10
@@ -34,29 +41,20 @@ class HoseConfig:
     """The hose of a scene.
 
     centerline: a named path (`models/hoses/NAME.csv`, e.g. `paper_path_1`) or a CSV file of
-        x, y, z rows (m, robot base frame; header optional).
-    diameter: hose diameter (m); the seed's shower hose is 20 mm.
+        x, y, z rows (m, in `frame`; header optional); empty: set by the task (path
+        following sets it from its `path` or `path_csv`).
+    frame: the scoped frame of the centerline's coordinates, fixed to the world (e.g.
+        `ur10e::base`); empty: the world (path following: the arm's base frame).
+    diameter: hose diameter (m); the paper's shower hose is 20 mm.
     segment_length: length of one capsule of the geometry chain (m).
     brackets: add a bracket at each end.
     """
 
-    centerline: str = "paper_path_1"
+    centerline: str = ""
+    frame: str = ""
     diameter: float = Positive(0.020)
     segment_length: float = Positive(0.010)
     brackets: bool = True
-
-
-@dataclass
-class PathLimits:
-    """Allowed workspace of a path's run (virtual walls of the cell, m; robot base frame).
-
-    A named path may override them in `models/hoses/NAME.yaml` (the seed's path 4 raised the
-    x limit to 0.850 m).
-    """
-
-    x: list[float] = dataclasses.field(default_factory=lambda: [-0.55, 0.55])
-    y: list[float] = dataclasses.field(default_factory=lambda: [-0.55, 0.55])
-    z_min: float = 0.005
 
 
 def ResolveCenterlinePath(name_or_file: str) -> Path:
@@ -73,19 +71,20 @@ def ResolveCenterlinePath(name_or_file: str) -> Path:
     return named
 
 
-def LoadPathLimits(name_or_file: str) -> PathLimits:
-    """The path's workspace limits: defaults, overridden by a sidecar NAME.yaml if present."""
+def LoadHoseWorkspace(name_or_file: str) -> WorkspaceConfig | None:
+    """The workspace a hose was laid out for (its sidecar NAME.yaml beside NAME.csv, a
+    WorkspaceConfig), or None when it has none."""
     from pydrake.common.yaml import yaml_load_typed
 
     sidecar = ResolveCenterlinePath(name_or_file).with_suffix(".yaml")
     if not sidecar.is_file():
-        return PathLimits()
+        return None
     try:
-        limits = yaml_load_typed(schema=PathLimits, filename=str(sidecar))
-        CheckConfig(limits)
+        workspace = yaml_load_typed(schema=WorkspaceConfig, filename=str(sidecar))
+        CheckConfig(workspace)
     except Exception as e:
         raise ConfigurationError(f"{sidecar}: {str(e).splitlines()[0]}") from None
-    return limits
+    return workspace
 
 
 def ReadCenterline(name_or_file: str) -> np.ndarray:
@@ -170,43 +169,86 @@ def DistanceToCenterline(points: np.ndarray, centerline: np.ndarray) -> np.ndarr
 
 
 @dataclass
-class RandomPathSpec:
-    """Region and shape of random paths (m): an annulus around the robot's z axis.
+class RandomPathConfig:
+    """Region and shape of random paths (m, the arm's base frame B).
 
-    Radii and heights bound the hose centre; the paths are smooth with curvature below
-    1 / min_bend_radius everywhere.
+    The hose centre stays in an annulus around B's z axis (radius_range) and within
+    z_range, and inside the workspace walls drawn in by `margin` along x and y (and within
+    the workspace's z range); it starts at an azimuth within start_azimuth_deg of
+    start_azimuth_centre_deg. The paths are smooth with curvature below 1 / min_bend_radius.
+
+    length: the path's length (m).
+    min_bend_radius: smallest bend radius of the path (m).
+    radius_range: [lo, hi] distance of the hose centre from B's z axis (m).
+    z_range: [lo, hi] height of the hose centre in B (m).
+    max_slope_deg: steepest slope of the path against B's xy plane (deg).
+    margin: distance kept from the workspace walls along x and y (m).
+    start_azimuth_centre_deg: azimuth about B's z axis around which the path starts (deg).
+    start_azimuth_deg: largest deviation of the start azimuth from that centre (deg).
     """
 
-    length: float = 0.6
-    min_bend_radius: float = 0.10
-    radius_range: tuple[float, float] = (0.29, 0.43)
-    z_range: tuple[float, float] = (0.08, 0.20)
-    max_slope_deg: float = 35.0
-    x_range: tuple[float, float] = (-0.45, 0.45)
+    length: float = Positive(0.6)
+    min_bend_radius: float = Positive(0.10)
+    radius_range: list[float] = NonNegative(factory=lambda: [0.29, 0.43])
+    z_range: list[float] = field(default_factory=lambda: [0.08, 0.20])
+    max_slope_deg: float = InRange(0.0, 90.0, 35.0, low_open=True)
+    margin: float = NonNegative(0.10)
+    start_azimuth_centre_deg: float = 0.0
+    start_azimuth_deg: float = InRange(0.0, 180.0, math.degrees(0.6))
+
+    def Validate(self) -> None:
+        """Raises ConfigurationError naming the first bad field."""
+        CheckFields(self)
+        for key in ("radius_range", "z_range"):
+            bounds = getattr(self, key)
+            if len(bounds) != 2 or not bounds[0] < bounds[1]:
+                raise ConfigurationError(f"{key} must be [lower, upper] with lower < upper")
 
 
-def RandomSmoothPath(seed: int, spec: RandomPathSpec | None = None) -> np.ndarray:
-    """A seeded random hose centerline (5 mm spacing) inside spec's region.
+def RandomSmoothPath(
+    seed: int, spec: RandomPathConfig | None = None, workspace: WorkspaceConfig | None = None
+) -> np.ndarray:
+    """A seeded random hose centerline (5 mm spacing) inside spec's region of the workspace
+    (default the paper's cell).
 
     The tangent turns at a random, smoothly varying rate (kappa <= 0.8 / min_bend_radius)
     and is steered back when the path nears the region's border; attempts that still leave
     the region are redrawn from the same seeded generator.
     """
-    spec = spec or RandomPathSpec()
+    spec = spec or RandomPathConfig()
+    spec.Validate()
+    box = _RandomPathBox(spec, workspace or WorkspaceConfig())
     rng = np.random.default_rng(seed)
     for _ in range(200):
-        path = _TryRandomPath(rng, spec)
+        path = _TryRandomPath(rng, spec, box)
         if path is not None and MinBendRadius(path) >= spec.min_bend_radius:
             return path
     raise ConfigurationError(f"no random path found for seed {seed} within the region")
 
 
-def _TryRandomPath(rng: np.random.Generator, spec: RandomPathSpec) -> np.ndarray | None:
+def _RandomPathBox(spec: RandomPathConfig, workspace: WorkspaceConfig) -> np.ndarray:
+    """(2, 3) lower and upper corners of the box the random path stays in: the workspace
+    drawn in by the margin along x and y, its z range cut to spec.z_range."""
+    lower = workspace.Lower() + [spec.margin, spec.margin, 0.0]
+    upper = workspace.Upper() - [spec.margin, spec.margin, 0.0]
+    lower[2], upper[2] = max(lower[2], spec.z_range[0]), min(upper[2], spec.z_range[1])
+    if np.any(lower >= upper):
+        raise ConfigurationError(
+            f"random_path: no room inside the workspace ({workspace.Describe()}) with a "
+            f"margin of {spec.margin} m and z_range {spec.z_range}"
+        )
+    return np.array([lower, upper])
+
+
+def _TryRandomPath(
+    rng: np.random.Generator, spec: RandomPathConfig, box: np.ndarray
+) -> np.ndarray | None:
     ds = 0.005
     kappa_max = 0.8 / spec.min_bend_radius
     r0 = rng.uniform(*spec.radius_range)
-    phi0 = rng.uniform(-0.6, 0.6)
-    p = np.array([r0 * math.cos(phi0), r0 * math.sin(phi0), rng.uniform(*spec.z_range)])
+    spread = math.radians(spec.start_azimuth_deg)
+    phi0 = math.radians(spec.start_azimuth_centre_deg) + rng.uniform(-spread, spread)
+    p = np.array([r0 * math.cos(phi0), r0 * math.sin(phi0), rng.uniform(*box[:, 2])])
     heading = phi0 + rng.choice([-1.0, 1.0]) * math.pi / 2 + rng.uniform(-0.5, 0.5)
     slope = 0.0
     points = [p.copy()]
@@ -223,9 +265,9 @@ def _TryRandomPath(rng: np.random.Generator, spec: RandomPathSpec) -> np.ndarray
             k_heading = math.copysign(kappa_max, math.sin(heading - radial))
         if r < spec.radius_range[0] + 0.04 and outward < 0.3:
             k_heading = -math.copysign(kappa_max, math.sin(heading - radial))
-        if p[2] > spec.z_range[1] - 0.03:
+        if p[2] > box[1, 2] - 0.03:
             k_slope = -kappa_max
-        if p[2] < spec.z_range[0] + 0.03:
+        if p[2] < box[0, 2] + 0.03:
             k_slope = kappa_max
         k_heading = float(np.clip(k_heading, -kappa_max, kappa_max))
         k_slope = float(np.clip(k_slope, -kappa_max, kappa_max))
@@ -247,8 +289,8 @@ def _TryRandomPath(rng: np.random.Generator, spec: RandomPathSpec) -> np.ndarray
         r = math.hypot(p[0], p[1])
         if not (
             spec.radius_range[0] <= r <= spec.radius_range[1]
-            and spec.z_range[0] <= p[2] <= spec.z_range[1]
-            and spec.x_range[0] <= p[0] <= spec.x_range[1]
+            and np.all(box[0] <= p)
+            and np.all(p <= box[1])
         ):
             return None
     return np.array(points)

@@ -56,10 +56,14 @@ class _Visited(NamedTuple):
     p_WO: np.ndarray
 
 
-@dataclass
+@dataclass(frozen=True)
 class _Loop:
-    """The follower's abstract state (small: copied at every tick). trail: the poses since
-    the last one that saw the hose (that one first, the current one last)."""
+    """The follower's abstract state. trail: the poses since the last one that saw the hose
+    (that one first, the current one last).
+
+    Immutable: an update builds a new _Loop with dataclasses.replace and never changes the
+    arrays it holds, so the copy Drake makes of the state at every tick can be the object
+    itself (a deep copy of the trail and the move cost more than the rest of the tick)."""
 
     mode: int
     step: int
@@ -77,6 +81,9 @@ class _Loop:
     record: np.ndarray | None = None
     grid: np.ndarray | None = None
     failure: str = ""
+
+    def __deepcopy__(self, memo: dict) -> "_Loop":
+        return self
 
 
 class PathFollower(LeafSystem):

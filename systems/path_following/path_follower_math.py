@@ -37,7 +37,8 @@ class FollowerConfig:
     """Parameters of the path follower (m, deg).
 
     estimator: `grid` (the seed's presence-only 3 x 3 grid) or `ranging` (ranges localise
-        the hose between the grid points).
+        the hose between the grid points); empty: `grid` (the path-following task fills in
+        its own `estimator`).
     steering: `seed` (w = t + m, w_a = n a + m b) or `centring` (w = n a + m: forward along
         the tool axis plus the full offset, and w_a = n a + (S - S') b: turn toward the
         hose's own direction, S' the previous detected point); empty picks `seed` for the
@@ -54,7 +55,7 @@ class FollowerConfig:
     max_steps: the run stops with a failure after this many steps.
     """
 
-    estimator: str = "grid"
+    estimator: str = ""
     steering: str = ""
     long_step: float = Positive(0.015)
     short_step: float = Positive(0.010)
@@ -66,21 +67,25 @@ class FollowerConfig:
     max_steps: int = Positive(400)
 
     def Resolved(self) -> "FollowerConfig":
-        """A checked copy with the automatic steering and rotation_reduction filled in."""
-        steering = self.steering or ("centring" if self.estimator == "ranging" else "seed")
+        """A checked copy with the automatic estimator, steering, rotation_reduction and
+        readings filled in."""
+        estimator = self.estimator or "grid"
+        steering = self.steering or ("centring" if estimator == "ranging" else "seed")
         b = self.rotation_reduction or (0.5 if steering == "centring" else 0.3)
-        readings = self.readings or (4 if self.estimator == "ranging" else 1)
-        resolved = replace(self, steering=steering, rotation_reduction=b, readings=readings)
+        readings = self.readings or (4 if estimator == "ranging" else 1)
+        resolved = replace(
+            self, estimator=estimator, steering=steering, rotation_reduction=b, readings=readings
+        )
         resolved.Validate()
         return resolved
 
     def Validate(self) -> None:
         """Raises ConfigurationError naming the first bad parameter (the automatic values,
-        an empty steering and zeros, are accepted)."""
+        an empty estimator or steering and zeros, are accepted)."""
         CheckFields(self)
         if self.steering not in ("", *STEERINGS):
             raise ConfigurationError(f"steering must be one of {STEERINGS}, got '{self.steering}'")
-        if self.estimator not in ESTIMATORS:
+        if self.estimator not in ("", *ESTIMATORS):
             raise ConfigurationError(
                 f"estimator must be one of {ESTIMATORS}, got '{self.estimator}'"
             )

@@ -1,6 +1,6 @@
 """ToolPoseIk: inverse kinematics of a commanded frame pose, one solve per request.
 
-The solver and its constraints live in tool_pose_solving.py. The system is a service on a
+The solver and its constraints live in tool_pose_ik_math.py. The system is a service on a
 periodic tick: when the `request` input carries a new id, it solves for `X_WF_desired`
 started from the measured joint positions (the robot is stopped there) and holds the answer.
 """
@@ -24,7 +24,11 @@ class ToolPoseIk(LeafSystem):
     `X_WF_measured` (RigidTransform: forward kinematics of position_measured).
     """
 
-    def __init__(self, solver: ToolPoseSolver, period: float) -> None:
+    def __init__(
+        self, solver: ToolPoseSolver, period: float, q_initial: np.ndarray | None = None
+    ) -> None:
+        """period: the update tick (s); q_initial: the goal held before the first request
+        (rad; default the solver plant's default positions), the arm's start position."""
         super().__init__()
         self._solver = solver
         n = len(solver.q_indices)
@@ -34,7 +38,9 @@ class ToolPoseIk(LeafSystem):
         )
         self._request = self.DeclareVectorInputPort("request", 1)
         self._position_measured = self.DeclareVectorInputPort("position_measured", n)
-        initial = np.concatenate([[0.0, 1.0, 0.0], solver.plant.GetPositions(solver.context)])
+        if q_initial is None:
+            q_initial = solver.plant.GetPositions(solver.context)
+        initial = np.concatenate([[0.0, 1.0, 0.0], q_initial])
         self._state = self.DeclareDiscreteState(initial)
         self._failure = self.DeclareAbstractState(AbstractValue.Make(""))
         self.DeclarePeriodicUnrestrictedUpdateEvent(period, 0.0, self._Update)

@@ -1,4 +1,5 @@
-"""Inverse kinematics of a commanded frame pose with the seed's constraints (seed 000, 3.2).
+"""Inverse kinematics of a commanded frame pose with the constraints of Wawrzyniak et al.
+(section 3.2).
 
 One solve is a Drake InverseKinematics program on the arm's joints, started from the
 previous joint positions (as the seed's Matlab solver was):
@@ -14,8 +15,8 @@ previous joint positions (as the seed's Matlab solver was):
   - no step rotates the frame by 90 deg or more about any axis (no tool reversal): the
     angle between the new and the current orientation stays below max_step_rotation_deg;
   - a downward tool: the frame's `down_axis` stays within max_tilt_deg of world -z;
-  - the origin of every body the arm moves stays inside the cell's virtual walls
-    (x, y in limits, z >= z_min; the seed's controller walls and IK bounds);
+  - the origin of every body the arm moves stays inside the workspace, the cell's virtual
+    walls as a box in the arm's base frame B (the seed's controller walls and IK bounds);
   - joint limits (InverseKinematics' bounds);
   - the joint-space move from the previous q keeps the frame within max_swing of the
     straight line between its two poses: a solution on another branch (a wrist or elbow
@@ -39,11 +40,13 @@ from pydrake.solvers import SnoptSolver, Solve
 
 from guidedarm.systems.config_checks import CheckFields, InRange, NonNegative, Positive
 from guidedarm.systems.errors import ConfigurationError
+from guidedarm.systems.path_following.workspace import WorkspaceConfig
 
 
 @dataclass
-class IkLimits:
-    """The IK's tolerances, constraints and costs (see the module docstring).
+class ToolPoseIkConfig:
+    """The IK's tolerances, constraints and costs (see the module docstring); the walls are
+    a WorkspaceConfig (systems/path_following/workspace.py), given to the solver beside this.
 
     position_tolerance: of the frame's point Q (m).
     orientation_tolerance_deg: largest orientation error of a solution (deg).
@@ -53,8 +56,6 @@ class IkLimits:
     max_step_rotation_deg: largest rotation of the frame in one step (deg).
     max_tilt_deg: largest angle between the frame's down_axis and world -z (deg).
     down_axis: the frame's axis that should point down.
-    x, y: [lo, hi] of the cell's virtual walls for every moved body's origin (m, world).
-    z_min: the cell's floor for every moved body's origin (m, world).
     max_swing: largest distance of the frame from the straight line between two
         consecutive poses during the joint move (m); inf turns the swing check off.
     joint_cost_weight: weight of the stay-near-the-previous-q cost.
@@ -68,9 +69,6 @@ class IkLimits:
     max_step_rotation_deg: float = InRange(0.0, 180.0, 89.0, low_open=True)
     max_tilt_deg: float = InRange(0.0, 180.0, 85.0)
     down_axis: list[float] = field(default_factory=lambda: [0.0, 0.0, 1.0])
-    x: list[float] = field(default_factory=lambda: [-0.55, 0.55])
-    y: list[float] = field(default_factory=lambda: [-0.55, 0.55])
-    z_min: float = 0.005
     max_swing: float = Positive(0.025, allow_inf=True)
     joint_cost_weight: float = NonNegative(0.01)
     retries: int = 3
@@ -80,10 +78,6 @@ class IkLimits:
         CheckFields(self)
         if len(self.down_axis) != 3 or not np.linalg.norm(self.down_axis) > 0:
             raise ConfigurationError(f"down_axis must be a nonzero 3-vector, got {self.down_axis}")
-        for name in ("x", "y"):
-            wall = getattr(self, name)
-            if len(wall) != 2 or not wall[0] < wall[1]:
-                raise ConfigurationError(f"{name} must be [low, high] with low < high, got {wall}")
 
 
 @dataclass(frozen=True)
@@ -104,16 +98,24 @@ class ToolPoseSolver:
         plant: MultibodyPlant,
         instance: ModelInstanceIndex,
         frame: Frame,
-        limits: IkLimits,
+        limits: ToolPoseIkConfig,
         p_FQ: np.ndarray | None = None,
+        workspace: WorkspaceConfig | None = None,
+        X_WB: RigidTransform | None = None,
     ) -> None:
         """p_FQ: the point of the frame held on target (m, frame F; default its origin).
         With the tool centre there, an orientation shortfall turns the tool about its centre
         and leaves it on the path; about the gripper's origin it would move the centre
-        sideways by the tool's length times the shortfall."""
+        sideways by the tool's length times the shortfall. workspace: the walls (default the
+        seed's cell) in the arm's base frame B, whose pose in the world is X_WB (default the
+        identity)."""
+        limits.Validate()
         self.plant = plant
         self.frame = frame
         self.limits = limits
+        self.workspace = workspace or WorkspaceConfig()
+        self.workspace.Validate()
+        self.X_WB = X_WB or RigidTransform()
         self.p_FQ = np.zeros(3) if p_FQ is None else np.asarray(p_FQ, float)
         self.context = plant.CreateDefaultContext()
         self._q_start = plant.GetPositions(self.context).copy()
@@ -140,6 +142,18 @@ class ToolPoseSolver:
         """X_WF of the frame at joint positions q."""
         self.plant.SetPositions(self.context, q)
         return self.frame.CalcPoseInWorld(self.context)
+
+    def Reaches(self, X_WF_desired: RigidTransform, q: np.ndarray) -> bool:
+        """Whether q already holds the frame's point Q within position_tolerance (per axis)
+        and the frame within orientation_tolerance_deg of X_WF_desired (plus the solver's
+        own slack: its solutions lie on those bounds)."""
+        X_WF = self.ForwardKinematics(q)
+        offset = np.abs(X_WF @ self.p_FQ - X_WF_desired @ self.p_FQ)
+        turn = X_WF.rotation().inverse().multiply(X_WF_desired.rotation()).ToAngleAxis().angle()
+        return bool(
+            np.all(offset <= self.limits.position_tolerance + 1e-9)
+            and math.degrees(turn) <= self.limits.orientation_tolerance_deg + 1e-6
+        )
 
     def Swing(self, q_from: np.ndarray, q_to: np.ndarray) -> float:
         """Largest distance (m) of the frame from the straight line between its end poses
@@ -225,11 +239,12 @@ class ToolPoseSolver:
                 "downward tool",
             ),
         ]
-        lower = np.array([lim.x[0], lim.y[0], lim.z_min])
-        upper = np.array([lim.x[1], lim.y[1], np.inf])
+        lower, upper = self.workspace.Lower(), self.workspace.Upper()
         for body in self._bodies:
-            binding = ik.AddPositionConstraint(body.body_frame(), np.zeros(3), world, lower, upper)
-            described.append((binding, f"cell walls ({body.name()})"))
+            binding = ik.AddPositionConstraint(
+                body.body_frame(), np.zeros(3), world, self.X_WB, lower, upper
+            )
+            described.append((binding, f"workspace ({body.name()})"))
         for binding, description in described:
             binding.evaluator().set_description(description)
         ik.AddOrientationCost(

@@ -1,8 +1,8 @@
 """ToFToolSensor: six VL6180X-like time-of-flight sensors reading SceneGraph geometry.
 
-The ray casting, noise and detection grid live in tof_sensing.py. The outputs are what the
-tool's microcontroller streams, so the hardware driver can produce the same ports: the six
-ranges (m) and their validity flags (1 = a return within range, 0 = none).
+The ray casting, noise and detection grid live in tof_tool_sensor_math.py. The outputs are
+what the tool's microcontroller streams, so the hardware driver can produce the same ports:
+the six ranges (m) and their validity flags (1 = a return within range, 0 = none).
 """
 
 from collections.abc import Callable
@@ -21,6 +21,8 @@ from guidedarm.systems.plant_frames import GetScopedFrame
 from guidedarm.systems.tof.tof_tool_sensor_math import ConeRays, DetectionGrid, Measure, RayCaster
 
 NUM_SENSORS = 6
+# The radius of the paper's 20 mm shower hose (m).
+DEFAULT_TARGET_RADIUS = 0.010
 
 
 def _default_frames() -> list[str]:
@@ -35,9 +37,11 @@ class ToFToolConfig:
     tool_frame: the tool frame T (centre O of the detection field).
     cone_angle_deg: vertex angle of each sensor's cone; max_range: no return beyond it (m).
     target_radius: radius of the round target (the hose) that the detection grid's
-        consistency check assumes (m); the path-following task sets it from hose.diameter.
+        consistency check assumes (m); 0: the followed hose's (path following fills it in
+        from station.hose.diameter), DEFAULT_TARGET_RADIUS for a sensor on its own.
     noise_std, quantization: Gaussian noise and resolution of a reading (m).
-    seed: seed of the noise generator; period: the noise is redrawn every period (s).
+    seed: seed of the noise generator; None: 0 (path following fills in its `seed`).
+    period: the noise is redrawn every period (s).
     rings: rings of rays sampling each cone (1 + 3 rings (rings + 1) rays).
     """
 
@@ -45,10 +49,10 @@ class ToFToolConfig:
     tool_frame: str = "tof_tool::tof_tool"
     cone_angle_deg: float = InRange(0.0, 180.0, 25.0, low_open=True, high_open=True)
     max_range: float = Positive(0.100)
-    target_radius: float = Positive(0.010)
+    target_radius: float = NonNegative(0.0)
     noise_std: float = NonNegative(0.002)
     quantization: float = NonNegative(0.001)
-    seed: int = 0
+    seed: int | None = None
     period: float = Positive(0.02)
     rings: int = 2
 
@@ -57,6 +61,10 @@ class ToFToolConfig:
         CheckFields(self)
         if len(self.sensor_frames) != NUM_SENSORS:
             raise ConfigurationError(f"sensor_frames must name {NUM_SENSORS} frames")
+
+    def TargetRadius(self) -> float:
+        """The target radius in use (m): target_radius, or DEFAULT_TARGET_RADIUS for 0."""
+        return self.target_radius or DEFAULT_TARGET_RADIUS
 
 
 # Output ports of a ToF tool, the same in the simulated and the hardware station.
@@ -129,7 +137,7 @@ class ToFToolSensor(LeafSystem):
     def _CalcReading(self, context: Context, value: AbstractValue) -> None:
         c = self._config
         tick = int(np.floor(context.get_time() / c.period + 1e-9))
-        rng = np.random.default_rng((c.seed, tick))
+        rng = np.random.default_rng((c.seed or 0, tick))
         ranges, valid = Measure(
             self.TrueRanges(context), rng, c.noise_std, c.quantization, c.max_range
         )
@@ -155,7 +163,7 @@ def MakeDetectionGrid(plant: MultibodyPlant, config: ToFToolConfig) -> Detection
         GetScopedFrame(plant, name, "tof sensor_frames").CalcPose(context, T)
         for name in config.sensor_frames
     )
-    return DetectionGrid(X_TS, config.target_radius, np.radians(config.cone_angle_deg))
+    return DetectionGrid(X_TS, config.TargetRadius(), np.radians(config.cone_angle_deg))
 
 
 def DeclareGridOutputs(

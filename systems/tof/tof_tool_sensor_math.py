@@ -86,27 +86,34 @@ class RayCaster:
     def Range(self, query: QueryObject, X_WS: RigidTransform) -> float:
         """Nearest return within the cone (m), or math.inf when nothing is in range."""
         origin = X_WS.translation()
-        if self._Distance(query, origin, self.max_range) is None:
+        d_origin = self._Distance(query, origin, self.max_range)
+        if d_origin is None:
             return math.inf
         directions = X_WS.rotation().matrix() @ self.rays_S.T
         best = math.inf
         for k in range(directions.shape[1]):
-            best = min(best, self._Trace(query, origin, directions[:, k], best))
+            best = min(best, self._Trace(query, origin, directions[:, k], best, d_origin))
         return best
 
-    def _Trace(self, query: QueryObject, origin: np.ndarray, u: np.ndarray, limit: float):
+    def _Trace(self, query, origin: np.ndarray, u: np.ndarray, limit: float, d: float) -> float:
+        """Distance along u to the first surface within limit (m), or math.inf; d is the
+        distance from the origin to the nearest surface. The distance field is 1-Lipschitz,
+        so after an advance by d the nearest surface is at most 2 d away: querying only
+        that far skips the hose's other capsules and gives the same distances."""
         t = 0.0
         limit = min(limit, self.max_range)
-        for _ in range(self.max_iterations):
-            d = self._Distance(query, origin + t * u, limit - t)
-            if d is None:
-                return math.inf
+        if d > limit:
+            return math.inf
+        for _ in range(self.max_iterations - 1):
             if d < self.hit_tolerance:
                 return t
             t += d
             if t > limit:
                 return math.inf
-        return math.inf
+            d = self._Distance(query, origin + t * u, min(limit - t, 2 * d + 1e-6))
+            if d is None:
+                return math.inf
+        return t if d < self.hit_tolerance else math.inf
 
     def _Distance(self, query: QueryObject, p_W: np.ndarray, threshold: float):
         """Smallest signed distance to a non-ignored geometry within threshold, or None."""

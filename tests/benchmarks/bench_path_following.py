@@ -12,21 +12,25 @@ import numpy as np
 
 from guidedarm.diagrams.cli.command_run import LoadScenario
 from guidedarm.diagrams.run_context import RunContext
-from guidedarm.diagrams.tasks.path_following import MakeSetup
-from guidedarm.diagrams.tasks.path_following_execution import KinematicScene
+from guidedarm.diagrams.tasks.path_following_diagram import MakeKinematicStation
+from guidedarm.diagrams.tasks.path_following_setup import MakeSetup
 
 
 def ReadingCost(repeats: int = 50) -> tuple[float, float]:
     """(ms per reading with the tool over the hose, ms with nothing in range)."""
     _, scenario, _ = LoadScenario("path_following", [])
-    with TemporaryDirectory() as tmp:
-        setup, _, _ = MakeSetup(scenario, Path(tmp))
-    scene = KinematicScene(setup.station, setup.station.tof_tools[setup.tool_name])
+    setup = MakeSetup(scenario)
+    station = MakeKinematicStation(setup.station)
+    context = station.CreateDefaultContext()
+    command = station.GetInputPort(f"{setup.arm}.position_commanded")
+    ranges = station.GetOutputPort(f"{setup.tool_name}.ranges")
     costs = []
     for q in (setup.q_start, np.array([0.0, np.pi / 2, 0.0, 0.0, -np.pi / 2, 0.0])):
+        command.FixValue(context, q)
         start = time.perf_counter()
         for k in range(repeats):
-            scene.Read(q, 0.02 * k)
+            context.SetTime(0.02 * k)
+            ranges.Eval(context)
         costs.append(1000 * (time.perf_counter() - start) / repeats)
     return costs[0], costs[1]
 

@@ -1,6 +1,7 @@
-"""Writes the four paper_path_*.csv centerlines (run once; the CSVs are checked in).
+"""Writes the hose centerlines of models/hoses/ (run once; the CSVs are checked in).
 
-Shapes modelled on seed 000, section 3.3 (m, robot base frame): 1 moderate up and down
+paper_path_1..4: shapes modelled on Wawrzyniak et al. (2025), section 3.3 (m, robot base
+frame): 1 moderate up and down
 bends on an arc around the robot; 2 more and tighter bends (radius down to about 0.11 m);
 3 a long almost flat part, then a high bend closer to the base (0.33 m); 4 short, bent outward
 (away from the robot) and then up, past the standard x wall (see paper_path_4.yaml).
@@ -10,6 +11,11 @@ or steeper (60 deg), the gripper's axis passes so near the forearm's that the wr
 turn by over 2 rad within a few steps (joint 5 down to 0.25 rad); the MZ04D model (gripper
 length estimated) then needs a reconfiguration where the hose climbs, and the follower
 stopped there. At 0.25 m and 45 deg joint 5 stays above 0.5 rad.
+
+ur10e_far_hose: for the UR10e (ur10e::base frame), 0.62-0.68 m from its base axis, beyond
+the Nachi cell's walls (diagrams/scenarios/ur10e_path_following.yaml widens them): an arc
+of 40 deg in front of the arm's home pose (azimuth -110 .. -70 deg), waving gently in
+radius and height.
 """
 
 from pathlib import Path
@@ -63,8 +69,19 @@ def PaperPaths() -> dict[str, np.ndarray]:
     return {f"paper_path_{i}": p for i, p in enumerate((path_1, path_2, path_3, path_4), 1)}
 
 
+def UR10eFarHose() -> np.ndarray:
+    """The UR10e's hose 0.62-0.68 m from its base, finely sampled."""
+    length = 0.65 * np.radians(40)
+    return _arc(
+        0.65 + 0.03 * np.sin(2 * np.pi * U * length / 0.45),
+        -110,
+        -70,
+        0.11 + 0.025 * np.sin(2 * np.pi * U * length / 0.40),
+    )
+
+
 if __name__ == "__main__":
-    for name, fine in PaperPaths().items():
+    for name, fine in {**PaperPaths(), "ur10e_far_hose": UR10eFarHose()}.items():
         points = Resample(fine, 0.005)
         WriteCenterline(points, Path(__file__).parent / f"{name}.csv")
         print(

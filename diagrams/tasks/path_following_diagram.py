@@ -1,0 +1,180 @@
+"""Public builders of path following: the follower loop wired to a station, and a kinematic
+station that stands in for the simulated one.
+
+The loop of Wawrzyniak et al.'s figure 10 as a Diagram:
+
+    station `<tof>.ranges`, `<tof>.valid` ──> PathFollower ──X_WF_desired, request──> ToolPoseIk
+    station `<arm>.position_measured` ──> PathFollower, ToolPoseIk
+    ToolPoseIk `X_WF_measured`, `status`, `q_goal`, `failure` ──> PathFollower
+    PathFollower `position_commanded` ──> station `<arm>.position_commanded`
+
+Any Diagram exporting those four port names is a station: MakeStation's (simulated or
+hardware) or MakeKinematicStation's (the arm is where it is commanded, no dynamics).
+
+A user's diagram (examples/tof_following_on_ur10e.py):
+
+    setup = MakeSetup(scenario)                      # hose, workspace, start pose (IK)
+    builder = DiagramBuilder()
+    station = builder.AddNamedSystem("station", MakeStation(setup.station))
+    follower, ik = AddPathFollowing(builder, station, setup)
+    simulator = Simulator(builder.Build())
+"""
+
+from __future__ import annotations
+
+from typing import NamedTuple
+
+import numpy as np
+from pydrake.geometry import SceneGraph
+from pydrake.multibody.plant import MultibodyPlant
+from pydrake.systems.framework import Diagram, DiagramBuilder
+from pydrake.systems.primitives import PassThrough
+from pydrake.systems.rendering import MultibodyPositionToGeometryPose
+
+from guidedarm.diagrams.station.scenario import StationScenario
+from guidedarm.diagrams.station.station_plant import GetArmInstance, MakeMultibodyPlant
+from guidedarm.diagrams.tasks.path_following_setup import Setup
+from guidedarm.systems.errors import ConfigurationError
+from guidedarm.systems.path_following.joint_moves import MovePlanner
+from guidedarm.systems.path_following.path_follower import PathFollower
+from guidedarm.systems.path_following.planner_moves import PlannerMoves
+from guidedarm.systems.path_following.tool_pose_ik import ToolPoseIk
+from guidedarm.systems.planning.acceleration_planner_math import (
+    AccelerationPlanning,
+    ArmKinematics,
+)
+from guidedarm.systems.plant_frames import GetScopedFrame
+from guidedarm.systems.tof.tof_tool_sensor import TOF_PORTS, ToFToolSensor
+
+
+class PathFollowing(NamedTuple):
+    """The systems AddPathFollowing adds."""
+
+    follower: PathFollower
+    ik: ToolPoseIk
+
+
+def AddPathFollowing(
+    builder: DiagramBuilder,
+    station: Diagram,
+    setup: Setup,
+    plan_move: MovePlanner | None = None,
+) -> PathFollowing:
+    """Adds a PathFollower ("path_follower") and a ToolPoseIk ("tool_pose_ik") to `builder`
+    and wires them to `station`, a system already in `builder` with MakeStation's ports:
+
+    inputs used   `<tof>.ranges` (6, m; max_range without a return), `<tof>.valid` (6, 0/1),
+                  `<arm>.position_measured` (n, rad)
+    input driven  `<arm>.position_commanded` (n, rad): rest-to-rest joint moves, or moves
+                  of the acceleration-level planner when setup.moves is `planner`
+
+    <arm> and <tof> are setup.arm and setup.tool_name. The IK works in the world frame W on
+    setup.solver's controller plant; the gripper frame G is setup.gripper_frame, the tool
+    centre O stays on target, the workspace walls are in the arm's base frame B. Both
+    systems tick every setup.period s; the arm must start at setup.q_start (MakeSetup puts
+    it in setup.station). plan_move: how moves are made (default as setup.moves says).
+
+    Outputs for logging and stopping: follower `step_record` (RECORD_FIELDS of the latest
+    step; world frame, m), `mode` ([mode, step]; DONE = 3, FAILED = 4), `failure` (str),
+    `detections`/`detection_errors` (3 x 3 grid of the latest reading); ik `status`.
+    """
+    if plan_move is None and setup.moves == "planner":
+        plan_move = MakePlannerMoves(setup)
+    ik = builder.AddNamedSystem(
+        "tool_pose_ik", ToolPoseIk(setup.solver, setup.period, setup.q_start)
+    )
+    follower = builder.AddNamedSystem(
+        "path_follower",
+        PathFollower(
+            setup.params,
+            setup.mount,
+            setup.grid,
+            setup.q_start,
+            setup.motion,
+            setup.period,
+            plan_move,
+        ),
+    )
+    arm, tof = setup.arm, setup.tool_name
+    q_measured = station.GetOutputPort(f"{arm}.position_measured")
+    builder.Connect(station.GetOutputPort(f"{tof}.ranges"), follower.GetInputPort("ranges"))
+    builder.Connect(station.GetOutputPort(f"{tof}.valid"), follower.GetInputPort("valid"))
+    builder.Connect(q_measured, follower.GetInputPort("position_measured"))
+    builder.Connect(q_measured, ik.GetInputPort("position_measured"))
+    for output, input_ in (
+        ("X_WF_measured", "X_WF_measured"),
+        ("status", "ik_status"),
+        ("q_goal", "q_goal"),
+        ("failure", "ik_failure"),
+    ):
+        builder.Connect(ik.GetOutputPort(output), follower.GetInputPort(input_))
+    builder.Connect(follower.GetOutputPort("X_WF_desired"), ik.GetInputPort("X_WF_desired"))
+    builder.Connect(follower.GetOutputPort("request"), ik.GetInputPort("request"))
+    builder.Connect(
+        follower.GetOutputPort("position_commanded"),
+        station.GetInputPort(f"{arm}.position_commanded"),
+    )
+    return PathFollowing(follower, ik)
+
+
+def MakeKinematicStation(scenario: StationScenario) -> Diagram:
+    """A station without dynamics: the plant of the scenario's models (hose included) on a
+    SceneGraph, posed where its one arm is commanded, and its ToF tools reading that
+    SceneGraph. Ports as MakeStation's: input `<arm>.position_commanded` (n, rad); outputs
+    `<arm>.position_measured` (n, rad; the command itself), `<tof>.ranges`, `<tof>.valid`,
+    `<tof>.detections`, `<tof>.detection_errors`, and `sim.query_object`."""
+    if len(scenario.arms) != 1:
+        raise ConfigurationError("the kinematic station takes exactly one arm")
+    (arm,) = scenario.arms
+    builder = DiagramBuilder()
+    scene_graph = builder.AddNamedSystem("scene_graph", SceneGraph())
+    plant = MakeMultibodyPlant(scenario, with_hose=True, scene_graph=scene_graph)
+    n = plant.num_positions(GetArmInstance(plant, arm))
+    if plant.num_positions() != n:
+        raise ConfigurationError(
+            f"the kinematic station needs arms.{arm}'s joints to be the station's only joints "
+            f"({plant.num_positions()} positions, the arm has {n})"
+        )
+    command = builder.AddNamedSystem(f"{arm}.command", PassThrough(n))
+    to_pose = builder.AddNamedSystem("plant_pose", MultibodyPositionToGeometryPose(plant))
+    builder.Connect(command.get_output_port(), to_pose.get_input_port())
+    builder.Connect(
+        to_pose.get_output_port(), scene_graph.get_source_pose_port(plant.get_source_id())
+    )
+    builder.ExportInput(command.get_input_port(), f"{arm}.position_commanded")
+    builder.ExportOutput(command.get_output_port(), f"{arm}.position_measured")
+    for name, tof in scenario.tof_tools.items():
+        sensor = builder.AddNamedSystem(f"{name}.sensor", ToFToolSensor(plant, tof))
+        builder.Connect(scene_graph.get_query_output_port(), sensor.get_input_port())
+        for port in TOF_PORTS:
+            builder.ExportOutput(sensor.GetOutputPort(port), f"{name}.{port}")
+    builder.ExportOutput(scene_graph.get_query_output_port(), "sim.query_object")
+    diagram = builder.Build()
+    diagram.set_name("kinematic_station")
+    return diagram
+
+
+def MakePlannerMoves(setup: Setup, plant: MultibodyPlant | None = None) -> PlannerMoves:
+    """Moves through the acceleration-level planner of Pajak et al. (on setup.solver's
+    plant unless `plant` is given), its tool frame the ToF tool's T, its joint limits the
+    scenario's motion limits."""
+    plant = plant or setup.solver.plant
+    tool_frame = setup.station.tof_tools[setup.tool_name].tool_frame
+    tool = GetScopedFrame(plant, tool_frame, f"tof_tools.{setup.tool_name}.tool_frame")
+    kinematics = ArmKinematics(
+        plant,
+        GetArmInstance(plant, setup.arm),
+        plant.world_frame(),
+        tool,
+        setup.planner.min_singular_value,
+    )
+    speed = np.full(len(setup.q_start), setup.motion.max_joint_speed)
+    accel = np.full(len(setup.q_start), setup.motion.max_joint_acceleration)
+    planning = AccelerationPlanning(
+        kinematics,
+        kinematics.Position(setup.q_start)[np.newaxis],
+        setup.planner,
+        (-speed, speed),
+        (-accel, accel),
+    )
+    return PlannerMoves(planning)

@@ -1,0 +1,346 @@
+"""Path following: from a scenario to everything a run needs (`Setup`).
+
+`MakeSetup` reads the scenario without changing it. It loads the hose (a named path, a
+CSV file, or a seeded random path) in the arm's base frame B, checks it against the
+workspace, builds the IK on a controller plant of the arm and what it carries
+(MakeMultibodyPlant), solves the start pose, and returns a copy of the station scenario
+with what the task derives filled in: the hose's centerline and frame, the ToF noise seed
+and target radius, and the arm's start position. A scenario value that the task would
+have to change instead is refused with one line naming both keys.
+"""
+
+from __future__ import annotations
+
+import copy
+import dataclasses
+import tempfile
+from dataclasses import dataclass
+from pathlib import Path
+from typing import TYPE_CHECKING
+
+import numpy as np
+from pydrake.math import RigidTransform
+from pydrake.multibody.plant import MultibodyPlant
+
+from guidedarm.diagrams.station.scenario import StationScenario
+from guidedarm.diagrams.station.station_plant import (
+    ArmInitialPosition,
+    FixedFramePose,
+    GetArmInstance,
+    MakeMultibodyPlant,
+)
+from guidedarm.systems.config_checks import CheckConfig
+from guidedarm.systems.errors import ConfigurationError, GuidedArmError
+from guidedarm.systems.path_following.hose_geometry import (
+    HoseConfig,
+    LoadHoseWorkspace,
+    RandomSmoothPath,
+    ReadCenterline,
+    ResolveCenterlinePath,
+    WriteCenterline,
+)
+from guidedarm.systems.path_following.joint_moves import MotionLimits
+from guidedarm.systems.path_following.path_follower_math import (
+    FollowerConfig,
+    OrientationFromVector,
+    ToolMount,
+)
+from guidedarm.systems.path_following.tool_pose_ik_math import ToolPoseIkConfig, ToolPoseSolver
+from guidedarm.systems.path_following.workspace import WorkspaceConfig
+from guidedarm.systems.planning.acceleration_planner_math import PlannerConfig
+from guidedarm.systems.plant_frames import GetScopedFrame
+from guidedarm.systems.tof.tof_tool_sensor import MakeDetectionGrid
+from guidedarm.systems.tof.tof_tool_sensor_math import DetectionGrid
+
+if TYPE_CHECKING:
+    from guidedarm.diagrams.tasks.path_following import PathFollowingScenario
+
+EXECUTORS = ("station", "kinematic")
+MOVES = ("joint_trajectory", "planner")
+
+
+@dataclass
+class Setup:
+    """What a path-following run needs; frames: world W, the arm's base B, gripper G, tool T.
+
+    station: the station scenario to build (hose, ToF seed and target radius, the arm's
+        initial position = q_start filled in).
+    arm, gripper_frame, tool_name: the arm's model instance, the gripper frame G (scoped
+        name) and the ToF tool's key in station.tof_tools.
+    base_frame, X_WB: the arm's base frame B (scoped name) and its pose in the world.
+    workspace: the walls (m, frame B).
+    params: the follower's resolved parameters; motion: move limits; moves: `joint_trajectory`
+        or `planner` (with `planner`); period: follower and IK tick (s); max_time (s).
+    centerline_B, centerline: the hose's centerline (N, 3; m) in B and in W; hose_source:
+        the CSV or named path it came from.
+    solver: the IK (on the controller plant); mount: X_GT as the paper's l_e and angles;
+        grid: the tool's detection grid; q_start: the arm's start joints (rad).
+    """
+
+    station: StationScenario
+    arm: str
+    gripper_frame: str
+    tool_name: str
+    base_frame: str
+    X_WB: RigidTransform
+    workspace: WorkspaceConfig
+    params: FollowerConfig
+    motion: MotionLimits
+    moves: str
+    planner: PlannerConfig
+    period: float
+    max_time: float
+    centerline_B: np.ndarray
+    centerline: np.ndarray
+    hose_source: str
+    solver: ToolPoseSolver
+    mount: ToolMount
+    grid: DetectionGrid
+    q_start: np.ndarray
+
+
+def MakeSetup(scenario: PathFollowingScenario, out_dir: Path | None = None) -> Setup:
+    """Checks the scenario, places the hose and solves the start pose (module docstring).
+    out_dir receives the CSV of a random path (default: a new temporary directory)."""
+    _CheckScenario(scenario)
+    station = copy.deepcopy(scenario.station)
+    base_frame = scenario.base_frame or f"{scenario.arm}::base"
+    X_WB = FixedFramePose(station, base_frame, "base_frame")
+    workspace = _Workspace(scenario)
+    tof = station.tof_tools[scenario.tof]
+    _ResolveToF(scenario, station)
+    params = dataclasses.replace(scenario.follower, estimator=scenario.estimator).Resolved()
+    solver = MakeSolver(
+        station, scenario.arm, scenario.gripper_frame, scenario.tof, scenario.ik, workspace, X_WB
+    )
+    mount = ToolMount.FromTransform(_ToolInGripper(solver.plant, scenario.gripper_frame, tof))
+    q_home = ArmInitialPosition(solver.plant, scenario.arm, station.arms[scenario.arm])
+    centerline_B, source = _LoadHose(scenario, workspace, solver, mount, q_home, out_dir)
+    _ResolveHose(scenario, station, source, base_frame)
+    centerline = X_WB.multiply(centerline_B.T).T
+    q_start = StartPosition(solver, mount, centerline, q_home)
+    station.arms[scenario.arm].initial_position = q_start.tolist()
+    return Setup(
+        station=station,
+        arm=scenario.arm,
+        gripper_frame=scenario.gripper_frame,
+        tool_name=scenario.tof,
+        base_frame=base_frame,
+        X_WB=X_WB,
+        workspace=workspace,
+        params=params,
+        motion=MotionLimits(
+            scenario.tool_speed,
+            scenario.max_joint_speed,
+            max_joint_acceleration=scenario.max_joint_acceleration,
+        ),
+        moves=scenario.motion,
+        planner=scenario.planner,
+        period=scenario.period,
+        max_time=scenario.max_time,
+        centerline_B=centerline_B,
+        centerline=centerline,
+        hose_source=source,
+        solver=solver,
+        mount=mount,
+        grid=MakeDetectionGrid(solver.plant, tof),
+        q_start=q_start,
+    )
+
+
+def _CheckScenario(scenario: PathFollowingScenario) -> None:
+    """The declared bounds of every field (config_checks), then the rules between them."""
+    CheckConfig(scenario)
+    if scenario.executor not in EXECUTORS:
+        raise ConfigurationError(f"executor must be one of {EXECUTORS}, got '{scenario.executor}'")
+    if scenario.motion not in MOVES:
+        raise ConfigurationError(f"motion must be one of {MOVES}, got '{scenario.motion}'")
+    if scenario.follower.estimator not in ("", scenario.estimator):
+        raise ConfigurationError(
+            f"follower.estimator '{scenario.follower.estimator}' conflicts with the top-level "
+            f"key 'estimator' ('{scenario.estimator}'): set that only"
+        )
+    if scenario.arm not in scenario.station.arms or scenario.tof not in scenario.station.tof_tools:
+        raise ConfigurationError(
+            f"station must define arms.{scenario.arm} and tof_tools.{scenario.tof}"
+        )
+
+
+def _ResolveToF(scenario: PathFollowingScenario, station: StationScenario) -> None:
+    """Fills in the ToF tool's noise seed (`seed`) and target radius (the hose's), or
+    refuses a seed set in the station that differs."""
+    tof = station.tof_tools[scenario.tof]
+    key = f"station.tof_tools.{scenario.tof}.seed"
+    if tof.seed is not None and tof.seed != scenario.seed:
+        raise ConfigurationError(
+            f"{key} ({tof.seed}) conflicts with the top-level key 'seed' ({scenario.seed}), "
+            "the noise seed of path following: set that only"
+        )
+    if tof.seed is not None and scenario.repeat_seed not in (None, tof.seed):
+        raise ConfigurationError(
+            f"{key} fixes the noise of both runs, repeat_seed ({scenario.repeat_seed}) needs "
+            "another: set the top-level key 'seed' only"
+        )
+    station.hose = station.hose or HoseConfig()
+    tof.seed = scenario.seed
+    tof.target_radius = tof.target_radius or station.hose.diameter / 2
+    tof.Validate()
+
+
+def _Workspace(scenario: PathFollowingScenario) -> WorkspaceConfig:
+    """The scenario's workspace; unset: the hose's own (its NAME.yaml), or the paper's cell."""
+    if scenario.workspace is not None:
+        return scenario.workspace
+    if not scenario.path_csv and scenario.path.startswith("random_"):
+        return WorkspaceConfig()
+    return LoadHoseWorkspace(scenario.path_csv or scenario.path) or WorkspaceConfig()
+
+
+def _LoadHose(scenario, workspace, solver, mount, q_home, out_dir) -> tuple[np.ndarray, str]:
+    """(centerline in B, the CSV or named path it came from); refuses a hose outside the
+    workspace."""
+    if scenario.path_csv or not scenario.path.startswith("random_"):
+        source = scenario.path_csv or scenario.path
+        centerline_B = ReadCenterline(source)
+        if Path(source).suffix.lower() == ".csv" or Path(source).is_file():
+            source = str(ResolveCenterlinePath(source).resolve())
+    else:
+        digits = scenario.path.removeprefix("random_")
+        if not (digits.isascii() and digits.isdigit()):
+            raise ConfigurationError(
+                f"path '{scenario.path}': expected random_<seed>, a seed of digits 0-9"
+            )
+        seed = int(digits)
+        centerline_B = ReachableRandomPath(scenario, seed, workspace, solver, mount, q_home)
+        directory = Path(out_dir or tempfile.mkdtemp(prefix="guidedarm_hose_"))
+        WriteCenterline(centerline_B, directory / "hose.csv")
+        source = str((directory / "hose.csv").resolve())
+    row = workspace.FirstOutside(centerline_B)
+    if row is not None:
+        raise ConfigurationError(
+            f"hose point {row} {np.round(centerline_B[row], 3).tolist()} (m, base frame) is "
+            f"outside the workspace ({workspace.Describe()}); widen `workspace` or move the hose"
+        )
+    return centerline_B, source
+
+
+def _ResolveHose(scenario, station: StationScenario, source: str, base_frame: str) -> None:
+    """Points the station's hose at the task's centerline in the base frame, or refuses a
+    hose centerline or frame set in the station that differs."""
+    hose = station.hose
+    if hose.centerline and not _SameHose(hose.centerline, source):
+        raise ConfigurationError(
+            f"station.hose.centerline '{hose.centerline}' conflicts with the task's hose "
+            f"'{source}': set the hose with the keys 'path' or 'path_csv' only"
+        )
+    if hose.frame not in ("", base_frame):
+        raise ConfigurationError(
+            f"station.hose.frame '{hose.frame}' conflicts with base_frame '{base_frame}': "
+            "path following reads hoses in the arm's base frame"
+        )
+    hose.centerline, hose.frame = source, base_frame
+
+
+def _SameHose(a: str, b: str) -> bool:
+    return ResolveCenterlinePath(a).resolve() == ResolveCenterlinePath(b).resolve()
+
+
+def ArmAndAttachments(station: StationScenario, arm: str) -> list[str]:
+    """The model instances of the arm and of everything welded to it (gripper, tools)."""
+    plant = MakeMultibodyPlant(station)
+    instance = GetArmInstance(plant, arm)
+    moved = plant.GetBodiesKinematicallyAffectedBy(plant.GetJointIndices(instance))
+    names = {plant.GetModelInstanceName(plant.get_body(b).model_instance()) for b in moved}
+    return sorted(names | {arm})
+
+
+def MakeSolver(
+    station: StationScenario,
+    arm: str,
+    gripper_frame: str,
+    tool_name: str,
+    ik: ToolPoseIkConfig,
+    workspace: WorkspaceConfig,
+    X_WB: RigidTransform,
+) -> ToolPoseSolver:
+    """The IK of the gripper frame G holding the ToF tool's centre O on target, on a
+    controller plant of the arm and what it carries (MakeMultibodyPlant, no hose), with the
+    workspace walls in the base frame B (pose X_WB)."""
+    plant = MakeMultibodyPlant(station, ArmAndAttachments(station, arm))
+    gripper = GetScopedFrame(plant, gripper_frame, "gripper_frame")
+    tof = station.tof_tools[tool_name]
+    tool = GetScopedFrame(plant, tof.tool_frame, f"station.tof_tools.{tool_name}.tool_frame")
+    p_GO = tool.CalcPose(plant.CreateDefaultContext(), gripper).translation()
+    instance = GetArmInstance(plant, arm)
+    return ToolPoseSolver(plant, instance, gripper, ik, p_GO, workspace, X_WB)
+
+
+def _ToolInGripper(plant: MultibodyPlant, gripper_frame: str, tof) -> RigidTransform:
+    """X_GT, the tool frame T in the gripper frame G."""
+    T = GetScopedFrame(plant, tof.tool_frame, "tof tool_frame")
+    G = GetScopedFrame(plant, gripper_frame, "gripper_frame")
+    return T.CalcPose(plant.CreateDefaultContext(), G)
+
+
+def StartPosition(
+    solver: ToolPoseSolver, mount: ToolMount, centerline: np.ndarray, q_home: np.ndarray
+) -> np.ndarray:
+    """Joints (rad) with the tool centre on the hose's first point (world frame), its x axis
+    toward the point 4 rows on: q_home itself when it holds the tool there already (e.g. a
+    start pose in the scenario's initial_position), else solved from q_home (any rotation,
+    any swing)."""
+    ahead = centerline[min(4, len(centerline) - 1)]
+    X_WT = RigidTransform(OrientationFromVector(ahead - centerline[0]), centerline[0])
+    if solver.Reaches(mount.GripperPose(X_WT), q_home):
+        return np.asarray(q_home, float)
+    limits = solver.limits
+    solver.limits = dataclasses.replace(
+        limits, max_step_rotation_deg=180.0, max_swing=np.inf, shortfall_tolerance_deg=0.0
+    )
+    try:
+        result = solver.Solve(mount.GripperPose(X_WT), q_home)
+    finally:
+        solver.limits = limits
+    if not result.success:
+        raise GuidedArmError(
+            f"start pose out of reach: tool at {np.round(centerline[0], 3).tolist()} (m, world) "
+            f"along the hose ({result.reason})"
+        )
+    return result.q
+
+
+def ReachableRandomPath(
+    scenario: PathFollowingScenario,
+    seed: int,
+    workspace: WorkspaceConfig,
+    solver: ToolPoseSolver,
+    mount: ToolMount,
+    q_home: np.ndarray,
+) -> np.ndarray:
+    """The first random path (frame B) of the seed's sequence that the arm can trace with
+    the tool on the centerline and along it (IK every 15 mm, no reconfiguration, no
+    orientation shortfall): the generator's region is only an annulus in the workspace, the
+    arm's reachable set with a downward tool is smaller."""
+    limits = solver.limits
+    solver.limits = dataclasses.replace(limits, shortfall_tolerance_deg=0.0)
+    try:
+        for attempt in range(20):
+            path_B = RandomSmoothPath(seed * 1000 + attempt, scenario.random_path, workspace)
+            if _Traceable(solver, mount, solver.X_WB.multiply(path_B.T).T, q_home):
+                return path_B
+    finally:
+        solver.limits = limits
+    raise ConfigurationError(f"no reachable random path for seed {seed}")
+
+
+def _Traceable(solver, mount, path: np.ndarray, q_home: np.ndarray) -> bool:
+    try:
+        q = StartPosition(solver, mount, path, q_home)
+    except GuidedArmError:
+        return False
+    for a, b in zip(path[:-3:3], path[3::3], strict=True):
+        result = solver.Solve(mount.GripperPose(RigidTransform(OrientationFromVector(b - a), a)), q)
+        if not result.success:
+            return False
+        q = result.q
+    return True
