@@ -75,7 +75,9 @@ class SquareScene:
         poses.set_value(self.frame, RigidTransform(p_CQ))
         self.scene_graph.get_source_pose_port(self.source).FixValue(self.context, poses)
         query = self.scene_graph.get_query_output_port().Eval(self.context)
-        image = query.RenderColorImage(self.camera, self.scene_graph.world_frame_id(), RigidTransform())
+        image = query.RenderColorImage(
+            self.camera, self.scene_graph.world_frame_id(), RigidTransform()
+        )
         reduced = DegradeImage(np.asarray(image.data), DegradationConfig(supersampling=self.k))
         weight = reduced[:, :, :3].astype(float).sum(axis=2)
         v, u = np.indices(weight.shape)
