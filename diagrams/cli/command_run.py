@@ -14,7 +14,8 @@ from typing import Any
 from pydrake.common.yaml import yaml_dump_typed
 from pydrake.geometry import Meshcat
 
-from guidedarm.diagrams.run_context import RESOLVED_SCENARIO_FILE, RunContext
+from guidedarm.diagrams.run_context import RESOLVED_SCENARIO_FILE, RealtimeRate, RunContext
+from guidedarm.diagrams.run_labels import RunTitle
 from guidedarm.diagrams.scenario_loading import (
     ScenarioError,
     apply_overrides,
@@ -35,6 +36,13 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     parser.add_argument("--out", type=Path, help="output directory (default runs/SCENARIO)")
     parser.add_argument("--meshcat", action="store_true", help="serve Meshcat live and wait")
     parser.add_argument("--hardware", action="store_true", help="drive the real hardware")
+    parser.add_argument(
+        "--realtime",
+        type=float,
+        metavar="RATE",
+        help="pace the simulation at RATE x real time (0: as fast as possible; "
+        "default 1 with --meshcat, else 0)",
+    )
     parser.add_argument(
         "--set",
         dest="overrides",
@@ -72,6 +80,8 @@ def run_command(args: argparse.Namespace) -> int:
     if args.meshcat:
         print(f"Meshcat: {meshcat.web_url()}", flush=True)
     context = RunContext(out_dir=out_dir, meshcat=meshcat, hardware=args.hardware)
+    context.realtime_rate = RealtimeRate(args.realtime, args.meshcat)
+    context.title = RunTitle(name, scenario, args.overrides)
     context.write_text(RESOLVED_SCENARIO_FILE, yaml_dump_typed(scenario))
     print(f"guidedarm: running '{name}' (task {task.name}) -> {out_dir}", flush=True)
     wall_start = time.perf_counter()

@@ -39,6 +39,7 @@ from pydrake.systems.analysis import ApplySimulatorConfig, Simulator
 from pydrake.systems.framework import DiagramBuilder
 from pydrake.systems.primitives import VectorLogSink
 
+from guidedarm.diagrams.overlays.panel_overlays import AddPanelOverlays
 from guidedarm.diagrams.plots import PlotJointSeries
 from guidedarm.diagrams.run_context import RunContext
 from guidedarm.diagrams.station.model_paths import MODELS_DIR, MakeParser
@@ -185,7 +186,7 @@ class PanelOperationRun:
             self.station.GetOutputPort(f"{scenario.arm}.state_estimated"),
             self.sequencer.GetInputPort("arm_state"),
         )
-        command = self.sequencer.get_output_port()
+        command = self.sequencer.get_output_port(0)
         if planner is not None:
             builder.AddNamedSystem("planner", planner)
             builder.Connect(
@@ -198,6 +199,17 @@ class PanelOperationRun:
             )
             command = planner.GetOutputPort("position_commanded")
         builder.Connect(command, self.station.GetInputPort(f"{scenario.arm}.position_commanded"))
+        AddPanelOverlays(
+            builder,
+            self.context.meshcat,
+            self.station,
+            self.sequencer,
+            self.kinematics,
+            scenario.arm,
+            solver.intrinsics,
+            switch,
+            scenario.panel_model,
+        )
         self.joint_log = builder.AddNamedSystem(
             "joint_log", VectorLogSink(self.kinematics.plant.num_positions(), 0.02)
         )
@@ -208,6 +220,7 @@ class PanelOperationRun:
         self.diagram = builder.Build()
         self.simulator = Simulator(self.diagram)
         ApplySimulatorConfig(scenario.station.simulator_config, self.simulator)
+        self.context.pace(self.simulator, scenario.time_limit_s)
         self.plant: MultibodyPlant = self.station.GetSubsystemByName("plant")
         self.panel_instance = self.plant.GetModelInstanceByName(scenario.panel_model)
         self.arm_instance = self.plant.GetModelInstanceByName(scenario.arm)

@@ -23,6 +23,7 @@ from pydrake.systems.analysis import ApplySimulatorConfig, Simulator
 from pydrake.systems.framework import Diagram, DiagramBuilder, EventStatus
 from pydrake.systems.primitives import VectorLogSink
 
+from guidedarm.diagrams.overlays.path_following_overlays import AddPathFollowingOverlays
 from guidedarm.diagrams.run_context import RunContext
 from guidedarm.diagrams.station.scenario import StationScenario
 from guidedarm.diagrams.station.station import MakeStation
@@ -226,6 +227,9 @@ def RunStation(setup: Setup, mount, grid, context: RunContext) -> Execution:
         follower.GetOutputPort("position_commanded"),
         station.GetInputPort(f"{arm}.position_commanded"),
     )
+    AddPathFollowingOverlays(
+        builder, context.meshcat, station, follower, solver.plant, setup.station, arm, tof
+    )
     record_log = builder.AddSystem(VectorLogSink(len(RECORD_FIELDS), setup.period))
     builder.Connect(follower.GetOutputPort("step_record"), record_log.get_input_port())
     q_log = builder.AddSystem(VectorLogSink(len(setup.q_start), 0.02))
@@ -235,6 +239,7 @@ def RunStation(setup: Setup, mount, grid, context: RunContext) -> Execution:
     ApplySimulatorConfig(setup.station.simulator_config, simulator)
     if context.hardware:
         simulator.set_target_realtime_rate(1.0)
+    context.pace(simulator, setup.max_time)
     root = simulator.get_mutable_context()
     ik.SetInitialGoal(ik.GetMyMutableContextFromRoot(root), setup.q_start)
     follower_context = follower.GetMyContextFromRoot(root)
