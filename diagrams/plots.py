@@ -65,18 +65,23 @@ def PlotJointSeries(
 
 def FinishFigure(figure: plt.Figure, title: str = "", headline: str = "") -> None:
     """The finishing every saved figure gets (see the module docstring): `title` above
-    (before any title of its own), `headline` (e.g. "max error 1.2 mm") below."""
-    own = figure.get_suptitle()
-    if title:
-        figure.suptitle(f"{title}\n{own}" if own else title, fontsize="medium")
+    everything (and above a title of its own), `headline` (e.g. "max error 1.2 mm") below
+    everything, so neither covers a label."""
     for axis in figure.axes:
         for formatter_axis in _ValueAxes(axis):
             formatter = formatter_axis.get_major_formatter()
             if isinstance(formatter, matplotlib.ticker.ScalarFormatter):
                 formatter.set_useOffset(False)
     _OneScale(figure)
+    if not (title or headline):
+        return
+    box = figure.get_tightbbox(figure.canvas.get_renderer())
+    to_figure = figure.dpi_scale_trans + figure.transFigure.inverted()
+    (_, bottom), (_, top) = to_figure.transform([[0.0, box.y0], [0.0, box.y1]])
+    if title:
+        figure.text(0.5, top + 0.01, title, ha="center", va="bottom", fontsize="medium")
     if headline:
-        figure.text(0.5, 0.0, headline, ha="center", va="top", fontsize="medium")
+        figure.text(0.5, bottom - 0.01, headline, ha="center", va="top", fontsize="medium")
 
 
 def _ValueAxes(axis) -> list:

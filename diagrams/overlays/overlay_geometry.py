@@ -37,7 +37,10 @@ def AppearAt(meshcat: Meshcat, path: str, t: float) -> None:
 
 class GrowingPolyline:
     """A trail drawn while a run goes on: points are gathered and drawn as one line per
-    `chunk_s` of simulated time, each chunk appearing in the recording at its end time."""
+    `chunk_s` of simulated time, each chunk appearing in the recording at its end time.
+    The points since the last chunk are drawn at once as the `tail` (live, it grows with
+    every point); the recording holds only its final content, shown from the last chunk on.
+    """
 
     def __init__(
         self,
@@ -64,20 +67,25 @@ class GrowingPolyline:
     def Append(self, p_W: np.ndarray, t: float) -> None:
         """Adds the point p_W (m, world) reached at time t (s)."""
         p_W = np.asarray(p_W, float).copy()
-        if self._last is not None and np.linalg.norm(p_W - self._last) < self._min_spacing:
-            if t - self._chunk_start >= self._chunk_s:
-                self.Flush(t)
-            return
-        if not self._pending and self._last is not None:
-            self._pending.append(self._last)
-        self._pending.append(p_W)
-        self._last = p_W
-        self.points.append(p_W)
+        if self._last is None or np.linalg.norm(p_W - self._last) >= self._min_spacing:
+            if not self._pending and self._last is not None:
+                self._pending.append(self._last)
+            self._pending.append(p_W)
+            self._last = p_W
+            self.points.append(p_W)
         if t - self._chunk_start >= self._chunk_s:
-            self.Flush(t)
+            self._Flush(t)
+        elif len(self._pending) >= 2:
+            tail = f"{self._path}/tail"
+            self._meshcat.SetLine(tail, np.array(self._pending).T, self._line_width, self._rgba)
 
-    def Flush(self, t: float) -> None:
+    def _Flush(self, t: float) -> None:
         """Draws the gathered points as one chunk that appears at time t."""
+        tail = f"{self._path}/tail"
+        # Shown only from the latest chunk on: its earlier "shown" keyframe is overwritten.
+        SetRecordedVisibility(self._meshcat, tail, False, self._chunk_start)
+        SetRecordedVisibility(self._meshcat, tail, True, t)
+        self._meshcat.Delete(f"{tail}/<object>")
         self._chunk_start = t
         if len(self._pending) < 2:
             return
