@@ -11,6 +11,7 @@ from pydrake.systems.framework import Context, EventStatus, LeafSystem
 from guidedarm.diagrams.overlays.frame_trail_overlay import OVERLAY_PERIOD
 from guidedarm.diagrams.overlays.overlay_geometry import (
     PLAN_RGBA,
+    AppearAt,
     ArmFramePoses,
     DrawTriad,
     FrustumSegments,
@@ -68,7 +69,7 @@ class PanelEstimateOverlay(LeafSystem):
             return EventStatus.Succeeded()
         if self._estimate is None or not X_WP.IsExactlyEqualTo(self._estimate):
             if self._estimate is None:
-                SetRecordedVisibility(self._meshcat, f"{self._path}/estimated_panel", True, t)
+                AppearAt(self._meshcat, f"{self._path}/estimated_panel", t)
             self._meshcat.SetTransform(f"{self._path}/estimated_panel", X_WP, t)
             self._estimate = X_WP
         return EventStatus.Succeeded()

@@ -54,6 +54,7 @@ class ToFToolOverlay(LeafSystem):
         self._detections = self.DeclareVectorInputPort("detections", 9)
         self._errors = self.DeclareVectorInputPort("detection_errors", 9)
         self._visible: dict[str, bool] = {}
+        self._changed: set[str] = set()
         self._ranges_drawn = np.full(6, np.nan)
         self._Draw(grid, rays_S, max_range)
         self.DeclareInitializationPublishEvent(self._Start)
@@ -76,12 +77,21 @@ class ToFToolOverlay(LeafSystem):
                     m.SetObject(f"{point}/{state}", Sphere(0.0025), rgba)
 
     def _Set(self, path: str, visible: bool, t: float) -> None:
-        if self._visible.get(path) != visible:
-            SetRecordedVisibility(self._meshcat, path, visible, t)
-            self._visible[path] = visible
+        """Shows or hides `path` from time t on, recording only changes. At the first
+        change the value before it is recorded at time 0 too: a recording started after
+        the initial value was set would otherwise show the new value from its start."""
+        before = self._visible.get(path)
+        if before == visible:
+            return
+        if before is not None and path not in self._changed:
+            SetRecordedVisibility(self._meshcat, path, before, 0.0)
+            self._changed.add(path)
+        SetRecordedVisibility(self._meshcat, path, visible, t)
+        self._visible[path] = visible
 
     def _Start(self, context: Context) -> EventStatus:
         self._visible.clear()
+        self._changed.clear()
         self._ranges_drawn[:] = np.nan
         self._PublishPose(context)
         return self._PublishReading(context)
