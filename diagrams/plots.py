@@ -75,13 +75,17 @@ def FinishFigure(figure: plt.Figure, title: str = "", headline: str = "") -> Non
     _OneScale(figure)
     if not (title or headline):
         return
-    box = figure.get_tightbbox(figure.canvas.get_renderer())
-    to_figure = figure.dpi_scale_trans + figure.transFigure.inverted()
-    (_, bottom), (_, top) = to_figure.transform([[0.0, box.y0], [0.0, box.y1]])
+    # Placed from the axes' positions (no drawing needed), clear of the axes' titles above
+    # and of their tick labels and x label below; the saved figure's tight box grows to them.
+    inch = 1.0 / figure.get_figheight()
+    top = max(a.get_position().y1 for a in figure.axes)
+    bottom = min(a.get_position().y0 for a in figure.axes)
+    own = figure.get_suptitle()
     if title:
-        figure.text(0.5, top + 0.01, title, ha="center", va="bottom", fontsize="medium")
+        y = max(top + 0.45 * inch, 0.98 + (0.3 * inch if own else 0.0))
+        figure.text(0.5, y, title, ha="center", va="bottom", fontsize="medium")
     if headline:
-        figure.text(0.5, bottom - 0.01, headline, ha="center", va="top", fontsize="medium")
+        figure.text(0.5, bottom - 0.6 * inch, headline, ha="center", va="top")
 
 
 def _ValueAxes(axis) -> list:
