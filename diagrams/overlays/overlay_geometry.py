@@ -62,7 +62,6 @@ class GrowingPolyline:
         self._last: np.ndarray | None = None
         self._chunk_start = 0.0
         self._count = 0
-        self.points: list[np.ndarray] = []
 
     def Append(self, p_W: np.ndarray, t: float) -> None:
         """Adds the point p_W (m, world) reached at time t (s)."""
@@ -72,7 +71,6 @@ class GrowingPolyline:
                 self._pending.append(self._last)
             self._pending.append(p_W)
             self._last = p_W
-            self.points.append(p_W)
         if t - self._chunk_start >= self._chunk_s:
             self._Flush(t)
         elif len(self._pending) >= 2:
@@ -149,10 +147,12 @@ def FrustumSegments(
     return np.array(start).T, np.array(end).T
 
 
-def AimCamera(meshcat: Meshcat, points: np.ndarray, view_direction: np.ndarray, margin=1.6):
+def AimCamera(
+    meshcat: Meshcat, points: np.ndarray, view_direction: np.ndarray, margin: float = 1.6
+) -> tuple[np.ndarray, np.ndarray]:
     """Places Meshcat's camera to look at the centre of `points` (N x 3, m, world) from
     `view_direction` (from the target towards the camera), far enough to see them all
-    (Meshcat's 75 deg vertical field of view, with `margin`)."""
+    (Meshcat's 75 deg vertical field of view, with `margin`); returns (camera, target)."""
     points = np.atleast_2d(points)
     target = 0.5 * (points.min(axis=0) + points.max(axis=0))
     radius = max(float(np.max(np.linalg.norm(points - target, axis=1))), 0.05)

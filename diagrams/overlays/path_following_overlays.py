@@ -73,7 +73,7 @@ def AddPathFollowingOverlays(
         builder.AddNamedSystem("see_through_hose", SeeThroughGeometry(meshcat, hose))
     if scenario.hose is not None:
         centerline = ReadCenterline(scenario.hose.centerline)
-        AimCamera(meshcat, centerline, ViewFromBeyond(centerline, np.zeros(3)), margin=1.2)
+        AimCamera(meshcat, centerline, ViewFromBeyond(centerline, np.zeros(3)), margin=0.95)
 
 
 def HoseIllustrationPaths(station: Diagram) -> list[str]:
