@@ -6,9 +6,10 @@ import numpy as np
 from pydrake.geometry import Meshcat
 from pydrake.multibody.plant import MultibodyPlant
 from pydrake.systems.framework import Diagram, DiagramBuilder, LeafSystem
+from pydrake.systems.primitives import MatrixGain
 
 from guidedarm.diagrams.overlays.detected_path_overlay import DetectedPathOverlay
-from guidedarm.diagrams.overlays.frame_trail_overlay import FrameTrailOverlay
+from guidedarm.diagrams.overlays.frame_trail_overlay import OVERLAY_PERIOD, FrameTrailOverlay
 from guidedarm.diagrams.overlays.overlay_geometry import (
     OVERLAYS,
     TOOL_RGBA,
@@ -20,8 +21,9 @@ from guidedarm.diagrams.overlays.see_through_geometry import SeeThroughGeometry
 from guidedarm.diagrams.overlays.tof_tool_overlay import ToFToolOverlay
 from guidedarm.diagrams.station.scenario import StationScenario
 from guidedarm.systems.path_following.hose_geometry import ReadCenterline
+from guidedarm.systems.path_following.path_follower_math import RECORD_FIELDS
 from guidedarm.systems.plant_frames import GetScopedFrame
-from guidedarm.systems.tof.tof_tool_sensor import TOF_PORTS, MakeDetectionGrid
+from guidedarm.systems.tof.tof_tool_sensor import MakeDetectionGrid
 from guidedarm.systems.tof.tof_tool_sensor_math import ConeRays
 
 TOF_PATH = f"{OVERLAYS}/tof"
@@ -39,11 +41,14 @@ def AddPathFollowingOverlays(
     arm: str,
     tof_name: str,
 ) -> None:
-    """Wires, from the station's `<arm>.position_measured` and `<tof_name>.*` ports and the
-    follower's `step_record`: a ToFToolOverlay (/overlays/tof), a DetectedPathOverlay
-    (/overlays/detected_path) and the trail of the tool centre O (/overlays/tool_centre).
-    `plant` holds the arm and the ToF tool (e.g. the IK's plant). The camera looks at the
-    scenario's hose, seen from beyond it. Nothing without a Meshcat."""
+    """Wires a ToFToolOverlay (/overlays/tof), a DetectedPathOverlay
+    (/overlays/detected_path) and the trail of the tool centre O (/overlays/tool_centre)
+    from the station's `<arm>.position_measured` and the follower's outputs: the ToF
+    overlay draws the reading of the follower's latest step (`step_record`'s ranges and
+    validity, `detections`, `detection_errors`), i.e. what the algorithm used, at no cost;
+    wiring the station's `<tof_name>.*` ports instead would show every reading, each
+    costing a ray cast. `plant` holds the arm and the ToF tool (e.g. the IK's plant). The
+    camera looks at the scenario's hose, seen from beyond it. Nothing without a Meshcat."""
     if meshcat is None:
         return
     tof = scenario.tof_tools[tof_name]
@@ -51,15 +56,24 @@ def AddPathFollowingOverlays(
     tool = GetScopedFrame(plant, tof.tool_frame, f"tof_tools.{tof_name}.tool_frame")
     q_measured = station.GetOutputPort(f"{arm}.position_measured")
     rays = ConeRays(np.radians(tof.cone_angle_deg), tof.rings)
+    grid = MakeDetectionGrid(plant, tof)
     view = builder.AddNamedSystem(
         "tof_overlay",
         ToFToolOverlay(
-            meshcat, TOF_PATH, poses, tool, MakeDetectionGrid(plant, tof), rays, tof.max_range
+            meshcat, TOF_PATH, poses, tool, grid, rays, tof.max_range, sensor_period=OVERLAY_PERIOD
         ),
     )
     builder.Connect(q_measured, view.GetInputPort("position"))
-    for port in TOF_PORTS:
-        builder.Connect(station.GetOutputPort(f"{tof_name}.{port}"), view.GetInputPort(port))
+    record = follower.GetOutputPort("step_record")
+    for port in ("ranges", "valid"):
+        fields = [RECORD_FIELDS.index(f"{port.rstrip('s')}_{k}") for k in range(1, 7)]
+        pick = builder.AddNamedSystem(
+            f"tof_overlay_{port}", MatrixGain(np.eye(len(RECORD_FIELDS))[fields])
+        )
+        builder.Connect(record, pick.get_input_port())
+        builder.Connect(pick.get_output_port(), view.GetInputPort(port))
+    for port in ("detections", "detection_errors"):
+        builder.Connect(follower.GetOutputPort(port), view.GetInputPort(port))
     detected = builder.AddNamedSystem(
         "detected_path_overlay", DetectedPathOverlay(meshcat, DETECTED_PATH)
     )

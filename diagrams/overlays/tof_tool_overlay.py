@@ -24,7 +24,8 @@ GRID_STATES = {"detected": SENSED_RGBA, "error": ERROR_RGBA, "none": IDLE_RGBA}
 
 class ToFToolOverlay(LeafSystem):
     """Input ports: `position` (the arm's joints, rad), `ranges` (6, m), `valid` (6),
-    `detections` and `detection_errors` (9 each, row-major), i.e. the station's ToF ports.
+    `detections` and `detection_errors` (9 each, row-major): e.g. the station's ToF ports, or
+    the reading a PathFollower used (its step_record and grid outputs).
 
     Under `path`, in the tool frame T (placed from the arm's joints every `period` s):
     each sensor's cone as its rays up to max_range (grey); for a sensor with a return, the
