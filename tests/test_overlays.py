@@ -5,6 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 from pydrake.geometry import Meshcat
+from pydrake.math import RigidTransform
 from pydrake.systems.analysis import Simulator
 from pydrake.systems.framework import DiagramBuilder
 from pydrake.systems.primitives import ConstantVectorSource, TrajectorySource
@@ -13,7 +14,12 @@ from replay_commands import Replay, Vertices
 
 from guidedarm.diagrams.cli.command_run import LoadScenario
 from guidedarm.diagrams.overlays.frame_trail_overlay import OVERLAY_PERIOD, FrameTrailOverlay
-from guidedarm.diagrams.overlays.overlay_geometry import PLAN_RGBA, ArmFramePoses, FrustumSegments
+from guidedarm.diagrams.overlays.overlay_geometry import (
+    PLAN_RGBA,
+    ArmFramePoses,
+    FrustumSegments,
+    RecordedPose,
+)
 from guidedarm.diagrams.overlays.tof_tool_overlay import ToFToolOverlay
 from guidedarm.diagrams.station.station_plant import MakeMultibodyPlant
 from guidedarm.diagrams.tasks.panel_files import DEFAULT_CAMERA_FILE, LoadCameraIntrinsics
@@ -146,3 +152,17 @@ def test_frustum_edges_pass_through_the_image_corners():
     v = c.fy * far[:, 1] / far[:, 2] + c.cy
     assert np.allclose(u, [-0.5, c.width - 0.5, c.width - 0.5, -0.5])
     assert np.allclose(v, [-0.5, -0.5, c.height - 0.5, c.height - 0.5])
+
+
+def test_a_still_pose_is_recorded_at_both_ends_of_the_pause(meshcat, tmp_path):
+    pose = RecordedPose(meshcat, "/overlays/pose")
+    meshcat.StartRecording(frames_per_second=30.0)
+    for t, x in [(0.0, 0.0), (0.5, 0.0), (1.0, 0.0), (1.5, 0.3)]:
+        pose.Set(RigidTransform([x, 0.0, 0.0]), t)
+    meshcat.StopRecording()
+    meshcat.PublishRecording()
+    (tmp_path / "pose.html").write_text(meshcat.StaticHtml())
+    meshcat.DeleteRecording()
+    keys = Replay(tmp_path / "pose.html").Keyframes("/overlays/pose", "position")
+    # No glide from 0 to 0.3 during the pause: x = 0 is held until t = 1.0.
+    assert [(t, v[0]) for t, v in keys] == [(0.0, 0.0), (1.0, 0.0), (1.5, 0.3)]

@@ -35,11 +35,38 @@ def AppearAt(meshcat: Meshcat, path: str, t: float) -> None:
     SetRecordedVisibility(meshcat, path, True, t)
 
 
+class RecordedPose:
+    """Sets the pose of a Meshcat path at each call, live and into the recording, but only
+    when it changed: a still tool costs no message. When it moves again, the last still
+    pose is recorded at its last time first, so the replay does not glide across the pause
+    (the animation interpolates between keyframes)."""
+
+    def __init__(self, meshcat: Meshcat, path: str, tolerance: float = 1e-6) -> None:
+        self._meshcat, self._path, self._tolerance = meshcat, path, tolerance
+        self.Reset()
+
+    def Reset(self) -> None:
+        """Forgets the last pose (a new run starts)."""
+        self._last: RigidTransform | None = None
+        self._last_t = 0.0
+        self._skipped = False
+
+    def Set(self, X: RigidTransform, t: float) -> None:
+        """Sets the pose X (in the parent path's frame) at time t (s)."""
+        if self._last is not None and X.IsNearlyEqualTo(self._last, self._tolerance):
+            self._last_t, self._skipped = t, True
+            return
+        if self._skipped:
+            self._meshcat.SetTransform(self._path, self._last, self._last_t)
+        self._meshcat.SetTransform(self._path, X, t)
+        self._last, self._last_t, self._skipped = X, t, False
+
+
 class GrowingPolyline:
     """A trail drawn while a run goes on: points are gathered and drawn as one line per
     `chunk_s` of simulated time, each chunk appearing in the recording at its end time.
-    The points since the last chunk are drawn at once as the `tail` (live, it grows with
-    every point); the recording holds only its final content, shown from the last chunk on.
+    The points since the last chunk are drawn as the `tail` (live, it grows with every
+    point); the recording holds only its final content, shown from the last chunk on.
     """
 
     def __init__(
@@ -66,14 +93,15 @@ class GrowingPolyline:
     def Append(self, p_W: np.ndarray, t: float) -> None:
         """Adds the point p_W (m, world) reached at time t (s)."""
         p_W = np.asarray(p_W, float).copy()
-        if self._last is None or np.linalg.norm(p_W - self._last) >= self._min_spacing:
+        moved = self._last is None or np.linalg.norm(p_W - self._last) >= self._min_spacing
+        if moved:
             if not self._pending and self._last is not None:
                 self._pending.append(self._last)
             self._pending.append(p_W)
             self._last = p_W
         if t - self._chunk_start >= self._chunk_s:
             self._Flush(t)
-        elif len(self._pending) >= 2:
+        elif moved and len(self._pending) >= 2:
             tail = f"{self._path}/tail"
             self._meshcat.SetLine(tail, np.array(self._pending).T, self._line_width, self._rgba)
 

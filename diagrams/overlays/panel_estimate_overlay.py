@@ -15,6 +15,7 @@ from guidedarm.diagrams.overlays.overlay_geometry import (
     ArmFramePoses,
     DrawTriad,
     FrustumSegments,
+    RecordedPose,
     SetRecordedVisibility,
 )
 from guidedarm.systems.markers.marker_pose_estimator_math import CameraIntrinsics
@@ -52,18 +53,20 @@ class PanelEstimateOverlay(LeafSystem):
         DrawTriad(meshcat, f"{path}/camera/axes", length=0.03, radius=0.0015)
         DrawTriad(meshcat, f"{path}/estimated_panel", length=0.06, radius=0.0025, opacity=0.6)
         self._estimate: RigidTransform | None = None
+        self._camera_pose = RecordedPose(meshcat, f"{path}/camera")
         self.DeclareInitializationPublishEvent(self._Start)
         self.DeclarePeriodicPublishEvent(period, 0.0, self._Publish)
 
     def _Start(self, context: Context) -> EventStatus:
         self._estimate = None
+        self._camera_pose.Reset()
         SetRecordedVisibility(self._meshcat, f"{self._path}/estimated_panel", False, 0.0)
         return self._Publish(context)
 
     def _Publish(self, context: Context) -> EventStatus:
         t = context.get_time()
         (X_WC,) = self._poses.Poses(self._position.Eval(context), [self._camera])
-        self._meshcat.SetTransform(f"{self._path}/camera", X_WC, t)
+        self._camera_pose.Set(X_WC, t)
         X_WP = self._X_WP.Eval(context)
         if X_WP.IsExactlyIdentity():
             return EventStatus.Succeeded()

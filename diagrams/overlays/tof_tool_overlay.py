@@ -14,6 +14,7 @@ from guidedarm.diagrams.overlays.overlay_geometry import (
     IDLE_RGBA,
     SENSED_RGBA,
     ArmFramePoses,
+    RecordedPose,
     SetRecordedVisibility,
 )
 from guidedarm.systems.tof.tof_tool_sensor_math import DetectionGrid
@@ -57,6 +58,7 @@ class ToFToolOverlay(LeafSystem):
         self._visible: dict[str, bool] = {}
         self._changed: set[str] = set()
         self._ranges_drawn = np.full(6, np.nan)
+        self._pose = RecordedPose(meshcat, path)
         self._Draw(grid, rays_S, max_range)
         self.DeclareInitializationPublishEvent(self._Start)
         self.DeclarePeriodicPublishEvent(period, 0.0, self._PublishPose)
@@ -94,12 +96,13 @@ class ToFToolOverlay(LeafSystem):
         self._visible.clear()
         self._changed.clear()
         self._ranges_drawn[:] = np.nan
+        self._pose.Reset()
         self._PublishPose(context)
         return self._PublishReading(context)
 
     def _PublishPose(self, context: Context) -> EventStatus:
         (X_WT,) = self._poses.Poses(self._position.Eval(context), [self._tool])
-        self._meshcat.SetTransform(self._path, X_WT, context.get_time())
+        self._pose.Set(X_WT, context.get_time())
         return EventStatus.Succeeded()
 
     def _PublishReading(self, context: Context) -> EventStatus:
