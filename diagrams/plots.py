@@ -40,7 +40,9 @@ def PlotJointSeries(
     for j in range(n):
         axis = axes[j, 0]
         for label, values in series.items():
-            style = {"linestyle": "--", "linewidth": 1.6} if label == "commanded" else {}
+            # Dashed and wider where the measured line would hide it.
+            on_top = tracking and label == "commanded"
+            style = {"linestyle": "--", "linewidth": 1.6} if on_top else {}
             axis.plot(times, values[j], label=label, **{"linewidth": 1.2, **style})
         if limits is not None:
             for bound in limits:
