@@ -19,7 +19,8 @@ demo: $(STAMP)
 	@set -e; for s in $(DEMO_SCENARIOS); do \
 		$(BIN)/guidedarm run $$s --out runs/$$s; \
 	done; \
-	echo "make demo: wrote summary.json, plots and replay.html for each scenario under runs/"
+	$(BIN)/guidedarm demo-index runs; \
+	echo "make demo: wrote summary.json, plots and replay.html for each scenario under runs/, and runs/index.html"
 
 test: $(STAMP)
 	sh tests/setup_browser.sh

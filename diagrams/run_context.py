@@ -1,7 +1,8 @@
-"""What a task run writes: summary.json, PNG plots, and a Meshcat replay page.
+"""What a task run writes: summary.json, plots (PNG and SVG), and a Meshcat replay page.
 
 Every `guidedarm run` gets a RunContext. Tasks use it to record the Meshcat animation of
-their simulation, to save figures, and to report progress; the CLI writes the summary.
+their simulation, to save figures, to pace the simulator and to report progress (on stderr
+and, with Meshcat, on the page); the CLI writes the summary.
 
 Meshcat: Drake's Meshcat always listens on a port, even when it only records. MakeMeshcat
 serves a live page (on `localhost` unless another host is asked for) only when asked;
@@ -30,38 +31,83 @@ SUMMARY_FILE = "summary.json"
 # The fully resolved scenario (overrides applied, defaults written out): running it again
 # with `guidedarm run DIR/scenario.yaml` reproduces the run.
 RESOLVED_SCENARIO_FILE = "scenario.yaml"
+# The Meshcat control that shows a live run's simulated time.
+PROGRESS_SLIDER = "sim time (s)"
+# Wall-clock interval between Meshcat progress updates (s).
+_PAGE_PROGRESS_PERIOD = 0.1
 
 
 @dataclass
 class RunContext:
-    """Output directory, Meshcat and progress reporting of one task run."""
+    """Output directory, Meshcat and progress reporting of one task run.
+
+    realtime_rate: the pace of a simulated run, in simulated seconds per wall-clock second
+    (0 = as fast as possible); against hardware the pace is always 1.
+    title: the run's name on every figure (run_labels.RunTitle); headline: metrics a task
+    has computed, printed under the figures they belong to (run_labels.HEADLINES).
+    """
 
     out_dir: Path
     meshcat: Meshcat | None = None
     hardware: bool = False
     quiet: bool = False
+    realtime_rate: float = 0.0
+    title: str = ""
+    headline: dict[str, Any] = field(default_factory=dict)
     written: list[Path] = field(default_factory=list)
     _last_progress: float = 0.0
+    _last_page_progress: float = 0.0
+    _simulator: Simulator | None = None
 
     def __post_init__(self) -> None:
         PrepareOutputDirectory(self.out_dir)
 
+    def pace(self, simulator: Simulator, t_final: float) -> None:
+        """Sets the simulator's target realtime rate (1 against hardware, else
+        realtime_rate) and shows its simulated time, up to t_final (s), on the Meshcat page
+        whenever progress() is called."""
+        simulator.set_target_realtime_rate(1.0 if self.hardware else self.realtime_rate)
+        self._simulator = simulator
+        if self.meshcat is not None:
+            if PROGRESS_SLIDER in self.meshcat.GetSliderNames():
+                self.meshcat.DeleteSlider(PROGRESS_SLIDER)
+            self.meshcat.AddSlider(PROGRESS_SLIDER, 0.0, max(t_final, 1e-3), 0.01, 0.0)
+
     def progress(self, message: str, force: bool = False) -> None:
-        """Prints a progress line to stderr, at most once a second unless forced."""
+        """Prints a progress line to stderr, at most once a second unless forced; after
+        pace(), also shows the simulated time and realtime rate on the Meshcat page."""
         now = time.monotonic()
+        self._ShowOnPage(now)
         if self.quiet or (not force and now - self._last_progress < 1.0):
             return
         self._last_progress = now
         print(f"  ... {message}", file=sys.stderr, flush=True)
 
+    def _ShowOnPage(self, now: float) -> None:
+        if self.meshcat is None or self._simulator is None:
+            return
+        if now - self._last_page_progress < _PAGE_PROGRESS_PERIOD:
+            return
+        self._last_page_progress = now
+        t = self._simulator.get_context().get_time()
+        self.meshcat.SetSimulationTime(t)
+        self.meshcat.SetSliderValue(PROGRESS_SLIDER, t)
+
     def save_figure(self, figure: Any, name: str) -> Path:
-        """Saves a matplotlib figure as DIR/name.png and closes it."""
+        """Finishes a matplotlib figure (plots.FinishFigure: title, headline figures),
+        saves it as DIR/name.png and DIR/name.svg and closes it; returns the PNG's path."""
         import matplotlib.pyplot as plt
 
+        from guidedarm.diagrams.plots import FinishFigure
+        from guidedarm.diagrams.run_labels import HeadlineText
+
+        FinishFigure(figure, self.title, HeadlineText(name, self.headline))
         path = self.out_dir / f"{name}.png"
         figure.savefig(path, dpi=110, bbox_inches="tight")
+        vector = path.with_suffix(".svg")
+        figure.savefig(vector, bbox_inches="tight")
         plt.close(figure)
-        self.written.append(path)
+        self.written += [path, vector]
         return path
 
     def write_text(self, name: str, text: str) -> Path:
@@ -155,11 +201,10 @@ def AdvanceWithProgress(
     """Advances `simulator` to `t_final` in chunks, printing progress; returns the sim time.
 
     A monitor set on the simulator may stop it early (EventStatus.ReachedTermination); the
-    returned time is where it stopped. Against hardware the simulator keeps wall-clock pace,
-    since the drivers' clocks are real.
+    returned time is where it stopped. The pace is the context's (RunContext.pace): against
+    hardware wall-clock pace, since the drivers' clocks are real.
     """
-    if context.hardware:
-        simulator.set_target_realtime_rate(1.0)
+    context.pace(simulator, t_final)
     t = simulator.get_context().get_time()
     while t < t_final:
         status = simulator.AdvanceTo(min(t + chunk_s, t_final))
@@ -168,6 +213,16 @@ def AdvanceWithProgress(
         if status.reason() != status.ReturnReason.kReachedBoundaryTime:
             break
     return t
+
+
+def RealtimeRate(realtime: float | None, meshcat: bool) -> float:
+    """The pace of a run from `--realtime RATE` and `--meshcat`: RATE if given (0 = as fast
+    as possible), else real time with a live Meshcat page and as fast as possible without."""
+    if realtime is None:
+        return 1.0 if meshcat else 0.0
+    if not (realtime >= 0 and math.isfinite(realtime)):
+        raise ConfigurationError(f"--realtime must be a rate >= 0, got {realtime}")
+    return realtime
 
 
 def _csv_cell(value: Any) -> str:

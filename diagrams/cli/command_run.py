@@ -23,9 +23,11 @@ from typing import Any
 from guidedarm.diagrams.run_context import (
     MakeMeshcat,
     PrepareOutputDirectory,
+    RealtimeRate,
     RunContext,
     ServeMeshcat,
 )
+from guidedarm.diagrams.run_labels import RunTitle
 from guidedarm.diagrams.scenario_loading import (
     AddOverridesArgument,
     ScenarioError,
@@ -48,6 +50,13 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     parser.add_argument("--out", type=Path, help="output directory (default runs/SCENARIO)")
     AddMeshcatArguments(parser)
     parser.add_argument("--hardware", action="store_true", help="drive the real hardware")
+    parser.add_argument(
+        "--realtime",
+        type=float,
+        metavar="RATE",
+        help="pace the simulation at RATE x real time (0: as fast as possible; "
+        "default 1 with --meshcat, else 0)",
+    )
     AddOverridesArgument(parser, "override a scenario key (dotted keys reach nested fields)")
     parser.add_argument(
         "--path-csv",
@@ -112,6 +121,8 @@ def run_command(args: argparse.Namespace) -> int:
     context.meshcat = MakeMeshcat(args.meshcat, args.meshcat_host or "localhost")
     if args.meshcat:
         print(f"Meshcat: {context.meshcat.web_url()}", flush=True)
+    context.realtime_rate = RealtimeRate(args.realtime, args.meshcat)
+    context.title = RunTitle(name, scenario, args.overrides)
     print(f"guidedarm: running '{name}' (task {task.name}) -> {context.out_dir}", flush=True)
     metrics = RunTask(task, scenario, context)
     metrics = {"scenario": name, "task": task.name, **metrics, **RunProvenance()}

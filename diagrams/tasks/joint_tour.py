@@ -15,6 +15,7 @@ from pydrake.systems.framework import DiagramBuilder
 from pydrake.systems.primitives import TrajectorySource, VectorLogSink
 from pydrake.trajectories import PiecewisePolynomial
 
+from guidedarm.diagrams.overlays.joint_tour_overlays import AddJointTourOverlays
 from guidedarm.diagrams.plots import PlotJointSeries
 from guidedarm.diagrams.run_context import AdvanceWithProgress, RunContext
 from guidedarm.diagrams.station.scenario import StationScenario
@@ -93,6 +94,14 @@ def RunJointTour(scenario: JointTourScenario, context: RunContext) -> dict[str, 
     source = builder.AddNamedSystem("tour", TrajectorySource(trajectory))
     builder.Connect(
         source.get_output_port(), station.GetInputPort(f"{scenario.arm}.position_commanded")
+    )
+    AddJointTourOverlays(
+        builder,
+        context.meshcat,
+        scenario.station,
+        scenario.arm,
+        source.get_output_port(),
+        [start, *scenario.waypoints],
     )
     commanded = builder.AddNamedSystem("commanded_log", VectorLogSink(n))
     measured = builder.AddNamedSystem("measured_log", VectorLogSink(n))

@@ -40,10 +40,12 @@ def LoadPanelSpec(path: str | Path) -> PanelSpec:
     return panel
 
 
-# Drake's CameraInfo puts the principal point at (w/2 - 0.5, h/2 - 0.5) in OpenCV pixel
-# coordinates, but the VTK images are offset by half a pixel from that: measured on
-# rendered plate and marker edges (1920 x 1080 and 3840 x 2160), the image centre sits at
-# (w/2 - 1, h/2 - 1). Without this the pose is off by 0.5 px (0.15 mm at 420 mm).
+# Pixel coordinates are OpenCV's (the centre of the top-left pixel is (0, 0)), as Drake's
+# CameraInfo documents them: its default principal point is (w/2 - 0.5, h/2 - 0.5), the
+# value camera files state (models/panel/c920_camera.yaml: 959.5, 539.5). Drake's VTK
+# renderer draws the image half a pixel further up-left than its CameraInfo says (measured
+# with sub-pixel shifted squares, tests/test_camera_convention.py): a camera configured
+# with centre c renders images whose principal point is c - 0.5.
 VTK_PRINCIPAL_POINT_OFFSET_PX = -0.5
 
 
@@ -68,15 +70,18 @@ def IntrinsicsFromCameraConfig(config: CameraConfig, supersampling: int = 1) -> 
 
 
 def SupersampledCameraConfig(config: CameraConfig, supersampling: int) -> CameraConfig:
-    """A copy of `config` rendering `supersampling` times the resolution (same optics)."""
+    """A copy of `config` rendering `supersampling` times the resolution (same optics):
+    averaged over k x k blocks, its images have the intrinsics of `config`'s CameraInfo."""
     color, _ = config.MakeCameras()
     info = color.core().intrinsics()
     k = supersampling
     result = copy.deepcopy(config)
     result.width, result.height = config.width * k, config.height * k
     result.focal = CameraConfig.FocalLength(x=info.focal_x() * k, y=info.focal_y() * k)
-    result.center_x = (info.center_x() + 0.5) * k - 0.5
-    result.center_y = (info.center_y() + 0.5) * k - 0.5
+    # The renderer's half-pixel shift is compensated here, so the k x k averaged images
+    # have their principal point where `config`'s CameraInfo (and the camera file) says.
+    result.center_x = (info.center_x() + 0.5) * k - 0.5 - VTK_PRINCIPAL_POINT_OFFSET_PX
+    result.center_y = (info.center_y() + 0.5) * k - 0.5 - VTK_PRINCIPAL_POINT_OFFSET_PX
     return result
 
 

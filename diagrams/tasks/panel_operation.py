@@ -41,6 +41,7 @@ from pydrake.systems.analysis import ApplySimulatorConfig, Simulator
 from pydrake.systems.framework import DiagramBuilder
 from pydrake.systems.primitives import VectorLogSink
 
+from guidedarm.diagrams.overlays.panel_overlays import AddPanelOverlays
 from guidedarm.diagrams.run_context import RunContext
 from guidedarm.diagrams.station.model_paths import MODELS_DIR
 from guidedarm.diagrams.station.scenario import StationScenario
@@ -204,6 +205,17 @@ class PanelOperationRun:
         )
         self.sequencer = systems.sequencer
         self.kinematics = systems.kinematics
+        AddPanelOverlays(
+            builder,
+            self.context.meshcat,
+            self.station,
+            self.sequencer,
+            self.kinematics,
+            scenario.arm,
+            systems.estimator.solver.intrinsics,
+            self.panel.switches[scenario.switch - 1],
+            scenario.panel_model,
+        )
         self.joint_log = builder.AddNamedSystem(
             "joint_log", VectorLogSink(self.kinematics.plant.num_positions(), 0.02)
         )
@@ -214,6 +226,7 @@ class PanelOperationRun:
         self.diagram = builder.Build()
         self.simulator = Simulator(self.diagram)
         ApplySimulatorConfig(scenario.station.simulator_config, self.simulator)
+        self.context.pace(self.simulator, scenario.time_limit_s)
         self.plant: MultibodyPlant = self.station.GetSubsystemByName("plant")
         self.panel_instance = self.plant.GetModelInstanceByName(scenario.panel_model)
         self.arm_instance = self.plant.GetModelInstanceByName(scenario.arm)

@@ -165,7 +165,7 @@ def AddPanelOperation(
     arm_state = station.GetOutputPort(f"{arm}.state_estimated")
     builder.Connect(estimator.GetOutputPort("estimate"), sequencer.GetInputPort("marker_estimate"))
     builder.Connect(arm_state, sequencer.GetInputPort("arm_state"))
-    command = sequencer.get_output_port()
+    command = sequencer.get_output_port(0)
     if planner_system is not None:
         builder.AddNamedSystem("planner", planner_system)
         builder.Connect(

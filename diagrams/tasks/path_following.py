@@ -114,6 +114,7 @@ def RunPathFollowing(scenario: PathFollowingScenario, context: RunContext) -> di
         "failure": failure,
         "sim_time_s": round(execution.sim_time, 3),
     }
+    context.headline = summary  # the figures below print its headline figures
     if repeat_seed is not None:
         second, _ = Run(scenario, context, repeat_seed)
         runs[f"detected (seed {repeat_seed})"] = DetectedPath(second.records)

@@ -23,6 +23,7 @@ from pydrake.systems.analysis import ApplySimulatorConfig, Simulator
 from pydrake.systems.framework import Diagram, DiagramBuilder, EventStatus
 from pydrake.systems.primitives import LogVectorOutput
 
+from guidedarm.diagrams.overlays.path_following_overlays import AddPathFollowingOverlays
 from guidedarm.diagrams.run_context import RunContext
 from guidedarm.diagrams.station.station import MakeStation
 from guidedarm.diagrams.tasks.path_following_diagram import (
@@ -67,14 +68,23 @@ def _Simulate(setup: Setup, station: Diagram, context: RunContext, visualized: b
     builder = DiagramBuilder()
     builder.AddNamedSystem("station", station)
     follower, _ = AddPathFollowing(builder, station, setup)
+    AddPathFollowingOverlays(
+        builder,
+        context.meshcat if visualized else None,
+        station,
+        follower,
+        setup.solver.plant,
+        setup.station,
+        setup.arm,
+        setup.tool_name,
+    )
     record_log = LogVectorOutput(follower.GetOutputPort("step_record"), builder, setup.period)
     q_log = LogVectorOutput(
         station.GetOutputPort(f"{setup.arm}.position_measured"), builder, SAMPLE_PERIOD
     )
     simulator = Simulator(builder.Build())
     ApplySimulatorConfig(setup.station.simulator_config, simulator)
-    if context.hardware:
-        simulator.set_target_realtime_rate(1.0)
+    context.pace(simulator, setup.max_time)
     root = simulator.get_mutable_context()
     follower_context = follower.GetMyContextFromRoot(root)
 

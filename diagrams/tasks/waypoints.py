@@ -15,6 +15,7 @@ from pydrake.systems.analysis import ApplySimulatorConfig, Simulator
 from pydrake.systems.framework import DiagramBuilder, EventStatus
 from pydrake.systems.primitives import VectorLogSink
 
+from guidedarm.diagrams.overlays.waypoint_overlays import AddWaypointOverlays
 from guidedarm.diagrams.plots import PlotJointSeries
 from guidedarm.diagrams.run_context import AdvanceWithProgress, RunContext
 from guidedarm.diagrams.station.scenario import StationScenario
@@ -139,6 +140,13 @@ def RunWaypoints(scenario: WaypointsScenario, context: RunContext) -> dict[str, 
         station.GetInputPort(f"{arm}.position_commanded"),
     )
     builder.Connect(station.GetOutputPort(f"{arm}.state_estimated"), planner.get_input_port())
+    AddWaypointOverlays(
+        builder,
+        context.meshcat,
+        setup.planning,
+        planner.GetOutputPort("position_commanded"),
+        setup.q0,
+    )
     # Logged at every simulator step (both logs at the same instants), then reduced to one
     # sample per planner step: a periodic log would race the planner's update events.
     planner_log = builder.AddNamedSystem(
@@ -185,6 +193,7 @@ def RunWaypoints(scenario: WaypointsScenario, context: RunContext) -> dict[str, 
             f"the measured TCP strayed {tracking:.4g} m from the commanded one "
             f"(max_tracking_error {scenario.max_tracking_error} m)"
         )
+    context.headline.update(metrics)
     SavePlannerFigures(context, scenario, setup, trajectory, measured)
     return {"sim_time_s": round(t_end, 4), **metrics, "failure": failure}
 
@@ -258,7 +267,10 @@ def SavePlannerFigures(
     velocity, acceleration = setup.velocity_limit, setup.acceleration_limit
     context.save_figure(
         PlotJointSeries(
-            trajectory.times, {"commanded": trajectory.qd.T}, "qd (rad/s)", (-velocity, velocity)
+            trajectory.times,
+            {"commanded": trajectory.qd.T},
+            "qd (rad/s)",
+            (-velocity, velocity) if setup.planning.penalty else None,
         ),
         "joint_velocities",
     )
@@ -267,7 +279,7 @@ def SavePlannerFigures(
             trajectory.times,
             {"commanded": trajectory.qdd.T},
             "qdd (rad/s^2)",
-            (-acceleration, acceleration),
+            (-acceleration, acceleration) if setup.planning.scaling else None,
         ),
         "joint_accelerations",
     )

@@ -58,6 +58,11 @@ class MarkerPoseEstimator(LeafSystem):
         )
         self.DeclareVectorOutputPort("valid", 1, self.CalcValid, prerequisites_of_calc=depends)
 
+    @property
+    def solver(self) -> MarkerPoseSolver:
+        """The solver (camera intrinsics and panel) this estimator runs."""
+        return self._solver
+
     def _CalcEstimate(self, context: Context, value: AbstractValue) -> None:
         image = self._image.Eval(context)
         value.set_value(self._solver.estimate(np.asarray(image.data)))

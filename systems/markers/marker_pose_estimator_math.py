@@ -187,15 +187,19 @@ class MarkerPoseSolver:
                 error = self._rms(points_P, pixels, rvec, tvec)
                 if error < best[0]:
                     best = (error, rvec, tvec)
-        if best[1] is None:
-            # OpenCV's IPPE returns NaN for some exactly symmetric views; SQPnP has no such
-            # degenerate case (it needs no planar homography).
+        if best[0] > MAX_VALID_REPROJECTION_ERROR_PX:
+            # OpenCV's IPPE fails for some exactly symmetric views (a marker straight in
+            # front of a camera whose principal point is the image centre): NaN, or a pose
+            # hundreds of pixels off. SQPnP has no such degenerate case (it needs no planar
+            # homography).
             ok, rvec, tvec = cv2.solvePnP(
                 points_P, pixels, self._K, self._dist, flags=cv2.SOLVEPNP_SQPNP
             )
-            if not ok:
-                return MarkerPoseEstimate(None, ids, -1.0, False)
-            best = (0.0, rvec, tvec)
+            error = self._rms(points_P, pixels, rvec, tvec) if ok else np.inf
+            if error < best[0]:
+                best = (error, rvec, tvec)
+        if best[1] is None:
+            return MarkerPoseEstimate(None, ids, -1.0, False)
         _, rvec, tvec = best
         rvec, tvec = cv2.solvePnPRefineLM(points_P, pixels, self._K, self._dist, rvec, tvec)
         error = self._rms(points_P, pixels, rvec, tvec)

@@ -85,6 +85,8 @@ class PanelOperation(LeafSystem):
     Output port: `position_commanded` (rad; motion "joint_trajectory"), or `planner_task`
     (PlannerTask; motion "planner", needs `planner_frames`). The state (SequencerState) is
     read with GetSequencerState for logs and ground-truth evaluation.
+    Output port `X_WP_estimated`: the panel pose X_WP of the latest valid measurement
+    (identity before the first), e.g. for diagrams/overlays.
     """
 
     def __init__(
@@ -141,6 +143,17 @@ class PanelOperation(LeafSystem):
                 lambda context, value: value.set_value(self.GetSequencerState(context).task),
                 prerequisites_of_calc={state_ticket},
             )
+        self.DeclareAbstractOutputPort(
+            "X_WP_estimated",
+            lambda: AbstractValue.Make(RigidTransform()),
+            self.CalcX_WP_estimated,
+            prerequisites_of_calc={state_ticket},
+        )
+
+    def CalcX_WP_estimated(self, context: Context, value: AbstractValue) -> None:
+        """The panel pose X_WP of the latest valid measurement (identity before one)."""
+        X_WP = self.GetSequencerState(context).X_WP
+        value.set_value(X_WP if X_WP is not None else RigidTransform())
 
     def GetSequencerState(self, context: Context) -> SequencerState:
         return context.get_abstract_state(self._state_index).get_value()
