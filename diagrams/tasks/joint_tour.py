@@ -85,7 +85,8 @@ def TourStart(scenario: JointTourScenario) -> np.ndarray:
 
 def RunJointTour(scenario: JointTourScenario, context: RunContext) -> dict[str, Any]:
     """Simulates the tour and returns tracking metrics (rad)."""
-    trajectory = MakeTourTrajectory(TourStart(scenario), scenario.waypoints, scenario.max_speed)
+    start = TourStart(scenario)
+    trajectory = MakeTourTrajectory(start, scenario.waypoints, scenario.max_speed)
     n = trajectory.rows()
     builder = DiagramBuilder()
     station = builder.AddNamedSystem(
