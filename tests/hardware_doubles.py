@@ -185,7 +185,7 @@ def StopServer(process: subprocess.Popen) -> None:
 
 
 def Mz04dScenario(**fields):
-    """The seed-000 cell (MZ04D, gripper, ToF tool) as a StationScenario."""
+    """The Wawrzyniak et al. cell (MZ04D, gripper, ToF tool) as a StationScenario."""
     from pydrake.multibody.parsing import LoadModelDirectives
 
     from guidedarm.diagrams.station.model_paths import MODELS_DIR

@@ -95,7 +95,7 @@ def CheckPathFollowing(replay: Replay, scenario) -> None:
     points = replay.Paths("/overlays/detected_path/points/")
     assert points, "no detected hose point"
     detected = np.array([replay.Translation(p) for p in points])
-    # The grid estimate is within the seed's 16 mm of the true centerline.
+    # The grid estimate is within the paper's 16 mm of the true centerline.
     assert DistanceToCenterline(detected, ReadCenterline(scenario.path)).max() < 0.016
     assert replay.Paths("/overlays/tool_centre/trail/")
 

@@ -97,7 +97,7 @@ def test_driver_reads_the_emulator_through_a_pty_and_survives_bad_lines():
         expected = np.where(STATUS == 0, 1e-3 * RANGES_MM, 0.1)  # as the simulated sensor
         np.testing.assert_allclose(driver.GetOutputPort("ranges").Eval(context), expected)
         np.testing.assert_array_equal(driver.GetOutputPort("valid").Eval(context), STATUS == 0)
-        # The seed's grid of that reading, as the simulated sensor outputs it.
+        # The paper's grid of that reading, as the simulated sensor outputs it.
         detected, errors = _Grid().Detect(expected, STATUS == 0)
         for port, grid in (("detections", detected), ("detection_errors", errors)):
             np.testing.assert_array_equal(driver.GetOutputPort(port).Eval(context), grid.ravel())

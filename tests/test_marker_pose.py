@@ -1,7 +1,7 @@
-"""MarkerPoseSolver / MarkerPoseEstimator on VTK renders of the switch panel (seed 003).
+"""MarkerPoseSolver / MarkerPoseEstimator on VTK renders of the switch panel.
 
 Accuracy goals of issue 5: distance error <= 1 mm from 200 to 420 mm straight on, rotation
-error <= 1 deg up to 26 deg tilt (the seed's Tables 2 and 3 report up to 5.9 mm and 3.5 deg).
+error <= 1 deg up to 26 deg tilt (the paper's Tables 2 and 3 report up to 5.9 mm and 3.5 deg).
 """
 
 from __future__ import annotations

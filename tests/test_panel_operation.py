@@ -1,4 +1,4 @@
-"""Task `panel_operation` (seed 003, section 2.4; Tables 4-6 in simulation)."""
+"""Task `panel_operation` (Annusewicz-Mistal et al., section 2.4; Tables 4-6 in simulation)."""
 
 from __future__ import annotations
 

@@ -1,4 +1,4 @@
-"""AddPanelOperation and the controller plant of the camera arm (seed 003's public builder)."""
+"""AddPanelOperation and the controller plant of the camera arm (the panel task's builder)."""
 
 from __future__ import annotations
 

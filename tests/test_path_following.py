@@ -1,4 +1,4 @@
-"""The seed's path-following equations (1)-(26), long/short steps, recovery and end."""
+"""The paper's path-following equations (1)-(26), long/short steps, recovery and end."""
 
 import math
 
@@ -99,7 +99,7 @@ def test_lost_then_recovery_then_end():
     result = FollowStep(X_seen, np.zeros(3), True, memory, PARAMS)
     X, memory = result.X_WT_next, result.memory
     O_prime = memory.O_prime.copy()
-    for k in range(PARAMS.lost_limit):  # straight on, O' kept (the seed's S = O case)
+    for k in range(PARAMS.lost_limit):  # straight on, O' kept (the paper's S = O case)
         result = FollowStep(X, None, False, memory, PARAMS)
         np.testing.assert_allclose(result.memory.O_prime, O_prime)
         assert result.memory.lost == k + 1

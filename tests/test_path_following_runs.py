@@ -43,7 +43,7 @@ def test_paper_paths_with_the_seeds_algorithm(station_runs, path):
     assert s["success"], s["failure"]
     assert s["coverage"] >= 0.95
     assert s["collisions"] == 0
-    # The seed's bound. Measured 11.1-15.4 mm with seed 0, 8.9-15.4 mm over noise seeds
+    # The paper's bound. Measured 11.1-15.4 mm with seed 0, 8.9-15.4 mm over noise seeds
     # 0-5 (docs/path_following.md).
     assert s["detected_path_error_max_mm"] <= 16.0
     assert s["tracking_error_max_mm"] <= 25.0
@@ -155,7 +155,7 @@ def test_bad_centerlines_end_with_one_line(tmp_path, capsys, text, message):
 
 @pytest.mark.slow
 def test_moves_through_the_acceleration_level_planner(tmp_path, capsys):
-    """motion: planner (seed 001's law between the follower's steps) on the first 0.35 m of
+    """motion: planner (Pająk's law between the follower's steps) on the first 0.35 m of
     paper_path_1 through the station."""
     from guidedarm.systems.path_following.hose_geometry import ReadCenterline, WriteCenterline
 

@@ -1,4 +1,4 @@
-"""Path-follower moves through seed 001's acceleration-level planner (motion: planner)."""
+"""Path-follower moves through Pająk's acceleration-level planner (motion: planner)."""
 
 import numpy as np
 import pytest

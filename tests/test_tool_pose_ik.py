@@ -1,4 +1,4 @@
-"""Tool pose IK: the seed's constraints hold on solutions, failures are reported, and the
+"""Tool pose IK: the paper's constraints hold on solutions, failures are reported, and the
 ToolPoseIk system answers one request per id."""
 
 import dataclasses

@@ -3,7 +3,7 @@
 `nachi` serves the Nachi User Task line protocol (docs/nachi_protocol.md) for an arm of the
 station on TCP; every ToF tool of the station is streamed as well, each on its own
 pseudo-terminal. `tof` streams the ToF tools only, the arm holding its initial position.
-Without --scenario the station is the seed-000 cell (MZ04D, gripper, ToF tool `tof`).
+Without --scenario the station is the Wawrzyniak et al. cell (MZ04D, gripper, ToF tool `tof`).
 """
 
 from __future__ import annotations
@@ -45,7 +45,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
 
 
 def DefaultCell() -> StationScenario:
-    """The seed-000 cell: MZ04D at home with its gripper and the ToF tool `tof`."""
+    """The Wawrzyniak et al. cell: MZ04D at home with its gripper and the ToF tool `tof`."""
     directives = LoadModelDirectives(str(MODELS_DIR / "directives/mz04d_cell.dmd.yaml"))
     return StationScenario(
         directives=directives.directives,

@@ -1,16 +1,16 @@
 """`guidedarm marker-study distance|tilt|repeatability|press|occlusion [--out DIR]`.
 
-Each study reproduces one table of seed 003 in simulation by running its campaigns
+Each study reproduces one table of Annusewicz-Mistal et al. in simulation by running its campaigns
 (diagrams/campaigns/marker_*.yaml) through the sweep engine, then writes DIR/<study>.csv
 and DIR/<study>.png from the campaigns' results (each campaign's own results.csv,
 campaign.yaml and report.html are in DIR/<campaign>/):
   distance       Table 2: camera distance from the left marker, 200-430 mm, straight on and
-                 with the view angle growing to 24 deg (the seed's second series);
+                 with the view angle growing to 24 deg (the paper's second series);
   tilt           Table 3: rotation about the panel's y axis, 0-26 deg at 300 mm;
   repeatability  Table 4: the base position (170 mm) reached from 16 random starts;
   press          Table 5: the tip position while pressing, 10 runs from random starts;
   occlusion      Table 6: markers covered after the base position, both policies.
-The first two run task marker_view (a free camera: exact ground truth, as the seed's
+The first two run task marker_view (a free camera: exact ground truth, as the paper's
 IRB 1600); the others the whole panel_operation task. --noise, --blur and --lighting
 degrade the images (ImageDegradation, noise seed 1). A rerun into the same DIR runs only
 the jobs not done yet.
@@ -47,7 +47,7 @@ Rows = list[dict[str, Any]]
 
 def register(subparsers: argparse._SubParsersAction) -> None:
     parser = subparsers.add_parser(
-        "marker-study", help="reproduce seed 003's accuracy tables in simulation"
+        "marker-study", help="reproduce Annusewicz-Mistal et al.'s accuracy tables in simulation"
     )
     parser.add_argument("study", choices=STUDIES)
     parser.add_argument("--out", type=Path, help="output directory (default runs/marker_study)")
@@ -260,5 +260,5 @@ def _Plot(context, name, rows, x_column, y_column, x_label, y_label) -> None:
     axes.set_ylabel(y_label)
     axes.grid(True, alpha=0.3)
     axes.legend()
-    axes.set_title(f"seed 003 {name} study (simulation)")
+    axes.set_title(f"Annusewicz-Mistal et al. {name} study (simulation)")
     context.save_figure(figure, name)

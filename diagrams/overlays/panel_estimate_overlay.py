@@ -1,4 +1,4 @@
-"""PanelEstimateOverlay: the gripper camera's view and the panel pose it estimated (seed 003)."""
+"""PanelEstimateOverlay: the gripper camera's view and the panel pose it estimated."""
 
 from __future__ import annotations
 

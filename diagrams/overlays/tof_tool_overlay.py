@@ -1,4 +1,4 @@
-"""ToFToolOverlay: what the six-sensor ToF tool sees, drawn on Meshcat (seed 000)."""
+"""ToFToolOverlay: what the six-sensor ToF tool sees, drawn on Meshcat (Wawrzyniak et al.)."""
 
 from __future__ import annotations
 

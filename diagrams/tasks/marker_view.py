@@ -1,6 +1,8 @@
-"""Task `marker_view`: one view of the marker panel from a free camera (seed 003, Tables 2-3).
+"""Task `marker_view`: one view of the marker panel from a free camera.
 
-The seed's reference rig (an IRB 1600 holding the camera, section 3.2) in simulation:
+The views of Tables 2-3 of Annusewicz-Mistal et al.
+
+The paper's reference rig (an IRB 1600 holding the camera, section 3.2) in simulation:
 PanelCameraRig renders the panel from the camera pose X_PC = LookAt(p_PC, origin of P),
 p_PC = distance_m (sin a, 0, cos a) with a = angle_deg (a turn about the panel's y axis),
 and MarkerPoseSolver estimates X_CP from the image. Ground truth is exact, so the metrics
@@ -89,5 +91,5 @@ TASK = TaskDefinition(
     name="marker_view",
     scenario_type=MarkerViewScenario,
     run=RunMarkerView,
-    description="estimate the marker panel's pose from one free-camera view (seed 003)",
+    description="estimate the marker panel's pose from one free-camera view (markers paper)",
 )

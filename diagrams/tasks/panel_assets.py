@@ -1,4 +1,4 @@
-"""Generates the switch-panel model of seed 003 from models/panel/panel.yaml.
+"""Generates the switch-panel model of Annusewicz-Mistal et al. from models/panel/panel.yaml.
 
 Writes, next to the panel file: one texture per marker (`marker_<id>.png`, drawn by
 cv2.aruco) with a textured square mesh (`marker_<id>.obj` + `.mtl`, map_Kd) that Drake's

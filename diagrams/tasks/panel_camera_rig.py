@@ -5,7 +5,7 @@ colour image that a camera at pose X_PC sees (VTK, the same renderer as the stat
 the ground truth of every image is exact. Images are rendered at `supersampling` times
 the camera's resolution and reduced by DegradeImage (pixel-area integration, then the
 optional lighting, blur and noise), as the simulated camera of the panel task does. The
-arm plays no part here: this is the seed's IRB 1600 reference rig (section 3.2) in
+arm plays no part here: this is the paper's IRB 1600 reference rig (section 3.2) in
 simulation.
 """
 

@@ -1,4 +1,4 @@
-"""Reading the camera file (CAMERA.yaml) and the panel file (PANEL.yaml) of seed 003.
+"""Reading the camera file (CAMERA.yaml) and the panel file (PANEL.yaml) of the marker task.
 
 Both are plain YAML loaded against the dataclasses of
 systems/markers/marker_pose_estimator_math.py; a malformed file, an unknown key or a wrong

@@ -1,4 +1,4 @@
-"""Ground-truth metrics and figures of a path-following run (seed 000, figures 11-21).
+"""Ground-truth metrics and figures of a path-following run (Wawrzyniak et al., figures 11-21).
 
 Errors are distances to the true centerline (m in, mm in the summary). Each step is compared
 with the part of the centerline near its own arc length (CenterlineMatch), so that a closed or
@@ -129,7 +129,7 @@ def Repeatability(first: np.ndarray, second: np.ndarray) -> tuple[float, float]:
 
 
 def PlotDetectedPath(centerline: np.ndarray, runs: dict[str, np.ndarray], title: str):
-    """Four views like the seed's figures 11-21: isometric, front (YZ), side (XZ), top (YX);
+    """Four views like the paper's figures 11-21: isometric, front (YZ), side (XZ), top (YX);
     the true hose in grey, each run's detected path in green shades."""
     import matplotlib.pyplot as plt
 

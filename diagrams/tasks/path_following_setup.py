@@ -317,7 +317,7 @@ def ReachableRandomPath(
     mount: ToolMount,
     q_home: np.ndarray,
 ) -> np.ndarray:
-    """The first random path (frame B) of the seed's sequence that the arm can trace with
+    """The first random path (frame B) of the paper's sequence that the arm can trace with
     the tool on the centerline and along it (IK every 15 mm, no reconfiguration, no
     orientation shortfall): the generator's region is only an annulus in the workspace, the
     arm's reachable set with a downward tool is smaller."""

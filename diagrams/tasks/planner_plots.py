@@ -1,4 +1,4 @@
-"""Figures of the waypoint planner (like seed 001's figures 2-14): TCP path, c(t)."""
+"""Figures of the waypoint planner (like Pająk's figures 2-14): TCP path, c(t)."""
 
 from __future__ import annotations
 

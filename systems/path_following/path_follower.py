@@ -1,9 +1,9 @@
-"""PathFollower: the step loop of the seed's figure 10 as a LeafSystem.
+"""PathFollower: the step loop of the paper's figure 10 as a LeafSystem.
 
 On a periodic tick it runs a small state machine:
   SENSE  the arm is stopped: read the six ranges (params.readings of them, one per
          reading_period, averaged) and the gripper pose, compute the tool
-         pose (23)-(26), estimate the hose point S, and take one step of the seed's
+         pose (23)-(26), estimate the hose point S, and take one step of the paper's
          algorithm (path_following.FollowStep) -> the next gripper pose, a new IK request;
   SOLVE  wait for ToolPoseIk's answer and plan the move; a failure of either while the
          hose is in sight stops the arm and reports the step and why; while lost or

@@ -1,4 +1,4 @@
-"""Mathematics of 3D path following with a ToF tool (seed 000, equations (1)-(26), 3.2).
+"""Mathematics of 3D path following with a ToF tool (Wawrzyniak et al., equations (1)-(26), 3.2).
 
 Frames: world W = robot base; tool T with origin O (position p_WO) at the centre of the
 detection field and x_T the travel direction (the detection plane's normal n); gripper G.
@@ -11,7 +11,7 @@ One step, from the tool pose X_WT (O, R) and the detected hose point S (or none)
   yaw = atan2(w_a,y, w_a,x) (20), pitch = atan(-w_a,z / |w_a,xy|) (21), roll = 0 (22).
 Tool pose from gripper pose: O = O_c + R_c z_hat l_e, R_e = R_c R_ec (23)-(26).
 
-Beyond the seed (its discussion): after lost_limit steps without a detection the tool
+Beyond the paper (its discussion): after lost_limit steps without a detection the tool
 returns to the last pose that saw the hose and retries in a direction turned by
 recovery_angle_deg (yaw +, yaw -, pitch up; a downward retry near the end finds the
 bracket post and follows it); when every retry is lost too, or the hose is lost again
@@ -36,16 +36,16 @@ STEERINGS = ("seed", "centring")
 class FollowerConfig:
     """Parameters of the path follower (m, deg).
 
-    estimator: `grid` (the seed's presence-only 3 x 3 grid) or `ranging` (ranges localise
+    estimator: `grid` (the paper's presence-only 3 x 3 grid) or `ranging` (ranges localise
         the hose between the grid points); empty: `grid` (the path-following task fills in
         its own `estimator`).
     steering: `seed` (w = t + m, w_a = n a + m b) or `centring` (w = n a + m: forward along
         the tool axis plus the full offset, and w_a = n a + (S - S') b: turn toward the
         hose's own direction, S' the previous detected point); empty picks `seed` for the
         grid and `centring` for ranging, whose S is accurate enough to steer on.
-    long_step, short_step: the seed's d for long and short steps.
-    rotation_reduction: the seed's b in (0, 1); 0 picks 0.3 (seed) or 0.5 (centring).
-    readings: sensor readings averaged per step; 0 picks 1 for the grid (the seed reads
+    long_step, short_step: the paper's d for long and short steps.
+    rotation_reduction: the paper's b in (0, 1); 0 picks 0.3 (paper) or 0.5 (centring).
+    readings: sensor readings averaged per step; 0 picks 1 for the grid (the paper reads
         once) and 4 for ranging, whose accuracy is the ranges' noise (2 mm each, halved by
         four readings), where the grid's is its 22 mm spacing.
     reading_period: time between readings (s): the sensors' measurement period, so that
@@ -112,7 +112,7 @@ def Rotation(roll: float, pitch: float, yaw: float) -> np.ndarray:
 @dataclass(frozen=True)
 class ToolMount:
     """The tool frame relative to the gripper: l_e along gripper z, then roll, pitch, yaw
-    (m, rad); the seed's tool: 0.1597 m, (pi, 0, -pi/4)."""
+    (m, rad); the paper's tool: 0.1597 m, (pi, 0, -pi/4)."""
 
     l_e: float
     roll: float
@@ -191,7 +191,7 @@ def FollowStep(
     memory: FollowerMemory,
     params: FollowerConfig,
 ) -> StepResult:
-    """One step of the seed's algorithm (module docstring); S_T is the detected hose point in
+    """One step of the paper's algorithm (module docstring); S_T is the detected hose point in
     the tool frame, centre_only whether it is the centre point alone."""
     p_WO = X_WT.translation()
     R = X_WT.rotation().matrix()
@@ -207,7 +207,7 @@ def FollowStep(
         P_n = p_WO + n * d
     else:
         # Centring trusts m as the hose's true offset: the forward part is the tool axis,
-        # not the last displacement, whose sideways part made the seed's tool wave.
+        # not the last displacement, whose sideways part made the paper's tool wave.
         w = (n * a if params.steering == "centring" else t) + m
         P_n = p_WO + w / np.linalg.norm(w) * d
     if params.steering == "centring" and memory.S_prime is not None:

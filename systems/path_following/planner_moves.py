@@ -1,4 +1,4 @@
-"""Path-follower moves through the acceleration-level planner of seed 001.
+"""Path-follower moves through the acceleration-level planner of Pająk.
 
 Each segment of a move (joint waypoints, as the follower asks for them) becomes one planner
 task: the tool frame's pose at the segment's end joints is the final location, and the

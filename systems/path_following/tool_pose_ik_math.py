@@ -2,10 +2,10 @@
 (section 3.2).
 
 One solve is a Drake InverseKinematics program on the arm's joints, started from the
-previous joint positions (as the seed's Matlab solver was):
+previous joint positions (as the paper's Matlab solver was):
   - the frame's point Q (the tool centre O for the path follower) within
     position_tolerance of where the target pose puts it; the frame's orientation as close
-    to the target as the arm allows (a cost, as the seed's weighted generalised IK), and
+    to the target as the arm allows (a cost, as the paper's weighted generalised IK), and
     never farther than orientation_tolerance_deg; when no solution within that tolerance
     exists without a reconfiguration (near the reach limit, or near a wrist singularity
     where a small turn of the tool needs a large wrist turn that swings the tool), the
@@ -16,7 +16,7 @@ previous joint positions (as the seed's Matlab solver was):
     angle between the new and the current orientation stays below max_step_rotation_deg;
   - a downward tool: the frame's `down_axis` stays within max_tilt_deg of world -z;
   - the origin of every body the arm moves stays inside the workspace, the cell's virtual
-    walls as a box in the arm's base frame B (the seed's controller walls and IK bounds);
+    walls as a box in the arm's base frame B (the paper's controller walls and IK bounds);
   - joint limits (InverseKinematics' bounds);
   - the joint-space move from the previous q keeps the frame within max_swing of the
     straight line between its two poses: a solution on another branch (a wrist or elbow

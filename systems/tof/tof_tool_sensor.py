@@ -75,7 +75,7 @@ class ToFToolSensor(LeafSystem):
     """Ranges of six ToF sensors from the `query_object` input (SceneGraph's QueryObject).
 
     Output `ranges` (6, m; max_range where there is no return) and `valid` (6, 0 or 1), and
-    the seed's 3 x 3 grid of that reading: `detections` and `detection_errors` (9 each,
+    the paper's 3 x 3 grid of that reading: `detections` and `detection_errors` (9 each,
     0 or 1, row-major: row sensor i = 1..3, column sensor j = 4..6; tof_sensing).
     The noise of a reading at time t comes from np.random.default_rng((seed, floor(t /
     period))), so a run is reproducible and `seed` changes it. Geometry of the tool's own

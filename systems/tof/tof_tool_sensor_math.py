@@ -1,4 +1,4 @@
-"""Mathematics of the six-sensor ToF detection tool (seed 000, sections 2.2 and 3.1).
+"""Mathematics of the six-sensor ToF detection tool (Wawrzyniak et al., sections 2.2 and 3.1).
 
 Ray casting. Each VL6180X-like sensor S sees a cone (25 deg vertex angle) around its +z
 axis. The cone is sampled by rays (a centre ray and rings of rays); the sensor reports the
@@ -20,8 +20,8 @@ seen far beyond the field, or the hose seen at another point of the same line, o
 lies off the 4-connected patch of consistent points around the best-fitting one (the
 flanks of a centred hose seen by the outer cones; see _PatchOfBestFit).
 
-Estimators of the hose centre S in the tool frame T (the seed's S, eq. (8)):
-  grid      the mean of the detected, error-free grid points (presence only, the seed).
+Estimators of the hose centre S in the tool frame T (the paper's S, eq. (8)):
+  grid      the mean of the detected, error-free grid points (presence only, the paper).
   ranging   refines the grid: among the sensors of the error-free detected points, the
             nearest row sensor and the nearest column sensor trilaterate the hose centre
             (it lies at range + r from each emitter, in the detection plane, T's y-z
@@ -209,8 +209,8 @@ class DetectionGrid:
         return detected, detected & ~_PatchOfBestFit(consistent, misfit)
 
     def GridEstimate(self, ranges: np.ndarray, valid: np.ndarray) -> tuple[np.ndarray | None, bool]:
-        """The seed's S in T (mean of the error-free detected points) or None; and whether
-        the centre point is the only one (the seed's short-step condition)."""
+        """The paper's S in T (mean of the error-free detected points) or None; and whether
+        the centre point is the only one (the paper's short-step condition)."""
         detected, errors = self.Detect(ranges, valid)
         good = detected & ~errors
         if not good.any():

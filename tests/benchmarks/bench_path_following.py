@@ -63,4 +63,4 @@ if __name__ == "__main__":
             f"{r['wall_s']:.1f} s wall (real-time factor {r['sim_s'] / r['wall_s']:.1f}); "
             f"IK median {r['ik_median_ms']:.1f} ms, p99 {r['ik_p99_ms']:.1f} ms"
         )
-    print("IK goal: median <= 10 ms, p99 <= 100 ms per step (the seed: 250 ms mean in Matlab)")
+    print("IK goal: median <= 10 ms, p99 <= 100 ms per step (the paper: 250 ms mean in Matlab)")
