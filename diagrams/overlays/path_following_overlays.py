@@ -82,7 +82,7 @@ def AddPathFollowingOverlays(
         "tool_centre_overlay", FrameTrailOverlay(meshcat, TOOL_CENTRE_PATH, poses, tool, TOOL_RGBA)
     )
     builder.Connect(q_measured, centre.get_input_port())
-    if station.HasSubsystemNamed("scene_graph"):
+    if station.HasSubsystemNamed("plant"):  # the simulated station draws the true hose
         hose = HoseIllustrationPaths(station)
         builder.AddNamedSystem("see_through_hose", SeeThroughGeometry(meshcat, hose))
     if scenario.hose is not None:
