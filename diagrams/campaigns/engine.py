@@ -67,6 +67,9 @@ def OpenClient(workers: int | None, scheduler: str | None) -> Iterator[Client]:
             host="127.0.0.1",
             dashboard_address=None,
             worker_dashboard_address=None,
+            # The scheduler's HTTP endpoints (health, metrics; no dashboard) on a free
+            # loopback port rather than 8787, which another cluster may hold.
+            scheduler_kwargs={"dashboard": False, "dashboard_address": "127.0.0.1:0"},
             silence_logs=logging.ERROR,
         ) as cluster,
         Client(cluster) as client,
