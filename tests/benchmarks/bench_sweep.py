@@ -7,7 +7,7 @@ engine's cost per job <= 5 % of a 5 s job.
 Speed-up: 16 ur10e_joint_tour jobs (max_speed 1.5-3.0 rad/s, about 1 s each) on an
 embedded cluster of 1, then 2 worker processes; the workers are warmed up first (pydrake
 imported, one job run), so the figure is the jobs' phase, cluster start-up excluded (it is
-printed apart). Overhead: 4 jobs of about 5 s (max_speed 0.3 rad/s) run one after the other
+printed apart). Overhead: 4 jobs of about 5 s (max_speed 0.1 rad/s) run one after the other
 in this process with worker.RunJob (the job alone), then on a 1-worker cluster; the
 difference per job is the engine's cost (submission, scheduling, results, the CSV row).
 The overhead is split into the engine's own cost (campaign time per job minus the job's
@@ -103,7 +103,7 @@ def main(repeats: int = 2) -> None:
     print(f"load average before: {Load()}")
     warm_up = Jobs({"max_speed": [3.5]})[0]
     short = Jobs({"max_speed": np.round(np.linspace(1.5, 3.0, 16), 3).tolist()})
-    long = Jobs({"max_speed": [0.3], "settle_time": [0.50, 0.51, 0.52, 0.53]})
+    long = Jobs({"max_speed": [0.1], "settle_time": [0.50, 0.51, 0.52, 0.53]})
     one, two, control, alone, campaign, in_worker = [], [], [], [], [], []
     alone_cpu, campaign_cpu, busy = [], [], []
     RunJob(warm_up)
