@@ -30,6 +30,16 @@ from guidedarm.systems.errors import ConfigurationError
 
 # How often a job may be on a worker that dies before the job counts as lost.
 ALLOWED_FAILURES = 2
+# The embedded cluster's settings. Jobs are seconds long and single-threaded: Dask's
+# statistical profiler (a stack sample of the job's thread every 10 ms, under the GIL) and
+# its 20-100 ms monitors cost the jobs several per cent for figures nobody looks at here.
+EMBEDDED_CONFIG = {
+    "distributed.scheduler.allowed-failures": ALLOWED_FAILURES,
+    "distributed.worker.profile.enabled": False,
+    "distributed.admin.tick.interval": "1s",
+    "distributed.admin.system-monitor.interval": "2s",
+    "distributed.worker.memory.monitor-interval": "1s",
+}
 CONNECT_TIMEOUT_S = 10.0
 
 
@@ -49,7 +59,7 @@ def OpenClient(workers: int | None, scheduler: str | None) -> Iterator[Client]:
             yield client
         return
     with (
-        dask.config.set({"distributed.scheduler.allowed-failures": ALLOWED_FAILURES}),
+        dask.config.set(EMBEDDED_CONFIG),
         LocalCluster(
             n_workers=workers,
             threads_per_worker=1,
@@ -57,6 +67,9 @@ def OpenClient(workers: int | None, scheduler: str | None) -> Iterator[Client]:
             host="127.0.0.1",
             dashboard_address=None,
             worker_dashboard_address=None,
+            # The scheduler's HTTP endpoints (health, metrics; no dashboard) on a free
+            # loopback port rather than 8787, which another cluster may hold.
+            scheduler_kwargs={"dashboard": False, "dashboard_address": "127.0.0.1:0"},
             silence_logs=logging.ERROR,
         ) as cluster,
         Client(cluster) as client,
