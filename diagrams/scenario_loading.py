@@ -104,9 +104,20 @@ def read_raw_scenario(path: Path) -> dict[str, Any]:
     return raw
 
 
+# Keys a scenario no longer has, and what replaced them: a scenario has one `random_seed`
+# from which every component draws its own stream (ToF noise, start pose, image noise).
+REPLACED_KEYS = {
+    "seed": "random_seed",
+    "repeat_seed": "repeat_random_seed",
+    "start.seed": "random_seed",
+    "degradation.seed": "random_seed",
+}
+
+
 def load_typed(schema: type[T], raw: dict[str, Any], source: str) -> T:
     """Loads `raw` into the dataclass `schema` and checks it (CheckConfig), naming the
     offending key on failure."""
+    _refuse_replaced_keys(schema, raw, source)
     _check_node(schema, raw, "", source)
     try:
         typed = yaml_load_typed(schema=schema, data=yaml_dump(raw))
@@ -117,6 +128,25 @@ def load_typed(schema: type[T], raw: dict[str, Any], source: str) -> T:
     except ConfigurationError as e:
         raise ScenarioError(f"{source}: {e}") from None
     return typed
+
+
+def _refuse_replaced_keys(schema: Any, raw: dict[str, Any], source: str) -> None:
+    """A key of REPLACED_KEYS is refused naming its replacement (for task scenarios, which
+    have a `random_seed`)."""
+    if not (dataclasses.is_dataclass(schema) and "random_seed" in schema.__dataclass_fields__):
+        return
+    for dotted, replacement in REPLACED_KEYS.items():
+        node: Any = raw
+        for part in dotted.split("."):
+            node = node.get(part, _MISSING) if isinstance(node, dict) else _MISSING
+        if node is not _MISSING:
+            raise ScenarioError(
+                f"{source}: key '{dotted}' was replaced by '{replacement}' (one random seed per "
+                "scenario; every component draws its own stream from it)"
+            )
+
+
+_MISSING = object()
 
 
 def _check_node(schema: Any, value: Any, key: str, source: str) -> None:

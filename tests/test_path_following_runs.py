@@ -176,7 +176,10 @@ def test_moves_through_the_acceleration_level_planner(tmp_path, capsys):
         ("max_joint_acceleration=0", "key 'max_joint_acceleration': must be > 0"),
         ("station.tof_tools.tof.cone_angle_deg=0", "cone_angle_deg': must be in (0, 180)"),
         ("follower.estimator=ranging", "conflicts with the top-level key 'estimator' ('grid')"),
-        ("station.tof_tools.tof.seed=3", "tof.seed (3) conflicts with the top-level key 'seed'"),
+        (
+            "station.tof_tools.tof.seed=3",
+            "tof.seed (3) conflicts with the scenario's 'random_seed'",
+        ),
         ("station.hose.frame=world", "station.hose.frame 'world' conflicts with base_frame"),
         ("station.hose.centerline=paper_path_2", "conflicts with the task's hose"),
         ("workspace.z=[0.2, 0.1]", "key 'workspace': z must be [lower, upper] with lower <"),
@@ -218,7 +221,7 @@ def test_values_the_task_derives_are_taken_when_they_agree(tmp_path):
     _, scenario, _ = LoadScenario(
         "path_following",
         [
-            "seed=2",
+            "random_seed=2",
             "station.tof_tools.tof.seed=2",
             "station.tof_tools.tof.target_radius=0.012",
             "station.hose.centerline=paper_path_1",

@@ -17,7 +17,7 @@ random:                          # `count` seeded draws (crossed with grid and z
     some.key: {uniform: [low, high]}     # low, high: numbers, or nested lists of one shape
     other.key: {integers: [low, high]}   # high excluded
     third.key: {choice: [a, b, c]}
-repeat: {key: seed, count: 4, start: 0}  # key = start, start + 1, ... (crossed with the rest)
+repeat: {key: random_seed, count: 4, start: 0}  # key = start, start + 1, ... (crossed)
 metrics: [coverage, press_error_mm.x]    # dotted keys of the summary; default: every scalar
 ```
 

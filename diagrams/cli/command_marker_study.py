@@ -149,7 +149,7 @@ def RepeatabilityTable(context: RunContext, runs: Rows) -> dict:
         start, distance, error = _Values(
             r, "measurements.0.distance_mm", "base_camera_distance_mm", "base_position_error_mm"
         )
-        rows.append([r["start.seed"], start, distance, abs(distance - 170.0), error])
+        rows.append([r["random_seed"], start, distance, abs(distance - 170.0), error])
     context.write_csv(
         "repeatability",
         [
@@ -173,7 +173,7 @@ def PressTable(context: RunContext, runs: Rows) -> dict:
     """Table 5: tip position while pressing vs target (world frame), 10 random starts."""
     columns = ["press_tip_W_mm.0", "press_tip_W_mm.1", "press_tip_W_mm.2"]
     columns += ["press_error_mm.x", "press_error_mm.y", "press_error_mm.z"]
-    rows = [[r["start.seed"], r["switch_pressed"], *_Values(r, *columns)] for r in runs]
+    rows = [[r["random_seed"], r["switch_pressed"], *_Values(r, *columns)] for r in runs]
     context.write_csv(
         "press",
         [
@@ -199,7 +199,7 @@ def PressTable(context: RunContext, runs: Rows) -> dict:
 def OcclusionTable(context: RunContext, runs: Rows) -> dict:
     """Table 6: markers covered after the base point, with each on_marker_loss policy."""
     rows = [
-        [r["operation.on_marker_loss"], r["start.seed"], r["success"], r["switch_pressed"]]
+        [r["operation.on_marker_loss"], r["random_seed"], r["success"], r["switch_pressed"]]
         + _Values(r, "press_error_mm.x", "press_error_mm.y", "press_error_mm.z")
         + [r["failure"] or ""]
         for r in runs

@@ -14,6 +14,7 @@ are the estimator's errors:
 A view without a valid pose is a failed run (RunFailedError).
 """
 
+import dataclasses
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -39,7 +40,9 @@ class MarkerViewScenario:
     angle_deg: the view's turn about P's y axis (deg).
     camera: its CameraConfig (pose fields unused).
     supersampling: the camera is rendered at this many times its resolution.
-    degradation: lighting, blur, noise (its supersampling is the top-level one).
+    degradation: lighting, blur, noise (its supersampling is the top-level one, its noise
+        seed the scenario's random_seed).
+    random_seed: the scenario's random seed (the image noise).
     """
 
     task: str = "marker_view"
@@ -48,6 +51,7 @@ class MarkerViewScenario:
     camera: CameraConfig = field(default_factory=CameraConfig)
     supersampling: int = Positive(3)
     degradation: DegradationConfig = field(default_factory=DegradationConfig)
+    random_seed: int = 0
 
 
 def RunMarkerView(scenario: MarkerViewScenario, context: RunContext) -> dict[str, Any]:
@@ -57,7 +61,7 @@ def RunMarkerView(scenario: MarkerViewScenario, context: RunContext) -> dict[str
     a = np.radians(scenario.angle_deg)
     d = scenario.distance_m
     X_PC = LookAt(d * np.array([np.sin(a), 0.0, np.cos(a)]), [0.0, 0.0, 0.0])
-    image = rig.Render(X_PC, scenario.degradation)
+    image = rig.Render(X_PC, dataclasses.replace(scenario.degradation, seed=scenario.random_seed))
     path = context.out_dir / "view.png"
     cv2.imwrite(str(path), cv2.cvtColor(image, cv2.COLOR_RGBA2BGR))
     context.written.append(path)

@@ -81,15 +81,14 @@ from guidedarm.systems.plant_frames import GetScopedFrame
 class StartConfig:
     """The start: explicit joints, or a random camera pose in front of the panel.
 
-    position: explicit start joints (rad); empty draws a camera pose with `seed`.
-    seed: seed of the random start pose.
+    position: explicit start joints (rad); empty draws a camera pose from the scenario's
+        random_seed.
     distance_m: [min, max] camera distance to the aim point (m).
     max_tilt_deg: largest angle of the camera's axis from the panel normal (deg).
     aim_offset_m: the aim point lies within this of the markers' middle (m).
     """
 
     position: list[float] = field(default_factory=list)
-    seed: int = 0
     distance_m: list[float] = Positive(factory=lambda: [0.30, 0.40])
     max_tilt_deg: float = InRange(0.0, 90.0, 30.0, high_open=True)
     aim_offset_m: float = NonNegative(0.02)
@@ -135,7 +134,10 @@ class PanelOperationScenario:
     panel_model: the panel's model instance in the directives.
     supersampling: the camera renders this many times its resolution, and
         ImageDegradation averages it back (degradation.supersampling must stay 1).
-    degradation: lighting, blur and noise of the camera image.
+    degradation: lighting, blur and noise of the camera image (its noise seed is the
+        scenario's random_seed).
+    random_seed: the scenario's random seed: the start pose and the image noise each draw
+        their own stream from it.
     start: where the arm starts.
     cover_markers_after_base: slide a cover over the markers once the base measurement is
         taken (the paper's Table 6 case).
@@ -154,6 +156,7 @@ class PanelOperationScenario:
     panel_model: str = "panel"
     supersampling: int = Positive(3)
     degradation: DegradationConfig = field(default_factory=DegradationConfig)
+    random_seed: int = 0
     start: StartConfig = field(default_factory=StartConfig)
     cover_markers_after_base: bool = False
     operation: PanelOperationConfig = field(default_factory=PanelOperationConfig)
@@ -200,7 +203,9 @@ class PanelOperationRun:
             camera=scenario.camera,
             tip_frame=scenario.tip_frame,
             operation=scenario.operation,
-            degradation=dataclasses.replace(scenario.degradation, supersampling=k),
+            degradation=dataclasses.replace(
+                scenario.degradation, supersampling=k, seed=scenario.random_seed
+            ),
             planner=planner,
         )
         self.sequencer = systems.sequencer
@@ -357,7 +362,11 @@ def RunPanelOperation(scenario: PanelOperationScenario, context: RunContext) -> 
         )
     run = PanelOperationRun(scenario, context)
     start = scenario.start
-    q_start = np.asarray(start.position, float) if start.position else run.SampleStart(start.seed)
+    q_start = (
+        np.asarray(start.position, float)
+        if start.position
+        else run.SampleStart(scenario.random_seed)
+    )
     return run.Run(q_start)
 
 

@@ -41,8 +41,9 @@ class PathFollowingScenario:
     the arm stay in; unset: the hose's own (models/hoses/NAME.yaml, or a NAME.yaml beside
     the CSV), else the paper's cell (x, y in [-0.55, 0.55], z >= 0.005);
     random_path: the region and shape of random paths (inside the workspace);
-    estimator: `grid` (the paper's) or `ranging`; seed: ToF noise seed; repeat_seed: when
-    set, a second run with this noise seed is overlaid (repeatability); executor: `station`
+    estimator: `grid` (the paper's) or `ranging`; random_seed: the scenario's random seed
+    (the ToF noise); repeat_random_seed: when set, a second run with this random seed is
+    overlaid (repeatability); executor: `station`
     or `kinematic`; motion: how the station moves between steps, `joint_trajectory`
     (rest-to-rest joint moves at tool_speed) or `planner` (Pajak et al.'s acceleration-level
     planner with the `planner` parameters; both within max_joint_speed and
@@ -59,8 +60,8 @@ class PathFollowingScenario:
     workspace: WorkspaceConfig | None = None
     random_path: RandomPathConfig = field(default_factory=RandomPathConfig)
     estimator: str = "grid"
-    seed: int = 0
-    repeat_seed: int | None = None
+    random_seed: int = 0
+    repeat_random_seed: int | None = None
     executor: str = "station"
     tool_speed: float = Positive(0.05)
     max_joint_speed: float = Positive(1.0)
@@ -79,21 +80,23 @@ class PathFollowingScenario:
     station: StationScenario = field(default_factory=StationScenario)
 
 
-def Run(scenario: PathFollowingScenario, context: RunContext, seed: int) -> tuple[Execution, Setup]:
-    """One run with ToF noise seed `seed`."""
-    setup = MakeSetup(dataclasses.replace(scenario, seed=seed), context.out_dir)
+def Run(
+    scenario: PathFollowingScenario, context: RunContext, random_seed: int
+) -> tuple[Execution, Setup]:
+    """One run with the scenario's random seed replaced by `random_seed`."""
+    setup = MakeSetup(dataclasses.replace(scenario, random_seed=random_seed), context.out_dir)
     return Execute(setup, scenario.executor, context), setup
 
 
 def RunPathFollowing(scenario: PathFollowingScenario, context: RunContext) -> dict[str, Any]:
-    """Runs the follower (twice with repeat_seed) and returns the summary metrics."""
+    """Runs the follower (twice with repeat_random_seed) and returns the summary metrics."""
     if scenario.executor == "kinematic" and context.hardware:
         raise ConfigurationError(
             "executor=kinematic cannot run with --hardware: it poses a model and drives no "
             "arm (use executor=station)"
         )
-    repeat_seed = scenario.repeat_seed
-    execution, setup = Run(scenario, context, scenario.seed)
+    repeat_seed = scenario.repeat_random_seed
+    execution, setup = Run(scenario, context, scenario.random_seed)
     centerline = setup.centerline
     metrics = Metrics(execution.records, centerline)
     failure = execution.failure
@@ -104,7 +107,7 @@ def RunPathFollowing(scenario: PathFollowingScenario, context: RunContext) -> di
             f"hose lost after step {metrics['steps'] - 1}: coverage "
             f"{metrics['coverage']:.2f} < {scenario.min_coverage}"
         )
-    runs = {f"detected (seed {scenario.seed})": DetectedPath(execution.records)}
+    runs = {f"detected (random_seed {scenario.random_seed})": DetectedPath(execution.records)}
     summary = {
         "success": failure is None,
         **metrics,
@@ -117,7 +120,7 @@ def RunPathFollowing(scenario: PathFollowingScenario, context: RunContext) -> di
     context.headline = summary  # the figures below print its headline figures
     if repeat_seed is not None:
         second, _ = Run(scenario, context, repeat_seed)
-        runs[f"detected (seed {repeat_seed})"] = DetectedPath(second.records)
+        runs[f"detected (random_seed {repeat_seed})"] = DetectedPath(second.records)
         first_path, second_path = runs.values()
         mean, worst = Repeatability(first_path, second_path)
         summary["repeatability_mean_mm"], summary["repeatability_max_mm"] = mean, worst

@@ -167,22 +167,22 @@ def _CheckScenario(scenario: PathFollowingScenario) -> None:
 
 
 def _ResolveToF(scenario: PathFollowingScenario, station: StationScenario) -> None:
-    """Fills in the ToF tool's noise seed (`seed`) and target radius (the hose's), or
-    refuses a seed set in the station that differs."""
+    """Fills in the ToF tool's noise seed (the scenario's `random_seed`) and target radius
+    (the hose's), or refuses a seed set in the station that differs."""
     tof = station.tof_tools[scenario.tof]
     key = f"station.tof_tools.{scenario.tof}.seed"
-    if tof.seed is not None and tof.seed != scenario.seed:
+    if tof.seed is not None and tof.seed != scenario.random_seed:
         raise ConfigurationError(
-            f"{key} ({tof.seed}) conflicts with the top-level key 'seed' ({scenario.seed}), "
-            "the noise seed of path following: set that only"
+            f"{key} ({tof.seed}) conflicts with the scenario's 'random_seed' "
+            f"({scenario.random_seed}): set that only"
         )
-    if tof.seed is not None and scenario.repeat_seed not in (None, tof.seed):
+    if tof.seed is not None and scenario.repeat_random_seed not in (None, tof.seed):
         raise ConfigurationError(
-            f"{key} fixes the noise of both runs, repeat_seed ({scenario.repeat_seed}) needs "
-            "another: set the top-level key 'seed' only"
+            f"{key} fixes the noise of both runs, repeat_random_seed "
+            f"({scenario.repeat_random_seed}) needs another: set 'random_seed' only"
         )
     station.hose = station.hose or HoseConfig()
-    tof.seed = scenario.seed
+    tof.seed = scenario.random_seed
     tof.target_radius = tof.target_radius or station.hose.diameter / 2
     tof.Validate()
 
