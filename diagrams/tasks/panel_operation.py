@@ -31,17 +31,15 @@ from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
-from pydrake.math import RigidTransform, RollPitchYaw
-from pydrake.multibody.parsing import LoadModelDirectives, ProcessModelDirectives
+from pydrake.math import RigidTransform
 from pydrake.multibody.plant import MultibodyPlant
-from pydrake.multibody.tree import FixedOffsetFrame
 from pydrake.systems.analysis import ApplySimulatorConfig, Simulator
 from pydrake.systems.framework import DiagramBuilder
 from pydrake.systems.primitives import VectorLogSink
 
 from guidedarm.diagrams.plots import PlotJointSeries
 from guidedarm.diagrams.run_context import RunContext
-from guidedarm.diagrams.station.model_paths import MODELS_DIR, MakeParser
+from guidedarm.diagrams.station.model_paths import MODELS_DIR
 from guidedarm.diagrams.station.scenario import StationScenario
 from guidedarm.diagrams.station.station import MakeStation
 from guidedarm.diagrams.tasks.panel_assets import COVER_CLOSED_M
@@ -51,8 +49,11 @@ from guidedarm.diagrams.tasks.panel_files import (
     LoadPanelSpec,
     SupersampledCameraConfig,
 )
+from guidedarm.diagrams.tasks.planner_builder import (
+    MakeAccelerationPlanner,
+    MakeControllerPlant,
+)
 from guidedarm.diagrams.tasks.registry import TaskDefinition
-from guidedarm.diagrams.tasks.waypoints import SymmetricLimit
 from guidedarm.systems.errors import ConfigurationError
 from guidedarm.systems.markers.image_degradation import DegradationConfig, ImageDegradation
 from guidedarm.systems.markers.marker_pose_estimator import MarkerPoseEstimator
@@ -63,13 +64,8 @@ from guidedarm.systems.markers.panel_operation import (
     PanelOperationConfig,
     PlannerFrames,
 )
-from guidedarm.systems.planning import acceleration_planner_math as planning_law
 from guidedarm.systems.planning.acceleration_planner import AccelerationPlanner
-from guidedarm.systems.planning.acceleration_planner_math import (
-    AccelerationPlanning,
-    PlannerConfig,
-    PlanningError,
-)
+from guidedarm.systems.planning.acceleration_planner_math import PlannerConfig, PlanningError
 from guidedarm.systems.plant_frames import GetScopedFrame
 
 
@@ -88,15 +84,13 @@ class StartConfig:
 
 @dataclass
 class PanelPlannerConfig:
-    """The acceleration-level planner of operation.motion "planner". base_frame: its base B
-    (scoped frame name); its TCP N is the scenario's tip frame rotated by tcp_rpy_deg
-    (roll, pitch, yaw in deg), which only changes how orientations are expressed (keep the
-    Z-Y-X pitch of the targets away from +-90 deg). max_joint_velocity,
-    max_joint_acceleration: symmetric limits, one value or one per joint (rad/s, rad/s^2).
-    parameters: the law's gains and settings."""
+    """The acceleration-level planner of operation.motion "planner" (MakeAccelerationPlanner).
+    base_frame: its base B (scoped frame name); its TCP is the scenario's tip frame.
+    max_joint_velocity, max_joint_acceleration: symmetric limits, one value or one per joint
+    (rad/s, rad/s^2). parameters: the law's gains and settings (robust mode by default: the
+    tip facing the panel is at the Z-Y-X Euler singularity, which the seed's law cannot pass)."""
 
     base_frame: str = ""
-    tcp_rpy_deg: list[float] = field(default_factory=lambda: [0.0, 0.0, 0.0])
     max_joint_velocity: list[float] = field(default_factory=lambda: [0.5])
     max_joint_acceleration: list[float] = field(default_factory=lambda: [1.5])
     parameters: PlannerConfig = field(default_factory=PlannerConfig)
@@ -107,15 +101,14 @@ class PanelOperationScenario:
     """switch: 1-based index into the panel file's switches. camera: the key of
     station.cameras on the arm (1920 x 1080 C920 by default), rendered at `supersampling`
     times its resolution. panel_file: PANEL.yaml relative to models/; panel_model: its
-    model instance in the directives. arm_directives: the arm as its controller knows it
-    (kinematics for IK), without the panel. time_limit_s: simulated time allowed."""
+    model instance in the directives. time_limit_s: simulated time allowed. The controller's
+    plant (IK, planner) is MakeControllerPlant of the station: the arm and its gripper."""
 
     task: str = "panel_operation"
     arm: str = "rover_arm"
     switch: int = 2
     camera: str = "camera"
     tip_frame: str = "rover_gripper::gripper_tip"
-    arm_directives: str = "package://guidedarm/directives/rover_arm.dmd.yaml"
     panel_file: str = "panel/panel.yaml"
     panel_model: str = "panel"
     supersampling: int = 3
@@ -372,64 +365,31 @@ def _replace_camera(station: StationScenario, name: str, camera, k: int) -> Stat
     return StationScenario(**{**station.__dict__, "cameras": cameras})
 
 
-def _LoadArmPlant(scenario: PanelOperationScenario) -> MultibodyPlant:
-    """The arm as its controller knows it (not finalized)."""
-    plant = MultibodyPlant(0.0)
-    try:
-        directives = LoadModelDirectives(
-            MakeParser(plant).package_map().ResolveUrl(scenario.arm_directives)
-        )
-        ProcessModelDirectives(directives, MakeParser(plant))
-    except Exception as e:
-        raise ConfigurationError(f"arm_directives: {str(e).splitlines()[0]}") from None
-    return plant
-
-
 def _MakePlanner(scenario: PanelOperationScenario) -> tuple[AccelerationPlanner, PlannerFrames]:
-    """The task-driven AccelerationPlanner on its own copy of the arm, and its frames."""
+    """The task-driven AccelerationPlanner on the arm's controller plant, and its frames."""
     config = scenario.planner
-    plant = _LoadArmPlant(scenario)
-    tip = GetScopedFrame(plant, scenario.tip_frame, "tip_frame")
-    if len(config.tcp_rpy_deg) != 3:
-        raise ConfigurationError(f"planner.tcp_rpy_deg needs 3 angles, got {config.tcp_rpy_deg}")
-    X_TN = RigidTransform(RollPitchYaw(np.radians(config.tcp_rpy_deg)), np.zeros(3))
-    tcp = plant.AddFrame(FixedOffsetFrame("planner_tcp", tip, X_TN))
-    plant.Finalize()
-    base = GetScopedFrame(plant, config.base_frame, "planner.base_frame")
-    if not plant.HasModelInstanceNamed(scenario.arm):
-        raise ConfigurationError(f"arm '{scenario.arm}' is not in {scenario.arm_directives}")
-    kinematics = planning_law.ArmKinematics(
-        plant,
-        plant.GetModelInstanceByName(scenario.arm),
-        base,
-        tcp,
-        config.parameters.min_singular_value,
-    )
-    velocity = SymmetricLimit(config.max_joint_velocity, "planner.max_joint_velocity")
-    acceleration = SymmetricLimit(config.max_joint_acceleration, "planner.max_joint_acceleration")
-    q_default = plant.GetPositions(plant.CreateDefaultContext())
-    # The waypoint given here is never used: the planner idles until the first task.
-    planning = AccelerationPlanning(
-        kinematics,
-        kinematics.Position(q_default)[np.newaxis],
+    planner = MakeAccelerationPlanner(
+        scenario.station,
+        scenario.arm,
+        config.base_frame,
+        scenario.tip_frame,
+        None,
         config.parameters,
-        (-velocity, velocity),
-        (-acceleration, acceleration),
+        config.max_joint_velocity,
+        config.max_joint_acceleration,
     )
-    X_WB = base.CalcPoseInWorld(plant.CreateDefaultContext())
-    return AccelerationPlanner(planning, accept_tasks=True), PlannerFrames(X_WB, X_TN)
+    kinematics = planner.planning.kinematics
+    X_WB = kinematics.base_frame.CalcPoseInWorld(kinematics.plant.CreateDefaultContext())
+    return planner, PlannerFrames(X_WB, RigidTransform())
 
 
 def _MakeArmKinematics(scenario: PanelOperationScenario) -> CameraArmKinematics:
-    plant = _LoadArmPlant(scenario)
-    plant.Finalize()
     camera = scenario.station.cameras[scenario.camera].X_PB.base_frame or ""
-    frames = []
-    for scoped in (camera, scenario.tip_frame):
-        instance, _, name = scoped.rpartition("::")
-        if not instance or not plant.HasModelInstanceNamed(instance):
-            raise ConfigurationError(f"frame '{scoped}' is not in {scenario.arm_directives}")
-        frames.append(plant.GetFrameByName(name, plant.GetModelInstanceByName(instance)))
+    plant = MakeControllerPlant(scenario.station, scenario.arm, [camera, scenario.tip_frame])
+    frames = [
+        GetScopedFrame(plant, camera, f"cameras.{scenario.camera}.X_PB.base_frame"),
+        GetScopedFrame(plant, scenario.tip_frame, "tip_frame"),
+    ]
     return CameraArmKinematics(plant, *frames)
 
 

@@ -14,7 +14,7 @@ from pydrake.multibody.inverse_kinematics import InverseKinematics
 from pydrake.solvers import Solve
 
 from guidedarm.systems.errors import ConfigurationError
-from guidedarm.systems.planning.acceleration_planner_math import ArmKinematics
+from guidedarm.systems.planning.acceleration_planner_kinematics import ArmKinematics
 
 
 def WaypointPose(p: np.ndarray) -> RigidTransform:
