@@ -32,6 +32,7 @@ from typing import Any
 
 import numpy as np
 from pydrake.math import RigidTransform
+from pydrake.multibody.parsing import LoadModelDirectives, ProcessModelDirectives
 from pydrake.multibody.plant import MultibodyPlant
 from pydrake.systems.analysis import ApplySimulatorConfig, Simulator
 from pydrake.systems.framework import DiagramBuilder
@@ -39,7 +40,7 @@ from pydrake.systems.primitives import VectorLogSink
 
 from guidedarm.diagrams.plots import PlotJointSeries
 from guidedarm.diagrams.run_context import RunContext
-from guidedarm.diagrams.station.model_paths import MODELS_DIR
+from guidedarm.diagrams.station.model_paths import MODELS_DIR, MakeParser
 from guidedarm.diagrams.station.scenario import StationScenario
 from guidedarm.diagrams.station.station import MakeStation
 from guidedarm.diagrams.tasks.panel_assets import COVER_CLOSED_M
@@ -49,10 +50,7 @@ from guidedarm.diagrams.tasks.panel_files import (
     LoadPanelSpec,
     SupersampledCameraConfig,
 )
-from guidedarm.diagrams.tasks.planner_builder import (
-    MakeAccelerationPlanner,
-    MakeControllerPlant,
-)
+from guidedarm.diagrams.tasks.planner_builder import MakeAccelerationPlanner
 from guidedarm.diagrams.tasks.registry import TaskDefinition
 from guidedarm.systems.errors import ConfigurationError
 from guidedarm.systems.markers.image_degradation import DegradationConfig, ImageDegradation
@@ -66,7 +64,6 @@ from guidedarm.systems.markers.panel_operation import (
 )
 from guidedarm.systems.planning.acceleration_planner import AccelerationPlanner
 from guidedarm.systems.planning.acceleration_planner_math import PlannerConfig, PlanningError
-from guidedarm.systems.plant_frames import GetScopedFrame
 
 
 @dataclass
@@ -84,11 +81,12 @@ class StartConfig:
 
 @dataclass
 class PanelPlannerConfig:
-    """The acceleration-level planner of operation.motion "planner" (MakeAccelerationPlanner).
-    base_frame: its base B (scoped frame name); its TCP is the scenario's tip frame.
-    max_joint_velocity, max_joint_acceleration: symmetric limits, one value or one per joint
-    (rad/s, rad/s^2). parameters: the law's gains and settings (robust mode by default: the
-    tip facing the panel is at the Z-Y-X Euler singularity, which the seed's law cannot pass)."""
+    """The acceleration-level planner of operation.motion "planner" (MakeAccelerationPlanner
+    on the station's own models of the arm and gripper). base_frame: its base B (scoped
+    frame name); its TCP is the scenario's tip frame. max_joint_velocity,
+    max_joint_acceleration: symmetric limits, one value or one per joint (rad/s, rad/s^2).
+    parameters: the law's gains and settings (the robust mode by default: facing the panel
+    the tip is at Z-Y-X pitch -90 deg, the Euler singularity of the seed's law)."""
 
     base_frame: str = ""
     max_joint_velocity: list[float] = field(default_factory=lambda: [0.5])
@@ -101,14 +99,15 @@ class PanelOperationScenario:
     """switch: 1-based index into the panel file's switches. camera: the key of
     station.cameras on the arm (1920 x 1080 C920 by default), rendered at `supersampling`
     times its resolution. panel_file: PANEL.yaml relative to models/; panel_model: its
-    model instance in the directives. time_limit_s: simulated time allowed. The controller's
-    plant (IK, planner) is MakeControllerPlant of the station: the arm and its gripper."""
+    model instance in the directives. arm_directives: the arm as its controller knows it
+    (kinematics for IK), without the panel. time_limit_s: simulated time allowed."""
 
     task: str = "panel_operation"
     arm: str = "rover_arm"
     switch: int = 2
     camera: str = "camera"
     tip_frame: str = "rover_gripper::gripper_tip"
+    arm_directives: str = "package://guidedarm/directives/rover_arm.dmd.yaml"
     panel_file: str = "panel/panel.yaml"
     panel_model: str = "panel"
     supersampling: int = 3
@@ -365,8 +364,21 @@ def _replace_camera(station: StationScenario, name: str, camera, k: int) -> Stat
     return StationScenario(**{**station.__dict__, "cameras": cameras})
 
 
+def _LoadArmPlant(scenario: PanelOperationScenario) -> MultibodyPlant:
+    """The arm as its controller knows it (not finalized)."""
+    plant = MultibodyPlant(0.0)
+    try:
+        directives = LoadModelDirectives(
+            MakeParser(plant).package_map().ResolveUrl(scenario.arm_directives)
+        )
+        ProcessModelDirectives(directives, MakeParser(plant))
+    except Exception as e:
+        raise ConfigurationError(f"arm_directives: {str(e).splitlines()[0]}") from None
+    return plant
+
+
 def _MakePlanner(scenario: PanelOperationScenario) -> tuple[AccelerationPlanner, PlannerFrames]:
-    """The task-driven AccelerationPlanner on the arm's controller plant, and its frames."""
+    """The task-driven AccelerationPlanner (MakeAccelerationPlanner) and its frames."""
     config = scenario.planner
     planner = MakeAccelerationPlanner(
         scenario.station,
@@ -384,12 +396,15 @@ def _MakePlanner(scenario: PanelOperationScenario) -> tuple[AccelerationPlanner,
 
 
 def _MakeArmKinematics(scenario: PanelOperationScenario) -> CameraArmKinematics:
+    plant = _LoadArmPlant(scenario)
+    plant.Finalize()
     camera = scenario.station.cameras[scenario.camera].X_PB.base_frame or ""
-    plant = MakeControllerPlant(scenario.station, scenario.arm, [camera, scenario.tip_frame])
-    frames = [
-        GetScopedFrame(plant, camera, f"cameras.{scenario.camera}.X_PB.base_frame"),
-        GetScopedFrame(plant, scenario.tip_frame, "tip_frame"),
-    ]
+    frames = []
+    for scoped in (camera, scenario.tip_frame):
+        instance, _, name = scoped.rpartition("::")
+        if not instance or not plant.HasModelInstanceNamed(instance):
+            raise ConfigurationError(f"frame '{scoped}' is not in {scenario.arm_directives}")
+        frames.append(plant.GetFrameByName(name, plant.GetModelInstanceByName(instance)))
     return CameraArmKinematics(plant, *frames)
 
 

@@ -161,7 +161,7 @@ class ArmKinematics:
                 f"the planner needs a 6-DoF arm; {plant.GetModelInstanceName(instance)} has "
                 f"{plant.num_velocities(instance)} joints"
             )
-        if min_singular_value <= 0:
+        if not min_singular_value > 0:
             raise ConfigurationError(
                 f"min_singular_value must be positive, got {min_singular_value}"
             )
@@ -208,6 +208,13 @@ class ArmKinematics:
         self.plant.SetPositions(self._context, self.instance, q)
         X_BT = self.plant.CalcRelativeTransform(self._context, self.base_frame, self.tool_frame)
         return np.concatenate([X_BT.translation(), RollPitchYaw(X_BT.rotation()).vector()])
+
+    def JointLimits(self) -> tuple[np.ndarray, np.ndarray]:
+        """The arm's joint position limits (rad), at most +-pi (a turn covers every angle)."""
+        plant, instance = self.plant, self.instance
+        lower = plant.GetPositionsFromArray(instance, plant.GetPositionLowerLimits())
+        upper = plant.GetPositionsFromArray(instance, plant.GetPositionUpperLimits())
+        return np.maximum(lower, -np.pi), np.minimum(upper, np.pi)
 
     def MinSingularValue(self, q: np.ndarray) -> float:
         """Smallest singular value of the geometric Jacobian J_g at q (m or rad per rad)."""

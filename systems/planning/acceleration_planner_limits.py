@@ -50,9 +50,9 @@ class VelocityPenalty:
     ) -> None:
         lower, upper = np.asarray(lower, float), np.asarray(upper, float)
         CheckLimits("velocity limits", lower, upper)
-        if theta <= 0 or theta >= 0.5:
+        if not 0 < theta < 0.5:
             raise ConfigurationError(f"velocity threshold theta must be in (0, 0.5), got {theta}")
-        if rho <= 0:
+        if not rho > 0:
             raise ConfigurationError(f"penalty strength rho must be positive, got {rho}")
         self.lower, self.upper = lower, upper
         self.range = upper - lower

@@ -57,10 +57,7 @@ def MakeRandomWaypointTasks(
 
 def _JointRange(kinematics: ArmKinematics) -> tuple[np.ndarray, np.ndarray]:
     """The joint ranges (rad) the tasks use: the limits (at most +-pi) shrunk by the margin."""
-    plant, instance = kinematics.plant, kinematics.instance
-    lower = plant.GetPositionsFromArray(instance, plant.GetPositionLowerLimits())
-    upper = plant.GetPositionsFromArray(instance, plant.GetPositionUpperLimits())
-    lower, upper = np.maximum(lower, -np.pi), np.minimum(upper, np.pi)
+    lower, upper = kinematics.JointLimits()
     margin = LIMIT_MARGIN * (upper - lower)
     return lower + margin, upper - margin
 
