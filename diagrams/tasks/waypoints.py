@@ -184,6 +184,7 @@ def TrajectoryMetrics(
         "c_min": float(trajectory.c[1:].min()) if trajectory.c.size > 1 else 1.0,
         "waypoint_distance_m": ClosestApproach(tcp[:, :3], waypoints).round(5).tolist(),
         "qdd_step_max": float(np.abs(np.diff(trajectory.qdd, axis=0)).max(initial=0.0)),
+        "braking_steps": int(trajectory.braking.sum()),
     }
     if measured is not None and measured.size:
         count = min(len(measured), len(trajectory.q))

@@ -41,7 +41,7 @@ class AccelerationPlanner(LeafSystem):
     Output ports (commanded, for the arm's 6 joints): `position_commanded` (rad),
     `velocity_commanded` (rad/s), `acceleration_commanded` (rad/s^2, the value held over
     the last step), `scaling_coefficient` (c), and `planner_state` (the full
-    PlannerState vector: q, qd, qdd, t, c, c_hat0, t0, waypoint index, sigma, inside,
+    PlannerState vector: q, qd, qdd, t, c, c_hat0, t0, waypoint index, sigma, inside, braking,
     done time; for logging). After the task has ended the law keeps running, so the
     commands settle smoothly on the final location instead of stopping with a jump.
     Errors of the law (PlanningError: the seed's mode at a singular arm or an infeasible

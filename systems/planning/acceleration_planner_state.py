@@ -63,8 +63,9 @@ class PlannerState:
 @dataclass
 class PlannedTrajectory:
     """A commanded trajectory sampled at the planner period: times (s), q, qd, qdd
-    (samples x 6; rad, rad/s, rad/s^2), c and the waypoint index per sample, and the time
-    the task ended (s; -1 if it did not)."""
+    (samples x 6; rad, rad/s, rad/s^2), c, the waypoint index and whether the step was the
+    robust mode's braking fallback, per sample, and the time the task ended (s; -1 if it
+    did not)."""
 
     times: np.ndarray
     q: np.ndarray
@@ -72,6 +73,7 @@ class PlannedTrajectory:
     qdd: np.ndarray
     c: np.ndarray
     index: np.ndarray
+    braking: np.ndarray
     done_time: float
 
     @staticmethod
@@ -87,5 +89,6 @@ class PlannedTrajectory:
             qdd=columns[2 * n : 3 * n].T.copy(),
             c=extra[1].copy(),
             index=extra[4].round().astype(int),
+            braking=extra[7] > 0.5,
             done_time=float(done[0]) if done.size else -1.0,
         )

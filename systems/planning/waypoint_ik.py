@@ -15,7 +15,11 @@ from pydrake.multibody.inverse_kinematics import InverseKinematics
 from pydrake.solvers import Solve
 
 from guidedarm.systems.errors import ConfigurationError
-from guidedarm.systems.planning.acceleration_planner_kinematics import ArmKinematics
+from guidedarm.systems.planning.acceleration_planner_kinematics import (
+    ArmKinematics,
+    DampedSolve,
+    PoseError,
+)
 
 
 def WaypointPose(p: np.ndarray) -> RigidTransform:
@@ -95,4 +99,32 @@ def _Solve(
     result = Solve(prog, q_full)
     if not result.is_success():
         return None
-    return plant.GetPositionsFromArray(instance, result.GetSolution(ik.q()))
+    return _Polish(
+        kinematics, X_BT, plant.GetPositionsFromArray(instance, result.GetSolution(ik.q()))
+    )
+
+
+def _Polish(kinematics: ArmKinematics, X_BT: RigidTransform, q: np.ndarray) -> np.ndarray:
+    """q moved onto the pose X_BT by Newton steps on [position; rotation vector] error.
+
+    The solver's orientation constraint bounds trace(R), so an accepted solution can be
+    off by up to about 1e-3 rad; the robust planner converges onto these joints near
+    singularities, so they must hold the pose itself. Steps that would leave the joint
+    limits are not taken (the solver's solution is kept)."""
+    plant, instance = kinematics.plant, kinematics.instance
+    lower = plant.GetPositionsFromArray(instance, plant.GetPositionLowerLimits())
+    upper = plant.GetPositionsFromArray(instance, plant.GetPositionUpperLimits())
+    x_target, R_target = X_BT.translation(), X_BT.rotation().matrix()
+    polished = q.copy()
+    for _ in range(20):
+        kin = kinematics.Evaluate(polished, np.zeros(6), analytic=False)
+        e = PoseError(kin, x_target, R_target)
+        if np.max(np.abs(e)) < 1e-12:
+            break
+        step = DampedSolve(kin.J, e, 1e-12)
+        if not np.all(np.isfinite(step)):
+            return q
+        polished = polished - step
+    if np.any(polished < lower - 1e-9) or np.any(polished > upper + 1e-9):
+        return q
+    return polished
