@@ -5,7 +5,8 @@ task). Every planner moves the arm from the same start through the same waypoint
 same joint limits: the acceleration-level planner (robust mode, both limits on), the seed's
 law (planner.robust false), a UR-controller-like movej with a 0.05 m blend radius, Drake's
 Toppra through the planner's IK joint waypoints, and Ruckig (jerk-limited, offline
-state-to-state segments with Toppra's via velocities) at the robust planner's own max jerk.
+state-to-state segments with Toppra's via velocities, or at rest at the waypoints where Toppra
+found no parameterisation) at the robust planner's own max jerk.
 Figures are computed on the commanded trajectories sampled at the planner period: T (s),
 max |qd| (rad/s), max |qdd| (rad/s^2), max |jerk| (rad/s^3, finite differences of qdd), and
 the closest TCP approach to each waypoint (mm).
@@ -107,8 +108,12 @@ def ComparePlanners(
     trajectories[MOVEJ] = MoveJ(
         path, lambda q: kinematics.Position(q)[:3], v, a, BLEND_RADIUS_M, period
     )
-    trajectories["toppra"], via = ToppraThroughWaypoints(setup.plant, path, v, a, period)
+    try:
+        trajectories["toppra"], via = ToppraThroughWaypoints(setup.plant, path, v, a, period)
+    except GuidedArmError:  # Toppra's grid occasionally finds no parameterisation
+        trajectories["toppra"], via = None, np.zeros_like(path)
     reference = trajectories[ROBUST] or trajectories[SEED]
+    trajectories["ruckig"] = None
     if reference is not None:
         jerk = np.full(6, np.abs(Jerk(reference)).max())
         trajectories["ruckig"] = RuckigThroughWaypoints(path, via, v, a, jerk, period)

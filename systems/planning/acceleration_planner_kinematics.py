@@ -18,7 +18,7 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
-from pydrake.math import RollPitchYaw
+from pydrake.math import RollPitchYaw, RotationMatrix
 from pydrake.multibody.plant import MultibodyPlant
 from pydrake.multibody.tree import Frame, JacobianWrtVariable, ModelInstanceIndex
 
@@ -123,11 +123,12 @@ class TcpKinematics:
     """The TCP at (q, qd): position x (m) and rotation R of T in B, Euler angles rpy (rad),
     the Jacobian J (6 x 6, rows [translational; rotational]: analytic with Euler rates in
     the seed's mode, geometric with omega in the robust mode), Jdot qd (m/s^2, rad/s^2) in
-    the same rows, and the smallest singular value of J_g."""
+    the same rows, and the smallest singular value of J_g. rpy is only evaluated for the
+    seed's mode (p computes it otherwise)."""
 
     x: np.ndarray
     R: np.ndarray
-    rpy: np.ndarray
+    rpy: np.ndarray | None
     J: np.ndarray
     Jdot_qdot: np.ndarray
     min_singular_value: float
@@ -135,7 +136,8 @@ class TcpKinematics:
     @property
     def p(self) -> np.ndarray:
         """p = [x; roll, pitch, yaw] as in the seed."""
-        return np.concatenate([self.x, self.rpy])
+        rpy = self.rpy if self.rpy is not None else RollPitchYaw(RotationMatrix(self.R)).vector()
+        return np.concatenate([self.x, rpy])
 
 
 class ArmKinematics:
@@ -182,7 +184,7 @@ class ArmKinematics:
         plant.SetVelocities(context, self.instance, qd)
         X_BT = plant.CalcRelativeTransform(context, self.base_frame, self.tool_frame)
         R = X_BT.rotation()
-        rpy = RollPitchYaw(R).vector()
+        rpy = RollPitchYaw(R).vector() if analytic else None
         # T's origin, measured and expressed in B, with respect to v.
         point = (JacobianWrtVariable.kV, self.tool_frame, self._origin, self.base_frame)
         Jg = plant.CalcJacobianSpatialVelocity(context, *point, self.base_frame)[:, self._columns]

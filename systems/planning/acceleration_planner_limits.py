@@ -189,17 +189,20 @@ def AdmissibleScaling(
     it is empty. The robust mode's scaling: c = c_free clipped into it is the seed's rule
     (a) or (b) whenever those are admissible, and an empty interval is detected instead of
     leaving a joint unchecked."""
-    c_lo, c_hi = 0.0, np.inf
-    fixed = np.abs(b) < 1e-12
-    if np.any(fixed & ((a > upper) | (a < lower))):
-        return 1.0, 0.0
-    moving = ~fixed
-    if moving.any():
-        bounds_upper = (upper[moving] - a[moving]) / b[moving]
-        bounds_lower = (lower[moving] - a[moving]) / b[moving]
-        positive = b[moving] > 0
-        c_hi = min(c_hi, float(np.min(np.where(positive, bounds_upper, bounds_lower))))
-        c_lo = max(c_lo, float(np.max(np.where(positive, bounds_lower, bounds_upper))))
+    c_lo, c_hi = 0.0, math.inf
+    # six joints: plain floats are several times faster than NumPy's small-array calls
+    for a_i, b_i, lo, hi in zip(
+        a.tolist(), b.tolist(), lower.tolist(), upper.tolist(), strict=True
+    ):
+        if abs(b_i) < 1e-12:
+            if a_i > hi or a_i < lo:
+                return 1.0, 0.0
+            continue
+        bound_hi, bound_lo = (hi - a_i) / b_i, (lo - a_i) / b_i
+        if b_i < 0:
+            bound_hi, bound_lo = bound_lo, bound_hi
+        c_hi = min(c_hi, bound_hi)
+        c_lo = max(c_lo, bound_lo)
     return c_lo, c_hi
 
 
@@ -220,16 +223,20 @@ def GovernorBraking(
     the margin, i.e. it raises the damping Lambda_V of (9) along the motion; d is capped so
     that a - d qd stays within [lower, upper], which keeps c = 0 admissible.
     """
-    limit = np.where(a >= 0, upper, -lower)
-    load = float(np.max(np.abs(a) / limit))
+    a_list, qd_list = a.tolist(), qd.tolist()
+    lower_list, upper_list = lower.tolist(), upper.tolist()
+    load = max(
+        abs(a_i) / (hi if a_i >= 0 else -lo)
+        for a_i, lo, hi in zip(a_list, lower_list, upper_list, strict=True)
+    )
     if load <= margin:
         return np.zeros_like(qd)
     d = gain * (load / margin - 1.0)
-    # room of each joint in the direction the braking pushes it
-    room = np.where(qd < 0, upper - a, a - lower)
-    moving = np.abs(qd) > 1e-12
-    if moving.any():
-        d = min(d, float(np.min(np.maximum(room[moving], 0.0) / np.abs(qd[moving]))))
+    for a_i, qd_i, lo, hi in zip(a_list, qd_list, lower_list, upper_list, strict=True):
+        # room of the joint in the direction the braking pushes it
+        if abs(qd_i) > 1e-12:
+            room = hi - a_i if qd_i < 0 else a_i - lo
+            d = min(d, max(room, 0.0) / abs(qd_i))
     return -d * qd
 
 

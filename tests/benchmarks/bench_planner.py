@@ -36,16 +36,19 @@ def SeedTask() -> None:
         setup = MakePlannerSetup(scenario)
         planning = setup.planning
         state = planning.InitialState(setup.q0)
-        durations = []
+        wall, cpu = [], []
         while not state.done:
-            start = time.perf_counter()
+            start, start_cpu = time.perf_counter(), time.thread_time()
             state = planning.Step(state)
-            durations.append(time.perf_counter() - start)
-        steps = np.array(durations) * 1e6
+            wall.append(time.perf_counter() - start)
+            cpu.append(time.thread_time() - start_cpu)
+        wall_us, cpu_us = np.array(wall) * 1e6, np.array(cpu) * 1e6
         mode = "robust" if robust else "seed's law"
         print(
-            f"{mode}: planner step median {np.median(steps):.1f} us, "
-            f"p95 {np.percentile(steps, 95):.1f} us (goal: median <= 100 us)"
+            f"{mode}: planner step median {np.median(wall_us):.1f} us wall "
+            f"(p95 {np.percentile(wall_us, 95):.1f}), {np.median(cpu_us):.1f} us CPU "
+            f"(p95 {np.percentile(cpu_us, 95):.1f}; CPU time does not count other jobs on "
+            "shared cores) (goal: median <= 100 us)"
         )
         start = time.perf_counter()
         runs[mode] = RunPlanning(planning, setup.q0, max_time=scenario.max_time)
