@@ -168,16 +168,18 @@ def StepBounds(
     acceleration: tuple[np.ndarray, np.ndarray] | None,
     velocity: tuple[np.ndarray, np.ndarray] | None,
     qd: np.ndarray,
-    dt: float,
+    rate: float,
 ) -> tuple[np.ndarray, np.ndarray]:
-    """Bounds on q'' for one step of dt (s) held constant: the acceleration limits, tightened
-    so that qd + dt q'' stays within the velocity limits (the robust mode's hard guarantee
-    behind the penalty (14)-(15), which only acts through the scaled part c b)."""
+    """Bounds on q'' for the next step: the acceleration limits, tightened to
+    rate (velocity limit - qd) near the velocity limits, so that qd approaches a limit at
+    most exponentially (time constant 1 / rate, s) and never passes it for rate <= 1 / dt:
+    the robust mode's hard guarantee behind the penalty (14)-(15), which only acts through
+    the scaled part c b. The bounds move continuously with qd, so q'' does too."""
     lower = np.full(qd.shape, -np.inf) if acceleration is None else acceleration[0]
     upper = np.full(qd.shape, np.inf) if acceleration is None else acceleration[1]
     if velocity is not None:
-        lower = np.maximum(lower, (velocity[0] - qd) / dt)
-        upper = np.minimum(upper, (velocity[1] - qd) / dt)
+        lower = np.maximum(lower, rate * (velocity[0] - qd))
+        upper = np.minimum(upper, rate * (velocity[1] - qd))
     return lower, upper
 
 
@@ -233,7 +235,7 @@ def GovernorBraking(
         return np.zeros_like(qd)
     d = gain * (load / margin - 1.0)
     for a_i, qd_i, lo, hi in zip(a_list, qd_list, lower_list, upper_list, strict=True):
-        # room of the joint in the direction the braking pushes it
+        # the room of the joint in the direction the braking pushes it
         if abs(qd_i) > 1e-12:
             room = hi - a_i if qd_i < 0 else a_i - lo
             d = min(d, max(room, 0.0) / abs(qd_i))
@@ -241,14 +243,22 @@ def GovernorBraking(
 
 
 def BrakingAcceleration(
-    qd: np.ndarray, lower: np.ndarray, upper: np.ndarray, dt: float
+    qd: np.ndarray,
+    qdd_previous: np.ndarray,
+    lower: np.ndarray,
+    upper: np.ndarray,
+    dt: float,
+    max_change: np.ndarray,
 ) -> np.ndarray:
-    """The fallback when no admissible c exists: q'' = -beta qd, every joint slowing in
-    proportion (the joint-space direction of motion kept) as hard as [lower, upper] allow
-    and at most to rest within the step (beta <= 1/dt). Slowing shrinks a with qd^2 until
-    the scaling is admissible again."""
+    """The fallback when no admissible c exists: towards q'' = -beta qd, every joint slowing
+    in proportion (the joint-space direction of motion kept) as hard as [lower, upper] allow
+    and at most to rest within the step (beta <= 1/dt), reached from the previous q'' by
+    changes of at most max_change per step (rad/s^2) and kept within [lower, upper].
+    Slowing shrinks a with qd^2 until the scaling is admissible again."""
     beta = 1.0 / dt
-    for i in np.flatnonzero(np.abs(qd) > 1e-12):
-        room = -lower[i] if qd[i] > 0 else upper[i]
-        beta = min(beta, max(room, 0.0) / abs(qd[i]))
-    return -beta * qd
+    for qd_i, lo, hi in zip(qd.tolist(), lower.tolist(), upper.tolist(), strict=True):
+        if abs(qd_i) > 1e-12:
+            room = -lo if qd_i > 0 else hi
+            beta = min(beta, max(room, 0.0) / abs(qd_i))
+    step = np.clip(-beta * qd - qdd_previous, -max_change, max_change)
+    return np.clip(qdd_previous + step, lower, upper)

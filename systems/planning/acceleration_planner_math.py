@@ -231,7 +231,7 @@ class AccelerationPlanning:
             return a + b, 1.0, state.c_hat0, state.t0, False
         accel = (self.scaling.lower, self.scaling.upper) if self.scaling is not None else None
         velocity = (self.penalty.lower, self.penalty.upper) if self.penalty is not None else None
-        lower, upper = StepBounds(accel, velocity, state.qd, params.time_step)
+        lower, upper = StepBounds(accel, velocity, state.qd, params.velocity_bound_rate)
         c_hat0, t0 = state.c_hat0, state.t0
         c_free = 1.0
         if accel is not None:
@@ -239,7 +239,11 @@ class AccelerationPlanning:
             c_free = ScalingReturn(c_hat0, state.t, t0, params.scaling_recovery_rate)
         c_lo, c_hi = AdmissibleScaling(a, b, lower, upper)
         if c_lo > c_hi:
-            braking = BrakingAcceleration(state.qd, lower, upper, params.time_step)
+            ramp = params.time_step / params.braking_ramp
+            limit = accel[1] if accel is not None else np.full(6, np.inf)
+            braking = BrakingAcceleration(
+                state.qd, state.qdd, lower, upper, params.time_step, ramp * limit
+            )
             return braking, 0.0, 0.0, state.t, True
         c = min(max(c_free, c_lo), c_hi)
         if c != c_free:
