@@ -8,6 +8,7 @@ from pydrake.systems.primitives import ConstantVectorSource, VectorLogSink
 
 from guidedarm.diagrams.cli.command_run import LoadScenario
 from guidedarm.diagrams.tasks.waypoints import MakePlannerSetup
+from guidedarm.systems.errors import ConfigurationError
 from guidedarm.systems.planning.acceleration_planner import AccelerationPlanner
 from guidedarm.systems.planning.acceleration_planner_math import (
     AccelerationPlanning,
@@ -72,11 +73,22 @@ def test_streams_the_law_at_500_hz_from_the_measured_start(setup):
     )
 
 
+def test_an_unreachable_waypoint_is_refused_at_construction_naming_it(setup):
+    """In one's own diagram too: the LeafSystem solves every waypoint's IK before any
+    motion, instead of failing mid-run."""
+    waypoints = setup.planning.waypoints.copy()
+    waypoints[2, :3] = [1.9, 0.0, 0.7]  # beyond the UR10e's 1.3 m reach
+    with pytest.raises(
+        ConfigurationError, match=r"^waypoint 3 \[1\.9, 0\.0, 0\.7, .* out of reach"
+    ):
+        AccelerationPlanner(setup.planning.WithWaypoints(waypoints))
+
+
 def test_planning_errors_leave_the_simulator_as_planning_errors(setup):
     q0 = setup.q0.copy()
-    q0[4] = 0.0  # wrist singularity
+    q0[4] = 0.0  # wrist singularity: the paper's law refuses it
     planning = AccelerationPlanning(
-        setup.planning.kinematics, setup.planning.waypoints, PlannerConfig()
+        setup.planning.kinematics, setup.planning.waypoints, PlannerConfig(robust=False)
     )
     with pytest.raises(PlanningError, match="near-singular"):
         _Simulate(planning, q0, 0.01)

@@ -93,7 +93,7 @@ def test_re_planning_restarts_smoothly_and_signals_done(setup):
         assert t_switch < t + 12.0, "second task did not end"
         tasked.simulator.AdvanceTo(t_switch)
     trajectory = tasked.Trajectory()
-    # the same limits as the fixed task (the seed's 60 deg/s, 80 deg/s^2), a continuous
+    # the same limits as the fixed task (the paper's 60 deg/s, 80 deg/s^2), a continuous
     # restart (c from 0 again) and the end within 1 mm of the new target
     assert np.abs(trajectory.qd).max() <= setup.velocity_limit[0] + 1e-9
     assert np.abs(trajectory.qdd).max() <= setup.acceleration_limit[0] + 1e-9

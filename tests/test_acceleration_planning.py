@@ -1,31 +1,35 @@
-"""The seed-001 planner's mathematics, and its Table 2 reproduced without a Diagram."""
+"""The planner's mathematics (Pająk's law, Pająk), and its Table 2 reproduced without a
+Diagram by the paper's mode (planner.robust: false)."""
 
 import numpy as np
 import pytest
-from hypothesis import HealthCheck, given, settings
-from hypothesis import strategies as st
 from pydrake.math import RollPitchYaw, RotationMatrix
 
 from guidedarm.diagrams.cli.command_run import LoadScenario
 from guidedarm.diagrams.tasks.waypoints import MakePlannerSetup
 from guidedarm.systems.errors import ConfigurationError
-from guidedarm.systems.planning.acceleration_planner_math import (
-    AccelerationPlanning,
-    AccelerationScaling,
-    ClosestApproach,
+from guidedarm.systems.planning.acceleration_planner_kinematics import (
     EulerRateMatrix,
     EulerRateMatrixDotTimesRate,
-    PlannerConfig,
     PlanningError,
-    RunPlanning,
-    VelocityPenalty,
     WrapAngle,
 )
-from guidedarm.systems.planning.waypoint_ik import SolveWaypointIk
+from guidedarm.systems.planning.acceleration_planner_limits import (
+    AccelerationScaling,
+    VelocityPenalty,
+)
+from guidedarm.systems.planning.acceleration_planner_math import (
+    AccelerationPlanning,
+    ClosestApproach,
+    PlannerConfig,
+    RunPlanning,
+)
 
 PI = np.pi
 Q0_UR10E = np.array([-PI / 2, -PI / 2, -3 * PI / 4, -PI / 4, PI / 2, PI / 4])
 SCENARIOS = ["ur10e_waypoints", "mz04d_waypoints", "rover_arm_waypoints"]
+SEED_LAW = "planner.robust=false"
+SEED_CONFIG = PlannerConfig(robust=False)
 
 
 def _Setup(name: str = "ur10e_waypoints", *overrides: str):
@@ -35,7 +39,7 @@ def _Setup(name: str = "ur10e_waypoints", *overrides: str):
 
 @pytest.fixture(scope="module")
 def ur10e():
-    return _Setup()[1]
+    return _Setup("ur10e_waypoints", SEED_LAW)[1]
 
 
 def test_wrap_angle():
@@ -168,7 +172,7 @@ def test_unreachable_waypoint_is_refused_naming_it():
         )
 
 
-def test_near_singular_start_is_a_clear_error(ur10e):
+def test_near_singular_start_is_a_clear_error_in_the_seeds_mode(ur10e):
     q = Q0_UR10E.copy()
     q[4] = 1e-4  # wrist 2 straight: wrist singularity of the UR10e
     with pytest.raises(PlanningError, match="near-singular"):
@@ -184,12 +188,12 @@ def test_near_singular_motion_stops_with_an_error_instead_of_huge_accelerations(
     target = kinematics.Position(q_target)
     start = Q0_UR10E.copy()
     start[4] = 0.3
-    planning = AccelerationPlanning(kinematics, target[None, :], PlannerConfig())
+    planning = AccelerationPlanning(kinematics, target[None, :], SEED_CONFIG)
     with pytest.raises(PlanningError, match="near-singular"):
         RunPlanning(planning, start, max_time=10.0)
 
 
-TABLE_2 = {  # the seed's Table 2: T (s), max qd, min qd, max qdd, min qdd
+TABLE_2 = {  # the paper's Table 2: T (s), max qd, min qd, max qdd, min qdd
     "none": (4.98, 0.91, -1.62, 19.77, -22.63),
     "velocity": (5.22, 0.86, -0.97, 19.77, -22.63),
     "velocity,acceleration": (5.32, 0.69, -0.93, 1.40, -1.40),
@@ -200,7 +204,7 @@ TABLE_2 = {  # the seed's Table 2: T (s), max qd, min qd, max qdd, min qdd
 def table2():
     runs = {}
     for limits in TABLE_2:
-        setup = _Setup("ur10e_waypoints", f"limits={limits}")[1]
+        setup = _Setup("ur10e_waypoints", f"limits={limits}", SEED_LAW)[1]
         trajectory = RunPlanning(setup.planning, setup.q0, max_time=15.0)
         runs[limits] = (setup, trajectory)
     return runs
@@ -249,7 +253,7 @@ def test_table2_variant_3_limits_at_every_step_and_continuous_accelerations(tabl
 
 
 def test_stop_at_every_waypoint_mode(ur10e):
-    _, scenario_setup = _Setup("ur10e_waypoints", "planner.stop_at_waypoints=true")
+    _, scenario_setup = _Setup("ur10e_waypoints", "planner.stop_at_waypoints=true", SEED_LAW)
     planning = scenario_setup.planning
     trajectory = RunPlanning(planning, scenario_setup.q0, max_time=20.0)
     assert trajectory.done_time > 0
@@ -263,51 +267,17 @@ def test_stop_at_every_waypoint_mode(ur10e):
     assert np.all(np.abs(trajectory.qd) <= scenario_setup.velocity_limit)
 
 
-@settings(
-    max_examples=20,
-    deadline=None,
-    derandomize=True,
-    suppress_health_check=[HealthCheck.function_scoped_fixture],
-)
-@given(st.lists(st.lists(st.floats(-0.15, 0.15), min_size=3, max_size=3), min_size=1, max_size=4))
-def test_random_reachable_waypoints_keep_every_limit(ur10e, offsets):
-    """Random tasks: the first 1-4 of the seed's waypoints, each moved by up to 0.15 m per
-    axis (inside the UR10e's reach; the IK check confirms it), orientation kept; both limits
-    on. (With random orientation changes as well the law can run into case (c) without an
-    admissible c, which is reported: see the next test.)"""
-    waypoints = ur10e.planning.waypoints[: len(offsets)].copy()
-    waypoints[:, :3] += np.array(offsets)
-    steps = np.linalg.norm(np.diff(waypoints[:, :3], axis=0), axis=1)
-    too_close = np.flatnonzero(steps <= 0.06)  # blending needs spacing > the radius
-    if too_close.size:
-        waypoints = waypoints[: too_close[0] + 1]
-    kinematics = ur10e.planning.kinematics
-    SolveWaypointIk(kinematics, waypoints, Q0_UR10E)
-    planning = AccelerationPlanning(
-        kinematics,
-        waypoints,
-        PlannerConfig(),
-        (-ur10e.velocity_limit, ur10e.velocity_limit),
-        (-ur10e.acceleration_limit, ur10e.acceleration_limit),
-    )
-    trajectory = RunPlanning(planning, Q0_UR10E, max_time=25.0)
-    assert trajectory.done_time > 0
-    assert np.all(np.abs(trajectory.qd) <= ur10e.velocity_limit)
-    assert np.all(np.abs(trajectory.qdd) <= ur10e.acceleration_limit * (1 + 1e-9))
-    p_end = kinematics.Position(trajectory.q[-1])
-    assert np.linalg.norm(p_end[:3] - waypoints[-1, :3]) <= 1e-3
-
-
-def test_infeasible_scaling_in_a_run_is_reported(ur10e):
-    """Found by the property test with joint-space offsets: moving joint 2 of the first IK
+def test_infeasible_scaling_in_a_run_is_reported_by_the_seeds_law(ur10e):
+    """Found by a property test with joint-space offsets: moving joint 2 of the first IK
     solution by 0.25 rad makes c rise to 4.4 (rule (b)) and then the unscalable part a of
-    joint 2 exceeds its limit while b vanishes: the planner stops naming case (c)."""
+    joint 2 exceeds its limit while b vanishes: the paper's law stops naming case (c).
+    (tests/test_acceleration_planner_robust.py runs the same task in the robust mode.)"""
     kinematics = ur10e.planning.kinematics
     q_goal = ur10e.joint_waypoints[0] + np.array([0, 0.25, 0, 0, 0, 0])
     planning = AccelerationPlanning(
         kinematics,
         kinematics.Position(q_goal)[None, :],
-        PlannerConfig(),
+        SEED_CONFIG,
         (-ur10e.velocity_limit, ur10e.velocity_limit),
         (-ur10e.acceleration_limit, ur10e.acceleration_limit),
     )

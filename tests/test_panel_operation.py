@@ -17,9 +17,10 @@ def _run(tmp_path, overrides):
 
 @pytest.mark.slow
 def test_ten_runs_from_different_starts_press_the_chosen_switch(tmp_path):
+    """The estimator and the sequence from ten starts, moves as exact IK joint segments."""
     results = []
     for switch in (1, 2, 3):
-        run = _run(tmp_path, [f"switch={switch}"])
+        run = _run(tmp_path, [f"switch={switch}", "operation.motion=joint_trajectory"])
         for seed in range(switch - 1, 10, 3):
             results.append(run.Run(run.SampleStart(seed)))
     assert len(results) == 10
@@ -35,6 +36,21 @@ def test_ten_runs_from_different_starts_press_the_chosen_switch(tmp_path):
         travel = r["switch_travel_mm"]
         assert travel[r["switch"] - 1] >= 4.0
         assert sum(t > 0.5 for t in travel) == 1  # no neighbour touched
+
+
+@pytest.mark.slow
+def test_the_planner_presses_from_the_ten_starts_of_the_press_study(tmp_path):
+    """The default moves, through the acceleration-level planner, from the 10 starts of the
+    press study (Table 5: switch 2, start seeds 0-9, `guidedarm marker-study press`)."""
+    run = _run(tmp_path, ["switch=2"])
+    assert run.scenario.operation.motion == "planner"
+    for seed in range(10):
+        r = run.Run(run.SampleStart(seed))
+        assert r["failure"] is None, (seed, r["failure"])
+        assert r["success"] and r["switch_pressed"] == 2
+        assert max(r["press_error_mm"].values()) <= 2.0, (seed, r["press_error_mm"])
+        assert r["base_position_error_mm"] <= 2.0
+        assert sum(t > 0.5 for t in r["switch_travel_mm"]) == 1  # no neighbour touched
 
 
 @pytest.mark.parametrize("policy", ["abort", "continue"])

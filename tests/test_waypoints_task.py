@@ -81,23 +81,27 @@ def test_trapezoid_profile_reaches_the_limits_and_ends_at_rest():
 def test_compare_planners_table(capsys):
     assert main(["compare-planners"]) == 0
     lines = capsys.readouterr().out.strip().splitlines()
-    assert lines[0].split()[0] == "planner" and len(lines) == 4
+    assert lines[0].split()[0] == "planner" and len(lines) == 6
     _, scenario, _ = LoadScenario("ur10e_waypoints", [])
     setup = MakePlannerSetup(scenario)
-    rows = {
-        name: TableRow(setup, trajectory)
-        for name, trajectory in ComparePlanners(setup, scenario.max_time).items()
-    }
-    planner, movej, toppra = rows.values()
+    found = ComparePlanners(setup, setup.planning.waypoints, setup.q0, scenario.max_time)
+    rows = {name: TableRow(setup, trajectory) for name, trajectory in found.items()}
+    planner, seed, movej, toppra, ruckig = rows.values()
     limit_v, limit_a = setup.velocity_limit[0], setup.acceleration_limit[0]
     # movej keeps the speed limit but its blends add two segments' accelerations (the
-    # seed's experiment 1: 4.29 s, up to 2.48 rad/s^2); only the planner is smooth
+    # seed's experiment 1: 4.29 s, up to 2.48 rad/s^2); only the planners are smooth
     assert movej["qd_abs_max"] <= limit_v + 1e-9 and movej["qdd_abs_max"] > 1.2 * limit_a
     assert movej["T_s"] == pytest.approx(4.29, rel=0.1)
     # Toppra is time-optimal on its path (limits met up to its grid discretisation)
     assert toppra["T_s"] < movej["T_s"] < planner["T_s"]
     assert toppra["qdd_abs_max"] <= 1.01 * limit_a and toppra["qd_abs_max"] <= 1.01 * limit_v
-    assert planner["qdd_abs_max"] <= limit_a * (1 + 1e-9)
-    assert planner["jerk_abs_max"] < 0.1 * min(movej["jerk_abs_max"], toppra["jerk_abs_max"])
-    assert max(toppra["waypoint_deviation_mm"]) < 1.0
+    for law in (planner, seed):
+        assert law["qdd_abs_max"] <= limit_a * (1 + 1e-9)
+        assert law["jerk_abs_max"] < 0.1 * min(movej["jerk_abs_max"], toppra["jerk_abs_max"])
+    # Ruckig at the planner's own max jerk keeps every limit and passes the waypoints
+    assert ruckig["jerk_abs_max"] <= planner["jerk_abs_max"] * (1 + 1e-6)
+    assert ruckig["qdd_abs_max"] <= limit_a * (1 + 1e-9)
+    assert ruckig["qd_abs_max"] <= limit_v * (1 + 1e-9)
+    assert toppra["T_s"] - 0.01 <= ruckig["T_s"] < planner["T_s"]
+    assert max(toppra["waypoint_deviation_mm"] + ruckig["waypoint_deviation_mm"]) < 1.0
     assert all(d < 50 for d in movej["waypoint_deviation_mm"] + planner["waypoint_deviation_mm"])

@@ -1,12 +1,21 @@
-"""`guidedarm compare-planners`: the seed-001 planner against movej and Toppra, one table.
+"""`guidedarm compare-planners`: the acceleration-level planner against movej, Toppra and Ruckig.
 
-All three move the UR10e of `ur10e_waypoints` (or another waypoints scenario) from the
-same start through the same waypoints under the same joint limits: the acceleration-level
-planner (both limits on), a UR-controller-like movej with a 0.05 m blend radius, and
-Drake's Toppra through the planner's IK joint waypoints. Figures are computed on the
-commanded trajectories sampled at the planner period: T (s), max |qd| (rad/s), max |qdd|
-(rad/s^2), max |jerk| (rad/s^3, finite differences of qdd), and the closest TCP approach
-to each waypoint (mm).
+Without --random: one table for a waypoints scenario (default `ur10e_waypoints`, the paper's
+task). Every planner moves the arm from the same start through the same waypoints under the
+same joint limits: the acceleration-level planner (robust mode, both limits on), the paper's
+law (planner.robust false), a UR-controller-like movej with a 0.05 m blend radius, Drake's
+Toppra through the planner's IK joint waypoints, and Ruckig (jerk-limited, offline
+state-to-state segments with Toppra's via velocities, or at rest at the waypoints where Toppra
+found no parameterisation) at the robust planner's own max jerk.
+Figures are computed on the commanded trajectories sampled at the planner period: T (s),
+max |qd| (rad/s), max |qdd| (rad/s^2), max |jerk| (rad/s^3, finite differences of qdd), and
+the closest TCP approach to each waypoint (mm).
+
+With --random N --arm ARM: N seeded random reachable tasks (systems/planning/
+random_waypoint_tasks.py) on the arm's waypoints scenario, every planner on each, one table:
+success rate (the planner ended within 1 mm and 1 mrad and kept every limit; a baseline
+found a trajectory), T median, median ratios of T to Ruckig's and Toppra's on the same task,
+max |qd|, |qdd|, |jerk| over all tasks, and the number of tasks with a limit breach.
 """
 
 from __future__ import annotations
@@ -20,73 +29,205 @@ import numpy as np
 from guidedarm.diagrams.cli.command_run import LoadScenario
 from guidedarm.diagrams.run_context import RunContext
 from guidedarm.diagrams.tasks.waypoints import MakePlannerSetup, PlannerSetup, PlotTcpPathsOfJoints
-from guidedarm.systems.errors import ConfigurationError
-from guidedarm.systems.planning.acceleration_planner_math import ClosestApproach, RunPlanning
+from guidedarm.systems.errors import ConfigurationError, GuidedArmError
+from guidedarm.systems.planning.acceleration_planner_math import (
+    AccelerationPlanning,
+    ClosestApproach,
+    PlannerConfig,
+    RunPlanning,
+)
 from guidedarm.systems.planning.planner_baselines import (
     JointTrajectory,
     MoveJ,
+    RuckigThroughWaypoints,
     ToppraThroughWaypoints,
 )
+from guidedarm.systems.planning.random_waypoint_tasks import MakeRandomWaypointTasks
+from guidedarm.systems.planning.waypoint_ik import SolveWaypointIk
 
 BLEND_RADIUS_M = 0.05
+ROBUST, SEED = "acceleration planner", "seed's law"
+MOVEJ = f"movej blend {BLEND_RADIUS_M} m"
+ARM_SCENARIOS = {"mz04d": "mz04d_waypoints", "ur10e": "ur10e_waypoints"}
+ARM_SCENARIOS["rover_arm"] = "rover_arm_waypoints"
+LIMIT_TOLERANCE = 1e-6  # relative: a sample beyond limit * (1 + this) is a breach
 
 
 def register(subparsers: argparse._SubParsersAction) -> None:
     parser = subparsers.add_parser(
-        "compare-planners", help="the seed-001 planner vs movej (blend 0.05 m) and Toppra"
+        "compare-planners",
+        help="the acceleration-level planner vs the paper's law, movej, Toppra and Ruckig",
     )
     parser.add_argument("--scenario", default="ur10e_waypoints", help="a waypoints scenario")
     parser.add_argument("--out", type=Path, help="also write compare_planners.csv and a plot")
     parser.add_argument("--set", dest="overrides", action="append", default=[], metavar="KEY=VALUE")
+    parser.add_argument("--random", type=int, metavar="N", help="N seeded random reachable tasks")
+    parser.add_argument("--arm", choices=sorted(ARM_SCENARIOS), help="the arm of --random")
+    parser.add_argument("--seed", type=int, default=0, help="random seed of --random")
     parser.set_defaults(func=compare_command)
 
 
-def ComparePlanners(setup: PlannerSetup, max_time: float) -> dict[str, JointTrajectory]:
-    """The three commanded trajectories, each ending when its task ends."""
+def Jerk(trajectory: JointTrajectory) -> np.ndarray:
+    """Finite differences of the sampled accelerations (rad/s^3)."""
+    return np.diff(trajectory.qdd, axis=0) / np.diff(trajectory.times)[:, None]
+
+
+def PlannerTrajectory(
+    planning: AccelerationPlanning, q0: np.ndarray, max_time: float
+) -> JointTrajectory | None:
+    """The law's commanded trajectory from rest at q0 until the task ended; None if it did
+    not end within max_time or stopped with a PlanningError (the paper's law)."""
+    try:
+        planned = RunPlanning(planning, q0, max_time)
+    except GuidedArmError:
+        return None
+    if planned.done_time < 0:
+        return None
+    end = int(np.searchsorted(planned.times, planned.done_time - 1e-9)) + 1
+    return JointTrajectory(
+        planned.times[:end], planned.q[:end], planned.qd[:end], planned.qdd[:end]
+    )
+
+
+def ComparePlanners(
+    setup: PlannerSetup, waypoints: np.ndarray, q0: np.ndarray, max_time: float
+) -> dict[str, JointTrajectory | None]:
+    """Every planner's commanded trajectory for one task (None where a planner failed)."""
     planning = setup.planning
-    period = planning.parameters.time_step
     if planning.scaling is None or planning.penalty is None:
         raise ConfigurationError("compare-planners needs limits=velocity,acceleration")
-    planned = RunPlanning(planning, setup.q0, max_time)
-    if planned.done_time < 0:
-        raise ConfigurationError(f"the planner did not finish within {max_time} s")
-    end = int(np.searchsorted(planned.times, planned.done_time - 1e-9)) + 1
-    joint_waypoints = np.vstack([setup.q0, setup.joint_waypoints])
-    kinematics = planning.kinematics
-    return {
-        "acceleration planner": JointTrajectory(
-            planned.times[:end], planned.q[:end], planned.qd[:end], planned.qdd[:end]
-        ),
-        f"movej blend {BLEND_RADIUS_M} m": MoveJ(
-            joint_waypoints,
-            lambda q: kinematics.Position(q)[:3],
-            setup.velocity_limit,
-            setup.acceleration_limit,
-            BLEND_RADIUS_M,
-            period,
-        ),
-        "toppra": ToppraThroughWaypoints(
-            setup.plant, joint_waypoints, setup.velocity_limit, setup.acceleration_limit, period
-        ),
+    joints = SolveWaypointIk(planning.kinematics, waypoints, q0)
+    trajectories = {
+        ROBUST: PlannerTrajectory(_Planning(planning, waypoints, joints, True), q0, max_time),
+        SEED: PlannerTrajectory(_Planning(planning, waypoints, None, False), q0, max_time),
     }
+    path = np.vstack([q0, joints])
+    v, a = setup.velocity_limit, setup.acceleration_limit
+    period = planning.parameters.time_step
+    kinematics = planning.kinematics
+    trajectories[MOVEJ] = MoveJ(
+        path, lambda q: kinematics.Position(q)[:3], v, a, BLEND_RADIUS_M, period
+    )
+    try:
+        trajectories["toppra"], via = ToppraThroughWaypoints(setup.plant, path, v, a, period)
+    except GuidedArmError:  # Toppra's grid occasionally finds no parameterisation
+        trajectories["toppra"], via = None, np.zeros_like(path)
+    reference = trajectories[ROBUST] or trajectories[SEED]
+    trajectories["ruckig"] = None
+    if reference is not None:
+        jerk = np.full(6, np.abs(Jerk(reference)).max())
+        trajectories["ruckig"] = RuckigThroughWaypoints(path, via, v, a, jerk, period)
+    return trajectories
+
+
+def _Planning(
+    planning: AccelerationPlanning, waypoints: np.ndarray, joints: np.ndarray | None, robust: bool
+) -> AccelerationPlanning:
+    """The law of `planning` (kinematics, limits, settings) in the given mode for a task."""
+    return AccelerationPlanning(
+        planning.kinematics,
+        waypoints,
+        PlannerConfig(**{**planning.parameters.__dict__, "robust": robust}),
+        (planning.penalty.lower, planning.penalty.upper),
+        (planning.scaling.lower, planning.scaling.upper),
+        joints,
+    )
 
 
 def TableRow(setup: PlannerSetup, trajectory: JointTrajectory) -> dict[str, Any]:
     """T, max |qd|, max |qdd|, max |jerk| and the closest approach to each waypoint."""
     kinematics = setup.planning.kinematics
-    period = setup.planning.parameters.time_step
     tcp = np.array([kinematics.Position(q)[:3] for q in trajectory.q])
-    jerk = np.diff(trajectory.qdd, axis=0) / period
     return {
         "T_s": float(trajectory.times[-1]),
         "qd_abs_max": float(np.abs(trajectory.qd).max()),
         "qdd_abs_max": float(np.abs(trajectory.qdd).max()),
-        "jerk_abs_max": float(np.abs(jerk).max()),
+        "jerk_abs_max": float(np.abs(Jerk(trajectory)).max()),
         "waypoint_deviation_mm": (1e3 * ClosestApproach(tcp, setup.planning.waypoints)).tolist(),
     }
 
 
+def Breaches(setup: PlannerSetup, trajectory: JointTrajectory) -> bool:
+    """Whether any sample exceeds a velocity or acceleration limit."""
+    tolerance = 1 + LIMIT_TOLERANCE
+    return bool(
+        np.any(np.abs(trajectory.qd) > setup.velocity_limit * tolerance)
+        or np.any(np.abs(trajectory.qdd) > setup.acceleration_limit * tolerance)
+    )
+
+
+def RandomComparison(arm: str, count: int, seed: int = 0) -> dict[str, dict[str, Any]]:
+    """Every planner on `count` random reachable tasks of `arm`: one summary per planner."""
+    _, scenario, _ = LoadScenario(ARM_SCENARIOS[arm], [])
+    setup = MakePlannerSetup(scenario)
+    tasks = MakeRandomWaypointTasks(setup.planning.kinematics, count, seed)
+    runs = [ComparePlanners(setup, task.waypoints, task.q0, scenario.max_time) for task in tasks]
+    summaries = {}
+    for name in runs[0]:
+        found = [run[name] for run in runs if run.get(name) is not None]
+        times = [run[name].times[-1] for run in runs if run.get(name) is not None]
+        breaches = sum(Breaches(setup, t) for t in found)
+        ok = len(found) - (breaches if name in (ROBUST, SEED) else 0)
+        summaries[name] = {
+            "tasks": count,
+            "success_rate": ok / count,
+            "T_median_s": float(np.median(times)) if times else None,
+            "T_ratio_ruckig": _MedianRatio(runs, name, "ruckig"),
+            "T_ratio_toppra": _MedianRatio(runs, name, "toppra"),
+            "qd_abs_max": max((float(np.abs(t.qd).max()) for t in found), default=None),
+            "qdd_abs_max": max((float(np.abs(t.qdd).max()) for t in found), default=None),
+            "jerk_abs_max": max((float(np.abs(Jerk(t)).max()) for t in found), default=None),
+            "limit_breaches": breaches,
+        }
+    return summaries
+
+
+def _MedianRatio(runs: list[dict], name: str, reference: str) -> float | None:
+    ratios = [
+        run[name].times[-1] / run[reference].times[-1]
+        for run in runs
+        if run.get(name) is not None and run.get(reference) is not None
+    ]
+    return float(np.median(ratios)) if ratios else None
+
+
+def PrintRandomTable(arm: str, count: int, summaries: dict[str, dict[str, Any]]) -> None:
+    print(f"{count} random reachable tasks on {arm}")
+    header = f"{'planner':<22}{'success':>8}{'T med s':>9}{'T/ruckig':>10}{'T/toppra':>10}"
+    print(header + f"{'|qd| max':>10}{'|qdd| max':>11}{'|jerk| max':>12}{'breaches':>10}")
+    for name, row in summaries.items():
+        cells = [f"{name:<22}", f"{100 * row['success_rate']:>7.0f}%"]
+        for key, width, digits in (
+            ("T_median_s", 9, 2),
+            ("T_ratio_ruckig", 10, 3),
+            ("T_ratio_toppra", 10, 3),
+            ("qd_abs_max", 10, 3),
+            ("qdd_abs_max", 11, 3),
+            ("jerk_abs_max", 12, 1),
+        ):
+            value = row[key]
+            cells.append(f"{value:>{width}.{digits}f}" if value is not None else f"{'-':>{width}}")
+        cells.append(f"{row['limit_breaches']:>10d}")
+        print("".join(cells))
+
+
 def compare_command(args: argparse.Namespace) -> int:
+    if args.random is not None:
+        if args.arm is None or args.random < 1:
+            raise ConfigurationError("--random N needs N >= 1 and --arm ARM")
+        summaries = RandomComparison(args.arm, args.random, args.seed)
+        PrintRandomTable(args.arm, args.random, summaries)
+        if args.out:
+            context = RunContext(out_dir=args.out)
+            keys = list(next(iter(summaries.values())))
+            context.write_csv(
+                "compare_planners_random",
+                ["planner", *keys],
+                [[name, *row.values()] for name, row in summaries.items()],
+            )
+            for path in context.written:
+                print(f"wrote {path}")
+        return 0
     task, scenario, _ = LoadScenario(args.scenario, args.overrides)
     if task.name != "waypoints":
         raise ConfigurationError(
@@ -95,7 +236,8 @@ def compare_command(args: argparse.Namespace) -> int:
         )
     context = RunContext(out_dir=args.out) if args.out else None
     setup = MakePlannerSetup(scenario)
-    trajectories = ComparePlanners(setup, scenario.max_time)
+    found = ComparePlanners(setup, setup.planning.waypoints, setup.q0, scenario.max_time)
+    trajectories = {name: t for name, t in found.items() if t is not None}
     rows = {name: TableRow(setup, t) for name, t in trajectories.items()}
     count = len(setup.planning.waypoints)
     header = f"{'planner':<22}{'T s':>7}{'|qd| max':>10}{'|qdd| max':>11}{'|jerk| max':>12}"
@@ -106,6 +248,9 @@ def compare_command(args: argparse.Namespace) -> int:
         line += f"{row['qdd_abs_max']:>11.3f}{row['jerk_abs_max']:>12.1f}"
         line += "".join(f"{d:>12.2f}" for d in row["waypoint_deviation_mm"])
         print(line)
+    for name in found:
+        if found[name] is None:
+            print(f"{name:<22} did not finish the task")
     if context is not None:
         context.write_csv(
             "compare_planners",

@@ -34,9 +34,8 @@ from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
-from pydrake.math import RigidTransform, RollPitchYaw
+from pydrake.math import RigidTransform
 from pydrake.multibody.plant import MultibodyPlant
-from pydrake.multibody.tree import FixedOffsetFrame
 from pydrake.systems.analysis import ApplySimulatorConfig, Simulator
 from pydrake.systems.framework import DiagramBuilder
 from pydrake.systems.primitives import VectorLogSink
@@ -46,7 +45,6 @@ from guidedarm.diagrams.run_context import RunContext
 from guidedarm.diagrams.station.model_paths import MODELS_DIR
 from guidedarm.diagrams.station.scenario import StationScenario
 from guidedarm.diagrams.station.station import MakeStation
-from guidedarm.diagrams.station.station_plant import AddStationModels
 from guidedarm.diagrams.tasks.panel_assets import COVER_CLOSED_M
 from guidedarm.diagrams.tasks.panel_camera_rig import LookAt
 from guidedarm.diagrams.tasks.panel_files import (
@@ -58,8 +56,8 @@ from guidedarm.diagrams.tasks.panel_operation_report import (
     PanelOperationMetrics,
     PlotPanelOperation,
 )
+from guidedarm.diagrams.tasks.planner_builder import MakeAccelerationPlanner
 from guidedarm.diagrams.tasks.registry import TaskDefinition
-from guidedarm.diagrams.tasks.waypoints import SymmetricLimit
 from guidedarm.systems.config_checks import CheckFields, InRange, NonNegative, Positive
 from guidedarm.systems.errors import ConfigurationError
 from guidedarm.systems.markers.image_degradation import DegradationConfig
@@ -67,14 +65,8 @@ from guidedarm.systems.markers.panel_operation_math import (
     PanelOperationConfig,
     PlannerFrames,
 )
-from guidedarm.systems.planning import acceleration_planner_math as planning_law
 from guidedarm.systems.planning.acceleration_planner import AccelerationPlanner
-from guidedarm.systems.planning.acceleration_planner_math import (
-    AccelerationPlanning,
-    PlannerConfig,
-    PlanningError,
-)
-from guidedarm.systems.plant_frames import GetScopedFrame
+from guidedarm.systems.planning.acceleration_planner_math import PlannerConfig, PlanningError
 
 
 @dataclass
@@ -102,19 +94,17 @@ class StartConfig:
 
 @dataclass
 class PanelPlannerConfig:
-    """The acceleration-level planner of operation.motion "planner".
+    """The acceleration-level planner of operation.motion "planner" (MakeAccelerationPlanner
+    on the station's own models of the arm and gripper; its TCP is the scenario's tip frame).
 
     base_frame: the planner's base B (scoped frame name).
-    tcp_rpy_deg: the planner's TCP N is the scenario's tip frame rotated by these roll,
-        pitch, yaw (deg), which only changes how orientations are expressed (keep the
-        Z-Y-X pitch of the targets away from +-90 deg).
     max_joint_velocity, max_joint_acceleration: symmetric limits, one value or one per
         joint (rad/s, rad/s^2).
-    parameters: the law's gains and settings.
+    parameters: the law's gains and settings (the robust mode by default: facing the panel
+        the tip is at Z-Y-X pitch -90 deg, the Euler singularity of the paper's law).
     """
 
     base_frame: str = ""
-    tcp_rpy_deg: list[float] = field(default_factory=lambda: [0.0, 0.0, 0.0])
     max_joint_velocity: list[float] = Positive(factory=lambda: [0.5])
     max_joint_acceleration: list[float] = Positive(factory=lambda: [1.5])
     parameters: PlannerConfig = field(default_factory=PlannerConfig)
@@ -311,46 +301,22 @@ def _replace_camera(station: StationScenario, name: str, camera, k: int) -> Stat
     return StationScenario(**{**station.__dict__, "cameras": cameras})
 
 
-def _LoadArmPlant(scenario: PanelOperationScenario) -> MultibodyPlant:
-    """The arm as its controller knows it (not finalized): the station's models of the arm
-    and of the tip frame's instance, without the panel."""
-    plant = MultibodyPlant(0.0)
-    names = [scenario.arm, scenario.tip_frame.rpartition("::")[0]]
-    AddStationModels(scenario.station, plant, [n for n in dict.fromkeys(names) if n], False)
-    return plant
-
-
 def _MakePlanner(scenario: PanelOperationScenario) -> tuple[AccelerationPlanner, PlannerFrames]:
-    """The task-driven AccelerationPlanner on its own copy of the arm, and its frames."""
+    """The task-driven AccelerationPlanner (MakeAccelerationPlanner) and its frames."""
     config = scenario.planner
-    plant = _LoadArmPlant(scenario)
-    tip = GetScopedFrame(plant, scenario.tip_frame, "tip_frame")
-    if len(config.tcp_rpy_deg) != 3:
-        raise ConfigurationError(f"planner.tcp_rpy_deg needs 3 angles, got {config.tcp_rpy_deg}")
-    X_TN = RigidTransform(RollPitchYaw(np.radians(config.tcp_rpy_deg)), np.zeros(3))
-    tcp = plant.AddFrame(FixedOffsetFrame("planner_tcp", tip, X_TN))
-    plant.Finalize()
-    base = GetScopedFrame(plant, config.base_frame, "planner.base_frame")
-    kinematics = planning_law.ArmKinematics(
-        plant,
-        plant.GetModelInstanceByName(scenario.arm),
-        base,
-        tcp,
-        config.parameters.min_singular_value,
-    )
-    velocity = SymmetricLimit(config.max_joint_velocity, "planner.max_joint_velocity")
-    acceleration = SymmetricLimit(config.max_joint_acceleration, "planner.max_joint_acceleration")
-    q_default = plant.GetPositions(plant.CreateDefaultContext())
-    # The waypoint given here is never used: the planner idles until the first task.
-    planning = AccelerationPlanning(
-        kinematics,
-        kinematics.Position(q_default)[np.newaxis],
+    planner = MakeAccelerationPlanner(
+        scenario.station,
+        scenario.arm,
+        config.base_frame,
+        scenario.tip_frame,
+        None,
         config.parameters,
-        (-velocity, velocity),
-        (-acceleration, acceleration),
+        config.max_joint_velocity,
+        config.max_joint_acceleration,
     )
-    X_WB = base.CalcPoseInWorld(plant.CreateDefaultContext())
-    return AccelerationPlanner(planning, accept_tasks=True), PlannerFrames(X_WB, X_TN)
+    kinematics = planner.planning.kinematics
+    X_WB = kinematics.base_frame.CalcPoseInWorld(kinematics.plant.CreateDefaultContext())
+    return planner, PlannerFrames(X_WB, RigidTransform())
 
 
 def RunPanelOperation(scenario: PanelOperationScenario, context: RunContext) -> dict[str, Any]:

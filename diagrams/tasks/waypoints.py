@@ -1,7 +1,7 @@
 """Task `waypoints`: an arm's TCP through waypoints with the acceleration-level planner.
 
-The AccelerationPlanner (seed 001) streams commanded joint positions at 500 Hz to the
-station's `<arm>.position_commanded`; the run reports the seed's Table 2 figures on the
+The AccelerationPlanner (Pająk) streams commanded joint positions at 500 Hz to the
+station's `<arm>.position_commanded`; the run reports the paper's Table 2 figures on the
 commanded trajectory (what the planner produces) and the measured tracking error of the
 simulated arm.
 """
@@ -20,11 +20,7 @@ from guidedarm.diagrams.plots import PlotJointSeries
 from guidedarm.diagrams.run_context import AdvanceWithProgress, RunContext
 from guidedarm.diagrams.station.scenario import StationScenario
 from guidedarm.diagrams.station.station import MakeStation
-from guidedarm.diagrams.station.station_plant import (
-    AddStationModels,
-    GetArmInstance,
-    SetInitialPositions,
-)
+from guidedarm.diagrams.tasks.planner_builder import MakeAccelerationPlanner, SymmetricLimit
 from guidedarm.diagrams.tasks.planner_plots import PlotScaling, PlotTcpPath
 from guidedarm.diagrams.tasks.registry import TaskDefinition
 from guidedarm.systems.config_checks import NonNegative, Positive
@@ -32,15 +28,12 @@ from guidedarm.systems.errors import ConfigurationError
 from guidedarm.systems.planning.acceleration_planner import AccelerationPlanner
 from guidedarm.systems.planning.acceleration_planner_math import (
     AccelerationPlanning,
-    ArmKinematics,
     ClosestApproach,
     PlannedTrajectory,
     PlannerConfig,
     PlannerState,
     PlanningError,
 )
-from guidedarm.systems.planning.waypoint_ik import SolveWaypointIk
-from guidedarm.systems.plant_frames import GetScopedFrame
 
 LIMIT_CHOICES = ("none", "velocity", "velocity,acceleration")
 
@@ -51,7 +44,7 @@ class WaypointsScenario:
     (e.g. `ur10e::base`, `ur10e::tool0`) of the base B and the TCP T.
     waypoints: rows [x, y, z, roll, pitch, yaw] of T in B (m, rad, Z-Y-X Euler angles); the
         last one is the final location. The start is the arm's initial position.
-    limits: which of the seed's constraints are on: none, velocity, velocity,acceleration.
+    limits: which of the paper's constraints are on: none, velocity, velocity,acceleration.
     max_joint_velocity, max_joint_acceleration: symmetric limits (rad/s, rad/s^2), one
         value for every joint or one per joint.
     planner: the planner's gains and settings. max_time: the run fails if the task has not
@@ -77,8 +70,11 @@ class WaypointsScenario:
 
 @dataclass
 class PlannerSetup:
-    """The planner's own plant (a copy of the station's models), its law and the start."""
+    """The planner of a waypoints scenario (MakeAccelerationPlanner's LeafSystem), its law,
+    controller plant, start q0 (rad), the waypoints' IK solutions (rad) and the symmetric
+    limits (rad/s, rad/s^2; the scenario's even when a limit is switched off)."""
 
+    planner: AccelerationPlanner
     plant: MultibodyPlant
     planning: AccelerationPlanning
     q0: np.ndarray
@@ -88,42 +84,31 @@ class PlannerSetup:
 
 
 def MakePlannerSetup(scenario: WaypointsScenario) -> PlannerSetup:
-    """Builds the planner for `scenario` and refuses bad input before any motion:
-    unknown arm or frames, bad limits or gains, waypoints out of reach, singular start."""
-    if scenario.arm not in scenario.station.arms:
-        raise ConfigurationError(
-            f"arm '{scenario.arm}' is not in station.arms {list(scenario.station.arms)}"
-        )
+    """The scenario's planner through MakeAccelerationPlanner, which refuses bad input
+    before any motion: unknown arm or frames, bad limits or gains, waypoints out of reach,
+    and a near-singular start in the paper's mode."""
     if scenario.limits not in LIMIT_CHOICES:
         raise ConfigurationError(f"limits must be one of {LIMIT_CHOICES}, got '{scenario.limits}'")
     if not scenario.waypoints:
         raise ConfigurationError("waypoints: at least one waypoint is needed")
-    plant = MultibodyPlant(time_step=0.0)
-    AddStationModels(scenario.station, plant)
-    plant.Finalize()
-    SetInitialPositions(scenario.station, plant)
-    instance = GetArmInstance(plant, scenario.arm)
-    kinematics = ArmKinematics(
-        plant,
-        instance,
-        GetScopedFrame(plant, scenario.base_frame, "base_frame"),
-        GetScopedFrame(plant, scenario.tool_frame, "tool_frame"),
-        scenario.planner.min_singular_value,
-    )
     velocity = SymmetricLimit(scenario.max_joint_velocity, "max_joint_velocity")
     acceleration = SymmetricLimit(scenario.max_joint_acceleration, "max_joint_acceleration")
-    waypoints = np.array(scenario.waypoints, float)
-    planning = AccelerationPlanning(
-        kinematics,
-        waypoints,
+    planner = MakeAccelerationPlanner(
+        scenario.station,
+        scenario.arm,
+        scenario.base_frame,
+        scenario.tool_frame,
+        scenario.waypoints,
         scenario.planner,
-        (-velocity, velocity) if scenario.limits != "none" else None,
-        (-acceleration, acceleration) if scenario.limits == "velocity,acceleration" else None,
+        velocity if scenario.limits != "none" else None,
+        acceleration if scenario.limits == "velocity,acceleration" else None,
     )
-    q0 = plant.GetPositions(plant.CreateDefaultContext(), instance)
-    planning.InitialState(q0)
-    joint_waypoints = SolveWaypointIk(kinematics, waypoints, q0)
-    return PlannerSetup(plant, planning, q0, joint_waypoints, velocity, acceleration)
+    planning = planner.planning
+    plant = planning.kinematics.plant
+    q0 = plant.GetPositions(plant.CreateDefaultContext(), planning.kinematics.instance)
+    return PlannerSetup(
+        planner, plant, planning, q0, planning.joint_waypoints, velocity, acceleration
+    )
 
 
 def RunWaypoints(scenario: WaypointsScenario, context: RunContext) -> dict[str, Any]:
@@ -134,7 +119,7 @@ def RunWaypoints(scenario: WaypointsScenario, context: RunContext) -> dict[str, 
     station = builder.AddNamedSystem(
         "station", MakeStation(scenario.station, context.meshcat, hardware=context.hardware)
     )
-    planner = builder.AddNamedSystem("planner", AccelerationPlanner(setup.planning))
+    planner = builder.AddNamedSystem("planner", setup.planner)
     builder.Connect(
         planner.GetOutputPort("position_commanded"),
         station.GetInputPort(f"{arm}.position_commanded"),
@@ -201,7 +186,7 @@ def RunWaypoints(scenario: WaypointsScenario, context: RunContext) -> dict[str, 
 def TrajectoryMetrics(
     setup: PlannerSetup, trajectory: PlannedTrajectory, measured: np.ndarray | None = None
 ) -> dict[str, Any]:
-    """The seed's Table 2 figures of a commanded trajectory, plus measured tracking."""
+    """The paper's Table 2 figures of a commanded trajectory, plus measured tracking."""
     kinematics = setup.planning.kinematics
     waypoints = setup.planning.waypoints
     tcp = np.array([kinematics.Position(q) for q in trajectory.q])
@@ -218,6 +203,7 @@ def TrajectoryMetrics(
         "c_min": float(trajectory.c[1:].min()) if trajectory.c.size > 1 else 1.0,
         "waypoint_distance_m": ClosestApproach(tcp[:, :3], waypoints).round(5).tolist(),
         "qdd_step_max": float(np.abs(np.diff(trajectory.qdd, axis=0)).max(initial=0.0)),
+        "braking_steps": int(trajectory.braking.sum()),
     }
     if measured is not None and measured.size:
         count = min(len(measured), len(trajectory.q))
@@ -249,7 +235,7 @@ def SavePlannerFigures(
     trajectory: PlannedTrajectory,
     measured: np.ndarray,
 ) -> None:
-    """TCP path, q, qd, qdd (limits dashed) and c(t), like the seed's figures 2-14."""
+    """TCP path, q, qd, qdd (limits dashed) and c(t), like the paper's figures 2-14."""
     joint_paths = {"commanded": trajectory.q}
     if measured.size:
         joint_paths["measured"] = measured
@@ -286,19 +272,9 @@ def SavePlannerFigures(
     context.save_figure(PlotScaling(trajectory.times, trajectory.c), "scaling_coefficient")
 
 
-def SymmetricLimit(values: list[float], key: str) -> np.ndarray:
-    """Six positive limits from one value for every joint or one per joint."""
-    limit = np.asarray(values, float)
-    if limit.size == 1:
-        limit = np.full(6, limit[0])
-    if limit.size != 6 or not np.all(np.isfinite(limit)) or np.any(limit <= 0):
-        raise ConfigurationError(f"{key} needs 1 or 6 positive values, got {values}")
-    return limit
-
-
 TASK = TaskDefinition(
     name="waypoints",
     scenario_type=WaypointsScenario,
     run=RunWaypoints,
-    description="TCP through waypoints with the acceleration-level planner (seed 001)",
+    description="TCP through waypoints with the acceleration-level planner (Pająk)",
 )

@@ -1,11 +1,13 @@
-"""Path-follower moves through the acceleration-level planner of Pająk.
+"""Path-follower moves through the acceleration-level planner (Pająk).
 
 Each segment of a move (joint waypoints, as the follower asks for them) becomes one planner
 task: the tool frame's pose at the segment's end joints is the final location, and the
 planner's law (joint velocity penalty, acceleration scaling) runs from rest at the
 segment's start until the tool is within the planner's tolerances and then settle_time
 more. The move ends where the planner ends (within position_tolerance of the IK solution's
-tool pose), not at the IK joints themselves; the follower reads its sensors there.
+tool pose), not at the IK joints themselves; the follower reads its sensors there. The
+segment's end joints are also the target of the robust mode's joint-space blend near
+singularities.
 """
 
 import numpy as np
@@ -35,10 +37,10 @@ class PlannerMoves:
         q = np.asarray(waypoints[0], float)
         times, samples = [np.zeros(1)], [q[np.newaxis]]
         for k, q_end in enumerate(waypoints[1:]):
-            target = self.planning.kinematics.Position(np.asarray(q_end, float))
-            segment = RunPlanning(
-                self.planning.WithWaypoints(target[np.newaxis]), q, self.max_time, self.settle_time
-            )
+            q_end = np.asarray(q_end, float)
+            target = self.planning.kinematics.Position(q_end)
+            planning = self.planning.WithWaypoints(target[np.newaxis], q_end[np.newaxis])
+            segment = RunPlanning(planning, q, self.max_time, self.settle_time)
             if segment.done_time < 0:
                 raise PlanningError(
                     f"segment {k + 1} did not reach its target within {self.max_time} s"

@@ -1,4 +1,4 @@
-"""AccelerationPlanner: the seed-001 planner as a 500 Hz streaming source of joint commands.
+"""AccelerationPlanner: Pająk's acceleration-level planner as a 500 Hz source of joint commands.
 
 Like a program streaming servoJ targets to a UR controller, the planner integrates its own
 commanded state (q, qd) from the acceleration law of
@@ -11,7 +11,11 @@ method guarantees.
 With `accept_tasks` the planner takes new tasks while running (re-planning after each
 measurement of a sensor-guided sequence): each new PlannerTask restarts the law from the
 current commanded state, which keeps q, qd continuous, and c restarts from 0 as at the
-start of the seed's task, so the commanded accelerations stay continuous too.
+start of the paper's task, so the commanded accelerations stay continuous too.
+
+Every waypoint's reachability is checked by inverse kinematics before any motion: at
+construction for fixed waypoints, when a task arrives for tasks given while running.
+diagrams/tasks/planner_builder.py (MakeAccelerationPlanner) builds one for a station.
 """
 
 from __future__ import annotations
@@ -37,11 +41,16 @@ class AccelerationPlanner(LeafSystem):
     Output ports (commanded, for the arm's 6 joints): `position_commanded` (rad),
     `velocity_commanded` (rad/s), `acceleration_commanded` (rad/s^2, the value held over
     the last step), `scaling_coefficient` (c), and `planner_state` (the full
-    PlannerState vector: q, qd, qdd, t, c, c_hat0, t0, waypoint index, sigma, inside,
+    PlannerState vector: q, qd, qdd, t, c, c_hat0, t0, waypoint index, sigma, inside, braking,
     done time; for logging). After the task has ended the law keeps running, so the
     commands settle smoothly on the final location instead of stopping with a jump.
-    Errors of the law (PlanningError: singular arm, infeasible scaling) propagate out of
-    the simulator's AdvanceTo.
+    Errors of the law (PlanningError: the paper's mode at a singular arm or an infeasible
+    scaling) propagate out of the simulator's AdvanceTo.
+
+    Fixed waypoints are solved by inverse kinematics at construction, from q_guess (rad;
+    default: the plant's default positions of the arm): a waypoint out of reach raises
+    ConfigurationError naming it, and the solutions serve the robust mode's joint-space
+    blend near singularities (`planning.joint_waypoints`).
 
     With accept_tasks=True: the waypoints given at construction are not used; the planner
     holds the arm at rest until a task arrives on the abstract input port `task`
@@ -52,8 +61,20 @@ class AccelerationPlanner(LeafSystem):
     tolerances of its final location) or no task was given, else 0.0.
     """
 
-    def __init__(self, planning: AccelerationPlanning, accept_tasks: bool = False) -> None:
+    def __init__(
+        self,
+        planning: AccelerationPlanning,
+        accept_tasks: bool = False,
+        q_guess: np.ndarray | None = None,
+    ) -> None:
         super().__init__()
+        if not accept_tasks:
+            kinematics = planning.kinematics
+            if q_guess is None:
+                plant = kinematics.plant
+                q_guess = plant.GetPositions(plant.CreateDefaultContext(), kinematics.instance)
+            joints = SolveWaypointIk(kinematics, planning.waypoints, q_guess)
+            planning = planning.WithWaypoints(planning.waypoints, joints)
         self._planning = planning
         n = 6
         size = 3 * n + PlannerState.SIZE_EXTRA
@@ -125,7 +146,7 @@ class AccelerationPlanner(LeafSystem):
             state = planning.Restart(state)
             discrete_state.set_value(self._sequence_index, [float(task.sequence)])
         elif running >= 0:
-            planning = self._PlanningFor(task)
+            planning = self._PlanningFor(task, state)
         else:  # no task yet: hold at rest
             state.t += self._planning.parameters.time_step
             discrete_state.set_value(self._state_index, state.ToVector())
@@ -140,16 +161,18 @@ class AccelerationPlanner(LeafSystem):
     def _StartTask(self, task: PlannerTask, state: PlannerState) -> AccelerationPlanning:
         try:
             planning = self._planning.WithWaypoints(task.waypoints)
-            SolveWaypointIk(planning.kinematics, planning.waypoints, state.q)
+            joints = SolveWaypointIk(planning.kinematics, planning.waypoints, state.q)
+            planning = planning.WithWaypoints(planning.waypoints, joints)
         except ConfigurationError as e:
             raise PlanningError(f"planner task {task.sequence} refused: {e}") from None
         self._task_planning = (task.sequence, planning)
         return planning
 
-    def _PlanningFor(self, task: PlannerTask) -> AccelerationPlanning:
-        # A cache of the running task's planning: a pure function of the task input.
+    def _PlanningFor(self, task: PlannerTask, state: PlannerState) -> AccelerationPlanning:
+        # A cache of the running task's planning, made when the task started; a context
+        # that did not start it here (e.g. a copy) solves the waypoints again from state.
         if self._task_planning[0] != task.sequence:
-            self._task_planning = (task.sequence, self._planning.WithWaypoints(task.waypoints))
+            self._task_planning = (task.sequence, self._StartTask(task, state))
         return self._task_planning[1]
 
     def _CalcDone(self, context: Context, output: BasicVector) -> None:

@@ -1,14 +1,21 @@
-"""Baselines for the waypoint planner: a UR-controller-like movej and Drake's Toppra.
+"""Baselines for the waypoint planner: a UR-controller-like movej, Drake's Toppra and Ruckig.
 
-Both move through the same joint waypoints (the IK solutions of the TCP waypoints) under
+All move through the same joint waypoints (the IK solutions of the TCP waypoints) under
 symmetric joint velocity and acceleration limits, and are sampled at the planner period.
+
+Ruckig (community version, offline): jerk-limited time-optimal state-to-state segments
+between consecutive joint waypoints, each ending at the next waypoint with a via velocity
+and zero acceleration. Its waypoint mode (intermediate positions) is the pro version's
+remote service and is not used. The via velocities are Toppra's at the waypoints: the
+time-optimal velocities along the spline through them under the same velocity and
+acceleration limits, so Ruckig passes each waypoint as fast as Toppra does.
 
 movej (UR e-Series manual, "MoveJ" with "blend radius"): each segment moves all joints
 synchronously along a straight line in joint space, timed by a trapezoidal velocity profile
 of the leading axis (the one with the largest move relative to its limits). With a blend
 radius r the next segment starts as soon as the TCP comes within r of the waypoint, and
 the two segments' displacements add up; that keeps the velocity continuous but lets the
-accelerations of both segments add in the blend, as in the seed's experiment 1.
+accelerations of both segments add in the blend, as in the paper's experiment 1.
 """
 
 from __future__ import annotations
@@ -19,7 +26,9 @@ from dataclasses import dataclass
 import numpy as np
 from pydrake.multibody.optimization import CalcGridPointsOptions, Toppra
 from pydrake.multibody.plant import MultibodyPlant
-from pydrake.trajectories import PiecewisePolynomial
+from pydrake.trajectories import PiecewisePolynomial, Trajectory
+from ruckig import InputParameter, Result, Ruckig
+from ruckig import Trajectory as RuckigTrajectory
 
 from guidedarm.systems.errors import GuidedArmError
 
@@ -114,9 +123,11 @@ def ToppraThroughWaypoints(
     v_max: np.ndarray,
     a_max: np.ndarray,
     period: float,
-) -> JointTrajectory:
+) -> tuple[JointTrajectory, np.ndarray]:
     """Time-optimal parameterisation (Drake's Toppra) of a C2 cubic spline through the
     joint waypoints (knots at the cumulative joint-space distance, at rest at both ends).
+    Returns the sampled trajectory and the joint velocities at the waypoints (rad/s, one row
+    per waypoint).
 
     `plant` must have exactly the arm's joints as positions.
     """
@@ -150,4 +161,66 @@ def ToppraThroughWaypoints(
     second = ddpath.vector_values(s).T
     qd = first * ds[:, None]
     qdd = second * ds[:, None] ** 2 + first * dds[:, None]
-    return JointTrajectory(times, q, qd, qdd)
+    via = np.array(
+        [dpath.value(k)[:, 0] * s_trajectory.EvalDerivative(_TimeAt(s_trajectory, k), 1)[0, 0]
+         for k in knots]
+    )  # fmt: skip
+    return JointTrajectory(times, q, qd, qdd), via
+
+
+def _TimeAt(s_trajectory: Trajectory, s_value: float) -> float:
+    """The time at which the monotone path parameter s(t) reaches s_value (bisection)."""
+    lo, hi = s_trajectory.start_time(), s_trajectory.end_time()
+    for _ in range(60):
+        mid = 0.5 * (lo + hi)
+        if s_trajectory.value(mid)[0, 0] < s_value:
+            lo = mid
+        else:
+            hi = mid
+    return 0.5 * (lo + hi)
+
+
+def RuckigThroughWaypoints(
+    joint_waypoints: np.ndarray,
+    via_velocities: np.ndarray,
+    v_max: np.ndarray,
+    a_max: np.ndarray,
+    j_max: np.ndarray,
+    period: float,
+) -> JointTrajectory:
+    """Ruckig's jerk-limited time-optimal segments from rest at the first joint waypoint
+    through the others (rad) to rest at the last, passing waypoint k with velocity
+    via_velocities[k] (rad/s; the first and last rows are ignored: rest) and zero
+    acceleration, under |qd| <= v_max, |qdd| <= a_max, |jerk| <= j_max; sampled at `period`.
+    Via velocities are clipped to the velocity limits (Toppra's grid may pass them by a
+    fraction of a percent)."""
+    n = joint_waypoints.shape[1]
+    via_velocities = np.clip(via_velocities, -v_max, v_max)
+    generator = Ruckig(n)
+    segments = []
+    for k in range(len(joint_waypoints) - 1):
+        last = k + 2 == len(joint_waypoints)
+        parameters = InputParameter(n)
+        parameters.current_position = joint_waypoints[k]
+        parameters.current_velocity = np.zeros(n) if k == 0 else via_velocities[k]
+        parameters.current_acceleration = np.zeros(n)
+        parameters.target_position = joint_waypoints[k + 1]
+        parameters.target_velocity = np.zeros(n) if last else via_velocities[k + 1]
+        parameters.target_acceleration = np.zeros(n)
+        parameters.max_velocity = v_max
+        parameters.max_acceleration = a_max
+        parameters.max_jerk = j_max
+        segment = RuckigTrajectory(n)
+        result = generator.calculate(parameters, segment)
+        if result not in (Result.Working, Result.Finished):
+            raise GuidedArmError(f"Ruckig found no segment {k + 1} ({result})")
+        segments.append(segment)
+    ends = np.cumsum([segment.duration for segment in segments])
+    times = np.arange(0.0, ends[-1] + period / 2, period)
+    times[-1] = min(times[-1], ends[-1])
+    samples = np.zeros((3, times.size, n))
+    for i, t in enumerate(times):
+        k = min(int(np.searchsorted(ends, t)), len(segments) - 1)
+        start = ends[k - 1] if k else 0.0
+        samples[:, i] = segments[k].at_time(t - start)
+    return JointTrajectory(times, *samples)

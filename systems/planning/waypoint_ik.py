@@ -1,9 +1,10 @@
 """Joint solutions of TCP waypoints: the planner's reachability check before any motion.
 
-The acceleration-level planner never solves inverse kinematics itself, but a waypoint out
-of the arm's reach would only show up as a run that never ends. Solving the IK of every
-waypoint first (each from the previous solution, so they lie on one branch) refuses such
-a task at once, and the joint waypoints serve the baselines the planner is compared with.
+A waypoint out of the arm's reach would only show up as a run that never ends (or, in the
+paper's law, a misleading case (c)). Solving the IK of every waypoint first (each from the
+previous solution, so they lie on one branch) refuses such a task at once; the solutions
+are the targets of the robust mode's joint-space blend near singularities and the joint
+waypoints of the baselines the planner is compared with.
 """
 
 from __future__ import annotations
@@ -14,7 +15,11 @@ from pydrake.multibody.inverse_kinematics import InverseKinematics
 from pydrake.solvers import Solve
 
 from guidedarm.systems.errors import ConfigurationError
-from guidedarm.systems.planning.acceleration_planner_math import ArmKinematics
+from guidedarm.systems.planning.acceleration_planner_kinematics import (
+    ArmKinematics,
+    DampedSolve,
+    PoseError,
+)
 
 
 def WaypointPose(p: np.ndarray) -> RigidTransform:
@@ -29,28 +34,30 @@ def SolveWaypointIk(
     tolerance: float = 1e-6,
     attempts: int = 8,
 ) -> np.ndarray:
-    """Joint positions (rad), one row per waypoint, within the plant's joint limits.
+    """Joint positions (rad), one row per waypoint, within the plant's joint limits, each
+    the solution nearest the previous one (the first nearest q_start) that the solver finds.
 
+    Each waypoint is solved from the previous solution, then from small perturbations of it
+    (near a singularity the solver can stall at the guess itself), then from random
+    configurations; every attempt is pulled towards the previous solution by its cost, so a
+    restart does not jump to another branch of the arm when a near one exists.
     Raises ConfigurationError naming the first waypoint that has no solution.
     """
     plant, instance = kinematics.plant, kinematics.instance
     context = plant.CreateDefaultContext()
-    lower = plant.GetPositionLowerLimits()
-    upper = plant.GetPositionUpperLimits()
+    lower = np.maximum(
+        plant.GetPositionsFromArray(instance, plant.GetPositionLowerLimits()), -np.pi
+    )
+    upper = np.minimum(plant.GetPositionsFromArray(instance, plant.GetPositionUpperLimits()), np.pi)
     rng = np.random.default_rng(0)
     solutions = []
     q_previous = np.asarray(q_start, float)
     for i, p in enumerate(np.atleast_2d(waypoints)):
         X_BT = WaypointPose(p)
-        guesses = [q_previous] + [
-            rng.uniform(
-                np.maximum(plant.GetPositionsFromArray(instance, lower), -np.pi),
-                np.minimum(plant.GetPositionsFromArray(instance, upper), np.pi),
-            )
-            for _ in range(attempts - 1)
-        ]
-        for guess in guesses:
-            q = _Solve(kinematics, context, X_BT, guess, tolerance)
+        near = [q_previous + rng.normal(0.0, 0.05 * k, 6) for k in (1, 2, 4)]
+        far = [rng.uniform(lower, upper) for _ in range(attempts - 1)]
+        for guess in [q_previous, *near, *far]:
+            q = _Solve(kinematics, context, X_BT, guess, q_previous, tolerance)
             if q is not None:
                 break
         else:
@@ -68,6 +75,7 @@ def _Solve(
     context,
     X_BT: RigidTransform,
     guess: np.ndarray,
+    nearest: np.ndarray,
     tolerance: float,
 ) -> np.ndarray | None:
     plant, instance = kinematics.plant, kinematics.instance
@@ -87,8 +95,36 @@ def _Solve(
     arm = mask > 0
     if (~arm).any():  # the rest of the scene stays where it is
         prog.AddBoundingBoxConstraint(q_full[~arm], q_full[~arm], ik.q()[~arm])
-    prog.AddQuadraticErrorCost(np.eye(int(arm.sum())) * 1e-3, guess, ik.q()[arm])
+    prog.AddQuadraticErrorCost(np.eye(int(arm.sum())) * 1e-3, nearest, ik.q()[arm])
     result = Solve(prog, q_full)
     if not result.is_success():
         return None
-    return plant.GetPositionsFromArray(instance, result.GetSolution(ik.q()))
+    return _Polish(
+        kinematics, X_BT, plant.GetPositionsFromArray(instance, result.GetSolution(ik.q()))
+    )
+
+
+def _Polish(kinematics: ArmKinematics, X_BT: RigidTransform, q: np.ndarray) -> np.ndarray:
+    """q moved onto the pose X_BT by Newton steps on [position; rotation vector] error.
+
+    The solver's orientation constraint bounds trace(R), so an accepted solution can be
+    off by up to about 1e-3 rad; the robust planner converges onto these joints near
+    singularities, so they must hold the pose itself. Steps that would leave the joint
+    limits are not taken (the solver's solution is kept)."""
+    plant, instance = kinematics.plant, kinematics.instance
+    lower = plant.GetPositionsFromArray(instance, plant.GetPositionLowerLimits())
+    upper = plant.GetPositionsFromArray(instance, plant.GetPositionUpperLimits())
+    x_target, R_target = X_BT.translation(), X_BT.rotation().matrix()
+    polished = q.copy()
+    for _ in range(20):
+        kin = kinematics.Evaluate(polished, np.zeros(6), analytic=False)
+        e = PoseError(kin, x_target, R_target)
+        if np.max(np.abs(e)) < 1e-12:
+            break
+        step = DampedSolve(kin.J, e, 1e-12)
+        if not np.all(np.isfinite(step)):
+            return q
+        polished = polished - step
+    if np.any(polished < lower - 1e-9) or np.any(polished > upper + 1e-9):
+        return q
+    return polished

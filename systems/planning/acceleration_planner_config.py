@@ -1,0 +1,93 @@
+"""PlannerConfig: the gains and settings of the acceleration-level planner (both modes).
+
+Loaded from scenarios with yaml_load_typed (the `planner` key of the waypoints, path
+following and panel tasks); systems/planning/acceleration_planner_math.py uses it.
+"""
+
+from dataclasses import dataclass, field
+
+from guidedarm.systems.config_checks import CheckFields, InRange, Positive
+from guidedarm.systems.errors import ConfigurationError
+
+
+@dataclass
+class PlannerConfig:
+    """Gains and settings of the planner (defaults: the paper's values where it gives them).
+
+    robust: the robust mode (default) or, False, the paper's law exactly as published (see
+        systems/planning/acceleration_planner_math.py).
+    gain_p: Lambda_P of (9) (1/s^2), equal on all six error axes.
+    gain_v: Lambda_V of (9) (1/s), equal on all six error axes.
+    neighbourhood_radius: epsilon of (19) (m).
+    position_tolerance: TCP accuracy that ends the task (m).
+    orientation_tolerance: the same for the orientation (rad; the largest Euler-angle
+        error in the paper's mode, the rotation angle in the robust mode).
+    velocity_threshold: theta of (14).
+    penalty_strength: rho of (14) (rad/s^2 times the normalised velocity range); 0.003
+        because (15) switches on with a step of c rho / (theta^2 range) in q'', which stays
+        below the per-step change the scaling itself makes (< 0.07 rad/s^2 at 500 Hz on
+        the paper's task), while a weaker barrier (rho = 0.001) is so stiff at 500 Hz that,
+        unscaled, it chatters.
+    scaling_recovery_rate: rate of the exponential return (18) of c to 1 (1/s).
+    stop_at_waypoints: stop at every waypoint instead of blending through it; the next
+        elementary task starts once the TCP is within the tolerances and slower than
+        rest_speed, i.e. practically at rest as boundary condition (3) asks.
+    rest_speed: the TCP speed below which it counts as at rest (m/s).
+    time_step: planner period (s), 0.002 s = 500 Hz as UR servoJ.
+    min_singular_value: the paper's mode stops with an error when the smallest singular
+        value of J_g falls below it (m or rad per rad).
+    blend_length: TCP path length (m) over which sigma of (19) goes from 0 to 1 once the
+        TCP is inside a neighbourhood; the radius itself by default (the paper leaves the
+        law open; docs/planner.md compares the choices against Table 2).
+    damping_threshold: robust mode: the smallest singular value of J_g below which the
+        damped inverse's lambda^2 rises from 0 (m or rad per rad).
+    max_damping: robust mode: lambda at a singular J_g (lambda^2 = max_damping^2).
+    bias_margin: robust mode: the fraction of the acceleration limits that
+        a = -J^-1 Jdot qd may use before the speed governor brakes (below 1).
+    governor_gain: robust mode: the governor's joint damping per unit of excess load (1/s).
+    velocity_bound_rate: robust mode: near its limit a joint's acceleration is bounded by
+        this rate times its distance to the velocity limit (1/s; at most 1 / time_step).
+    braking_ramp: robust mode: the time the braking fallback takes to go from the last
+        acceleration to full braking (s).
+    joint_space_blend: robust mode: [sigma_full, sigma_start]; as the smallest singular
+        value of J_g falls from sigma_start to sigma_full the law hands over, smoothly, to
+        the same error dynamics in joint space towards the waypoints' IK solutions, which
+        crosses singularities a Cartesian law cannot.
+    """
+
+    robust: bool = True
+    gain_p: float = Positive(20.0)
+    gain_v: float = Positive(9.392)
+    neighbourhood_radius: float = Positive(0.05)
+    position_tolerance: float = Positive(0.001)
+    orientation_tolerance: float = Positive(0.001)
+    velocity_threshold: float = InRange(0.0, 0.5, 0.1, low_open=True, high_open=True)
+    penalty_strength: float = Positive(0.003)
+    scaling_recovery_rate: float = Positive(1.0)
+    stop_at_waypoints: bool = False
+    rest_speed: float = Positive(0.001)
+    time_step: float = Positive(0.002)
+    min_singular_value: float = Positive(0.01)
+    blend_length: float = Positive(0.05)
+    damping_threshold: float = Positive(0.03)
+    max_damping: float = Positive(0.01)
+    bias_margin: float = InRange(0.0, 1.0, 0.5, low_open=True, high_open=True)
+    governor_gain: float = Positive(5.0)
+    velocity_bound_rate: float = Positive(25.0)
+    braking_ramp: float = Positive(0.04)
+    joint_space_blend: list[float] = field(default_factory=lambda: [0.005, 0.02])
+
+    def Validate(self) -> None:
+        """Raises ConfigurationError naming the first bad setting."""
+        CheckFields(self)
+        low, high = (list(self.joint_space_blend) + [0.0, 0.0])[:2]
+        if len(self.joint_space_blend) != 2 or not 0 <= low < high:
+            raise ConfigurationError(
+                "planner.joint_space_blend needs [sigma_full, sigma_start] with "
+                f"0 <= sigma_full < sigma_start, got {self.joint_space_blend}"
+            )
+        if self.velocity_bound_rate * self.time_step > 1:
+            raise ConfigurationError(
+                f"planner.velocity_bound_rate must be at most 1 / time_step, got "
+                f"{self.velocity_bound_rate}"
+            )

@@ -1,0 +1,263 @@
+"""Kinematics of the acceleration-level planner: p = k(q), Jacobians, Jdot qd, the tracking
+error (6) and the blended target (19), and the singularity-robust inverse.
+
+Two representations of the TCP orientation, one per planner mode:
+- the paper's (Pająk): Z-Y-X Euler angles phi = [roll, pitch, yaw] (R = Rz(yaw) Ry(pitch)
+  Rx(roll)) with the analytic Jacobian J = diag(I, B^-1(phi)) J_g, singular at pitch +-90 deg;
+- the robust mode's: the rotation matrix itself, the error a rotation vector and its rate
+  the angular velocity, so J is the geometric Jacobian J_g, with no representation
+  singularity.
+
+Frames: tool frame T (the TCP) measured in the arm's base frame B; J_g, Jdot qd from the
+MultibodyPlant (any 6-DoF arm). Units: m, rad, s.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+from pydrake.math import RollPitchYaw, RotationMatrix
+from pydrake.multibody.plant import MultibodyPlant
+from pydrake.multibody.tree import Frame, JacobianWrtVariable, ModelInstanceIndex
+
+from guidedarm.systems.errors import ConfigurationError, RunFailedError
+
+
+class PlanningError(RunFailedError):
+    """The planner cannot continue (singular arm in the paper's mode, infeasible scaling)."""
+
+
+def WrapAngle(angle: np.ndarray | float) -> np.ndarray:
+    """Angles wrapped to [-pi, pi) (rad)."""
+    return (np.asarray(angle, float) + np.pi) % (2.0 * np.pi) - np.pi
+
+
+def EulerRateMatrix(rpy: np.ndarray) -> np.ndarray:
+    """B(phi) with omega = B(phi) [roll', pitch', yaw']' for R = Rz(yaw) Ry(pitch) Rx(roll).
+
+    The seed prints B with its columns ordered (yaw', pitch', roll'); here they follow the
+    order of phi = [roll, pitch, yaw] so that J = diag(I, B^-1) J_g matches e = k(q) - p_f.
+    """
+    sy, cy = math.sin(rpy[1]), math.cos(rpy[1])
+    sz, cz = math.sin(rpy[2]), math.cos(rpy[2])
+    return np.array([[cy * cz, -sz, 0.0], [cy * sz, cz, 0.0], [-sy, 0.0, 1.0]])
+
+
+def EulerRateMatrixInverse(rpy: np.ndarray) -> np.ndarray:
+    """B(phi)^-1 in closed form (singular at pitch = +-pi/2)."""
+    sy, cy = math.sin(rpy[1]), math.cos(rpy[1])
+    sz, cz = math.sin(rpy[2]), math.cos(rpy[2])
+    return np.array([[cz / cy, sz / cy, 0.0], [-sz, cz, 0.0], [cz * sy / cy, sz * sy / cy, 1.0]])
+
+
+def EulerRateMatrixDotTimesRate(rpy: np.ndarray, rpy_dot: np.ndarray) -> np.ndarray:
+    """dB/dt (phi, phi') @ phi' (rad/s^2), the term that turns alpha into phi''."""
+    droll, dpitch, dyaw = rpy_dot
+    sy, cy = math.sin(rpy[1]), math.cos(rpy[1])
+    sz, cz = math.sin(rpy[2]), math.cos(rpy[2])
+    return np.array(
+        [
+            (-sy * cz * dpitch - cy * sz * dyaw) * droll - cz * dyaw * dpitch,
+            (-sy * sz * dpitch + cy * cz * dyaw) * droll - sz * dyaw * dpitch,
+            -cy * dpitch * droll,
+        ]
+    )
+
+
+def RotationVector(R: np.ndarray) -> np.ndarray:
+    """log(R) as a rotation vector theta n (rad), theta in [0, pi]; accurate near 0 and pi."""
+    w = np.array([R[2, 1] - R[1, 2], R[0, 2] - R[2, 0], R[1, 0] - R[0, 1]])
+    cos_theta = min(1.0, max(-1.0, 0.5 * (R[0, 0] + R[1, 1] + R[2, 2] - 1.0)))
+    sin_theta = 0.5 * math.sqrt(w @ w)
+    theta = math.atan2(sin_theta, cos_theta)
+    if theta < 1e-8:
+        return 0.5 * w
+    if theta < math.pi - 1e-4:
+        return (theta / (2.0 * sin_theta)) * w
+    # Near pi the skew part vanishes: the axis is the dominant column of (R + I) / 2 = n n^T.
+    nn = 0.5 * (R + np.eye(3))
+    k = int(np.argmax(np.diag(nn)))
+    axis = nn[:, k] / math.sqrt(max(nn[k, k], 1e-300))
+    if axis @ w < 0:
+        axis = -axis
+    return theta * axis
+
+
+def RotationFromVector(v: np.ndarray) -> np.ndarray:
+    """exp([v]x) by Rodrigues' formula: the rotation of angle |v| (rad) about v."""
+    theta = math.sqrt(v @ v)
+    K = np.array([[0.0, -v[2], v[1]], [v[2], 0.0, -v[0]], [-v[1], v[0], 0.0]])
+    if theta < 1e-8:
+        return np.eye(3) + K
+    return np.eye(3) + (math.sin(theta) / theta) * K + ((1 - math.cos(theta)) / theta**2) * K @ K
+
+
+def RotationError(R: np.ndarray, R_target: np.ndarray) -> np.ndarray:
+    """Orientation error of R with respect to R_target, both in B: the rotation vector of
+    R R_target^T (rad, expressed in B). Along the geodesic from R_target about a fixed axis
+    its rate is the angular velocity omega, so e' = J_g qd for the rotational rows."""
+    return RotationVector(R @ R_target.T)
+
+
+def DampingFactor(sigma: float, threshold: float, max_damping: float) -> float:
+    """lambda^2 of the damped inverse: 0 for sigma >= threshold, rising smoothly to
+    max_damping^2 as the smallest singular value sigma falls to 0 (Nakamura-Hanafusa,
+    Chiaverini): lambda^2 = max_damping^2 (1 - (sigma / threshold)^2)."""
+    if sigma >= threshold:
+        return 0.0
+    return max_damping**2 * (1.0 - (sigma / threshold) ** 2)
+
+
+def DampedSolve(J: np.ndarray, rhs: np.ndarray, damping: float) -> np.ndarray:
+    """J^# rhs with J^# = J^T (J J^T + damping I)^-1, the singularity-robust inverse;
+    exactly J^-1 rhs for damping = 0."""
+    if damping == 0.0:
+        return np.linalg.solve(J, rhs)
+    return J.T @ np.linalg.solve(J @ J.T + damping * np.eye(J.shape[0]), rhs)
+
+
+@dataclass
+class TcpKinematics:
+    """The TCP at (q, qd): position x (m) and rotation R of T in B, Euler angles rpy (rad),
+    the Jacobian J (6 x 6, rows [translational; rotational]: analytic with Euler rates in
+    the paper's mode, geometric with omega in the robust mode), Jdot qd (m/s^2, rad/s^2) in
+    the same rows, and the smallest singular value of J_g. rpy is only evaluated for the
+    seed's mode (p computes it otherwise)."""
+
+    x: np.ndarray
+    R: np.ndarray
+    rpy: np.ndarray | None
+    J: np.ndarray
+    Jdot_qdot: np.ndarray
+    min_singular_value: float
+
+    @property
+    def p(self) -> np.ndarray:
+        """p = [x; roll, pitch, yaw] as in the seed."""
+        rpy = self.rpy if self.rpy is not None else RollPitchYaw(RotationMatrix(self.R)).vector()
+        return np.concatenate([self.x, rpy])
+
+
+class ArmKinematics:
+    """k(q), J(q) and Jdot(q, qd) qd of tool frame T in base frame B from a MultibodyPlant.
+
+    The plant may hold other models (tools, scene); only the joints of `instance` move.
+    Evaluate(q, qd, analytic=True) is the paper's: it raises PlanningError at a near-singular
+    configuration, the smallest singular value of J_g below `min_singular_value` or |pitch|
+    within `min_singular_value` (rad) of 90 deg, where the Euler angles themselves are
+    singular. Evaluate(q, qd, analytic=False) gives the geometric Jacobian and never raises.
+    """
+
+    def __init__(
+        self,
+        plant: MultibodyPlant,
+        instance: ModelInstanceIndex,
+        base_frame: Frame,
+        tool_frame: Frame,
+        min_singular_value: float = 0.01,
+    ) -> None:
+        if plant.num_velocities(instance) != 6 or plant.num_positions(instance) != 6:
+            raise ConfigurationError(
+                f"the planner needs a 6-DoF arm; {plant.GetModelInstanceName(instance)} has "
+                f"{plant.num_velocities(instance)} joints"
+            )
+        if not min_singular_value > 0:
+            raise ConfigurationError(
+                f"min_singular_value must be positive, got {min_singular_value}"
+            )
+        self.plant = plant
+        self.instance = instance
+        self.base_frame = base_frame
+        self.tool_frame = tool_frame
+        self.min_singular_value = min_singular_value
+        self._context = plant.CreateDefaultContext()
+        velocity_start = np.arange(plant.num_velocities())
+        self._columns = plant.GetVelocitiesFromArray(instance, velocity_start).astype(int)
+        self._origin = np.zeros(3)
+
+    def Evaluate(self, q: np.ndarray, qd: np.ndarray, analytic: bool = True) -> TcpKinematics:
+        """Kinematics at joint positions q (rad) and velocities qd (rad/s)."""
+        plant, context = self.plant, self._context
+        plant.SetPositions(context, self.instance, q)
+        plant.SetVelocities(context, self.instance, qd)
+        X_BT = plant.CalcRelativeTransform(context, self.base_frame, self.tool_frame)
+        R = X_BT.rotation()
+        rpy = RollPitchYaw(R).vector() if analytic else None
+        # T's origin, measured and expressed in B, with respect to v.
+        point = (JacobianWrtVariable.kV, self.tool_frame, self._origin, self.base_frame)
+        Jg = plant.CalcJacobianSpatialVelocity(context, *point, self.base_frame)[:, self._columns]
+        bias = plant.CalcBiasSpatialAcceleration(context, *point, self.base_frame)
+        sigma = float(np.linalg.svd(Jg, compute_uv=False)[-1])
+        J = np.empty((6, 6))
+        J[:3] = Jg[3:]
+        Jdot_qdot = np.empty(6)
+        Jdot_qdot[:3] = bias.translational()
+        if analytic:
+            self._CheckSingularity(sigma, rpy, q)
+            B_inv = EulerRateMatrixInverse(rpy)
+            J[3:] = B_inv @ Jg[:3]
+            rpy_dot = J[3:] @ qd
+            Jdot_qdot[3:] = B_inv @ (bias.rotational() - EulerRateMatrixDotTimesRate(rpy, rpy_dot))
+        else:
+            J[3:] = Jg[:3]
+            Jdot_qdot[3:] = bias.rotational()
+        return TcpKinematics(X_BT.translation(), R.matrix(), rpy, J, Jdot_qdot, sigma)
+
+    def Position(self, q: np.ndarray) -> np.ndarray:
+        """p = k(q): TCP position (m) and Z-Y-X Euler angles (rad) in the base frame."""
+        self.plant.SetPositions(self._context, self.instance, q)
+        X_BT = self.plant.CalcRelativeTransform(self._context, self.base_frame, self.tool_frame)
+        return np.concatenate([X_BT.translation(), RollPitchYaw(X_BT.rotation()).vector()])
+
+    def JointLimits(self) -> tuple[np.ndarray, np.ndarray]:
+        """The arm's joint position limits (rad), at most +-pi (a turn covers every angle)."""
+        plant, instance = self.plant, self.instance
+        lower = plant.GetPositionsFromArray(instance, plant.GetPositionLowerLimits())
+        upper = plant.GetPositionsFromArray(instance, plant.GetPositionUpperLimits())
+        return np.maximum(lower, -np.pi), np.minimum(upper, np.pi)
+
+    def MinSingularValue(self, q: np.ndarray) -> float:
+        """Smallest singular value of the geometric Jacobian J_g at q (m or rad per rad)."""
+        return self.Evaluate(q, np.zeros(6), analytic=False).min_singular_value
+
+    def _CheckSingularity(self, sigma: float, rpy: np.ndarray, q: np.ndarray) -> None:
+        if sigma < self.min_singular_value:
+            raise PlanningError(
+                f"near-singular arm configuration q={np.round(q, 4).tolist()} rad: smallest "
+                f"singular value of the Jacobian {sigma:.2e} < {self.min_singular_value}"
+            )
+        if np.pi / 2 - abs(rpy[1]) < self.min_singular_value:
+            raise PlanningError(
+                f"TCP pitch {rpy[1]:.4f} rad is at the Z-Y-X Euler-angle singularity (+-pi/2)"
+            )
+
+
+def TrackingError(p: np.ndarray, target: np.ndarray) -> np.ndarray:
+    """Eq. (6): e = k(q) - p_target (m, rad) with the Euler-angle part wrapped (seed's mode)."""
+    e = p - target
+    e[3:] = WrapAngle(e[3:])
+    return e
+
+
+def PoseError(kin: TcpKinematics, x_target: np.ndarray, R_target: np.ndarray) -> np.ndarray:
+    """The robust mode's e: [x - x_target; rotation vector of R R_target^T] (m, rad, in B)."""
+    return np.concatenate([kin.x - x_target, RotationError(kin.R, R_target)])
+
+
+def BlendedTarget(p_i: np.ndarray, p_next: np.ndarray, sigma: float) -> np.ndarray:
+    """Eq. (19): sigma p_{i+1} + (1 - sigma) p_i, the Euler-angle difference wrapped."""
+    delta = p_next - p_i
+    delta[3:] = WrapAngle(delta[3:])
+    return p_i + sigma * delta
+
+
+def BlendedPose(
+    pose_i: tuple[np.ndarray, np.ndarray], pose_next: tuple[np.ndarray, np.ndarray], sigma: float
+) -> tuple[np.ndarray, np.ndarray]:
+    """Eq. (19) for (x, R) poses: the position interpolated linearly, the rotation along
+    the geodesic R_i exp(sigma log(R_i^T R_{i+1})) (robust mode)."""
+    (x_i, R_i), (x_next, R_next) = pose_i, pose_next
+    step = RotationFromVector(sigma * RotationVector(R_i.T @ R_next))
+    return x_i + sigma * (x_next - x_i), R_i @ step

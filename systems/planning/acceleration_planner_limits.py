@@ -1,0 +1,264 @@
+"""Joint velocity and acceleration limits of the acceleration-level planner.
+
+The paper's (Pająk) two mechanisms: the interior velocity penalty (14)-(15) and the
+acceleration scaling q'' = a + c b (17) with the cases (1)-(4), the rules (a)-(c) and the
+exponential return (18). Beyond the paper, for the robust mode: the speed governor, which
+keeps the velocity-driven term a = -J^-1 Jdot qd within a margin of the acceleration limits
+(a grows with qd^2, so slowing early keeps case (c) away), and the braking fallback used
+should no admissible c exist all the same. Units: rad/s, rad/s^2, s.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from guidedarm.systems.errors import ConfigurationError
+from guidedarm.systems.planning.acceleration_planner_kinematics import PlanningError
+
+
+def CheckLimits(name: str, lower: np.ndarray, upper: np.ndarray) -> None:
+    """ConfigurationError unless lower < 0 < upper, finite and of the same length."""
+    if lower.shape != upper.shape or lower.ndim != 1:
+        raise ConfigurationError(f"{name}: lower and upper limits need the same length")
+    if not np.all(np.isfinite(lower)) or not np.all(np.isfinite(upper)):
+        raise ConfigurationError(f"{name}: limits must be finite")
+    if np.any(upper <= 0) or np.any(lower >= 0):
+        raise ConfigurationError(
+            f"{name}: need lower < 0 < upper, got lower={lower.tolist()}, upper={upper.tolist()}"
+        )
+
+
+class VelocityPenalty:
+    """Interior penalty (14) and its perturbation (15) keeping qd inside [lower, upper].
+
+    kappa_i = rho (1/d_i - 1/theta) when the normalised distance d_i of qd_i from its
+    nearer limit is below theta; dq''_i = -d kappa_i / d qd_i = rho / d_i^2 d d_i/d qd_i,
+    which points away from the nearer limit and grows without bound at the limit.
+    d is floored at `min_distance` so that a sampled step that lands on a limit keeps a
+    finite (large) push back instead of a division by zero.
+    """
+
+    def __init__(
+        self,
+        lower: np.ndarray,
+        upper: np.ndarray,
+        theta: float,
+        rho: float,
+        min_distance: float = 1e-4,
+    ) -> None:
+        lower, upper = np.asarray(lower, float), np.asarray(upper, float)
+        CheckLimits("velocity limits", lower, upper)
+        if not 0 < theta < 0.5:
+            raise ConfigurationError(f"velocity threshold theta must be in (0, 0.5), got {theta}")
+        if not rho > 0:
+            raise ConfigurationError(f"penalty strength rho must be positive, got {rho}")
+        self.lower, self.upper = lower, upper
+        self.range = upper - lower
+        self.theta = theta
+        self.rho = rho
+        self.min_distance = min_distance
+
+    def Perturbation(self, qd: np.ndarray) -> np.ndarray:
+        """dq'' (rad/s^2) of eq. (15) for the penalty (14); zero where every d_i >= theta."""
+        to_lower = (qd - self.lower) / self.range
+        to_upper = (self.upper - qd) / self.range
+        d = np.maximum(np.minimum(to_lower, to_upper), self.min_distance)
+        if d.min() >= self.theta:
+            return np.zeros_like(qd)
+        direction = np.where(to_lower < to_upper, 1.0, -1.0) / self.range
+        return np.where(d < self.theta, self.rho / d**2 * direction, 0.0)
+
+
+def ScalingBound(a: float, b: float, limit: float, above: bool) -> tuple[float, bool]:
+    """Cases (1)-(4) of the paper for a joint whose q'' = a + c b violates `limit` (its
+    maximum if `above`, else its minimum): c-hat_i = (limit - a) / b, an upper bound on c
+    when b pushes past the violated limit (cases 1, 2), a lower bound otherwise (3, 4).
+    Returns (bound, is_upper)."""
+    return (limit - a) / b, (b > 0) == above
+
+
+def ChooseScaling(
+    uppers: list[float], lowers: list[float], c_previous: float
+) -> tuple[float, bool]:
+    """Rules (a)-(c) of the paper: (a) only upper bounds -> the smallest; (b) only lower
+    bounds -> the largest; (c) both -> the value of [c_min, c_max] nearest the previous c.
+    Returns (c, admissible); admissible is False when case (c) has c_min > c_max."""
+    if not lowers:
+        return min(uppers), True  # rule (a)
+    if not uppers:
+        return max(lowers), True  # rule (b)
+    c_min, c_max = max(lowers), min(uppers)  # rule (c)
+    if c_min > c_max:
+        return c_min, False
+    return float(np.clip(c_previous, c_min, c_max)), True
+
+
+def ScalingReturn(c_hat0: float, t: float, t0: float, rate: float) -> float:
+    """Eq. (18): c(t) = (c-hat_0 - 1) exp(-rate (t - t0)) + 1, the continuous return of c
+    to 1 after the last scaling at t0 (the paper's rate is 1/s)."""
+    return (c_hat0 - 1.0) * math.exp(-rate * (t - t0)) + 1.0
+
+
+def SelectScaling(
+    a: np.ndarray,
+    b: np.ndarray,
+    c_free: float,
+    c_previous: float,
+    lower: np.ndarray,
+    upper: np.ndarray,
+) -> tuple[float, bool]:
+    """The scaling coefficient c of q'' = a + c b (17) under lower <= q'' <= upper.
+
+    Returns (c, limited): c_free if it satisfies the limits, else the c-hat chosen by the
+    rules (a)-(c) from the bounds of the cases (1)-(4) of every violating joint. Joints that
+    a new c pushes past a limit join the violators and the choice is repeated, so the
+    result satisfies every limit. Violators are found at trial values of c, where a
+    case-(1)/(2) bound lies below and a case-(3)/(4) bound above the trial value, so rule (c)
+    is admissible only in the degenerate case c_min = c_max; in practice (c) means the
+    limits cannot be met: PlanningError naming the joints.
+    """
+    uppers: list[float] = []
+    lowers: list[float] = []
+    seen = np.zeros(a.shape, bool)
+    c = c_free
+    for _ in range(a.size + 1):
+        qdd = a + c * b
+        above = (qdd > upper + 1e-12 * np.abs(upper)) & ~seen
+        below = (qdd < lower - 1e-12 * np.abs(lower)) & ~seen
+        if not (above.any() or below.any()):
+            return c, bool(seen.any())
+        for i in np.flatnonzero(above | below):
+            if abs(b[i]) < 1e-12:
+                raise PlanningError(
+                    f"acceleration limit of joint {i + 1} cannot be met by scaling: its "
+                    f"unscaled part a = {a[i]:.3f} rad/s^2 alone exceeds the limit"
+                )
+            limit = upper[i] if above[i] else lower[i]
+            bound, is_upper = ScalingBound(a[i], b[i], limit, bool(above[i]))
+            (uppers if is_upper else lowers).append(bound)
+        seen |= above | below
+        c, admissible = ChooseScaling(uppers, lowers, c_previous)
+        if not admissible:
+            joints = ", ".join(str(i + 1) for i in np.flatnonzero(seen))
+            raise PlanningError(
+                f"acceleration scaling case (c) has no admissible c (joints {joints}: "
+                f"c_min {max(lowers):.4f} > c_max {min(uppers):.4f})"
+            )
+    return c, True
+
+
+class AccelerationScaling:
+    """The acceleration limits lower <= q'' <= upper (rad/s^2) and SelectScaling under them."""
+
+    def __init__(self, lower: np.ndarray, upper: np.ndarray) -> None:
+        lower, upper = np.asarray(lower, float), np.asarray(upper, float)
+        CheckLimits("acceleration limits", lower, upper)
+        self.lower, self.upper = lower, upper
+
+    def Select(
+        self, a: np.ndarray, b: np.ndarray, c_free: float, c_previous: float
+    ) -> tuple[float, bool]:
+        """SelectScaling under these limits: (c, limited)."""
+        return SelectScaling(a, b, c_free, c_previous, self.lower, self.upper)
+
+
+def StepBounds(
+    acceleration: tuple[np.ndarray, np.ndarray] | None,
+    velocity: tuple[np.ndarray, np.ndarray] | None,
+    qd: np.ndarray,
+    rate: float,
+) -> tuple[np.ndarray, np.ndarray]:
+    """Bounds on q'' for the next step: the acceleration limits, tightened to
+    rate (velocity limit - qd) near the velocity limits, so that qd approaches a limit at
+    most exponentially (time constant 1 / rate, s) and never passes it for rate <= 1 / dt:
+    the robust mode's hard guarantee behind the penalty (14)-(15), which only acts through
+    the scaled part c b. The bounds move continuously with qd, so q'' does too."""
+    lower = np.full(qd.shape, -np.inf) if acceleration is None else acceleration[0]
+    upper = np.full(qd.shape, np.inf) if acceleration is None else acceleration[1]
+    if velocity is not None:
+        lower = np.maximum(lower, rate * (velocity[0] - qd))
+        upper = np.minimum(upper, rate * (velocity[1] - qd))
+    return lower, upper
+
+
+def AdmissibleScaling(
+    a: np.ndarray, b: np.ndarray, lower: np.ndarray, upper: np.ndarray
+) -> tuple[float, float]:
+    """The interval [c_lo, c_hi] of c >= 0 with lower <= a + c b <= upper for every joint
+    (both limits of every joint, not only the violators' violated ones); c_lo > c_hi when
+    it is empty. The robust mode's scaling: c = c_free clipped into it is the paper's rule
+    (a) or (b) whenever those are admissible, and an empty interval is detected instead of
+    leaving a joint unchecked."""
+    c_lo, c_hi = 0.0, math.inf
+    # six joints: plain floats are several times faster than NumPy's small-array calls
+    for a_i, b_i, lo, hi in zip(
+        a.tolist(), b.tolist(), lower.tolist(), upper.tolist(), strict=True
+    ):
+        if abs(b_i) < 1e-12:
+            if a_i > hi or a_i < lo:
+                return 1.0, 0.0
+            continue
+        bound_hi, bound_lo = (hi - a_i) / b_i, (lo - a_i) / b_i
+        if b_i < 0:
+            bound_hi, bound_lo = bound_lo, bound_hi
+        c_hi = min(c_hi, bound_hi)
+        c_lo = max(c_lo, bound_lo)
+    return c_lo, c_hi
+
+
+def GovernorBraking(
+    a: np.ndarray,
+    qd: np.ndarray,
+    lower: np.ndarray,
+    upper: np.ndarray,
+    margin: float,
+    gain: float,
+) -> np.ndarray:
+    """The speed governor's braking -d qd (rad/s^2) that keeps a = -J^-1 Jdot qd within
+    `margin` of the acceleration limits ahead of time.
+
+    a(q, s qd) = s^2 a(q, qd): at the load r = max_i |a_i| / limit_i the speed may grow by
+    sqrt(margin / r) before a uses `margin` of the limits. Above that the governor adds
+    the joint damping d = gain (r / margin - 1), continuous in the state and zero below
+    the margin, i.e. it raises the damping Lambda_V of (9) along the motion; d is capped so
+    that a - d qd stays within [lower, upper], which keeps c = 0 admissible.
+    """
+    a_list, qd_list = a.tolist(), qd.tolist()
+    lower_list, upper_list = lower.tolist(), upper.tolist()
+    load = max(
+        abs(a_i) / (hi if a_i >= 0 else -lo)
+        for a_i, lo, hi in zip(a_list, lower_list, upper_list, strict=True)
+    )
+    if load <= margin:
+        return np.zeros_like(qd)
+    d = gain * (load / margin - 1.0)
+    for a_i, qd_i, lo, hi in zip(a_list, qd_list, lower_list, upper_list, strict=True):
+        # the room of the joint in the direction the braking pushes it
+        if abs(qd_i) > 1e-12:
+            room = hi - a_i if qd_i < 0 else a_i - lo
+            d = min(d, max(room, 0.0) / abs(qd_i))
+    return -d * qd
+
+
+def BrakingAcceleration(
+    qd: np.ndarray,
+    qdd_previous: np.ndarray,
+    lower: np.ndarray,
+    upper: np.ndarray,
+    dt: float,
+    max_change: np.ndarray,
+) -> np.ndarray:
+    """The fallback when no admissible c exists: towards q'' = -beta qd, every joint slowing
+    in proportion (the joint-space direction of motion kept) as hard as [lower, upper] allow
+    and at most to rest within the step (beta <= 1/dt), reached from the previous q'' by
+    changes of at most max_change per step (rad/s^2) and kept within [lower, upper].
+    Slowing shrinks a with qd^2 until the scaling is admissible again."""
+    beta = 1.0 / dt
+    for qd_i, lo, hi in zip(qd.tolist(), lower.tolist(), upper.tolist(), strict=True):
+        if abs(qd_i) > 1e-12:
+            room = -lo if qd_i > 0 else hi
+            beta = min(beta, max(room, 0.0) / abs(qd_i))
+    step = np.clip(-beta * qd - qdd_previous, -max_change, max_change)
+    return np.clip(qdd_previous + step, lower, upper)
