@@ -233,7 +233,7 @@ def test_compare_planners_random_table(capsys):
     assert lines[0] == "2 random reachable tasks on rover_arm"
     rows = {line[:22].strip(): line[22:].split() for line in lines[2:]}
     assert list(rows) == [
-        "acceleration planner", "seed's law", "movej blend 0.05 m", "toppra", "ruckig",
+        "acceleration planner", "paper's law", "movej blend 0.05 m", "toppra", "ruckig",
     ]  # fmt: skip
     assert rows["acceleration planner"][0] == "100%" and rows["acceleration planner"][-1] == "0"
     assert float(rows["ruckig"][2]) == pytest.approx(1.0)  # T/ruckig of ruckig itself

@@ -64,7 +64,7 @@ def _tool(yaw=0.0, p=(0.3, 0.0, 0.1)):
 
 def test_long_step_toward_an_offset_detection_eq_9_13_17():
     seed_params = FollowerConfig(
-        long_step=0.015, short_step=0.010, steering="seed", rotation_reduction=0.3
+        long_step=0.015, short_step=0.010, steering="paper", rotation_reduction=0.3
     ).Resolved()
     X_WT = _tool()
     memory = FollowerMemory(np.array([0.285, 0.0, 0.1]), X_WT)  # O' 15 mm behind

@@ -46,7 +46,7 @@ from guidedarm.systems.planning.random_waypoint_tasks import MakeRandomWaypointT
 from guidedarm.systems.planning.waypoint_ik import SolveWaypointIk
 
 BLEND_RADIUS_M = 0.05
-ROBUST, SEED = "acceleration planner", "seed's law"
+ROBUST, PAPER = "acceleration planner", "paper's law"
 MOVEJ = f"movej blend {BLEND_RADIUS_M} m"
 ARM_SCENARIOS = {"mz04d": "mz04d_waypoints", "ur10e": "ur10e_waypoints"}
 ARM_SCENARIOS["rover_arm"] = "rover_arm_waypoints"
@@ -99,7 +99,7 @@ def ComparePlanners(
     joints = SolveWaypointIk(planning.kinematics, waypoints, q0)
     trajectories = {
         ROBUST: PlannerTrajectory(_Planning(planning, waypoints, joints, True), q0, max_time),
-        SEED: PlannerTrajectory(_Planning(planning, waypoints, None, False), q0, max_time),
+        PAPER: PlannerTrajectory(_Planning(planning, waypoints, None, False), q0, max_time),
     }
     path = np.vstack([q0, joints])
     v, a = setup.velocity_limit, setup.acceleration_limit
@@ -112,7 +112,7 @@ def ComparePlanners(
         trajectories["toppra"], via = ToppraThroughWaypoints(setup.plant, path, v, a, period)
     except GuidedArmError:  # Toppra's grid occasionally finds no parameterisation
         trajectories["toppra"], via = None, np.zeros_like(path)
-    reference = trajectories[ROBUST] or trajectories[SEED]
+    reference = trajectories[ROBUST] or trajectories[PAPER]
     trajectories["ruckig"] = None
     if reference is not None:
         jerk = np.full(6, np.abs(Jerk(reference)).max())
@@ -167,7 +167,7 @@ def RandomComparison(arm: str, count: int, seed: int = 0) -> dict[str, dict[str,
         found = [run[name] for run in runs if run.get(name) is not None]
         times = [run[name].times[-1] for run in runs if run.get(name) is not None]
         breaches = sum(Breaches(setup, t) for t in found)
-        ok = len(found) - (breaches if name in (ROBUST, SEED) else 0)
+        ok = len(found) - (breaches if name in (ROBUST, PAPER) else 0)
         summaries[name] = {
             "tasks": count,
             "success_rate": ok / count,

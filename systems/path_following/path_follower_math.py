@@ -29,7 +29,7 @@ from guidedarm.systems.config_checks import CheckFields, InRange, Positive
 from guidedarm.systems.errors import ConfigurationError
 
 ESTIMATORS = ("grid", "ranging")
-STEERINGS = ("seed", "centring")
+STEERINGS = ("paper", "centring")
 
 
 @dataclass
@@ -39,7 +39,7 @@ class FollowerConfig:
     estimator: `grid` (the paper's presence-only 3 x 3 grid) or `ranging` (ranges localise
         the hose between the grid points); empty: `grid` (the path-following task fills in
         its own `estimator`).
-    steering: `seed` (w = t + m, w_a = n a + m b) or `centring` (w = n a + m: forward along
+    steering: `paper` (w = t + m, w_a = n a + m b) or `centring` (w = n a + m: forward along
         the tool axis plus the full offset, and w_a = n a + (S - S') b: turn toward the
         hose's own direction, S' the previous detected point); empty picks `seed` for the
         grid and `centring` for ranging, whose S is accurate enough to steer on.
@@ -70,7 +70,7 @@ class FollowerConfig:
         """A checked copy with the automatic estimator, steering, rotation_reduction and
         readings filled in."""
         estimator = self.estimator or "grid"
-        steering = self.steering or ("centring" if estimator == "ranging" else "seed")
+        steering = self.steering or ("centring" if estimator == "ranging" else "paper")
         b = self.rotation_reduction or (0.5 if steering == "centring" else 0.3)
         readings = self.readings or (4 if estimator == "ranging" else 1)
         resolved = replace(

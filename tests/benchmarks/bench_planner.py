@@ -43,7 +43,7 @@ def SeedTask() -> None:
             wall.append(time.perf_counter() - start)
             cpu.append(time.thread_time() - start_cpu)
         wall_us, cpu_us = np.array(wall) * 1e6, np.array(cpu) * 1e6
-        mode = "robust" if robust else "seed's law"
+        mode = "robust" if robust else "paper's law"
         print(
             f"{mode}: planner step median {np.median(wall_us):.1f} us wall "
             f"(p95 {np.percentile(wall_us, 95):.1f}), {np.median(cpu_us):.1f} us CPU "
@@ -55,11 +55,11 @@ def SeedTask() -> None:
         wall = time.perf_counter() - start
         T = runs[mode].done_time
         print(f"{mode}: seed's task T = {T:.3f} s, law alone {T / wall:.1f}x real time")
-    robust, seed = runs["robust"], runs["seed's law"]
+    robust, seed = runs["robust"], runs["paper's law"]
     print(
-        f"robust T / seed's law T = {robust.done_time / seed.done_time:.4f} (goal within 5 %); "
+        f"robust T / paper's law T = {robust.done_time / seed.done_time:.4f} (goal within 5 %); "
         f"largest change of a commanded acceleration per 2 ms step: robust "
-        f"{np.abs(np.diff(robust.qdd, axis=0)).max():.4f}, seed's law "
+        f"{np.abs(np.diff(robust.qdd, axis=0)).max():.4f}, paper's law "
         f"{np.abs(np.diff(seed.qdd, axis=0)).max():.4f} rad/s^2"
     )
     builder = DiagramBuilder()
