@@ -105,12 +105,12 @@ def read_raw_scenario(path: Path) -> dict[str, Any]:
 
 
 # Keys a scenario no longer has, and what replaced them: a scenario has one `random_seed`
-# from which every component draws its own stream (ToF noise, start pose, image noise).
+# from which every component draws its own stream (ToF noise, start pose, image noise); a
+# component's own seed left in a scenario (e.g. `degradation.seed`) must agree with it.
 REPLACED_KEYS = {
     "seed": "random_seed",
     "repeat_seed": "repeat_random_seed",
     "start.seed": "random_seed",
-    "degradation.seed": "random_seed",
 }
 
 

@@ -227,9 +227,9 @@ BAD_INPUTS = [
     ),
     ("path-seed-replaced", Run(PF, "seed=1"), "key 'seed' was replaced by 'random_seed'"),
     (
-        "view-seed-replaced",
-        Run("marker_view", "degradation.seed=1"),
-        "was replaced by 'random_seed'",
+        "view-seed-conflict",
+        Run("marker_view", "degradation.seed=5"),
+        "degradation.seed (5) conflicts with the scenario's 'random_seed' (1)",
     ),
     ("start-distance-order", Run(PO, "start.distance_m=[0.4,0.3]"), "distance_m must be"),
     ("start-tilt-range", Run(PO, "start.max_tilt_deg=90"), "[0, 90)"),

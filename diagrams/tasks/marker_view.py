@@ -14,7 +14,6 @@ are the estimator's errors:
 A view without a valid pose is a failed run (RunFailedError).
 """
 
-import dataclasses
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -28,7 +27,7 @@ from guidedarm.diagrams.tasks.panel_files import DEFAULT_PANEL_FILE, LoadPanelSp
 from guidedarm.diagrams.tasks.registry import TaskDefinition
 from guidedarm.systems.config_checks import Positive
 from guidedarm.systems.errors import RunFailedError
-from guidedarm.systems.markers.image_degradation import DegradationConfig
+from guidedarm.systems.markers.image_degradation import DegradationConfig, SeededDegradation
 from guidedarm.systems.markers.marker_pose_estimator_math import MarkerPoseSolver
 
 
@@ -61,7 +60,7 @@ def RunMarkerView(scenario: MarkerViewScenario, context: RunContext) -> dict[str
     a = np.radians(scenario.angle_deg)
     d = scenario.distance_m
     X_PC = LookAt(d * np.array([np.sin(a), 0.0, np.cos(a)]), [0.0, 0.0, 0.0])
-    image = rig.Render(X_PC, dataclasses.replace(scenario.degradation, seed=scenario.random_seed))
+    image = rig.Render(X_PC, SeededDegradation(scenario.degradation, scenario.random_seed))
     path = context.out_dir / "view.png"
     cv2.imwrite(str(path), cv2.cvtColor(image, cv2.COLOR_RGBA2BGR))
     context.written.append(path)

@@ -60,7 +60,7 @@ from guidedarm.diagrams.tasks.planner_builder import MakeAccelerationPlanner
 from guidedarm.diagrams.tasks.registry import TaskDefinition
 from guidedarm.systems.config_checks import CheckFields, InRange, NonNegative, Positive
 from guidedarm.systems.errors import ConfigurationError
-from guidedarm.systems.markers.image_degradation import DegradationConfig
+from guidedarm.systems.markers.image_degradation import DegradationConfig, SeededDegradation
 from guidedarm.systems.markers.panel_operation_math import (
     PanelOperationConfig,
     PlannerFrames,
@@ -194,7 +194,7 @@ class PanelOperationRun:
             tip_frame=scenario.tip_frame,
             operation=scenario.operation,
             degradation=dataclasses.replace(
-                scenario.degradation, supersampling=k, seed=scenario.random_seed
+                SeededDegradation(scenario.degradation, scenario.random_seed), supersampling=k
             ),
             planner=planner,
         )

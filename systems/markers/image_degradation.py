@@ -13,6 +13,7 @@ then rounded and clipped to uint8. Noise is seeded: the same seed, image and tim
 same result, so studies are repeatable.
 """
 
+import dataclasses
 from dataclasses import dataclass
 
 import cv2
@@ -34,18 +35,29 @@ class DegradationConfig:
     lighting: scale of the pixel values (> 0; 1 = as rendered).
     blur_sigma_px: standard deviation of the Gaussian blur (>= 0, output pixels).
     noise_std: standard deviation of the additive Gaussian noise (>= 0, grey levels of 255).
-    seed: seed of the noise generator.
+    seed: seed of the noise generator; None: 0, or the task's random_seed in a scenario.
     """
 
     supersampling: int = Positive(1)
     lighting: float = Positive(1.0)
     blur_sigma_px: float = NonNegative(0.0)
     noise_std: float = NonNegative(0.0)
-    seed: int = 0
+    seed: int | None = None
 
     def Validate(self) -> None:
         """Raises ConfigurationError naming the first bad parameter."""
         CheckFields(self)
+
+
+def SeededDegradation(config: DegradationConfig, random_seed: int) -> DegradationConfig:
+    """`config` with the noise seed of a scenario's `random_seed`; a seed set in `config`
+    that differs is refused (ConfigurationError), never silently replaced."""
+    if config.seed is not None and config.seed != random_seed:
+        raise ConfigurationError(
+            f"degradation.seed ({config.seed}) conflicts with the scenario's 'random_seed' "
+            f"({random_seed}): set that only"
+        )
+    return dataclasses.replace(config, seed=random_seed)
 
 
 def DegradeImage(image: np.ndarray, params: DegradationConfig, stream: int = 0) -> np.ndarray:
@@ -62,7 +74,7 @@ def DegradeImage(image: np.ndarray, params: DegradationConfig, stream: int = 0) 
     if params.blur_sigma_px > 0:
         rgb = cv2.GaussianBlur(rgb, (0, 0), params.blur_sigma_px)
     if params.noise_std > 0:
-        rng = np.random.default_rng([params.seed, stream])
+        rng = np.random.default_rng([params.seed or 0, stream])
         rgb += rng.normal(0.0, params.noise_std, rgb.shape).astype(np.float32)
     out = image.copy()
     out[..., :3] = np.clip(np.rint(rgb), 0, 255).astype(np.uint8)
