@@ -38,21 +38,32 @@ class ScenarioError(ConfigurationError):
 
 def resolve_scenario_path(name_or_path: str) -> Path:
     """Returns the YAML file for a named scenario (diagrams/scenarios/NAME.yaml) or a path."""
-    path = Path(name_or_path)
-    if path.suffix in (".yaml", ".yml"):
-        if not path.is_file():
-            raise ScenarioError(f"scenario file not found: {path}")
-        return path
-    named = SCENARIO_DIR / f"{name_or_path}.yaml"
-    if not named.is_file():
-        known = ", ".join(list_named_scenarios())
-        raise ScenarioError(f"unknown scenario '{name_or_path}' (known: {known})")
-    return named
+    return ResolveNamedFile(name_or_path, SCENARIO_DIR, "scenario", ScenarioError)
 
 
 def list_named_scenarios() -> list[str]:
     """Names of the scenarios shipped in diagrams/scenarios/."""
-    return sorted(p.stem for p in SCENARIO_DIR.glob("*.yaml"))
+    return ListNamedFiles(SCENARIO_DIR)
+
+
+def ResolveNamedFile(name_or_path: str, folder: Path, kind: str, error: type[Exception]) -> Path:
+    """A YAML file given as a path, or by the NAME of folder/NAME.yaml; raises `error`
+    naming the known names when there is none."""
+    path = Path(name_or_path)
+    if path.suffix in (".yaml", ".yml"):
+        if not path.is_file():
+            raise error(f"{kind} file not found: {path}")
+        return path
+    named = folder / f"{name_or_path}.yaml"
+    if not named.is_file():
+        known = ", ".join(ListNamedFiles(folder))
+        raise error(f"unknown {kind} '{name_or_path}' (known: {known})")
+    return named
+
+
+def ListNamedFiles(folder: Path) -> list[str]:
+    """The NAMEs of folder/NAME.yaml."""
+    return sorted(p.stem for p in folder.glob("*.yaml"))
 
 
 def AddOverridesArgument(parser: argparse.ArgumentParser, help: str) -> None:

@@ -8,13 +8,11 @@ test stays short; a run cut short ends with exit code 1 and still writes its rep
 from __future__ import annotations
 
 import re
-import shutil
-import subprocess
 from pathlib import Path
 
-import cv2
 import numpy as np
 import pytest
+from browser import CHROMIUM, MISSING, Screenshot
 from replay_commands import Replay
 
 from guidedarm.diagrams.cli.command_run import LoadScenario
@@ -24,7 +22,6 @@ from guidedarm.diagrams.tasks.waypoints import MakePlannerSetup
 from guidedarm.systems.path_following.hose_geometry import DistanceToCenterline, ReadCenterline
 
 REPO = Path(__file__).resolve().parents[1]
-CHROMIUM = shutil.which("chromium")
 # Time limits that cut each task short but past its first sensing or planning.
 SHORTENED = {
     "waypoints": ["max_time=0.6"],
@@ -132,33 +129,6 @@ def test_index_links_every_run_and_its_files(runs):
     assert 'class="failed"' in page  # the shortened runs failed, and the page says so
 
 
-def Screenshot(page: Path, out: Path, size=(800, 600), budget_ms=8000) -> np.ndarray:
-    png = out.with_suffix(".png")
-    subprocess.run(
-        [
-            CHROMIUM,
-            "--headless",
-            "--no-sandbox",
-            "--disable-gpu",
-            "--use-angle=swiftshader",
-            "--enable-unsafe-swiftshader",
-            "--disable-background-networking",
-            "--disable-component-update",
-            "--disable-sync",
-            "--no-first-run",
-            f"--user-data-dir={out}",
-            f"--window-size={size[0]},{size[1]}",
-            f"--virtual-time-budget={budget_ms}",
-            f"--screenshot={png}",
-            page.as_uri(),
-        ],
-        check=True,
-        capture_output=True,
-        timeout=120,
-    )
-    return cv2.imread(str(png))[:, :, ::-1].astype(float)
-
-
 def Project(p_W: np.ndarray, eye: np.ndarray, target: np.ndarray, size) -> np.ndarray:
     """Pixel (u, v) of world point p_W in Meshcat's perspective camera at `eye` looking at
     `target`, up along world z, on a page of `size` (width, height)."""
@@ -173,7 +143,7 @@ def Project(p_W: np.ndarray, eye: np.ndarray, target: np.ndarray, size) -> np.nd
     return np.array([(x + 1) / 2 * size[0], (1 - y) / 2 * size[1]])
 
 
-@pytest.mark.skipif(CHROMIUM is None, reason="Debian chromium missing: `make test` installs it")
+@pytest.mark.skipif(CHROMIUM is None, reason=MISSING)
 def test_replay_shows_the_waypoint_overlays_where_they_are(runs, tmp_path):
     name = next(n for n in DemoScenarios() if n.endswith("_waypoints"))
     replay = Replay(runs / name / "replay.html")
@@ -195,7 +165,7 @@ def test_replay_shows_the_waypoint_overlays_where_they_are(runs, tmp_path):
     assert magenta.mean() < 0.1
 
 
-@pytest.mark.skipif(CHROMIUM is None, reason="Debian chromium missing: `make test` installs it")
+@pytest.mark.skipif(CHROMIUM is None, reason=MISSING)
 def test_index_page_shows_the_plots(runs, tmp_path):
     size = (1200, 1600)
     image = Screenshot(runs / "index.html", tmp_path / "index", size, 3000)

@@ -33,7 +33,7 @@ from typing import Any
 
 import numpy as np
 
-from guidedarm.diagrams.scenario_loading import read_raw_scenario
+from guidedarm.diagrams.scenario_loading import ListNamedFiles, ResolveNamedFile, read_raw_scenario
 from guidedarm.systems.errors import ConfigurationError
 
 CAMPAIGN_DIR = Path(__file__).resolve().parent
@@ -233,21 +233,12 @@ class CampaignConfig:
 
 def ResolveCampaignPath(name_or_path: str) -> Path:
     """The file of a named campaign (diagrams/campaigns/NAME.yaml) or a path."""
-    path = Path(name_or_path)
-    if path.suffix in (".yaml", ".yml"):
-        if not path.is_file():
-            raise CampaignError(f"campaign file not found: {path}")
-        return path
-    named = CAMPAIGN_DIR / f"{name_or_path}.yaml"
-    if not named.is_file():
-        known = ", ".join(ListNamedCampaigns())
-        raise CampaignError(f"unknown campaign '{name_or_path}' (known: {known})")
-    return named
+    return ResolveNamedFile(name_or_path, CAMPAIGN_DIR, "campaign", CampaignError)
 
 
 def ListNamedCampaigns() -> list[str]:
     """Names of the campaigns shipped in diagrams/campaigns/."""
-    return sorted(p.stem for p in CAMPAIGN_DIR.glob("*.yaml"))
+    return ListNamedFiles(CAMPAIGN_DIR)
 
 
 def LoadCampaign(name_or_path: str) -> CampaignConfig:
