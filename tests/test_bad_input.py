@@ -236,7 +236,7 @@ BAD_INPUTS = [
     ("operation-nan-distance", Run(PO, "operation.base_distance_m=.nan"), "base_distance_m"),
     ("operation-motion", Run(PO, "operation.motion=teleport"), "motion must be one of"),
     ("degradation-noise", Run(PO, "degradation.noise_std=-1"), "degradation.noise_std"),
-    ("panel-planner-inf", Run(PO, "planner.tcp_rpy_deg=[.inf,0,0]"), "tcp_rpy_deg[0]"),
+    ("panel-planner-inf", Run(PO, "planner.max_joint_velocity=[.inf]"), "max_joint_velocity[0]"),
     ("panel-file-missing", Run(PO, "panel_file=panel/nope.yaml"), "file not found"),
     # --- output directories and Meshcat flags
     ("out-is-a-file", ["run", JT, "--out", "{f}/afile"], "is a file, not a directory"),
