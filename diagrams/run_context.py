@@ -186,9 +186,9 @@ def MakeMeshcat(serve: bool = False, host: str = "localhost") -> Meshcat:
 def ServeMeshcat(meshcat: Meshcat, wait_s: float | None = None) -> None:
     """Keeps serving `meshcat` until Ctrl-C, or for wait_s seconds; never reads stdin."""
     until = f"for {wait_s:g} s or until Ctrl-C" if wait_s is not None else "until Ctrl-C"
-    print(f"Meshcat keeps serving at {meshcat.web_url()} {until}.", flush=True)
     deadline = math.inf if wait_s is None else time.monotonic() + wait_s
-    try:
+    try:  # a Ctrl-C right after the announcement ends the serving too, not the command
+        print(f"Meshcat keeps serving at {meshcat.web_url()} {until}.", flush=True)
         while (left := deadline - time.monotonic()) > 0:
             time.sleep(min(left, 0.5))
     except KeyboardInterrupt:

@@ -174,7 +174,8 @@ def test_index_page_shows_the_plots(runs, tmp_path):
     blind.write_text((runs / "index.html").read_text().replace('src="', 'src="missing/'))
     without = Screenshot(blind, tmp_path / "blind", size, 3000)
     plotted = np.linalg.norm(image - without, axis=2) > 60
-    assert plotted.mean() > 0.05, f"only {plotted.mean():.3f} of the page shows plots"
+    # A page whose images are missing shows none (0.0); the plots cover 5 % of it.
+    assert plotted.mean() > 0.03, f"only {plotted.mean():.3f} of the page shows plots"
     # The "failed" verdicts of the shortened runs are drawn in red text.
     red = np.linalg.norm(image - [198.0, 40.0, 40.0], axis=2) < 60
     assert red.sum() > 50
