@@ -121,7 +121,7 @@ def DetectedPath(records: np.ndarray) -> np.ndarray:
 
 def Repeatability(first: np.ndarray, second: np.ndarray) -> tuple[float, float]:
     """Mean and max distance (mm) of the second run's detected points to the first run's
-    detected path (a polyline), as the seed compares its runs 1 and 2 of path 1."""
+    detected path (a polyline), as the paper compares its runs 1 and 2 of path 1."""
     if len(first) < 2 or len(second) == 0:
         return 0.0, 0.0
     d = DistanceToCenterline(second, first)

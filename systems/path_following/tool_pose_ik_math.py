@@ -107,7 +107,7 @@ class ToolPoseSolver:
         With the tool centre there, an orientation shortfall turns the tool about its centre
         and leaves it on the path; about the gripper's origin it would move the centre
         sideways by the tool's length times the shortfall. workspace: the walls (default the
-        seed's cell) in the arm's base frame B, whose pose in the world is X_WB (default the
+        paper's cell) in the arm's base frame B, whose pose in the world is X_WB (default the
         identity)."""
         limits.Validate()
         self.plant = plant

@@ -124,7 +124,7 @@ class TcpKinematics:
     the Jacobian J (6 x 6, rows [translational; rotational]: analytic with Euler rates in
     the paper's mode, geometric with omega in the robust mode), Jdot qd (m/s^2, rad/s^2) in
     the same rows, and the smallest singular value of J_g. rpy is only evaluated for the
-    seed's mode (p computes it otherwise)."""
+    paper's mode (p computes it otherwise)."""
 
     x: np.ndarray
     R: np.ndarray
@@ -135,7 +135,7 @@ class TcpKinematics:
 
     @property
     def p(self) -> np.ndarray:
-        """p = [x; roll, pitch, yaw] as in the seed."""
+        """p = [x; roll, pitch, yaw] as in the paper."""
         rpy = self.rpy if self.rpy is not None else RollPitchYaw(RotationMatrix(self.R)).vector()
         return np.concatenate([self.x, rpy])
 
@@ -235,7 +235,7 @@ class ArmKinematics:
 
 
 def TrackingError(p: np.ndarray, target: np.ndarray) -> np.ndarray:
-    """Eq. (6): e = k(q) - p_target (m, rad) with the Euler-angle part wrapped (seed's mode)."""
+    """Eq. (6): e = k(q) - p_target (m, rad) with the Euler-angle part wrapped (paper's mode)."""
     e = p - target
     e[3:] = WrapAngle(e[3:])
     return e
