@@ -26,6 +26,7 @@ from guidedarm.diagrams.tasks.path_following_setup import MakeSetup, Setup
 from guidedarm.diagrams.tasks.registry import TaskDefinition
 from guidedarm.systems.config_checks import InRange, Positive
 from guidedarm.systems.errors import ConfigurationError
+from guidedarm.systems.path_following.continuous_follower_math import ContinuousConfig
 from guidedarm.systems.path_following.hose_geometry import RandomPathConfig
 from guidedarm.systems.path_following.path_follower_math import RECORD_FIELDS, FollowerConfig
 from guidedarm.systems.path_following.tool_pose_ik_math import ToolPoseIkConfig
@@ -44,10 +45,12 @@ class PathFollowingScenario:
     estimator: `grid` (the paper's) or `ranging`; random_seed: the scenario's random seed
     (the ToF noise); repeat_random_seed: when set, a second run with this random seed is
     overlaid (repeatability); executor: `station`
-    or `kinematic`; motion: how the station moves between steps, `joint_trajectory`
-    (rest-to-rest joint moves at tool_speed) or `planner` (Pajak et al.'s acceleration-level
-    planner with the `planner` parameters; both within max_joint_speed and
-    max_joint_acceleration); period: follower and IK tick (s); max_time: simulated time
+    or `kinematic`; motion: how the arm moves, `joint_trajectory` (rest-to-rest joint moves
+    at tool_speed between the paper's steps), `planner` (those moves through Pajak et al.'s
+    acceleration-level planner with the `planner` parameters) or `continuous` (no stops:
+    sensing while moving, the target streamed through differential IK, with the
+    `continuous` parameters); all within max_joint_speed and max_joint_acceleration;
+    period: follower and IK tick of the stop-and-go modes (s); max_time: simulated time
     limit (s); min_coverage: success threshold; follower: the algorithm's parameters;
     ik: IK tolerances; arm, gripper_frame, tof: names in the station; base_frame: the arm's
     base frame B (scoped name; empty: `<arm>::base`).
@@ -68,6 +71,7 @@ class PathFollowingScenario:
     max_joint_acceleration: float = Positive(5.0)
     motion: str = "joint_trajectory"
     planner: PlannerConfig = field(default_factory=PlannerConfig)
+    continuous: ContinuousConfig = field(default_factory=ContinuousConfig)
     period: float = Positive(0.01)
     max_time: float = Positive(400.0)
     min_coverage: float = InRange(0.0, 1.0, 0.95)

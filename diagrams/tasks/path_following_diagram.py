@@ -35,6 +35,8 @@ from guidedarm.diagrams.station.scenario import StationScenario
 from guidedarm.diagrams.station.station_plant import GetArmInstance, MakeMultibodyPlant
 from guidedarm.diagrams.tasks.path_following_setup import Setup
 from guidedarm.systems.errors import ConfigurationError
+from guidedarm.systems.path_following.continuous_follower import ContinuousFollower
+from guidedarm.systems.path_following.differential_ik_servo import DifferentialIkServo
 from guidedarm.systems.path_following.joint_moves import MovePlanner
 from guidedarm.systems.path_following.path_follower import PathFollower
 from guidedarm.systems.path_following.planner_moves import PlannerMoves
@@ -48,10 +50,11 @@ from guidedarm.systems.tof.tof_tool_sensor import TOF_PORTS, ToFToolSensor
 
 
 class PathFollowing(NamedTuple):
-    """The systems AddPathFollowing adds."""
+    """The systems AddPathFollowing adds: the follower and what turns its targets into
+    joint commands (ToolPoseIk, or the DifferentialIkServo of `continuous`)."""
 
-    follower: PathFollower
-    ik: ToolPoseIk
+    follower: PathFollower | ContinuousFollower
+    ik: ToolPoseIk | DifferentialIkServo
 
 
 def AddPathFollowing(
@@ -77,7 +80,13 @@ def AddPathFollowing(
     Outputs for logging and stopping: follower `step_record` (RECORD_FIELDS of the latest
     step; world frame, m), `mode` ([mode, step]; DONE = 3, FAILED = 4), `failure` (str),
     `detections`/`detection_errors` (3 x 3 grid of the latest reading); ik `status`.
+
+    With setup.moves `continuous` the follower is a ContinuousFollower (also reading
+    `<tof>.measured_at`, 6, s) and a DifferentialIkServo streams its target to
+    `<arm>.position_commanded` (AddContinuousFollowing).
     """
+    if setup.moves == "continuous":
+        return AddContinuousFollowing(builder, station, setup)
     if plan_move is None and setup.moves == "planner":
         plan_move = MakePlannerMoves(setup)
     ik = builder.AddNamedSystem(
@@ -115,6 +124,57 @@ def AddPathFollowing(
         station.GetInputPort(f"{arm}.position_commanded"),
     )
     return PathFollowing(follower, ik)
+
+
+def AddContinuousFollowing(
+    builder: DiagramBuilder, station: Diagram, setup: Setup
+) -> PathFollowing:
+    """Adds a ContinuousFollower ("path_follower") and a DifferentialIkServo
+    ("differential_ik") on setup.solver's controller plant, the ToF tool frame T the
+    controlled frame, both ticking every setup.continuous.servo_period, within the
+    scenario's joint speed and acceleration limits:
+
+    station `<tof>.ranges`, `<tof>.valid`, `<tof>.measured_at`, `<arm>.position_measured`
+        ──> ContinuousFollower ──X_WT_desired──> DifferentialIkServo
+        ──position_commanded──> station `<arm>.position_commanded`
+    """
+    arm, tof = setup.arm, setup.tool_name
+    if not station.HasOutputPort(f"{tof}.measured_at"):
+        raise ConfigurationError(
+            f"motion=continuous needs the station's `{tof}.measured_at` (the ToF readings' "
+            "measurement instants)"
+        )
+    plant = setup.solver.plant
+    tool_frame = setup.station.tof_tools[tof].tool_frame
+    tool = GetScopedFrame(plant, tool_frame, f"tof_tools.{tof}.tool_frame")
+    config = setup.continuous
+    follower = builder.AddNamedSystem(
+        "path_follower",
+        ContinuousFollower(config, plant, tool, setup.grid, setup.params.estimator, setup.q_start),
+    )
+    servo = builder.AddNamedSystem(
+        "differential_ik",
+        DifferentialIkServo(
+            plant,
+            tool,
+            setup.q_start,
+            config.servo_period,
+            setup.motion.max_joint_speed,
+            setup.motion.max_joint_acceleration,
+        ),
+    )
+    for port in ("ranges", "valid", "measured_at"):
+        builder.Connect(station.GetOutputPort(f"{tof}.{port}"), follower.GetInputPort(port))
+    builder.Connect(
+        station.GetOutputPort(f"{arm}.position_measured"),
+        follower.GetInputPort("position_measured"),
+    )
+    builder.Connect(follower.GetOutputPort("X_WT_desired"), servo.GetInputPort("X_WT_desired"))
+    builder.Connect(
+        servo.GetOutputPort("position_commanded"),
+        station.GetInputPort(f"{arm}.position_commanded"),
+    )
+    return PathFollowing(follower, servo)
 
 
 def MakeKinematicStation(scenario: StationScenario) -> Diagram:

@@ -31,7 +31,6 @@ from guidedarm.diagrams.tasks.path_following_diagram import (
     MakeKinematicStation,
 )
 from guidedarm.diagrams.tasks.path_following_setup import Setup
-from guidedarm.systems.path_following.path_follower import DONE, FAILED
 
 # Joint samples for the contact check (s): the tool moves 1 mm between two at 50 mm/s.
 SAMPLE_PERIOD = 0.02
@@ -78,7 +77,8 @@ def _Simulate(setup: Setup, station: Diagram, context: RunContext, visualized: b
         setup.arm,
         setup.tool_name,
     )
-    record_log = LogVectorOutput(follower.GetOutputPort("step_record"), builder, setup.period)
+    record_period = setup.continuous.servo_period if setup.moves == "continuous" else setup.period
+    record_log = LogVectorOutput(follower.GetOutputPort("step_record"), builder, record_period)
     q_log = LogVectorOutput(
         station.GetOutputPort(f"{setup.arm}.position_measured"), builder, SAMPLE_PERIOD
     )
@@ -91,7 +91,7 @@ def _Simulate(setup: Setup, station: Diagram, context: RunContext, visualized: b
     def monitor(_):
         loop = follower.Loop(follower_context)
         context.progress(f"step {loop.step}, t = {root.get_time():.1f} s")
-        if loop.mode in (DONE, FAILED):
+        if follower.Stopped(follower_context):
             return EventStatus.ReachedTermination(follower, "follower stopped")
         return EventStatus.DidNothing()
 
@@ -104,7 +104,7 @@ def _Simulate(setup: Setup, station: Diagram, context: RunContext, visualized: b
         context.write_replay()
     loop = follower.Loop(follower_context)
     failure = loop.failure or None
-    if loop.mode not in (DONE, FAILED):
+    if not follower.Stopped(follower_context):
         failure = f"time limit ({setup.max_time} s) reached at step {loop.step}"
     records = record_log.FindLog(root)
     samples = q_log.FindLog(root)

@@ -31,6 +31,7 @@ from guidedarm.diagrams.station.station_plant import (
 )
 from guidedarm.systems.config_checks import CheckConfig
 from guidedarm.systems.errors import ConfigurationError, GuidedArmError
+from guidedarm.systems.path_following.continuous_follower_math import ContinuousConfig
 from guidedarm.systems.path_following.hose_geometry import (
     HoseConfig,
     LoadHoseWorkspace,
@@ -56,7 +57,7 @@ if TYPE_CHECKING:
     from guidedarm.diagrams.tasks.path_following import PathFollowingScenario
 
 EXECUTORS = ("station", "kinematic")
-MOVES = ("joint_trajectory", "planner")
+MOVES = ("joint_trajectory", "planner", "continuous")
 
 
 @dataclass
@@ -69,8 +70,9 @@ class Setup:
         name) and the ToF tool's key in station.tof_tools.
     base_frame, X_WB: the arm's base frame B (scoped name) and its pose in the world.
     workspace: the walls (m, frame B).
-    params: the follower's resolved parameters; motion: move limits; moves: `joint_trajectory`
-        or `planner` (with `planner`); period: follower and IK tick (s); max_time (s).
+    params: the follower's resolved parameters; motion: move limits; moves: `joint_trajectory`,
+        `planner` (with `planner`) or `continuous` (with `continuous`); period: follower and
+        IK tick (s); max_time (s).
     centerline_B, centerline: the hose's centerline (N, 3; m) in B and in W; hose_source:
         the CSV or named path it came from.
     solver: the IK (on the controller plant); mount: X_GT as the paper's l_e and angles;
@@ -88,6 +90,7 @@ class Setup:
     motion: MotionLimits
     moves: str
     planner: PlannerConfig
+    continuous: ContinuousConfig
     period: float
     max_time: float
     centerline_B: np.ndarray
@@ -136,6 +139,7 @@ def MakeSetup(scenario: PathFollowingScenario, out_dir: Path | None = None) -> S
         ),
         moves=scenario.motion,
         planner=scenario.planner,
+        continuous=scenario.continuous,
         period=scenario.period,
         max_time=scenario.max_time,
         centerline_B=centerline_B,

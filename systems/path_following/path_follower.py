@@ -167,6 +167,10 @@ class PathFollower(LeafSystem):
         """The current loop state (mode, step, failure, ...)."""
         return context.get_abstract_state(self._loop).get_value()
 
+    def Stopped(self, context: Context) -> bool:
+        """Whether the run is over (DONE or FAILED)."""
+        return self.Loop(context).mode in (DONE, FAILED)
+
     def _Update(self, context: Context, state: State) -> None:
         loop = self.Loop(context)
         t = context.get_time()

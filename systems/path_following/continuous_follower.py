@@ -1,0 +1,226 @@
+"""ContinuousFollower: path following without stops (motion `continuous`).
+
+Every servo period it records the measured joints; when the ToF tool's `measured_at`
+stamps change (a new reading), it takes the tool pose at the measurement instant (the
+joints interpolated at the mean stamp, forward kinematics of T on the controller plant:
+motion compensation), estimates the hose centre in T (ranging or grid estimator), adds the
+world point to the hose estimate, and updates the mode (follow, search, back up, retry,
+done). Then the target pose moves one period along the estimate
+(continuous_follower_math.Advance). A DifferentialIkServo turns the target into joint
+commands (path_following_diagram.AddPathFollowing wires both).
+
+It reads only `<tof>.ranges`, `<tof>.valid`, `<tof>.measured_at` and
+`<arm>.position_measured`, which the simulated and the hardware stations both export.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, replace
+
+import numpy as np
+from pydrake.common.value import AbstractValue
+from pydrake.math import RigidTransform
+from pydrake.multibody.plant import MultibodyPlant
+from pydrake.multibody.tree import Frame
+from pydrake.systems.framework import BasicVector, Context, LeafSystem, State
+
+from guidedarm.systems.path_following.continuous_follower_math import (
+    DONE,
+    FOLLOW,
+    Advance,
+    ContinuousConfig,
+    HoseEstimate,
+    JointHistory,
+    OnReading,
+    Reference,
+)
+from guidedarm.systems.path_following.path_follower_math import RECORD_FIELDS, EstimateHose
+from guidedarm.systems.tof.tof_tool_sensor_math import DetectionGrid
+
+# The arm this far (m) from the target means it cannot follow (limits, a singularity).
+MAX_LAG = 0.025
+
+
+@dataclass(frozen=True)
+class _Run:
+    """The follower's abstract state; never changed in place (see PathFollower's _Loop):
+    JointHistory is replaced by a copy before it changes."""
+
+    reference: Reference
+    estimate: HoseEstimate
+    history: JointHistory
+    stamp: float = -1.0
+    step: int = 0
+    record: np.ndarray | None = None
+    grid: np.ndarray | None = None
+    failure: str = ""
+
+    @property
+    def stopped(self) -> bool:
+        return self.reference.mode == DONE or bool(self.failure)
+
+    def __deepcopy__(self, memo: dict) -> _Run:
+        return self
+
+
+class ContinuousFollower(LeafSystem):
+    """Inputs: `ranges` (6, m), `valid` (6), `measured_at` (6, s; -1 before the first
+    reading), `position_measured` (n, rad).
+
+    Outputs: `X_WT_desired` (RigidTransform of the tool frame T in world W, the target
+    for the next period), `step_record` (RECORD_FIELDS of the latest reading: t its
+    measurement instant, O the tool centre then, S the hose point, `lost` 1 outside
+    FOLLOW, `recovery` the retry in progress, `ended` 1 once done), `detections` and
+    `detection_errors` (3 x 3 grid of the latest reading), `mode` ([mode, readings];
+    continuous_follower_math's FOLLOW..DONE), `failure` (str).
+
+    plant, tool: the controller plant (positions = the arm's joints) and T on it;
+    grid, estimator: the tool's detection grid and `grid` or `ranging`; q_initial: the
+    start joints (rad), T on the hose's first point along it.
+    """
+
+    def __init__(
+        self,
+        config: ContinuousConfig,
+        plant: MultibodyPlant,
+        tool: Frame,
+        grid: DetectionGrid,
+        estimator: str,
+        q_initial: np.ndarray,
+    ) -> None:
+        super().__init__()
+        config.Validate()
+        self._config, self._plant, self._tool = config, plant, tool
+        self._grid, self._estimator = grid, estimator
+        self._plant_context = plant.CreateDefaultContext()
+        n = len(q_initial)
+        X_WT = self._ToolPose(np.asarray(q_initial, float))
+        history = JointHistory(config.history)
+        history.Add(0.0, q_initial)
+        start = _Run(Reference.Start(X_WT), HoseEstimate.Start(X_WT), history)
+        self._ranges = self.DeclareVectorInputPort("ranges", 6)
+        self._valid = self.DeclareVectorInputPort("valid", 6)
+        self._measured_at = self.DeclareVectorInputPort("measured_at", 6)
+        self._position = self.DeclareVectorInputPort("position_measured", n)
+        self._run = self.DeclareAbstractState(AbstractValue.Make(start))
+        self.DeclarePeriodicUnrestrictedUpdateEvent(config.servo_period, 0.0, self._Update)
+        state_only = {self.xa_ticket()}
+        self.DeclareAbstractOutputPort(
+            "X_WT_desired",
+            lambda: AbstractValue.Make(RigidTransform()),
+            self._CalcTarget,
+            prerequisites_of_calc=state_only,
+        )
+        self.DeclareVectorOutputPort(
+            "step_record", len(RECORD_FIELDS), self._CalcRecord, prerequisites_of_calc=state_only
+        )
+        for name, start_index in (("detections", 0), ("detection_errors", 9)):
+            self.DeclareVectorOutputPort(
+                name,
+                9,
+                lambda c, o, k=start_index: self._CalcGrid(c, o, k),
+                prerequisites_of_calc=state_only,
+            )
+        self.DeclareVectorOutputPort("mode", 2, self._CalcMode, prerequisites_of_calc=state_only)
+        self.DeclareAbstractOutputPort(
+            "failure",
+            lambda: AbstractValue.Make(""),
+            lambda c, o: o.set_value(self.Loop(c).failure),
+            prerequisites_of_calc=state_only,
+        )
+
+    def Loop(self, context: Context) -> _Run:
+        """The current state (reference, estimate, readings as `step`, failure)."""
+        return context.get_abstract_state(self._run).get_value()
+
+    def Stopped(self, context: Context) -> bool:
+        """Whether the run is over (the hose's end found, or a failure)."""
+        return self.Loop(context).stopped
+
+    def _ToolPose(self, q: np.ndarray) -> RigidTransform:
+        self._plant.SetPositions(self._plant_context, q)
+        return self._tool.CalcPoseInWorld(self._plant_context)
+
+    def _Update(self, context: Context, state: State) -> None:
+        run = self.Loop(context)
+        if run.stopped:
+            return
+        t = context.get_time()
+        history = JointHistory.Copy(run.history)
+        history.Add(t, self._position.Eval(context))
+        run = replace(run, history=history)
+        stamps = self._measured_at.Eval(context)
+        stamp = float(np.mean(stamps))
+        if np.all(stamps >= 0) and stamp > run.stamp + 1e-9:
+            run = self._Read(context, run, stamp)
+        if not run.failure:
+            reference = Advance(
+                run.reference, run.estimate, self._config.servo_period, self._config
+            )
+            run = replace(run, reference=reference)
+        state.get_mutable_abstract_state(self._run).set_value(run)
+
+    def _Read(self, context: Context, run: _Run, stamp: float) -> _Run:
+        """One new reading: motion compensation, the hose point, the estimate, the mode."""
+        ranges = self._ranges.Eval(context).copy()
+        valid = self._valid.Eval(context) > 0.5
+        X_WT = self._ToolPose(run.history.At(stamp))
+        p_WO = X_WT.translation()
+        S_T, _ = EstimateHose(self._grid, self._estimator, ranges, valid)
+        S_W = None if S_T is None else X_WT @ np.asarray(S_T, float)
+        estimate = run.estimate.WithReading(p_WO, S_W, self._config)
+        s_tool = estimate.Coordinate(p_WO)
+        reference = OnReading(run.reference, estimate, S_W is not None, s_tool, self._config)
+        detected, errors = self._grid.Detect(ranges, valid)
+        record = np.concatenate(
+            [
+                [run.step, stamp],
+                p_WO,
+                S_W if S_W is not None else p_WO,
+                [
+                    float(S_W is not None),
+                    0.0,
+                    float(reference.mode != FOLLOW),
+                    reference.retry,
+                    reference.recoveries,
+                    float(reference.mode == DONE),
+                    0.0,
+                ],
+                ranges,
+                valid.astype(float),
+            ]
+        )
+        failure = ""
+        lag = np.linalg.norm(
+            self._ToolPose(run.history.At(context.get_time())).translation() - run.reference.r
+        )
+        if lag > MAX_LAG:
+            failure = (
+                f"the arm fell {1000 * lag:.0f} mm behind the target at reading {run.step} "
+                f"(t = {context.get_time():.2f} s): joint limits or a singularity"
+            )
+        return replace(
+            run,
+            reference=reference,
+            estimate=estimate,
+            stamp=stamp,
+            step=run.step + 1,
+            record=record,
+            grid=np.concatenate([detected.ravel(), errors.ravel()]).astype(float),
+            failure=failure,
+        )
+
+    def _CalcTarget(self, context: Context, output: AbstractValue) -> None:
+        output.set_value(self.Loop(context).reference.Pose())
+
+    def _CalcRecord(self, context: Context, output: BasicVector) -> None:
+        record = self.Loop(context).record
+        output.SetFromVector(record if record is not None else np.full(len(RECORD_FIELDS), -1.0))
+
+    def _CalcGrid(self, context: Context, output: BasicVector, start: int) -> None:
+        grid = self.Loop(context).grid
+        output.SetFromVector(grid[start : start + 9] if grid is not None else np.zeros(9))
+
+    def _CalcMode(self, context: Context, output: BasicVector) -> None:
+        run = self.Loop(context)
+        output.SetFromVector([run.reference.mode, run.step])

@@ -1,0 +1,399 @@
+"""Mathematics of continuous path following: sense while moving, no stops (beyond the paper).
+
+Frames: world W; tool T with centre O and x_T along the path (the detection plane is T's
+y-z plane). Units: m, s, rad.
+
+Each reading is stamped with its measurement instant; the tool pose at that instant
+(forward kinematics of the joints interpolated in JointHistory) turns the hose centre the
+estimator found in T into a world point on the hose. HoseEstimate keeps those points with
+their path coordinate s (the tool centre's projection on the estimated path) and fits a
+quadratic p(s) by least squares to the last fit_length of them: the fit's end is the
+estimated hose point at the latest reading, its derivative the tangent, its second
+derivative the curvature, its residual the noise. Beyond the last reading the path is
+extrapolated along the fit (at most look_ahead), behind it the trail of past fit ends
+is the path.
+
+Reference (Advance, every servo period): a target pose moves along the estimated path at
+the commanded speed v, which ramps (acceleration) toward
+    min(speed, sqrt(lateral_acceleration / curvature), confidence-scaled speed)
+and brakes so as never to pass the estimate's end by more than look_ahead. The target
+position and direction move toward the estimated path at bounded rates
+(max_correction_speed, max_turn_rate_deg), so the noise of one reading never jerks the arm.
+The detection plane stays perpendicular to the path: the target's x axis is the tangent.
+
+Loss: a reading without the hose leaves the estimate where it was. Once the tool is
+loss_distance past the last estimate, the follower SEARCHES at search_speed along the
+extrapolation to search_distance past it; with no hose there it BACKS UP along its trail
+to the last estimate and RETRIES in directions turned about the world z axis by each of
+search_turns_deg; a reading that sees the hose again resumes FOLLOW (a recovery). When
+every retry is lost too, the hose has ended: the follower backs up to the last estimate
+and is DONE.
+"""
+
+import math
+from dataclasses import dataclass, replace
+
+import numpy as np
+from pydrake.math import RigidTransform, RotationMatrix
+
+from guidedarm.systems.config_checks import CheckFields, InRange, Positive
+from guidedarm.systems.errors import ConfigurationError
+from guidedarm.systems.path_following.path_follower_math import OrientationFromVector
+
+FOLLOW, SEARCH, BACK, RETRY, DONE = range(5)
+MODE_NAMES = ("follow", "search", "back", "retry", "done")
+
+
+@dataclass
+class ContinuousConfig:
+    """Continuous following (motion `continuous`; m, s, deg).
+
+    speed: cruise speed of the tool along the hose (m/s); min_speed: the floor of the
+        adapted speed (m/s); acceleration: the tool's speed change (m/s^2).
+    lateral_acceleration: in a bend of curvature k the speed is at most
+        sqrt(lateral_acceleration / k) (m/s^2).
+    look_ahead: how far the target may run past the latest hose estimate (m).
+    fit_length: length of hose behind the latest estimate fitted by the quadratic (m);
+        min_fit_points: readings needed before the fit's tangent and curvature are used.
+    residual_limit: fit residual (RMS, m) at which the confidence reaches 0; the speed
+        falls from `speed` toward min_speed with the confidence (the fraction of readings
+        in the fit window that saw the hose, times 1 - residual / residual_limit).
+    max_correction_speed: speed of the target's correction toward the estimated path
+        (m/s); max_turn_rate_deg: the target's turn rate (deg/s).
+    servo_period: the target and the differential IK's tick (s).
+    history: the measured joints kept for motion compensation (s).
+    loss_distance: travel past the latest estimate without the hose before a search (m).
+    search_distance: how far past the latest estimate a search goes (m); search_speed
+        (m/s).
+    search_turns_deg: after the straight search, retries from the latest estimate in these
+        directions, turned about the world z axis (deg); every one lost = the hose's end.
+    """
+
+    speed: float = Positive(0.06)
+    min_speed: float = Positive(0.02)
+    acceleration: float = Positive(0.25)
+    lateral_acceleration: float = Positive(0.1)
+    look_ahead: float = Positive(0.01)
+    fit_length: float = Positive(0.03)
+    min_fit_points: int = InRange(3, 10000, 8)
+    residual_limit: float = Positive(0.006)
+    max_correction_speed: float = Positive(0.05)
+    max_turn_rate_deg: float = Positive(120.0)
+    servo_period: float = Positive(0.004)
+    history: float = Positive(0.3)
+    loss_distance: float = Positive(0.008)
+    search_distance: float = Positive(0.025)
+    search_speed: float = Positive(0.02)
+    search_turns_deg: list[float] = InRange(-90.0, 90.0, factory=lambda: [20.0, -20.0])
+
+    def Validate(self) -> None:
+        """Raises ConfigurationError naming the first bad field or rule."""
+        CheckFields(self)
+        if not self.min_speed <= self.speed:
+            raise ConfigurationError("continuous: need min_speed <= speed")
+        if not self.search_speed <= self.speed:
+            raise ConfigurationError("continuous: need search_speed <= speed")
+        if not self.loss_distance < self.search_distance:
+            raise ConfigurationError("continuous: need loss_distance < search_distance")
+        if not self.loss_distance < self.look_ahead:
+            raise ConfigurationError("continuous: need loss_distance < look_ahead")
+        if not self.history >= 10 * self.servo_period:
+            raise ConfigurationError("continuous: need history >= 10 servo_period")
+
+
+class JointHistory:
+    """Measured joint positions (rad) at their times (s), the last `span` seconds."""
+
+    def __init__(self, span: float) -> None:
+        self._span = span
+        self._t: list[float] = []
+        self._q: list[np.ndarray] = []
+
+    @staticmethod
+    def Copy(other: "JointHistory") -> "JointHistory":
+        copy = JointHistory(other._span)
+        copy._t, copy._q = list(other._t), list(other._q)
+        return copy
+
+    def Add(self, t: float, q: np.ndarray) -> None:
+        if self._t and t <= self._t[-1]:
+            self._t[-1], self._q[-1] = t, np.array(q, float)
+        else:
+            self._t.append(t)
+            self._q.append(np.array(q, float))
+        while len(self._t) > 2 and self._t[1] < t - self._span:
+            del self._t[0], self._q[0]
+
+    def At(self, t: float) -> np.ndarray:
+        """q at time t, linearly interpolated (the nearest end outside the kept span)."""
+        times = self._t
+        if t <= times[0]:
+            return self._q[0]
+        if t >= times[-1]:
+            return self._q[-1]
+        k = int(np.searchsorted(times, t))
+        w = (t - times[k - 1]) / (times[k] - times[k - 1])
+        return (1 - w) * self._q[k - 1] + w * self._q[k]
+
+
+@dataclass(frozen=True)
+class LocalFit:
+    """The hose near the latest estimate: point p (m, W) at path coordinate s, unit
+    tangent u, curvature vector c (1/m, normal to u), RMS residual (m), readings in the
+    window and how many of them saw the hose."""
+
+    s: float
+    p: np.ndarray
+    u: np.ndarray
+    c: np.ndarray
+    residual: float
+    readings: int
+    detections: int
+
+    def Point(self, s: float) -> np.ndarray:
+        d = s - self.s
+        return self.p + self.u * d + 0.5 * self.c * d * d
+
+    def Tangent(self, s: float) -> np.ndarray:
+        t = self.u + self.c * (s - self.s)
+        return t / np.linalg.norm(t)
+
+    @property
+    def curvature(self) -> float:
+        return float(np.linalg.norm(self.c))
+
+
+@dataclass(frozen=True)
+class HoseEstimate:
+    """Readings along the path: rows (s, detected, p_x, p_y, p_z) with p the hose point (or
+    the tool centre when undetected), the current fit and the trail of past fit ends
+    (rows s, p, u). Immutable: With... methods return new estimates."""
+
+    fit: LocalFit
+    rows: np.ndarray
+    trail: np.ndarray
+
+    @staticmethod
+    def Start(X_WT: RigidTransform) -> "HoseEstimate":
+        """The hose assumed under O along x_T (the start pose), nothing read yet."""
+        p = X_WT.translation()
+        u = X_WT.rotation().matrix()[:, 0]
+        fit = LocalFit(0.0, p, u, np.zeros(3), 0.0, 0, 0)
+        return HoseEstimate(fit, np.zeros((0, 5)), np.concatenate([[0.0], p, u])[None])
+
+    def Coordinate(self, p_W: np.ndarray) -> float:
+        """Path coordinate (m) of a point: its projection on the fit's tangent."""
+        return self.fit.s + float((p_W - self.fit.p) @ self.fit.u)
+
+    def WithReading(
+        self, p_WO: np.ndarray, S_W: np.ndarray | None, config: ContinuousConfig
+    ) -> "HoseEstimate":
+        """The estimate after a reading with the tool centre at p_WO (the measurement
+        instant's) that saw the hose centre at S_W (or nothing)."""
+        s = self.Coordinate(p_WO)
+        row = np.concatenate([[s, float(S_W is not None)], S_W if S_W is not None else p_WO])
+        rows = np.vstack([self.rows, row])
+        detected = rows[rows[:, 1] > 0.5]
+        if S_W is None or len(detected) == 0:
+            keep = rows[:, 0] >= self.fit.s - config.fit_length
+            return replace(self, rows=rows[keep] if keep.sum() >= 2 else rows[-2:])
+        keep = rows[:, 0] >= s - config.fit_length
+        rows = rows[keep]
+        fit = FitHose(rows, s, self.fit, config)
+        trail = np.vstack([self.trail, np.concatenate([[fit.s], fit.p, fit.u])])
+        return HoseEstimate(fit, rows, trail)
+
+    def TrailPoint(self, s: float) -> tuple[np.ndarray, np.ndarray]:
+        """(point, unit tangent) of the trail at path coordinate s (clamped to its ends)."""
+        trail = self.trail
+        order = np.argsort(trail[:, 0], kind="stable")
+        ss, ps, us = trail[order, 0], trail[order, 1:4], trail[order, 4:7]
+        p = np.array([np.interp(s, ss, ps[:, k]) for k in range(3)])
+        u = np.array([np.interp(s, ss, us[:, k]) for k in range(3)])
+        return p, u / np.linalg.norm(u)
+
+
+def FitHose(
+    rows: np.ndarray, s_end: float, previous: LocalFit, config: ContinuousConfig
+) -> LocalFit:
+    """The quadratic fit (module docstring) of the detected rows, evaluated at s_end: a
+    line while the window is short or holds fewer than min_fit_points detections, the
+    previous tangent while it spans under 2 mm."""
+    detected = rows[rows[:, 1] > 0.5]
+    d = detected[:, 0] - s_end
+    points = detected[:, 2:5]
+    span = float(d.max() - d.min()) if len(d) else 0.0
+    if len(d) < config.min_fit_points or span < 0.002:
+        p = points.mean(axis=0) if len(d) else previous.p
+        if len(d) >= 2:
+            p = points[-min(len(d), 4) :].mean(axis=0)
+        # A handful of points says nothing about the noise: residual 0.
+        return LocalFit(s_end, p, previous.u, np.zeros(3), 0.0, len(rows), len(detected))
+    degree = 2 if span >= config.fit_length / 2 else 1
+    A = np.vander(d, degree + 1, increasing=True)
+    coef, *_ = np.linalg.lstsq(A, points, rcond=None)
+    fitted = A @ coef
+    residual = float(np.sqrt(np.mean(np.sum((points - fitted) ** 2, axis=1))))
+    p, velocity = coef[0], coef[1]
+    speed = np.linalg.norm(velocity)
+    if speed < 1e-6:
+        return LocalFit(s_end, p, previous.u, np.zeros(3), residual, len(rows), len(detected))
+    u = velocity / speed
+    if u @ previous.u < 0:  # a fit cannot reverse the path; keep the direction of travel
+        u = previous.u
+    c = np.zeros(3)
+    if degree == 2:
+        a = 2 * coef[2] / speed**2
+        c = a - (a @ u) * u
+    return LocalFit(s_end, p, u, c, residual, len(rows), len(detected))
+
+
+def Confidence(fit: LocalFit, config: ContinuousConfig) -> float:
+    """In [0, 1]: the fraction of readings in the fit window that saw the hose, times
+    1 - residual / residual_limit."""
+    if fit.readings == 0:
+        return 1.0
+    seen = fit.detections / fit.readings
+    return float(np.clip(seen * (1 - fit.residual / config.residual_limit), 0.0, 1.0))
+
+
+def TargetSpeed(fit: LocalFit, config: ContinuousConfig) -> float:
+    """The speed the follower aims for on this fit (m/s): curvature and confidence limits,
+    at least min_speed."""
+    bend = math.sqrt(config.lateral_acceleration / fit.curvature) if fit.curvature > 0 else np.inf
+    confident = config.min_speed + (config.speed - config.min_speed) * Confidence(fit, config)
+    return float(max(config.min_speed, min(config.speed, bend, confident)))
+
+
+@dataclass(frozen=True)
+class Reference:
+    """The moving target: mode, position r (m, W), direction x (unit), path coordinate s,
+    speed v (m/s), and the search's bookkeeping: the retries used since the last loss (0
+    none) and the current one's direction, the recoveries so far, and the estimate's path
+    coordinate at the last loss (None once the hose has been followed search_distance
+    past it: a recovery)."""
+
+    mode: int
+    r: np.ndarray
+    x: np.ndarray
+    s: float
+    v: float
+    retry: int = 0
+    retry_direction: np.ndarray | None = None
+    recoveries: int = 0
+    lost_s: float | None = None
+
+    @staticmethod
+    def Start(X_WT: RigidTransform) -> "Reference":
+        return Reference(
+            FOLLOW, X_WT.translation().copy(), X_WT.rotation().matrix()[:, 0].copy(), 0.0, 0.0
+        )
+
+    def Pose(self) -> RigidTransform:
+        """X_WT of the target: O at r, x_T along x, roll 0 (OrientationFromVector)."""
+        return RigidTransform(OrientationFromVector(self.x), self.r)
+
+
+def OnReading(
+    ref: Reference, estimate: HoseEstimate, detected: bool, s_tool: float, config: ContinuousConfig
+) -> Reference:
+    """Mode changes a reading causes. The hose seen while searching resumes FOLLOW; it is
+    a recovery once followed search_distance past the loss (a glimpse of the hose's end
+    from a retry is not, and the next loss goes on with the next retry instead of starting
+    the search over). In FOLLOW, the tool loss_distance past the estimate starts a
+    search."""
+    fit = estimate.fit
+    if detected and ref.mode in (SEARCH, RETRY):
+        return replace(ref, mode=FOLLOW, retry_direction=None, s=estimate.Coordinate(ref.r))
+    if (
+        ref.mode == FOLLOW
+        and ref.lost_s is not None
+        and fit.s > ref.lost_s + config.search_distance
+    ):
+        return replace(ref, retry=0, lost_s=None, recoveries=ref.recoveries + 1)
+    if not detected and ref.mode == FOLLOW and s_tool > fit.s + config.loss_distance:
+        return replace(ref, mode=SEARCH, lost_s=fit.s if ref.lost_s is None else ref.lost_s)
+    return ref
+
+
+def Advance(
+    ref: Reference, estimate: HoseEstimate, dt: float, config: ContinuousConfig
+) -> Reference:
+    """The target one servo period later (module docstring)."""
+    if ref.mode == DONE:
+        return replace(ref, v=0.0)
+    fit = estimate.fit
+    if ref.mode == FOLLOW:
+        v_goal, s_stop = TargetSpeed(fit, config), fit.s + config.look_ahead
+    elif ref.mode in (SEARCH, RETRY):
+        v_goal, s_stop = config.search_speed, fit.s + config.search_distance
+    else:  # BACK: to the latest estimate, backwards
+        v_goal, s_stop = config.search_speed, fit.s
+    if ref.mode == BACK:
+        remaining = ref.s - s_stop
+    elif ref.mode == RETRY:
+        remaining = config.search_distance - float((ref.r - fit.p) @ ref.retry_direction)
+    else:
+        remaining = s_stop - ref.s
+    v_goal = min(v_goal, math.sqrt(2 * config.acceleration * max(remaining, 0.0)))
+    v = ref.v + float(np.clip(v_goal - ref.v, -config.acceleration * dt, config.acceleration * dt))
+    if ref.mode == RETRY:
+        goal = ref.r + ref.retry_direction * v * dt
+        x_goal = ref.retry_direction
+        s = ref.s + v * dt
+    elif ref.mode == BACK:
+        s = ref.s - v * dt
+        if s <= fit.s:
+            goal, x_goal = estimate.TrailPoint(s)
+        elif ref.retry_direction is not None:  # back along the retry's line
+            goal, x_goal = fit.p + ref.retry_direction * (s - fit.s), ref.retry_direction
+        else:
+            goal, x_goal = fit.Point(s), fit.Tangent(s)
+    else:
+        s = ref.s + v * dt
+        goal, x_goal = fit.Point(s), fit.Tangent(s)
+    # Moving along x at v, then corrected toward the path at a bounded speed; backing up
+    # follows the trail's bends with the correction budget of its own speed too.
+    sign = -1.0 if ref.mode == BACK else 1.0
+    budget = config.max_correction_speed * dt + (v * dt if ref.mode == BACK else 0.0)
+    r = _Toward(ref.r + sign * ref.x * v * dt, goal, budget)
+    x = _Turn(ref.x, x_goal, math.radians(config.max_turn_rate_deg) * dt)
+    ref = replace(ref, r=r, x=x, s=s, v=v)
+    if remaining <= 1e-4 and v <= config.acceleration * dt:
+        ref = _NextSearchStage(ref, estimate, config)
+    return ref
+
+
+def _NextSearchStage(ref: Reference, estimate: HoseEstimate, config: ContinuousConfig) -> Reference:
+    """At the end of a search leg: forward legs turn back, a finished back-up starts the
+    next retry, or (none left) the hose has ended."""
+    if ref.mode in (SEARCH, RETRY):
+        return replace(ref, mode=BACK, v=0.0)
+    if ref.mode != BACK:
+        return ref
+    if ref.retry >= len(config.search_turns_deg):
+        return replace(ref, mode=DONE, v=0.0)
+    fit = estimate.fit
+    turn = math.radians(config.search_turns_deg[ref.retry])
+    direction = RotationMatrix.MakeZRotation(turn) @ fit.u
+    return replace(ref, mode=RETRY, retry=ref.retry + 1, retry_direction=direction, s=fit.s, v=0.0)
+
+
+def _Toward(a: np.ndarray, b: np.ndarray, step: float) -> np.ndarray:
+    d = b - a
+    n = float(np.linalg.norm(d))
+    return b.copy() if n <= step else a + d * (step / n)
+
+
+def _Turn(x: np.ndarray, goal: np.ndarray, angle: float) -> np.ndarray:
+    """x turned toward goal by at most `angle` (rad), unit length."""
+    c = float(np.clip(x @ goal, -1.0, 1.0))
+    between = math.acos(c)
+    if between <= angle:
+        return goal / np.linalg.norm(goal)
+    axis = np.cross(x, goal)
+    if np.linalg.norm(axis) < 1e-12:
+        axis = np.cross(x, [0.0, 0.0, 1.0])
+    axis /= np.linalg.norm(axis)
+    turned = x * math.cos(angle) + np.cross(axis, x) * math.sin(angle)
+    return turned / np.linalg.norm(turned)
