@@ -161,6 +161,9 @@ def AddContinuousFollowing(
             config.servo_period,
             setup.motion.max_joint_speed,
             setup.motion.max_joint_acceleration,
+            config.servo_gain,
+            [config.roll_weight, 1.0, 1.0, 1.0, 1.0, 1.0],
+            config.servo_damping,
         ),
     )
     for port in ("ranges", "valid", "measured_at"):

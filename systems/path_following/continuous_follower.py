@@ -168,9 +168,10 @@ class ContinuousFollower(LeafSystem):
         p_WO = X_WT.translation()
         S_T, _ = EstimateHose(self._grid, self._estimator, ranges, valid)
         S_W = None if S_T is None else X_WT @ np.asarray(S_T, float)
-        estimate = run.estimate.WithReading(p_WO, S_W, self._config)
-        s_tool = estimate.Coordinate(p_WO)
-        reference = OnReading(run.reference, estimate, S_W is not None, s_tool, self._config)
+        estimate = run.estimate.WithReading(X_WT, S_W, self._config)
+        reference = OnReading(run.reference, estimate, X_WT, self._config)
+        if not estimate.IsDetected():
+            S_W = None
         detected, errors = self._grid.Detect(ranges, valid)
         record = np.concatenate(
             [

@@ -6,7 +6,8 @@ y-z plane). Units: m, s, rad.
 Each reading is stamped with its measurement instant; the tool pose at that instant
 (forward kinematics of the joints interpolated in JointHistory) turns the hose centre the
 estimator found in T into a world point on the hose. HoseEstimate keeps those points with
-their path coordinate s (the tool centre's projection on the estimated path) and fits a
+their path coordinate s (the tool centre's travel, each step projected on the tool's own
+x axis, so that it runs backwards when the tool backs up) and fits a
 quadratic p(s) by least squares to the last fit_length of them: the fit's end is the
 estimated hose point at the latest reading, its derivative the tangent, its second
 derivative the curvature, its residual the noise. Beyond the last reading the path is
@@ -17,8 +18,9 @@ Reference (Advance, every servo period): a target pose moves along the estimated
 the commanded speed v, which ramps (acceleration) toward
     min(speed, sqrt(lateral_acceleration / curvature), confidence-scaled speed)
 and brakes so as never to pass the estimate's end by more than look_ahead. The target
-position and direction move toward the estimated path at bounded rates
-(max_correction_speed, max_turn_rate_deg), so the noise of one reading never jerks the arm.
+position and direction follow the estimated path through a first-order filter
+(correction_gain) at bounded rates (max_correction_speed, max_turn_rate_deg), so the noise
+of one reading never jerks the arm.
 The detection plane stays perpendicular to the path: the target's x axis is the tangent.
 
 Loss: a reading without the hose leaves the estimate where it was. Once the tool is
@@ -51,16 +53,26 @@ class ContinuousConfig:
     speed: cruise speed of the tool along the hose (m/s); min_speed: the floor of the
         adapted speed (m/s); acceleration: the tool's speed change (m/s^2).
     lateral_acceleration: in a bend of curvature k the speed is at most
-        sqrt(lateral_acceleration / k) (m/s^2).
+        sqrt(lateral_acceleration / k) and max_turn_rate_deg / k (m/s^2).
     look_ahead: how far the target may run past the latest hose estimate (m).
     fit_length: length of hose behind the latest estimate fitted by the quadratic (m);
         min_fit_points: readings needed before the fit's tangent and curvature are used.
     residual_limit: fit residual (RMS, m) at which the confidence reaches 0; the speed
         falls from `speed` toward min_speed with the confidence (the fraction of readings
         in the fit window that saw the hose, times 1 - residual / residual_limit).
-    max_correction_speed: speed of the target's correction toward the estimated path
-        (m/s); max_turn_rate_deg: the target's turn rate (deg/s).
-    servo_period: the target and the differential IK's tick (s).
+    gate: a hose point farther than this from the fit's extrapolation (once the fit has
+        min_fit_points) is an outlier, counted as a reading without the hose (m): past the
+        hose's end the cones still see its end cap behind the detection plane, each
+        reading a little farther off.
+    correction_gain: the target moves toward the estimated path at this rate times the
+        distance (1/s; a first-order filter of the fit's noise), at most
+        max_correction_speed (m/s); its x axis turns toward the tangent at the same rate,
+        at most max_turn_rate_deg (deg/s).
+    servo_period: the target and the differential IK's tick (s); servo_gain: the
+        differential IK's gain on the tool's pose error (1/s), beside the target's own
+        velocity; roll_weight: the weight of the tool's roll about x_T (the hose's axis,
+        which the detection does not need) against 1 for the other five motions;
+        servo_damping: damping of the least squares (rad/s per unit error).
     history: the measured joints kept for motion compensation (s).
     loss_distance: travel past the latest estimate without the hose before a search (m).
     search_distance: how far past the latest estimate a search goes (m); search_speed
@@ -69,17 +81,22 @@ class ContinuousConfig:
         directions, turned about the world z axis (deg); every one lost = the hose's end.
     """
 
-    speed: float = Positive(0.06)
+    speed: float = Positive(0.08)
     min_speed: float = Positive(0.02)
     acceleration: float = Positive(0.25)
     lateral_acceleration: float = Positive(0.1)
     look_ahead: float = Positive(0.01)
     fit_length: float = Positive(0.03)
     min_fit_points: int = InRange(3, 10000, 8)
-    residual_limit: float = Positive(0.006)
-    max_correction_speed: float = Positive(0.05)
-    max_turn_rate_deg: float = Positive(120.0)
+    residual_limit: float = Positive(0.012)
+    gate: float = Positive(0.008)
+    correction_gain: float = Positive(8.0)
+    max_correction_speed: float = Positive(0.03)
+    max_turn_rate_deg: float = Positive(30.0)
     servo_period: float = Positive(0.004)
+    servo_gain: float = Positive(20.0)
+    roll_weight: float = InRange(0.0, 1.0, 0.1)
+    servo_damping: float = Positive(0.02)
     history: float = Positive(0.3)
     loss_distance: float = Positive(0.008)
     search_distance: float = Positive(0.025)
@@ -140,7 +157,9 @@ class JointHistory:
 class LocalFit:
     """The hose near the latest estimate: point p (m, W) at path coordinate s, unit
     tangent u, curvature vector c (1/m, normal to u), RMS residual (m), readings in the
-    window and how many of them saw the hose."""
+    window and how many of them saw the hose, and `heading`, the unit direction of a line
+    fitted to the window: four times less noisy than u (the end slope of a quadratic),
+    lagging it by half the window in bends; the tool's x axis follows it."""
 
     s: float
     p: np.ndarray
@@ -149,6 +168,7 @@ class LocalFit:
     residual: float
     readings: int
     detections: int
+    heading: np.ndarray
 
     def Point(self, s: float) -> np.ndarray:
         d = s - self.s
@@ -166,42 +186,62 @@ class LocalFit:
 @dataclass(frozen=True)
 class HoseEstimate:
     """Readings along the path: rows (s, detected, p_x, p_y, p_z) with p the hose point (or
-    the tool centre when undetected), the current fit and the trail of past fit ends
-    (rows s, p, u). Immutable: With... methods return new estimates."""
+    the tool centre when undetected), the current fit, the trail of past fit ends (rows
+    s, p, u), and the tool centre and its s at the latest reading. Immutable: WithReading
+    returns a new estimate."""
 
     fit: LocalFit
     rows: np.ndarray
     trail: np.ndarray
+    p_WO: np.ndarray
+    s_tool: float = 0.0
 
     @staticmethod
     def Start(X_WT: RigidTransform) -> "HoseEstimate":
         """The hose assumed under O along x_T (the start pose), nothing read yet."""
         p = X_WT.translation()
         u = X_WT.rotation().matrix()[:, 0]
-        fit = LocalFit(0.0, p, u, np.zeros(3), 0.0, 0, 0)
-        return HoseEstimate(fit, np.zeros((0, 5)), np.concatenate([[0.0], p, u])[None])
+        fit = LocalFit(0.0, p, u, np.zeros(3), 0.0, 0, 0, u)
+        return HoseEstimate(fit, np.zeros((0, 5)), np.concatenate([[0.0], p, u])[None], p)
 
-    def Coordinate(self, p_W: np.ndarray) -> float:
-        """Path coordinate (m) of a point: its projection on the fit's tangent."""
-        return self.fit.s + float((p_W - self.fit.p) @ self.fit.u)
+    def ToolCoordinate(self, X_WT: RigidTransform) -> float:
+        """Path coordinate (m) of the tool at X_WT: the latest reading's plus the travel
+        since, along x_T."""
+        x_T = X_WT.rotation().matrix()[:, 0]
+        return self.s_tool + float((X_WT.translation() - self.p_WO) @ x_T)
+
+    def IsDetected(self) -> bool:
+        """Whether the latest reading saw the hose (and was no outlier)."""
+        return bool(len(self.rows) and self.rows[-1, 1] > 0.5)
 
     def WithReading(
-        self, p_WO: np.ndarray, S_W: np.ndarray | None, config: ContinuousConfig
+        self, X_WT: RigidTransform, S_W: np.ndarray | None, config: ContinuousConfig
     ) -> "HoseEstimate":
-        """The estimate after a reading with the tool centre at p_WO (the measurement
-        instant's) that saw the hose centre at S_W (or nothing)."""
-        s = self.Coordinate(p_WO)
+        """The estimate after a reading with the tool at X_WT (the measurement instant's)
+        that saw the hose centre at S_W (or nothing); an outlier (IsOutlier) counts as
+        nothing."""
+        s = self.ToolCoordinate(X_WT)
+        p_WO = X_WT.translation()
+        if S_W is not None and self.IsOutlier(s, S_W, config):
+            S_W = None
         row = np.concatenate([[s, float(S_W is not None)], S_W if S_W is not None else p_WO])
         rows = np.vstack([self.rows, row])
         detected = rows[rows[:, 1] > 0.5]
         if S_W is None or len(detected) == 0:
             keep = rows[:, 0] >= self.fit.s - config.fit_length
-            return replace(self, rows=rows[keep] if keep.sum() >= 2 else rows[-2:])
+            rows = rows[keep] if keep.sum() >= 2 else rows[-2:]
+            return replace(self, rows=rows, p_WO=p_WO.copy(), s_tool=s)
         keep = rows[:, 0] >= s - config.fit_length
         rows = rows[keep]
         fit = FitHose(rows, s, self.fit, config)
         trail = np.vstack([self.trail, np.concatenate([[fit.s], fit.p, fit.u])])
-        return HoseEstimate(fit, rows, trail)
+        return HoseEstimate(fit, rows, trail, p_WO.copy(), s)
+
+    def IsOutlier(self, s: float, S_W: np.ndarray, config: ContinuousConfig) -> bool:
+        """Whether S_W, read at path coordinate s, is off the established fit by > gate."""
+        if self.fit.detections < config.min_fit_points:
+            return False
+        return bool(np.linalg.norm(S_W - self.fit.Point(s)) > config.gate)
 
     def TrailPoint(self, s: float) -> tuple[np.ndarray, np.ndarray]:
         """(point, unit tangent) of the trail at path coordinate s (clamped to its ends)."""
@@ -216,36 +256,40 @@ class HoseEstimate:
 def FitHose(
     rows: np.ndarray, s_end: float, previous: LocalFit, config: ContinuousConfig
 ) -> LocalFit:
-    """The quadratic fit (module docstring) of the detected rows, evaluated at s_end: a
-    line while the window is short or holds fewer than min_fit_points detections, the
-    previous tangent while it spans under 2 mm."""
+    """The fit (module docstring) of the detected rows, evaluated at s_end: the previous
+    tangent with the mean of the last few points while the detections span less than a
+    third of fit_length or number under min_fit_points (a line through a few noisy
+    points points anywhere), a line up to two thirds, a quadratic beyond."""
     detected = rows[rows[:, 1] > 0.5]
     d = detected[:, 0] - s_end
     points = detected[:, 2:5]
     span = float(d.max() - d.min()) if len(d) else 0.0
-    if len(d) < config.min_fit_points or span < 0.002:
-        p = points.mean(axis=0) if len(d) else previous.p
-        if len(d) >= 2:
-            p = points[-min(len(d), 4) :].mean(axis=0)
+    if len(d) < config.min_fit_points or span < config.fit_length / 3:
+        p = points[-min(len(d), 4) :].mean(axis=0) if len(d) else previous.p
         # A handful of points says nothing about the noise: residual 0.
-        return LocalFit(s_end, p, previous.u, np.zeros(3), 0.0, len(rows), len(detected))
-    degree = 2 if span >= config.fit_length / 2 else 1
+        return LocalFit(
+            s_end, p, previous.u, np.zeros(3), 0.0, len(rows), len(detected), previous.heading
+        )
+    degree = 2 if span >= 2 * config.fit_length / 3 else 1
     A = np.vander(d, degree + 1, increasing=True)
     coef, *_ = np.linalg.lstsq(A, points, rcond=None)
-    fitted = A @ coef
-    residual = float(np.sqrt(np.mean(np.sum((points - fitted) ** 2, axis=1))))
-    p, velocity = coef[0], coef[1]
-    speed = np.linalg.norm(velocity)
-    if speed < 1e-6:
-        return LocalFit(s_end, p, previous.u, np.zeros(3), residual, len(rows), len(detected))
-    u = velocity / speed
-    if u @ previous.u < 0:  # a fit cannot reverse the path; keep the direction of travel
-        u = previous.u
+    residual = float(np.sqrt(np.mean(np.sum((points - A @ coef) ** 2, axis=1))))
+    heading = _Direction(np.linalg.lstsq(A[:, :2], points, rcond=None)[0][1], previous.heading)
+    u = _Direction(coef[1], previous.u)
     c = np.zeros(3)
     if degree == 2:
-        a = 2 * coef[2] / speed**2
+        a = 2 * coef[2] / max(float(np.linalg.norm(coef[1])), 1e-6) ** 2
         c = a - (a @ u) * u
-    return LocalFit(s_end, p, u, c, residual, len(rows), len(detected))
+    return LocalFit(s_end, coef[0], u, c, residual, len(rows), len(detected), heading)
+
+
+def _Direction(derivative: np.ndarray, previous: np.ndarray) -> np.ndarray:
+    """The unit direction of a fitted derivative; `previous` when it is ~0 or reverses the
+    path (a fit cannot turn the direction of travel around)."""
+    norm = float(np.linalg.norm(derivative))
+    if norm < 1e-6 or derivative @ previous < 0:
+        return previous
+    return derivative / norm
 
 
 def Confidence(fit: LocalFit, config: ContinuousConfig) -> float:
@@ -260,7 +304,9 @@ def Confidence(fit: LocalFit, config: ContinuousConfig) -> float:
 def TargetSpeed(fit: LocalFit, config: ContinuousConfig) -> float:
     """The speed the follower aims for on this fit (m/s): curvature and confidence limits,
     at least min_speed."""
-    bend = math.sqrt(config.lateral_acceleration / fit.curvature) if fit.curvature > 0 else np.inf
+    k = fit.curvature
+    turn = math.radians(config.max_turn_rate_deg)
+    bend = min(math.sqrt(config.lateral_acceleration / k), turn / k) if k > 0 else np.inf
     confident = config.min_speed + (config.speed - config.min_speed) * Confidence(fit, config)
     return float(max(config.min_speed, min(config.speed, bend, confident)))
 
@@ -295,16 +341,22 @@ class Reference:
 
 
 def OnReading(
-    ref: Reference, estimate: HoseEstimate, detected: bool, s_tool: float, config: ContinuousConfig
+    ref: Reference, estimate: HoseEstimate, X_WT: RigidTransform, config: ContinuousConfig
 ) -> Reference:
-    """Mode changes a reading causes. The hose seen while searching resumes FOLLOW; it is
-    a recovery once followed search_distance past the loss (a glimpse of the hose's end
-    from a retry is not, and the next loss goes on with the next retry instead of starting
-    the search over). In FOLLOW, the tool loss_distance past the estimate starts a
-    search."""
+    """The reference after a reading (the tool at X_WT then): its path coordinate
+    re-anchored to the tool's (the tool's plus the target's lead along the tangent, so
+    the two never drift apart), and the mode changes. The hose seen while searching
+    resumes FOLLOW; it is a recovery once followed search_distance past the loss (a
+    glimpse of the hose's end from a retry is not, and the next loss goes on with the
+    next retry instead of starting the search over). In FOLLOW, the tool loss_distance
+    past the estimate starts a search."""
     fit = estimate.fit
+    s_tool = estimate.s_tool
+    if ref.mode in (FOLLOW, SEARCH):
+        ref = replace(ref, s=s_tool + float((ref.r - X_WT.translation()) @ fit.u))
+    detected = estimate.IsDetected()
     if detected and ref.mode in (SEARCH, RETRY):
-        return replace(ref, mode=FOLLOW, retry_direction=None, s=estimate.Coordinate(ref.r))
+        return replace(ref, mode=FOLLOW, retry_direction=None)
     if (
         ref.mode == FOLLOW
         and ref.lost_s is not None
@@ -336,6 +388,13 @@ def Advance(
     else:
         remaining = s_stop - ref.s
     v_goal = min(v_goal, math.sqrt(2 * config.acceleration * max(remaining, 0.0)))
+    # A target whose heading lags the path by more than the turn rate can make up slows
+    # down in proportion: it waits for the tool to turn instead of dragging it off the
+    # hose sideways.
+    lag = math.acos(float(np.clip(ref.x @ fit.heading, -1.0, 1.0))) if ref.mode == FOLLOW else 0.0
+    turn_rate = math.radians(config.max_turn_rate_deg)
+    if config.correction_gain * lag > turn_rate:
+        v_goal *= turn_rate / (config.correction_gain * lag)
     v = ref.v + float(np.clip(v_goal - ref.v, -config.acceleration * dt, config.acceleration * dt))
     if ref.mode == RETRY:
         goal = ref.r + ref.retry_direction * v * dt
@@ -351,13 +410,18 @@ def Advance(
             goal, x_goal = fit.Point(s), fit.Tangent(s)
     else:
         s = ref.s + v * dt
-        goal, x_goal = fit.Point(s), fit.Tangent(s)
+        goal = fit.Point(s)
+        x_goal = fit.heading if ref.mode == FOLLOW else fit.Tangent(s)
     # Moving along x at v, then corrected toward the path at a bounded speed; backing up
     # follows the trail's bends with the correction budget of its own speed too.
     sign = -1.0 if ref.mode == BACK else 1.0
-    budget = config.max_correction_speed * dt + (v * dt if ref.mode == BACK else 0.0)
-    r = _Toward(ref.r + sign * ref.x * v * dt, goal, budget)
-    x = _Turn(ref.x, x_goal, math.radians(config.max_turn_rate_deg) * dt)
+    moved = ref.r + sign * ref.x * v * dt
+    gap = float(np.linalg.norm(goal - moved))
+    budget = min(config.correction_gain * gap, config.max_correction_speed) * dt
+    r = _Toward(moved, goal, budget + (v * dt if ref.mode == BACK else 0.0))
+    angle = math.acos(float(np.clip(ref.x @ x_goal, -1.0, 1.0)))
+    turn = min(config.correction_gain * angle, math.radians(config.max_turn_rate_deg)) * dt
+    x = _Turn(ref.x, x_goal, turn)
     ref = replace(ref, r=r, x=x, s=s, v=v)
     if remaining <= 1e-4 and v <= config.acceleration * dt:
         ref = _NextSearchStage(ref, estimate, config)

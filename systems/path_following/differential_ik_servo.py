@@ -1,39 +1,30 @@
 """DifferentialIkServo: streams joint positions that bring a frame to a moving target pose,
-within joint position, velocity and acceleration limits.
-
-Every period it solves Drake's differential IK (DoDifferentialInverseKinematics: the
-joint velocity v_next whose frame velocity J v_next points at the pose error / period,
-scaled down as far as the limits require) at its own commanded state (q, v) and integrates
-q += v_next period. Drake's DifferentialInverseKinematicsIntegrator keeps only q and
-linearises at v = 0, so its acceleration limits bound the speed itself to
-acceleration x period; here the state carries v, and the acceleration limits bound the
-change of v. When the program has no solution (the limits cannot turn v toward the error
-in one period), v decelerates toward 0 at the acceleration limit.
+within joint position, velocity and acceleration limits (differential_ik_servo_math: damped
+least-squares resolved-rate control, each period, at the servo's own commanded q and v).
 """
 
 from __future__ import annotations
 
 import numpy as np
 from pydrake.common.value import AbstractValue
-from pydrake.math import RigidTransform
-from pydrake.multibody.inverse_kinematics import (
-    DifferentialInverseKinematicsParameters,
-    DifferentialInverseKinematicsStatus,
-    DoDifferentialInverseKinematics,
-)
+from pydrake.math import RigidTransform, RotationMatrix
 from pydrake.multibody.plant import MultibodyPlant
-from pydrake.multibody.tree import Frame
+from pydrake.multibody.tree import Frame, JacobianWrtVariable
 from pydrake.systems.framework import BasicVector, Context, DiscreteValues, LeafSystem
+
+from guidedarm.systems.path_following.differential_ik_servo_math import PoseError, ServoStep
 
 
 class DifferentialIkServo(LeafSystem):
     """Input `X_WT_desired` (RigidTransform of `frame` in world W). Outputs
     `position_commanded` (n, rad) and `velocity_commanded` (n, rad/s), the state; `status`
-    ([0 solved, 1 stuck, 2 no solution] of the latest period).
+    ([1 when a limit bound the latest period's velocity, else 0]).
 
     plant: a controller plant whose positions are exactly the arm's n joints; frame: the
     controlled frame on it; q_initial: the start joints (rad); period (s); max_speed
-    (rad/s) and max_acceleration (rad/s^2) per joint; the plant's position limits apply.
+    (rad/s) and max_acceleration (rad/s^2) per joint; the plant's position limits apply;
+    gain: of the pose error (1/s); weights (6: roll about x_T, pitch, yaw, x, y, z) and
+    damping: of the least squares (differential_ik_servo_math.ServoStep).
     """
 
     def __init__(
@@ -44,26 +35,24 @@ class DifferentialIkServo(LeafSystem):
         period: float,
         max_speed: float,
         max_acceleration: float,
+        gain: float,
+        weights: np.ndarray,
+        damping: float,
     ) -> None:
         super().__init__()
         n = plant.num_positions()
         self._plant, self._frame, self._n = plant, frame, n
         self._plant_context = plant.CreateDefaultContext()
-        self._period, self._max_acceleration = period, max_acceleration
-        params = DifferentialInverseKinematicsParameters(n, plant.num_velocities())
-        params.set_time_step(period)
-        params.set_joint_position_limits(
-            (plant.GetPositionLowerLimits(), plant.GetPositionUpperLimits())
-        )
-        params.set_joint_velocity_limits((-np.full(n, max_speed), np.full(n, max_speed)))
-        params.set_joint_acceleration_limits(
-            (-np.full(n, max_acceleration), np.full(n, max_acceleration))
-        )
-        self._params = params
+        self._period, self._gain = period, gain
+        self._weights, self._damping = np.asarray(weights, float), damping
+        self._max_speed = np.full(n, max_speed)
+        self._max_acceleration = np.full(n, max_acceleration)
+        self._q_limits = (plant.GetPositionLowerLimits(), plant.GetPositionUpperLimits())
         self._target = self.DeclareAbstractInputPort(
             "X_WT_desired", AbstractValue.Make(RigidTransform())
         )
-        initial = np.concatenate([np.asarray(q_initial, float), np.zeros(n), [0.0]])
+        # [q, v, status, the previous target's rotation (9) and position (3), 1 once set]
+        initial = np.concatenate([np.asarray(q_initial, float), np.zeros(n + 14)])
         self._state = self.DeclareDiscreteState(initial)
         self.DeclarePeriodicDiscreteUpdateEvent(period, 0.0, self._Update)
         self.DeclareVectorOutputPort("position_commanded", n, lambda c, o: self._Output(c, o, 0, n))
@@ -76,25 +65,39 @@ class DifferentialIkServo(LeafSystem):
         n = self._n
         x = context.get_discrete_state(self._state).get_value()
         q, v = x[:n], x[n : 2 * n]
-        self._plant.SetPositions(self._plant_context, q)
-        self._plant.SetVelocities(self._plant_context, v)
-        result = DoDifferentialInverseKinematics(
-            self._plant,
-            self._plant_context,
-            self._target.Eval(context),
+        plant, plant_context = self._plant, self._plant_context
+        plant.SetPositions(plant_context, q)
+        X_WT = self._frame.CalcPoseInWorld(plant_context)
+        J = plant.CalcJacobianSpatialVelocity(
+            plant_context,
+            JacobianWrtVariable.kV,
             self._frame,
-            self._params,
+            np.zeros(3),
+            plant.world_frame(),
+            plant.world_frame(),
         )
-        status = result.status
-        if status == DifferentialInverseKinematicsStatus.kNoSolutionFound:
-            slow = self._max_acceleration * self._period
-            v_next = v - np.clip(v, -slow, slow)
-            code = 2.0
-        else:
-            v_next = np.asarray(result.joint_velocities, float)
-            code = 0.0 if status == DifferentialInverseKinematicsStatus.kSolutionFound else 1.0
-        q_next = q + v_next * self._period
-        discrete.set_value(self._state, np.concatenate([q_next, v_next, [code]]))
+        X_WD = self._target.Eval(context)
+        V = self._gain * PoseError(X_WT, X_WD)
+        if x[-1] > 0.5:
+            X_previous = RigidTransform(
+                RotationMatrix(x[2 * n + 1 : 2 * n + 10].reshape(3, 3)), x[2 * n + 10 : 2 * n + 13]
+            )
+            V = V + PoseError(X_previous, X_WD) / self._period
+        q_next, v_next, limited = ServoStep(
+            J,
+            V,
+            q,
+            v,
+            self._period,
+            self._max_speed,
+            self._max_acceleration,
+            self._q_limits,
+            X_WT.rotation().matrix(),
+            self._weights,
+            self._damping,
+        )
+        target = np.concatenate([X_WD.rotation().matrix().ravel(), X_WD.translation(), [1.0]])
+        discrete.set_value(self._state, np.concatenate([q_next, v_next, [float(limited)], target]))
 
     def _Output(self, context: Context, output: BasicVector, start: int, end: int) -> None:
         output.SetFromVector(context.get_discrete_state(self._state).get_value()[start:end])
