@@ -65,6 +65,25 @@ def PlotJointSeries(
     return figure
 
 
+def PlotAlongPath(
+    s: np.ndarray, series: list[tuple[str, np.ndarray, float | None]], title: str = ""
+) -> plt.Figure:
+    """One panel per series over the arc length s (m, drawn in mm): (y label, values,
+    a bound drawn dashed or None), e.g. speed and tracking error along a hose."""
+    figure, axes = plt.subplots(len(series), 1, figsize=(9, 2.6 * len(series)), sharex=True)
+    axes = np.atleast_1d(axes)
+    for axis, (label, values, bound) in zip(axes, series, strict=True):
+        axis.plot(1000 * s, values, linewidth=1.0)
+        if bound is not None:
+            axis.axhline(bound, color="tab:red", linestyle="--", linewidth=0.8)
+        axis.set_ylabel(label)
+        axis.grid(True, alpha=0.3)
+    axes[-1].set_xlabel("arc length along the hose (mm)")
+    if title:
+        figure.suptitle(title)
+    return figure
+
+
 def FinishFigure(figure: plt.Figure, title: str = "", headline: str = "") -> None:
     """The finishing every saved figure gets (see the module docstring): `title` above
     everything (and above a title of its own), `headline` (e.g. "max error 1.2 mm") below

@@ -21,6 +21,7 @@ from guidedarm.diagrams.tasks.path_following_report import (
     Metrics,
     PlotDetectedPath,
     Repeatability,
+    SpeedAndErrorAlongPath,
 )
 from guidedarm.diagrams.tasks.path_following_setup import MakeSetup, Setup
 from guidedarm.diagrams.tasks.registry import TaskDefinition
@@ -118,6 +119,7 @@ def RunPathFollowing(scenario: PathFollowingScenario, context: RunContext) -> di
         "collisions": execution.collisions,
         "estimator": scenario.estimator,
         "executor": scenario.executor,
+        "motion": scenario.motion,
         "failure": failure,
         "sim_time_s": round(execution.sim_time, 3),
     }
@@ -139,6 +141,12 @@ def RunPathFollowing(scenario: PathFollowingScenario, context: RunContext) -> di
             f"{scenario.path_csv or scenario.path}: {scenario.estimator} estimator",
         ),
         "detected_path",
+    )
+    context.save_figure(
+        SpeedAndErrorAlongPath(
+            execution.records, centerline, f"{scenario.motion}: speed and tracking error"
+        ),
+        "speed_along_path",
     )
     context.write_csv("steps", RECORD_FIELDS, execution.records.tolist())
     return summary

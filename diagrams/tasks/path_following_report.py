@@ -98,6 +98,7 @@ def Metrics(records: np.ndarray, centerline: np.ndarray) -> dict:
     use = detected & inside
     detection = match.Distances(S, use) if use.any() else np.zeros(1)
     coverage = match.Coverage(p_WO) if len(p_WO) else 0.0
+    speed = AverageSpeed(records, match) if len(p_WO) else 0.0
     ik = Column(records, "ik_time")
     ik = ik[ik > 0] if (ik > 0).any() else np.zeros(1)
     return {
@@ -107,11 +108,51 @@ def Metrics(records: np.ndarray, centerline: np.ndarray) -> dict:
         "tracking_error_max_mm": round(1000 * float(np.max(tracking)), 2),
         "detected_path_error_mean_mm": round(1000 * float(np.mean(detection)), 2),
         "detected_path_error_max_mm": round(1000 * float(np.max(detection)), 2),
+        "average_speed_mm_s": round(1000 * speed, 1),
         "lost_steps": int(np.sum(~detected)),
         "recoveries": int(Column(records, "recoveries")[-1]) if len(records) else 0,
         "ik_time_median_ms": round(1000 * float(np.median(ik)), 2),
         "ik_time_p99_ms": round(1000 * float(np.percentile(ik, 99)), 2),
     }
+
+
+def AverageSpeed(records: np.ndarray, match: CenterlineMatch) -> float:
+    """Followed hose length over the time it took (m/s): the farthest arc length a step
+    reached within TRACKING_BOUND of the hose, over the time from the first record to the
+    first step that reached it (the search past the hose's end is not following)."""
+    t = Column(records, "t")
+    on_hose = np.array(
+        [
+            np.min(np.linalg.norm(match.fine[lo : hi + 1] - p, axis=1)) <= TRACKING_BOUND
+            for p, (lo, hi) in zip(Positions(records, "O"), match.pieces, strict=True)
+        ]
+    )
+    if not on_hose.any():
+        return 0.0
+    reached = np.where(on_hose, match.s, 0.0)
+    k = int(np.argmax(reached))
+    return float(reached[k] / (t[k] - t[0])) if t[k] > t[0] else 0.0
+
+
+def SpeedAndErrorAlongPath(records: np.ndarray, centerline: np.ndarray, title: str):
+    """Figure: the tool's speed along the hose (mm/s; arc length gained per second, over
+    0.2 s windows, or per step when steps are longer) and its tracking error (mm) over the
+    arc length, up to the farthest point reached (plots.PlotAlongPath)."""
+    from guidedarm.diagrams.plots import PlotAlongPath
+
+    match = CenterlineMatch(Positions(records, "O"), centerline)
+    t = Column(records, "t")
+    inside = ~match.beyond
+    s, t = match.s[inside], t[inside]
+    error = 1000 * match.Distances(Positions(records, "O"), inside)
+    k = np.searchsorted(t, t - 0.2)
+    speed = 1000 * (s - s[k]) / np.maximum(t - t[k], 1e-9)
+    speed[t - t[k] <= 0] = 0.0
+    return PlotAlongPath(
+        s,
+        [("speed along the hose (mm/s)", speed, None), ("tracking error (mm)", error, None)],
+        title,
+    )
 
 
 def DetectedPath(records: np.ndarray) -> np.ndarray:

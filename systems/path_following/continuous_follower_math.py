@@ -43,6 +43,9 @@ from guidedarm.systems.errors import ConfigurationError
 from guidedarm.systems.path_following.path_follower_math import OrientationFromVector
 
 FOLLOW, SEARCH, BACK, RETRY, DONE = range(5)
+# A search leg ends this close to its end (m); the braking target approaches it only
+# asymptotically.
+END_OF_LEG = 5e-4
 MODE_NAMES = ("follow", "search", "back", "retry", "done")
 
 
@@ -173,10 +176,6 @@ class LocalFit:
     def Point(self, s: float) -> np.ndarray:
         d = s - self.s
         return self.p + self.u * d + 0.5 * self.c * d * d
-
-    def Tangent(self, s: float) -> np.ndarray:
-        t = self.u + self.c * (s - self.s)
-        return t / np.linalg.norm(t)
 
     @property
     def curvature(self) -> float:
@@ -352,7 +351,7 @@ def OnReading(
     past the estimate starts a search."""
     fit = estimate.fit
     s_tool = estimate.s_tool
-    if ref.mode in (FOLLOW, SEARCH):
+    if ref.mode == FOLLOW:
         ref = replace(ref, s=s_tool + float((ref.r - X_WT.translation()) @ fit.u))
     detected = estimate.IsDetected()
     if detected and ref.mode in (SEARCH, RETRY):
@@ -404,14 +403,15 @@ def Advance(
         s = ref.s - v * dt
         if s <= fit.s:
             goal, x_goal = estimate.TrailPoint(s)
-        elif ref.retry_direction is not None:  # back along the retry's line
-            goal, x_goal = fit.p + ref.retry_direction * (s - fit.s), ref.retry_direction
-        else:
-            goal, x_goal = fit.Point(s), fit.Tangent(s)
+        else:  # back along the straight search's or the retry's line
+            direction = fit.u if ref.retry_direction is None else ref.retry_direction
+            goal, x_goal = fit.p + direction * (s - fit.s), direction
+    elif ref.mode == SEARCH:  # straight on: the fit's curvature is not extrapolated so far
+        s = ref.s + v * dt
+        goal, x_goal = fit.p + fit.u * (s - fit.s), fit.u
     else:
         s = ref.s + v * dt
-        goal = fit.Point(s)
-        x_goal = fit.heading if ref.mode == FOLLOW else fit.Tangent(s)
+        goal, x_goal = fit.Point(s), fit.heading
     # Moving along x at v, then corrected toward the path at a bounded speed; backing up
     # follows the trail's bends with the correction budget of its own speed too.
     sign = -1.0 if ref.mode == BACK else 1.0
@@ -423,7 +423,7 @@ def Advance(
     turn = min(config.correction_gain * angle, math.radians(config.max_turn_rate_deg)) * dt
     x = _Turn(ref.x, x_goal, turn)
     ref = replace(ref, r=r, x=x, s=s, v=v)
-    if remaining <= 1e-4 and v <= config.acceleration * dt:
+    if remaining <= END_OF_LEG:
         ref = _NextSearchStage(ref, estimate, config)
     return ref
 
