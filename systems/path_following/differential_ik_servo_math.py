@@ -20,7 +20,6 @@ acceleration limits at every correction and rings.
 
 import numpy as np
 from pydrake.math import RigidTransform
-from pydrake.common.eigen_geometry import AngleAxis
 
 
 def PoseError(X_current: RigidTransform, X_desired: RigidTransform) -> np.ndarray:
