@@ -5,7 +5,13 @@ each section checks itself in `Validate()` (comparisons written so that NaN fail
 
 from dataclasses import dataclass, field
 
-from guidedarm.systems.config_checks import CheckFields, FieldError, InRange, Positive
+from guidedarm.systems.config_checks import (
+    CheckFields,
+    FieldError,
+    InRange,
+    NonNegative,
+    Positive,
+)
 from guidedarm.systems.errors import ConfigurationError
 
 ARM_DRIVERS = ("ur_rtde", "nachi_tcp")
@@ -87,12 +93,17 @@ class ToFDriverConfig:
     device: serial device path (e.g. /dev/rfcomm0) or BLE address.
     baudrate: serial only.
     watchdog: no valid line for this long (s) stops the arms and fails the run.
+    latency: time from the end of a range's ranging to its line's arrival at the host (s):
+        the microcontroller's readout and the link's transfer (a 50-character line takes
+        4.3 ms at 115200 baud); a reading's `measured_at` is its arrival in diagram time
+        minus this and half the tool's ranging_time.
     """
 
     transport: str = "serial"
     device: str = ""
     baudrate: int = Positive(115200)
     watchdog: float = Positive(0.5)
+    latency: float = NonNegative(0.005)
 
     def Validate(self) -> None:
         """Raises ConfigurationError naming the first bad field."""

@@ -89,7 +89,10 @@ def MakeHardwareStation(scenario: StationScenario, meshcat: Meshcat | None = Non
         else:
             BleTransport(collector, config.device)
         grid = MakeDetectionGrid(plant, tool)
-        system = ToFDriver(collector, tool.period, config.watchdog, tool.max_range, grid)
+        latency = tool.ranging_time / 2 + config.latency
+        system = ToFDriver(
+            collector, tool.period, config.watchdog, tool.max_range, grid, latency=latency
+        )
         builder.AddNamedSystem(f"{name}.driver", system)
         for port in TOF_PORTS:
             builder.ExportOutput(system.GetOutputPort(port), f"{name}.{port}")
