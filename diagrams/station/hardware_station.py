@@ -114,7 +114,7 @@ def _OpenArmLink(name: str, config: ArmDriverConfig, period: float) -> ArmLink:
     if config.driver == "ur_rtde":
         return OpenUrRtde(name, config.host, config.lookahead_time, config.gain)
     port = config.port or nachi_protocol.DEFAULT_PORT
-    return NachiLink(name, config.host, port, poll_period=period)
+    return NachiLink(name, config.host, port, poll_period=period, command_mode=config.command_mode)
 
 
 def _DrawMeasured(
