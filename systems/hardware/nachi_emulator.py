@@ -282,17 +282,22 @@ class NachiEmulator:
         threading.Thread(target=self._Accept, name="nachi-accept", daemon=True).start()
 
     def Run(self, duration: float = np.inf, realtime_rate: float = 1.0) -> None:
-        """Steps the simulation until `duration` (s) or Close()."""
+        """Steps the simulation until `duration` (s) or Close(). The controller runs in the
+        middle of each period of the station's discrete updates (plant, command sampling),
+        so every step holds exactly one of them: stepping to their very instants would let
+        rounding decide whether a command is sampled now or a period later."""
         self.simulator.set_target_realtime_rate(realtime_rate)
         self.simulator.Initialize()
-        t = self.context.get_time()
+        start = t = self.context.get_time()
+        k = 0
         while t < duration and not self._closing.is_set():
             X_BF = self._plant.CalcRelativeTransform(self._plant_context, self._base, self._flange)
             q = self._measured_port.Eval(self.context)
             rpy = RollPitchYaw(X_BF.rotation()).vector()
             command = self.logic.Measure(t, q.copy(), X_BF.translation(), rpy)
             self._command_port.FixValue(self.context, command)
-            t += self._period
+            t = start + (k + 0.5) * self._period
+            k += 1
             self.simulator.AdvanceTo(t)
             for observer in self._observers:
                 observer(self.context)
