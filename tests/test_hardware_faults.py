@@ -102,6 +102,8 @@ class Cell:
                 "path_following",
                 "--set",
                 f"station.arms.mz04d.initial_position={q_start}",
+                "--servo-timeout",
+                str(WATCHDOG),
                 stderr=log,
             )
 
@@ -206,7 +208,7 @@ ARM_FAULTS = {
     + r"link quiet for 0\.5\d* s \(watchdog 0\.5 s\) "
     + r"\(stopping it also failed: no reply to STOP within 0\.25 s\)",
     "pendant": FAULT.format(device="mz04d")
-    + r"controller refused: 'NG E05 stopped; send RESET before MOVE'; arm stopped",
+    + r"controller refused: 'NG E05 stopped; send RESET before SERVO'; arm stopped",
 }
 
 
