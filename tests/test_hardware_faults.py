@@ -298,6 +298,11 @@ def _RunRefused(*args: str) -> subprocess.CompletedProcess:
         (["emulate", "nachi", "--port", "70000"], "--port: 70000 is not a TCP port (0..65535)"),
         (["emulate", "nachi", "--port", "-1"], "--port: -1 is not a TCP port (0..65535)"),
         (["emulate", "nachi", "--host", "no.such.host.invalid"], "--host 'no.such.host.invalid'"),
+        (["emulate", "nachi", "--servo-timeout", "0"], "--servo-timeout 0.0: must be positive"),
+        (
+            ["emulate", "nachi", "--servo-acceleration", "nan"],
+            "--servo-acceleration nan: must be positive and finite",
+        ),
     ],
 )
 def test_refusals_before_a_run_are_one_line(args, message, tmp_path):
