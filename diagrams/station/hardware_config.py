@@ -43,6 +43,10 @@ class ArmDriverConfig:
     controller tracks the stream within its limits and brakes by itself when it stops
     (Nachi `SERVO`, UR servoJ). `move` (nachi_tcp only): `SET_TARGET` + `MOVE`, each target a
     move of the controller's main program, as the paper's User Task.
+    servo_timeout: ur_rtde only: no servoJ for this long (s) and the controller stops the
+    robot by itself (the RTDE control watchdog at 1 / servo_timeout Hz). A Nachi
+    controller's streaming timeout is its own setting (`guidedarm emulate nachi
+    --servo-timeout`).
     lookahead_time, gain: servoJ parameters (UR only; s in [0.03, 0.2], 1/s in [100, 2000]).
     """
 
@@ -53,6 +57,7 @@ class ArmDriverConfig:
     stale_after: float = Positive(0.02)
     acceleration_limits: list[float] = Positive(factory=list)
     command_mode: str = "stream"
+    servo_timeout: float = Positive(0.1)
     # URScript servoJ admits lookahead_time in [0.03, 0.2] s and gain in [100, 2000].
     lookahead_time: float = InRange(0.03, 0.2, 0.1)
     gain: float = InRange(100.0, 2000.0, 300.0)
