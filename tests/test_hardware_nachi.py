@@ -140,7 +140,7 @@ def test_hardware_station_moves_the_emulated_arm(emulator, command_mode):
     )
     scenario = _Hardware(emulator.port, command_mode=command_mode)
     station, simulator = _Diagram(scenario, TrajectorySource(motion))
-    simulator.AdvanceTo(0.8)
+    simulator.AdvanceTo(1.2)
     context = station.GetMyContextFromRoot(simulator.get_context())
     # Streamed, the controller's servo loop has settled onto the last target by now.
     np.testing.assert_allclose(emulator.logic.commanded, goal, atol=1e-9)

@@ -264,6 +264,12 @@ def test_streamed_sinusoid_is_followed_within_the_limits(tmp_path):
     host, q, v, commanded = rows[:, 0], rows[:, 2:8], rows[:, 8:14], rows[:, 14:20]
     diagram_time, diagram_host = np.array(clock).T
     during = (host >= diagram_host[0]) & (host <= diagram_host[-1])
+    # The emulator must keep real time for its arm to be comparable with the stream; on an
+    # overloaded machine (a load average of 7 on the 2 cores) it fell 0.9 s behind.
+    emulated = rows[during, 1] - host[during]
+    drift = np.ptp(emulated)
+    if drift > 0.03:
+        pytest.skip(f"the emulator's clock drifted {drift:.3f} s from real time (CPU contention)")
     # The diagram time at which each plant sample was taken, and the delay that best
     # explains the measured joints: the targets' interval (the controller interpolates
     # towards each target over it), the link, the servo.
