@@ -36,6 +36,14 @@ class RecordingRtdeControl:
         self.calls.append(("servoStop", (a,), time.monotonic()))
         return True
 
+    def setWatchdog(self, min_frequency: float) -> bool:
+        self.calls.append(("setWatchdog", (min_frequency,), time.monotonic()))
+        return True
+
+    def kickWatchdog(self) -> bool:
+        self.calls.append(("kickWatchdog", (), time.monotonic()))
+        return True
+
     def stopScript(self) -> None:
         self.calls.append(("stopScript", (), time.monotonic()))
 

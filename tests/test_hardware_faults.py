@@ -102,6 +102,8 @@ class Cell:
                 "path_following",
                 "--set",
                 f"station.arms.mz04d.initial_position={q_start}",
+                "--servo-timeout",
+                str(WATCHDOG),
                 stderr=log,
             )
 
@@ -206,7 +208,7 @@ ARM_FAULTS = {
     + r"link quiet for 0\.5\d* s \(watchdog 0\.5 s\) "
     + r"\(stopping it also failed: no reply to STOP within 0\.25 s\)",
     "pendant": FAULT.format(device="mz04d")
-    + r"controller refused: 'NG E05 stopped; send RESET before MOVE'; arm stopped",
+    + r"controller refused: 'NG E05 stopped; send RESET before SERVO'; arm stopped",
 }
 
 
@@ -296,6 +298,11 @@ def _RunRefused(*args: str) -> subprocess.CompletedProcess:
         (["emulate", "nachi", "--port", "70000"], "--port: 70000 is not a TCP port (0..65535)"),
         (["emulate", "nachi", "--port", "-1"], "--port: -1 is not a TCP port (0..65535)"),
         (["emulate", "nachi", "--host", "no.such.host.invalid"], "--host 'no.such.host.invalid'"),
+        (["emulate", "nachi", "--servo-timeout", "0"], "--servo-timeout 0.0: must be positive"),
+        (
+            ["emulate", "nachi", "--servo-acceleration", "nan"],
+            "--servo-acceleration nan: must be positive and finite",
+        ),
     ],
 )
 def test_refusals_before_a_run_are_one_line(args, message, tmp_path):

@@ -30,7 +30,17 @@ from guidedarm.systems.hardware.tof_protocol import (
 FUZZ = settings(max_examples=150, deadline=None, suppress_health_check=[HealthCheck.too_slow])
 # Bytes biased towards the protocols' own words and separators, so that the parsers get
 # past their first check as often as they are stopped by it.
-WORDS = [b"READ_JOINTS", b"SET_TARGET", b"MOVE", b"STOP", b"STATUS", b"JOINTS", b"$TOF,"]
+WORDS = [
+    b"READ_JOINTS",
+    b"SET_TARGET",
+    b"MOVE",
+    b"SERVO 0.01",
+    b"STOP",
+    b"RESET",
+    b"STATUS",
+    b"JOINTS",
+    b"$TOF,",
+]
 PIECES = st.one_of(
     st.binary(max_size=12),
     st.sampled_from([*WORDS, b" ", b"\n", b"\r\n", b"\x00", b"\xff", b"1.5", b"-0", b"nan"]),
@@ -79,12 +89,23 @@ def test_nachi_reply_parsers_raise_only_their_protocol_error(data):
 @FUZZ
 @given(st.lists(BYTES, max_size=8))
 def test_nachi_controller_answers_every_line_and_counts_its_errors(lines):
+    # Between lines the servo loop runs (2 ms ticks): whatever was accepted, the joint
+    # command stays finite, within the position range, and moves at most at the velocity
+    # limit.
     logic = NachiControllerLogic(np.full(6, -1.0), np.full(6, 1.0), np.zeros(6))
+    t, previous = 0.0, logic.commanded.copy()
     for data in lines:
         errors = logic.error_count
         reply = logic.Handle(_Text(data.replace(b"\n", b" ")))
         assert _IsReplyText(reply)
         assert logic.error_count == errors + reply.startswith("NG ")
+        for _ in range(3):
+            t += 0.002
+            command = logic.Measure(t, logic.commanded, np.zeros(3), np.zeros(3))
+            assert np.all(np.isfinite(command)) and np.all(np.abs(command) <= 1.0)
+            if logic.tracker is not None:
+                assert np.all(np.abs(command - previous) <= logic.velocity * 0.002 + 1e-12)
+            previous = command
 
 
 def _Exchange(serve, data: bytes) -> bytes:

@@ -45,7 +45,9 @@ def test_path_following_on_the_emulators_matches_simulation(tmp_path):
     assert sim_run.returncode == 0, sim_run.stderr
     # The real arm would be brought to the start pose before the run: the emulator
     # simulates the station the task builds (task.Station), whose arm starts there.
-    emulator, port, device = StartNachiEmulator("--scenario", "path_following")
+    emulator, port, device = StartNachiEmulator(
+        "--scenario", "path_following", "--servo-timeout", "0.5"
+    )
     try:
         hardware_run = _Run(
             "--hardware",
@@ -67,7 +69,7 @@ def test_path_following_on_the_emulators_matches_simulation(tmp_path):
     for run in (sim_run, hardware_run):
         output = run.stdout + run.stderr
         assert "Traceback" not in output and "Failure at" not in output, output
-    # The emulated arm was driven (one target per 10 ms) and stopped when the run ended.
+    # The emulated arm was streamed (one SERVO per 10 ms) and stopped when the run ended.
     state, moves, errors = status.split()[1:]
     assert state == "STOPPED" and int(moves) > 1000 and errors == "0"
     sim, hw = _Summary(tmp_path / "sim"), _Summary(tmp_path / "hw")

@@ -49,6 +49,29 @@ def _Logic() -> NachiControllerLogic:
         (["SET_TARGET 10 0 0 0 0 0", "STOP", "MOVE"], "NG E05 stopped; send RESET before MOVE"),
         (["STOP", "RESET", "STATUS"], "STATUS IDLE 0 0"),
         (["JUMP", "MOVE", "ERRORS"], "ERRORS 2 E04 MOVE without SET_TARGET"),
+        # Streaming (joint limits here: 1 rad, pi rad/s): the interval, range and implied
+        # velocity are checked before a target is tracked.
+        (["SERVO 0.01 1 0 0 0 0 0", "STATUS"], "STATUS SERVO 1 0"),
+        (["SERVO 0.01 1 0 0 0"], "NG E02 expected 7 numbers, got 5: 'SERVO 0.01 1 0 0 0'"),
+        (["SERVO 0 1 0 0 0 0 0"], "NG E06 SERVO interval 0 s outside (0, 1] s"),
+        (["SERVO 1.5 1 0 0 0 0 0"], "NG E06 SERVO interval 1.5 s outside (0, 1] s"),
+        (["SERVO 0.01 0 0 60 0 0 0"], "NG E03 joint3 target beyond its limits"),
+        (
+            ["SERVO 0.01 1 0 0 0 0 0", "SERVO 0.01 3 0 0 0 0 0"],
+            "NG E06 joint1 SERVO step implies 3.491 rad/s, beyond its limit 3.142",
+        ),
+        (
+            ["SERVO 0.01 1 0 0 0 0 0", "STOP", "SERVO 0.01 1 0 0 0 0 0"],
+            "NG E05 stopped; send RESET before SERVO",
+        ),
+        (
+            ["SERVO 0.01 1 0 0 0 0 0", "SET_TARGET 1 0 0 0 0 0", "MOVE"],
+            "NG E08 MOVE while streaming; send STOP first",
+        ),
+        (
+            ["SERVO 0.01 1 0 0 0 0 0", "STOP", "RESET", "SERVO 0.01 1 0 0 0 0 0"],
+            "NG E08 SERVO while the arm still brakes",
+        ),
     ],
 )
 def test_controller_logic_replies(requests, last_reply):
@@ -74,11 +97,15 @@ def emulator():
     thread.join(timeout=2.0)
 
 
-def _Hardware(port: int, watchdog: float = 0.5):
+def _Hardware(port: int, watchdog: float = 0.5, command_mode: str = "stream"):
     """Hardware section for the emulator; the watchdog is generous because the emulator
     shares the CPU (and the GIL) with the driver under test."""
     arm = ArmDriverConfig(
-        driver="nachi_tcp", port=port, watchdog=watchdog, acceleration_limits=ACCELERATION
+        driver="nachi_tcp",
+        port=port,
+        watchdog=watchdog,
+        acceleration_limits=ACCELERATION,
+        command_mode=command_mode,
     )
     return Mz04dScenario(hardware=HardwareConfig(arms={"mz04d": arm}))
 
@@ -104,20 +131,24 @@ def test_pose_reply_matches_forward_kinematics(emulator):
     link.close()
 
 
-def test_hardware_station_moves_the_emulated_arm(emulator):
+@pytest.mark.parametrize("command_mode", ["stream", "move"])
+def test_hardware_station_moves_the_emulated_arm(emulator, command_mode):
     # joint1 by 0.1 rad in 0.4 s (cubic): at most 0.375 rad/s and 3.75 rad/s^2.
     goal = HOME + np.array([0.1, 0, 0, 0, 0, 0])
     motion = PiecewisePolynomial.CubicWithContinuousSecondDerivatives(
         [0.0, 0.4], np.column_stack([HOME, goal]), np.zeros(6), np.zeros(6)
     )
-    station, simulator = _Diagram(_Hardware(emulator.port), TrajectorySource(motion))
-    simulator.AdvanceTo(0.8)
+    scenario = _Hardware(emulator.port, command_mode=command_mode)
+    station, simulator = _Diagram(scenario, TrajectorySource(motion))
+    simulator.AdvanceTo(1.2)
     context = station.GetMyContextFromRoot(simulator.get_context())
+    # Streamed, the controller's servo loop has settled onto the last target by now.
     np.testing.assert_allclose(emulator.logic.commanded, goal, atol=1e-9)
     np.testing.assert_allclose(emulator.logic.measured, goal, atol=1e-3)
     measured = station.GetOutputPort("mz04d.position_measured").Eval(context)
     np.testing.assert_allclose(measured, goal, atol=1e-3)
     assert emulator.logic.moves > 100  # 400 periods; a target per period unless stale
+    assert emulator.logic.State() == ("SERVO" if command_mode == "stream" else "IDLE")
 
 
 def test_frozen_controller_trips_the_watchdog_and_is_stopped(emulator):
@@ -132,22 +163,29 @@ def test_frozen_controller_trips_the_watchdog_and_is_stopped(emulator):
     assert emulator.logic.stops == 1 and emulator.logic.State() == "STOPPED"
 
 
-def test_stop_from_the_pendant_fails_the_run_and_a_new_run_resets_it(emulator):
-    _, simulator = _Diagram(_Hardware(emulator.port), ConstantVectorSource(HOME))
+@pytest.mark.parametrize(
+    "command_mode, word, state", [("stream", "SERVO", "SERVO"), ("move", "MOVE", "IDLE")]
+)
+def test_stop_from_the_pendant_fails_the_run_and_a_new_run_resets_it(
+    emulator, command_mode, word, state
+):
+    scenario = _Hardware(emulator.port, command_mode=command_mode)
+    _, simulator = _Diagram(scenario, ConstantVectorSource(HOME))
     simulator.AdvanceTo(0.1)
     with socket.create_connection(("127.0.0.1", emulator.port)) as pendant:
         pendant.sendall(b"STOP\n")
         assert pendant.recv(16) == b"OK\n"
     with pytest.raises(
         HardwareFaultError,
-        match=r"mz04d at t = .*: controller refused: 'NG E05 stopped.*arm stopped$",
+        match=f"mz04d at t = .*: controller refused: 'NG E05 stopped; send RESET before "
+        f"{word}'; arm stopped$",
     ):
         simulator.AdvanceTo(1.0)
     assert emulator.logic.State() == "STOPPED"
     moves = emulator.logic.moves
-    _, simulator = _Diagram(_Hardware(emulator.port), ConstantVectorSource(HOME))
+    _, simulator = _Diagram(scenario, ConstantVectorSource(HOME))
     simulator.AdvanceTo(0.1)
-    assert emulator.logic.State() == "IDLE" and emulator.logic.moves > moves
+    assert emulator.logic.State() == state and emulator.logic.moves > moves
 
 
 def test_malformed_replies_are_counted_and_the_link_keeps_reading():

@@ -137,6 +137,12 @@ NACHI = {"driver": "nachi_tcp", "acceleration_limits": [10.0] * 6}
             r"arms\.mz04d\.acceleration_limits\[5\]': must be a finite number, got inf",
         ),
         ({"gain": 5000.0}, {}, r"arms\.mz04d\.gain': must be in \[100, 2000\], got 5000\.0"),
+        ({"command_mode": "servo"}, {}, r"arms\.mz04d\.command_mode': 'servo' is not one of"),
+        (
+            {"driver": "ur_rtde", "command_mode": "move"},
+            {},
+            r"arms\.mz04d\.command_mode': ur_rtde streams servoJ targets: only 'stream'",
+        ),
         ({"lookahead_time": float("nan")}, {}, r"arms\.mz04d\.lookahead_time': must be a finite"),
         ({}, {"transport": "usb"}, r"tof_tools\.tof\.transport': 'usb' is not one of"),
         ({}, {"device": ""}, r"tof_tools\.tof\.device': must not be empty"),

@@ -131,3 +131,32 @@ def test_silent_tool_fails_the_run_after_its_watchdog():
         assert time.monotonic() - start < 1.0  # well before the 2 s the run asked for
     finally:
         transport.close()
+
+
+def test_driver_stamps_a_line_with_its_measurement_instant_in_diagram_time():
+    """A line that arrived 30 ms (host clock) before the update at diagram time 5 s, with
+    7 ms from measurement to arrival, was measured at 5 - 0.030 - 0.007 s; the stamp is
+    kept while the same line is held, and a new line gets its own; -1 before any line."""
+    collector = ToFLineCollector()
+    driver = ToFDriver(collector, period=0.02, watchdog=1.0, latency=0.007)
+    context = driver.CreateDefaultContext()
+    stamp = driver.GetOutputPort("measured_at")
+    np.testing.assert_array_equal(stamp.Eval(context), np.full(6, -1.0))
+    collector.Feed((GOOD + "\r\n").encode())
+    received = collector.latest()[1]
+    time.sleep(0.03)
+    context.SetTime(5.0)
+    before = time.monotonic()
+    context.SetDiscreteState(driver.EvalUniquePeriodicDiscreteUpdate(context).value())
+    after = time.monotonic()
+    measured_at = stamp.Eval(context)
+    assert np.ptp(measured_at) == 0.0
+    assert 5.0 - (after - received) - 0.007 <= measured_at[0] <= 5.0 - (before - received) - 0.007
+    assert measured_at[0] == pytest.approx(5.0 - 0.030 - 0.007, abs=0.02)
+    context.SetTime(5.02)
+    context.SetDiscreteState(driver.EvalUniquePeriodicDiscreteUpdate(context).value())
+    np.testing.assert_array_equal(stamp.Eval(context), measured_at)
+    collector.Feed((FormatTofLine(8, RANGES_MM, STATUS) + "\r\n").encode())
+    context.SetTime(5.04)
+    context.SetDiscreteState(driver.EvalUniquePeriodicDiscreteUpdate(context).value())
+    assert stamp.Eval(context)[0] == pytest.approx(5.04 - 0.007, abs=0.02)

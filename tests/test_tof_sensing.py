@@ -220,6 +220,7 @@ def test_sensor_sees_the_hose_through_the_query_object(cell):
     assert result.success
     context = station.CreateDefaultContext()
     station.GetInputPort("mz04d.position_commanded").FixValue(context, result.q)
+    station.ExecuteInitializationEvents(context)  # range 0: the geometry at the start
     sensor = station.GetSubsystemByName("tof.sensor")
     sensor_context = sensor.GetMyContextFromRoot(context)
     true = sensor.TrueRanges(sensor_context)

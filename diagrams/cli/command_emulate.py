@@ -22,7 +22,11 @@ from guidedarm.diagrams.station.model_paths import MODELS_DIR
 from guidedarm.diagrams.station.scenario import ArmConfig, StationScenario
 from guidedarm.diagrams.station.station import MakeStation
 from guidedarm.systems.errors import ConfigurationError
-from guidedarm.systems.hardware.nachi_emulator import NachiEmulator
+from guidedarm.systems.hardware.nachi_emulator import (
+    DEFAULT_SERVO_ACCELERATION,
+    DEFAULT_SERVO_TIMEOUT,
+    NachiEmulator,
+)
 from guidedarm.systems.hardware.nachi_protocol import DEFAULT_PORT
 from guidedarm.systems.hardware.tof_emulator import ToFEmulator
 from guidedarm.systems.tof.tof_tool_sensor import ToFToolConfig
@@ -41,6 +45,18 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         "--port", type=int, help=f"TCP port of `nachi` (default {DEFAULT_PORT}; 0 = any free)"
     )
     parser.add_argument("--duration", type=float, default=np.inf, help="simulated seconds")
+    parser.add_argument(
+        "--servo-acceleration",
+        type=float,
+        default=DEFAULT_SERVO_ACCELERATION,
+        help="joint acceleration limit of the SERVO loop, rad/s^2 (nachi)",
+    )
+    parser.add_argument(
+        "--servo-timeout",
+        type=float,
+        default=DEFAULT_SERVO_TIMEOUT,
+        help="seconds without a SERVO target before the arm brakes (nachi)",
+    )
     parser.set_defaults(func=emulate_command)
 
 
@@ -82,9 +98,15 @@ class ToFTap:
 
 
 def StartEmulators(
-    station_scenario: StationScenario, arm: str, host: str, port: int
+    station_scenario: StationScenario,
+    arm: str,
+    host: str,
+    port: int,
+    servo_acceleration: float = DEFAULT_SERVO_ACCELERATION,
+    servo_timeout: float = DEFAULT_SERVO_TIMEOUT,
 ) -> tuple[NachiEmulator, dict[str, ToFEmulator]]:
-    """The Nachi emulator for `arm` and a ToF emulator per tool of the station."""
+    """The Nachi emulator for `arm` (SERVO loop limits: the model's joint speeds and
+    `servo_acceleration` rad/s^2; `servo_timeout` s) and a ToF emulator per tool."""
     if arm not in station_scenario.arms:
         raise ConfigurationError(
             f"--arm {arm}: not an arm of the station {list(station_scenario.arms)}"
@@ -94,7 +116,15 @@ def StartEmulators(
         name: ToFTap(station, name, tool.period)
         for name, tool in station_scenario.tof_tools.items()
     }
-    emulator = NachiEmulator(station, arm, host, port, observers=tuple(taps.values()))
+    emulator = NachiEmulator(
+        station,
+        arm,
+        host,
+        port,
+        observers=tuple(taps.values()),
+        servo_acceleration=servo_acceleration,
+        servo_timeout=servo_timeout,
+    )
     tofs = {
         name: ToFEmulator(tap.Latest, station_scenario.tof_tools[name].period)
         for name, tap in taps.items()
@@ -104,7 +134,8 @@ def StartEmulators(
 
 def CheckArguments(args: argparse.Namespace) -> None:
     """Refuses, before the station is built, a port outside 0..65535, a host that does not
-    resolve, a duration that is not positive, and --port for `tof` (which serves no TCP)."""
+    resolve, a duration, servo acceleration or servo timeout that is not positive and
+    finite (the duration may be infinite), and --port for `tof` (which serves no TCP)."""
     if args.port is not None and args.device != "nachi":
         raise ConfigurationError("--port applies to `emulate nachi` only")
     CheckPort("--port", DEFAULT_PORT if args.port is None else args.port)
@@ -114,6 +145,11 @@ def CheckArguments(args: argparse.Namespace) -> None:
         raise ConfigurationError(f"--host {args.host!r}: cannot be resolved ({e})") from None
     if not args.duration > 0:
         raise ConfigurationError(f"--duration {args.duration}: must be positive")
+    for option in ("servo_acceleration", "servo_timeout"):
+        value = getattr(args, option)
+        if not 0 < value < np.inf:
+            flag = "--" + option.replace("_", "-")
+            raise ConfigurationError(f"{flag} {value}: must be positive and finite")
 
 
 def emulate_command(args: argparse.Namespace) -> int:
@@ -124,7 +160,9 @@ def emulate_command(args: argparse.Namespace) -> int:
     else:
         station_scenario = DefaultCell()
     port = 0 if args.device != "nachi" else DEFAULT_PORT if args.port is None else args.port
-    emulator, tofs = StartEmulators(station_scenario, args.arm, args.host, port)
+    emulator, tofs = StartEmulators(
+        station_scenario, args.arm, args.host, port, args.servo_acceleration, args.servo_timeout
+    )
     if args.device == "nachi":
         print(f"nachi: {args.arm} listening on {args.host}:{emulator.port}", flush=True)
     elif not tofs:

@@ -5,10 +5,17 @@ each section checks itself in `Validate()` (comparisons written so that NaN fail
 
 from dataclasses import dataclass, field
 
-from guidedarm.systems.config_checks import CheckFields, FieldError, InRange, Positive
+from guidedarm.systems.config_checks import (
+    CheckFields,
+    FieldError,
+    InRange,
+    NonNegative,
+    Positive,
+)
 from guidedarm.systems.errors import ConfigurationError
 
 ARM_DRIVERS = ("ur_rtde", "nachi_tcp")
+COMMAND_MODES = ("stream", "move")
 TOF_TRANSPORTS = ("serial", "ble")
 
 
@@ -38,6 +45,14 @@ class ArmDriverConfig:
     stale_after: a measurement older than this (s, at most `watchdog`) is not acted on (no
     command sent).
     acceleration_limits: rad/s^2 per joint, used where the model has none.
+    command_mode: how each control period's target reaches the controller. `stream`: the
+    controller tracks the stream within its limits and brakes by itself when it stops
+    (Nachi `SERVO`, UR servoJ). `move` (nachi_tcp only): `SET_TARGET` + `MOVE`, each target a
+    move of the controller's main program, as the paper's User Task.
+    servo_timeout: ur_rtde only: no servoJ for this long (s) and the controller stops the
+    robot by itself (the RTDE control watchdog at 1 / servo_timeout Hz). A Nachi
+    controller's streaming timeout is its own setting (`guidedarm emulate nachi
+    --servo-timeout`).
     lookahead_time, gain: servoJ parameters (UR only; s in [0.03, 0.2], 1/s in [100, 2000]).
     """
 
@@ -47,6 +62,8 @@ class ArmDriverConfig:
     watchdog: float = Positive(0.1)
     stale_after: float = Positive(0.02)
     acceleration_limits: list[float] = Positive(factory=list)
+    command_mode: str = "stream"
+    servo_timeout: float = Positive(0.1)
     # URScript servoJ admits lookahead_time in [0.03, 0.2] s and gain in [100, 2000].
     lookahead_time: float = InRange(0.03, 0.2, 0.1)
     gain: float = InRange(100.0, 2000.0, 300.0)
@@ -56,6 +73,9 @@ class ArmDriverConfig:
         CheckFields(self)
         _CheckChoice("driver", self.driver, ARM_DRIVERS)
         _CheckText("host", self.host)
+        _CheckChoice("command_mode", self.command_mode, COMMAND_MODES)
+        if self.driver == "ur_rtde" and self.command_mode != "stream":
+            raise FieldError("command_mode", "ur_rtde streams servoJ targets: only 'stream'")
         if not self.stale_after <= self.watchdog:
             raise FieldError(
                 "stale_after", f"{self.stale_after} s exceeds the watchdog {self.watchdog} s"
@@ -87,12 +107,17 @@ class ToFDriverConfig:
     device: serial device path (e.g. /dev/rfcomm0) or BLE address.
     baudrate: serial only.
     watchdog: no valid line for this long (s) stops the arms and fails the run.
+    latency: time from the end of a range's ranging to its line's arrival at the host (s):
+        the microcontroller's readout and the link's transfer (a 50-character line takes
+        4.3 ms at 115200 baud); a reading's `measured_at` is its arrival in diagram time
+        minus this and half the tool's ranging_time.
     """
 
     transport: str = "serial"
     device: str = ""
     baudrate: int = Positive(115200)
     watchdog: float = Positive(0.5)
+    latency: float = NonNegative(0.005)
 
     def Validate(self) -> None:
         """Raises ConfigurationError naming the first bad field."""

@@ -89,7 +89,10 @@ def MakeHardwareStation(scenario: StationScenario, meshcat: Meshcat | None = Non
         else:
             BleTransport(collector, config.device)
         grid = MakeDetectionGrid(plant, tool)
-        system = ToFDriver(collector, tool.period, config.watchdog, tool.max_range, grid)
+        latency = tool.ranging_time / 2 + config.latency
+        system = ToFDriver(
+            collector, tool.period, config.watchdog, tool.max_range, grid, latency=latency
+        )
         builder.AddNamedSystem(f"{name}.driver", system)
         for port in TOF_PORTS:
             builder.ExportOutput(system.GetOutputPort(port), f"{name}.{port}")
@@ -112,9 +115,11 @@ def _CheckCovered(scenario: StationScenario, hardware: HardwareConfig) -> None:
 
 def _OpenArmLink(name: str, config: ArmDriverConfig, period: float) -> ArmLink:
     if config.driver == "ur_rtde":
-        return OpenUrRtde(name, config.host, config.lookahead_time, config.gain)
+        return OpenUrRtde(
+            name, config.host, config.lookahead_time, config.gain, config.servo_timeout
+        )
     port = config.port or nachi_protocol.DEFAULT_PORT
-    return NachiLink(name, config.host, port, poll_period=period)
+    return NachiLink(name, config.host, port, poll_period=period, command_mode=config.command_mode)
 
 
 def _DrawMeasured(

@@ -50,7 +50,8 @@ class StationScenario:
     cameras: Drake CameraConfig per camera; each exports `<name>.rgb_image`.
     hardware: drivers used by `MakeStation(..., hardware=True)` (diagrams/hardware_config).
     hose: a hose (centerline, brackets) registered on the world body, or None.
-    tof_tools: six-sensor ToF tools; each exports `<name>.ranges` and `<name>.valid`.
+    tof_tools: six-sensor ToF tools; each exports `<name>.ranges`, `.valid`, `.measured_at`
+        and the detection grid's `.detections`, `.detection_errors` (TOF_PORTS).
     """
 
     directives: list[ModelDirective] = field(default_factory=list)

@@ -1,8 +1,9 @@
 """An emulated Nachi CFD controller: the User Task line protocol served from a Drake
 simulation of the arm (the station's MultibodyPlant and position servo).
 
-`NachiControllerLogic` is the controller's bookkeeping (requests -> replies, target, stop
-latch, error log) and runs without a simulation; `ServeConnection` answers one client's
+`NachiControllerLogic` is the controller's bookkeeping (requests -> replies, target, the
+servo loop of streamed SERVO targets with its timeout, stop and timeout latches, error log)
+and runs without a simulation; `ServeConnection` answers one client's
 lines with it; `NachiEmulator` steps the station in real time, feeds the logic the
 simulated joints and flange pose, and serves TCP clients.
 
@@ -27,32 +28,70 @@ from pydrake.systems.framework import Context
 from guidedarm.systems.errors import ConfigurationError
 from guidedarm.systems.hardware import nachi_protocol as nachi
 from guidedarm.systems.hardware.line_socket import LineSocket
+from guidedarm.systems.hardware.servo_tracker import ServoTracker
 
 SETTLED = 1e-3  # rad; the arm counts as MOVING while farther than this from its command
+DEFAULT_SERVO_VELOCITY = np.pi  # rad/s per joint, where the emulator is given no limits
+DEFAULT_SERVO_ACCELERATION = 10.0  # rad/s^2 per joint
+DEFAULT_SERVO_TIMEOUT = 0.1  # s without a SERVO target: the arm brakes, TIMEOUT latched
 
 
 class NachiControllerLogic:
-    """Replies to requests. Joints within [lower, upper] (rad) are accepted as targets; STOP
-    holds the arm where it is and refuses MOVE until RESET."""
+    """Replies to requests. Joints within [lower, upper] (rad) are accepted as targets.
 
-    def __init__(self, lower: np.ndarray, upper: np.ndarray, q0: np.ndarray) -> None:
+    MOVE sets the joint command to the stored target. SERVO streams: a ServoTracker moves
+    the command towards the latest target within `velocity` and `acceleration` (rad/s,
+    rad/s^2 per joint) at every `Measure`; no SERVO for `servo_timeout` s brakes it and
+    latches TIMEOUT. STOP holds the arm (braking within the limits while streaming) and
+    latches STOPPED. A latch refuses motion requests until RESET."""
+
+    def __init__(
+        self,
+        lower: np.ndarray,
+        upper: np.ndarray,
+        q0: np.ndarray,
+        velocity: np.ndarray | None = None,
+        acceleration: np.ndarray | None = None,
+        servo_timeout: float = DEFAULT_SERVO_TIMEOUT,
+    ) -> None:
         self.lower, self.upper = lower, upper
+        n = len(lower)
+        self.velocity = np.full(n, DEFAULT_SERVO_VELOCITY) if velocity is None else velocity
+        self.acceleration = (
+            np.full(n, DEFAULT_SERVO_ACCELERATION) if acceleration is None else acceleration
+        )
+        self.servo_timeout = servo_timeout
         self.lock = threading.Lock()
         self.commanded = np.array(q0, float)
         self.measured = np.array(q0, float)
         self.time = 0.0
         self.pose = (np.zeros(3), np.zeros(3))
         self.target: np.ndarray | None = None
+        self.tracker: ServoTracker | None = None  # while streaming or braking from a stream
+        self.last_servo_time = -np.inf  # controller clock of the latest accepted SERVO (s)
+        self.standstill_time: float | None = None  # when the latest braking ended (s)
         self.stopped = False
+        self.timed_out = False
         self.moves = 0
         self.stops = 0
+        self.timeouts = 0
         self.error_count = 0
         self.last_error: tuple[str, str] | None = None
 
     def Measure(self, t: float, q: np.ndarray, xyz: np.ndarray, rpy: np.ndarray) -> np.ndarray:
-        """Records the simulated state; returns the joint command for the next step."""
+        """Records the simulated state at controller time t (s) and runs the servo loop;
+        returns the joint command for the next step."""
         with self.lock:
             self.time, self.measured, self.pose = t, q, (xyz, rpy)
+            tracker = self.tracker
+            if tracker is not None:
+                if not tracker.braking and t - self.last_servo_time > self.servo_timeout:
+                    tracker.Brake()
+                    self.timed_out = True
+                    self.timeouts += 1
+                self.commanded = tracker.Step(t)
+                if tracker.braking and tracker.Standstill():
+                    self.tracker, self.standstill_time = None, t
             return self.commanded.copy()
 
     def Handle(self, line: str) -> str:
@@ -72,38 +111,93 @@ class NachiControllerLogic:
         if word == nachi.READ_POSE:
             return nachi.FormatPose(*self.pose)
         if word == nachi.SET_TARGET:
-            q = request.values
-            outside = (q < self.lower) | (q > self.upper)
-            if np.any(outside):
-                joint = int(np.argmax(outside)) + 1
-                return self._Error(nachi.E_LIMIT, f"joint{joint} target beyond its limits")
-            self.target = q
+            refused = self._CheckRange(request.values)
+            if refused:
+                return refused
+            self.target = request.values
             return "OK"
         if word == nachi.MOVE:
-            if self.stopped:
-                return self._Error(nachi.E_STOPPED, "stopped; send RESET before MOVE")
+            refused = self._CheckMayMove(word)
+            if refused:
+                return refused
+            if self.tracker is not None:
+                return self._Error(nachi.E_STREAMING, "MOVE while streaming; send STOP first")
             if self.target is None:
                 return self._Error(nachi.E_NO_TARGET, "MOVE without SET_TARGET")
             self.commanded = self.target
             self.moves += 1
             return "OK"
+        if word == nachi.SERVO:
+            return self._Servo(request.values, request.interval)
         if word == nachi.STOP:
-            self.commanded = self.measured.copy()
+            if self.tracker is not None:
+                self.tracker.Brake()
+            else:
+                self.commanded = self.measured.copy()
             self.target = None
             self.stopped = True
             self.stops += 1
             return "OK"
         if word == nachi.RESET:
-            self.stopped = False
+            self.stopped = self.timed_out = False
             return "OK"
         if word == nachi.STATUS:
             return f"STATUS {self.State()} {self.moves} {self.error_count}"
         last = f" {self.last_error[0]} {self.last_error[1]}" if self.last_error else ""
         return f"ERRORS {self.error_count}{last}"
 
+    def _Servo(self, q: np.ndarray, interval: float) -> str:
+        """A streamed target: checked against the latches, the interval, the position range
+        and the velocity it implies from the previous target (the held command when a
+        stream starts), then tracked."""
+        refused = self._CheckMayMove(nachi.SERVO) or self._CheckRange(q)
+        if refused:
+            return refused
+        if self.tracker is not None and self.tracker.braking:
+            return self._Error(nachi.E_STREAMING, "SERVO while the arm still brakes")
+        if not 0.0 < interval <= nachi.MAX_SERVO_INTERVAL:
+            return self._Error(
+                nachi.E_SERVO_STEP,
+                f"SERVO interval {interval:g} s outside (0, {nachi.MAX_SERVO_INTERVAL:g}] s",
+            )
+        previous = self.commanded if self.tracker is None else self.tracker.target
+        speed = np.abs(q - previous) / interval
+        too_fast = speed > self.velocity
+        if np.any(too_fast):
+            j = int(np.argmax(too_fast))
+            return self._Error(
+                nachi.E_SERVO_STEP,
+                f"joint{j + 1} SERVO step implies {speed[j]:.4g} rad/s, beyond its "
+                f"limit {self.velocity[j]:.4g}",
+            )
+        if self.tracker is None:
+            self.tracker = ServoTracker(self.commanded, self.velocity, self.acceleration, self.time)
+        self.tracker.SetTarget(q, interval, self.time)
+        self.last_servo_time = self.time
+        self.moves += 1
+        return "OK"
+
+    def _CheckMayMove(self, word: str) -> str | None:
+        if self.stopped:
+            return self._Error(nachi.E_STOPPED, f"stopped; send RESET before {word}")
+        if self.timed_out:
+            return self._Error(nachi.E_TIMEOUT, f"servo timeout; send RESET before {word}")
+        return None
+
+    def _CheckRange(self, q: np.ndarray) -> str | None:
+        outside = (q < self.lower) | (q > self.upper)
+        if np.any(outside):
+            joint = int(np.argmax(outside)) + 1
+            return self._Error(nachi.E_LIMIT, f"joint{joint} target beyond its limits")
+        return None
+
     def State(self) -> str:
         if self.stopped:
             return "STOPPED"
+        if self.timed_out:
+            return "TIMEOUT"
+        if self.tracker is not None:
+            return "STOPPING" if self.tracker.braking else "SERVO"
         moving = np.max(np.abs(self.commanded - self.measured)) > SETTLED
         return "MOVING" if moving else "IDLE"
 
@@ -136,6 +230,9 @@ class NachiEmulator:
 
     The station must export `<arm>.position_commanded` and `<arm>.position_measured`; the
     flange pose is read from its plant (`plant` system), frames `<arm>::base`, `<arm>::flange`.
+    The controller steps every `period` (s), its servo loop too: SERVO targets are tracked
+    within the model's joint velocity limits and `servo_acceleration` (rad/s^2, every
+    joint); `servo_timeout` (s) without a SERVO brakes the arm.
     After every step each observer is called with the station's context (e.g. to sample
     sensor ports for other emulated devices; they run in the stepping thread).
     """
@@ -148,6 +245,8 @@ class NachiEmulator:
         port: int = nachi.DEFAULT_PORT,
         period: float = 0.002,
         observers: tuple[Callable[[Context], None], ...] = (),
+        servo_acceleration: float = DEFAULT_SERVO_ACCELERATION,
+        servo_timeout: float = DEFAULT_SERVO_TIMEOUT,
     ) -> None:
         self._observers = observers
         self.station = station
@@ -162,10 +261,14 @@ class NachiEmulator:
         self._base = plant.GetFrameByName("base", instance)
         self._flange = plant.GetFrameByName("flange", instance)
         q0 = plant.GetPositions(self._plant_context, instance)
+        velocity = plant.GetVelocitiesFromArray(instance, plant.GetVelocityUpperLimits())
         self.logic = NachiControllerLogic(
             plant.GetPositionsFromArray(instance, plant.GetPositionLowerLimits()),
             plant.GetPositionsFromArray(instance, plant.GetPositionUpperLimits()),
             q0,
+            velocity,
+            np.full(len(q0), servo_acceleration),
+            servo_timeout,
         )
         self._command_port.FixValue(self.context, q0)
         self._period = period
@@ -179,17 +282,22 @@ class NachiEmulator:
         threading.Thread(target=self._Accept, name="nachi-accept", daemon=True).start()
 
     def Run(self, duration: float = np.inf, realtime_rate: float = 1.0) -> None:
-        """Steps the simulation until `duration` (s) or Close()."""
+        """Steps the simulation until `duration` (s) or Close(). The controller runs in the
+        middle of each period of the station's discrete updates (plant, command sampling),
+        so every step holds exactly one of them: stepping to their very instants would let
+        rounding decide whether a command is sampled now or a period later."""
         self.simulator.set_target_realtime_rate(realtime_rate)
         self.simulator.Initialize()
-        t = self.context.get_time()
+        start = t = self.context.get_time()
+        k = 0
         while t < duration and not self._closing.is_set():
             X_BF = self._plant.CalcRelativeTransform(self._plant_context, self._base, self._flange)
             q = self._measured_port.Eval(self.context)
             rpy = RollPitchYaw(X_BF.rotation()).vector()
             command = self.logic.Measure(t, q.copy(), X_BF.translation(), rpy)
             self._command_port.FixValue(self.context, command)
-            t += self._period
+            t = start + (k + 0.5) * self._period
+            k += 1
             self.simulator.AdvanceTo(t)
             for observer in self._observers:
                 observer(self.context)

@@ -4,8 +4,11 @@ Requests are pipelined: a writer appends one pending reply per request line to a
 the order the lines are sent, and a reader thread hands each reply line to the oldest
 pending request. So a STOP goes out at once even while an earlier request waits for a
 controller that has frozen, and a late reply can never be taken for the reply to a later
-request. A poll thread sends the newest joint target (SET_TARGET + MOVE) as soon as one is
-pending, and READ_JOINTS at least every `poll_period`; it waits for its replies without a
+request. A poll thread sends the newest joint target as soon as one is pending, and
+READ_JOINTS at least every `poll_period`. Targets go out as `SERVO <interval> <joints>`
+(command mode `stream`: the controller tracks them within its limits and brakes by itself
+when they stop coming) or as `SET_TARGET` + `MOVE` (mode `move`: the paper's User Task). The
+poll thread it waits for its replies without a
 deadline of its own: the ArmDriver's watchdog judges a link that went quiet.
 
 Velocities are differences of successive joint readings over the controller's clock.
@@ -13,7 +16,7 @@ Malformed reply lines are printed, counted in `rejected_lines`, and skipped. A c
 that refuses a target or a move (`NG ...`, e.g. after a STOP from its pendant) or a lost
 connection is a fault: streaming ends and the ArmDriver fails the run. `stop` waits at most
 `stop_timeout` for the controller's OK. Connecting sends RESET: starting a run is the
-deliberate act that clears an earlier STOP.
+deliberate act that clears an earlier STOP (or a streaming timeout).
 """
 
 from __future__ import annotations
@@ -36,6 +39,7 @@ from guidedarm.systems.hardware.arm_link import (
 )
 from guidedarm.systems.hardware.line_socket import LineSocket
 
+COMMAND_MODES = ("stream", "move")
 WAIT_SLICE = 0.05  # s; how often a wait for a reply checks whether the link died or closes
 SEND_TIMEOUT = 1.0  # s; a controller that takes no bytes for this long is lost
 
@@ -73,8 +77,12 @@ class NachiLink:
         poll_period: float = 0.002,
         connect_timeout: float = 1.0,
         stop_timeout: float = 0.25,
+        command_mode: str = "stream",
     ) -> None:
+        if command_mode not in COMMAND_MODES:
+            raise ConfigurationError(f"{name}: command mode {command_mode!r}, not {COMMAND_MODES}")
         self.name = name
+        self._streaming = command_mode == "stream"
         self.rejected_lines = 0
         self._fault: str | None = None
         self._dead: str | None = None  # why nothing more can be sent or received
@@ -103,7 +111,11 @@ class NachiLink:
         except (OSError, nachi.NachiProtocolError) as e:
             self.close()
             raise ConfigurationError(f"{name}: {host}:{port} did not accept RESET: {e}") from None
+        # The newest target not yet sent and the time since the last one sent (SERVO's
+        # interval); their own lock, since a send may block (SEND_TIMEOUT) under _send_lock.
+        self._target_lock = threading.Lock()
         self._target: np.ndarray | None = None
+        self._interval = 0.0
         self._stopped = False
         self._poll_period = poll_period
         self._latest = LatestSample()
@@ -161,10 +173,7 @@ class NachiLink:
             self._wake.clear()
             try:
                 with self._send_lock:
-                    target, self._target = (None if self._stopped else self._target), None
-                    lines = [nachi.READ_JOINTS]
-                    if target is not None:
-                        lines = [nachi.FormatSetTarget(target), nachi.MOVE, *lines]
+                    lines = [*self._TargetLines(), nachi.READ_JOINTS]
                     replies = self._SendLocked(lines)
                 for reply in replies[:-1]:
                     nachi.CheckOk(self._Await(reply))
@@ -175,6 +184,19 @@ class NachiLink:
             except OSError as e:
                 self._fault = self._fault or str(e)
                 return
+
+    def _TargetLines(self) -> list[str]:
+        """The request lines of the pending target, none if there is none or the link was
+        stopped (called with the send lock held, which `stop` takes too)."""
+        with self._target_lock:
+            target, interval = self._target, self._interval
+            if target is not None:
+                self._target, self._interval = None, 0.0
+        if target is None or self._stopped:
+            return []
+        if not self._streaming:
+            return [nachi.FormatSetTarget(target), nachi.MOVE]
+        return [nachi.FormatServo(target, interval)]
 
     def _Await(self, reply: PendingReply) -> str:
         """The reply, however long the controller takes, unless the link dies or closes."""
@@ -214,7 +236,12 @@ class NachiLink:
         return self._fault
 
     def send_position(self, q: np.ndarray, period: float) -> None:
-        self._target = np.array(q, float)
+        """Queues q (rad), meant `period` s after the previous target; a target replaced
+        before it was sent lends its period to the next (SERVO intervals add up to the time
+        between the targets the controller receives)."""
+        with self._target_lock:
+            self._target = np.array(q, float)
+            self._interval += period
         self._wake.set()
 
     def stop(self) -> None:

@@ -26,6 +26,8 @@ STOP = "STOP"
 RESET = "RESET"
 STATUS = "STATUS"
 ERRORS = "ERRORS"
+SERVO = "SERVO"
+MAX_SERVO_INTERVAL = 1.0  # s; a SERVO interval must lie in (0, MAX_SERVO_INTERVAL]
 
 # Error codes of `NG <code> <text>` replies.
 E_UNKNOWN = "E01"
@@ -33,6 +35,9 @@ E_MALFORMED = "E02"
 E_LIMIT = "E03"
 E_NO_TARGET = "E04"
 E_STOPPED = "E05"
+E_SERVO_STEP = "E06"
+E_TIMEOUT = "E07"
+E_STREAMING = "E08"
 
 
 class NachiProtocolError(GuidedArmError):
@@ -42,7 +47,8 @@ class NachiProtocolError(GuidedArmError):
 @dataclass(frozen=True)
 class Request:
     word: str
-    values: np.ndarray  # SI: rad for SET_TARGET, empty otherwise
+    values: np.ndarray  # SI: rad for SET_TARGET and SERVO, empty otherwise
+    interval: float = 0.0  # s, SERVO only: the time from the previous target to this one
 
 
 def Quote(line: str, limit: int = 80) -> str:
@@ -84,6 +90,9 @@ def ParseRequest(line: str) -> Request:
     word, arguments = fields[0], fields[1:]
     if word == SET_TARGET:
         return Request(word, np.deg2rad(_Numbers(arguments, NUM_JOINTS, line)))
+    if word == SERVO:
+        values = _Numbers(arguments, 1 + NUM_JOINTS, line)
+        return Request(word, np.deg2rad(values[1:]), float(values[0]))
     if word in (READ_JOINTS, READ_POSE, MOVE, STOP, RESET, STATUS, ERRORS):
         _Numbers(arguments, 0, line)
         return Request(word, np.zeros(0))
@@ -93,6 +102,12 @@ def ParseRequest(line: str) -> Request:
 def FormatSetTarget(q: np.ndarray) -> str:
     """Client side: SET_TARGET line for joints q (rad)."""
     return f"{SET_TARGET} " + " ".join(f"{x:.6f}" for x in np.rad2deg(q))
+
+
+def FormatServo(q: np.ndarray, interval: float) -> str:
+    """Client side: SERVO line for joints q (rad) reached `interval` s after the previous
+    target."""
+    return f"{SERVO} {interval:.4f} " + " ".join(f"{x:.6f}" for x in np.rad2deg(q))
 
 
 def FormatJoints(t: float, q: np.ndarray) -> str:

@@ -1,8 +1,16 @@
-"""ToFDriver: the ToF tool's latest reading as the station's `ranges` and `valid` ports.
+"""ToFDriver: the ToF tool's latest reading as the station's `ranges`, `valid` and
+`measured_at` ports.
 
 Every `period` seconds it copies the newest reading of a ToFLineCollector (fed by a serial or
 BLE transport). No valid line for longer than `watchdog` (a silent tool, or one sending
 only malformed lines) stops every arm and fails the run with a HardwareFaultError.
+
+Time stamps: the collector notes the host's monotonic clock when a line arrives. The first
+update that sees a line maps that receive time to diagram time (the update's context time
+minus the line's age on the host clock) and subtracts `latency`, the time from the range's
+measurement instant to its line's arrival: half the ranging time, the microcontroller's
+readout and the link's transfer (MakeHardwareStation: ToFToolConfig.ranging_time / 2 +
+ToFDriverConfig.latency). That is `measured_at`, the same for the six sensors of a line.
 """
 
 from __future__ import annotations
@@ -17,12 +25,18 @@ from guidedarm.systems.hardware.tof_protocol import NUM_SENSORS, ToFLineCollecto
 from guidedarm.systems.tof.tof_tool_sensor import DeclareGridOutputs
 from guidedarm.systems.tof.tof_tool_sensor_math import DetectionGrid
 
+# The state: ranges (6, m), valid (6), measured_at (6, s), the held line's host receive time.
+_RANGES, _VALID, _MEASURED_AT = (slice(k * NUM_SENSORS, (k + 1) * NUM_SENSORS) for k in range(3))
+_RECEIVED = 3 * NUM_SENSORS
+
 
 class ToFDriver(LeafSystem):
     """Outputs `ranges` (m, per sensor along its line of sight; `no_return_range` where the
-    reading is not valid, as the simulated sensor does) and `valid` (1 where the VL6180X
-    status is 0, else 0). Before the first reading: no_return_range, valid 0. With a
-    `grid`, also `detections` and `detection_errors` as ToFToolSensor has them."""
+    reading is not valid, as the simulated sensor does), `valid` (1 where the VL6180X
+    status is 0, else 0) and `measured_at` (s, diagram time of the reading's measurement
+    instant; see the module docstring). Before the first reading: no_return_range, valid 0,
+    measured_at -1. With a `grid`, also `detections` and `detection_errors` as
+    ToFToolSensor has them. latency: measurement instant to the host's receipt (s)."""
 
     def __init__(
         self,
@@ -31,27 +45,32 @@ class ToFDriver(LeafSystem):
         watchdog: float,
         no_return_range: float = 0.1,
         grid: DetectionGrid | None = None,
+        latency: float = 0.0,
     ) -> None:
         super().__init__()
         self._collector = collector
         self._watchdog = watchdog
+        self._latency = latency
         self._start: float | None = None
         self._no_return_range = no_return_range
         n = NUM_SENSORS
-        self._state = self.DeclareDiscreteState(np.r_[np.full(n, no_return_range), np.zeros(n)])
-        self.DeclareVectorOutputPort("ranges", n, self._CalcSlice(0, n))
-        self.DeclareVectorOutputPort("valid", n, self._CalcSlice(n, 2 * n))
+        self._state = self.DeclareDiscreteState(
+            np.r_[np.full(n, no_return_range), np.zeros(n), np.full(n, -1.0), -np.inf]
+        )
+        self.DeclareVectorOutputPort("ranges", n, self._CalcSlice(_RANGES))
+        self.DeclareVectorOutputPort("valid", n, self._CalcSlice(_VALID))
+        self.DeclareVectorOutputPort("measured_at", n, self._CalcSlice(_MEASURED_AT))
         if grid is not None:
             DeclareGridOutputs(self, grid, self._Reading, {self.xd_ticket()})
         self.DeclarePeriodicDiscreteUpdateEvent(period, 0.0, self._Update)
 
     def _Reading(self, context: Context) -> tuple[np.ndarray, np.ndarray]:
         value = context.get_discrete_state(self._state).value()
-        return value[:NUM_SENSORS], value[NUM_SENSORS:] > 0.5
+        return value[_RANGES], value[_VALID] > 0.5
 
-    def _CalcSlice(self, start: int, stop: int):
+    def _CalcSlice(self, part: slice):
         def calc(context: Context, output: BasicVector) -> None:
-            output.SetFromVector(context.get_discrete_state(self._state).value()[start:stop])
+            output.SetFromVector(context.get_discrete_state(self._state).value()[part])
 
         return calc
 
@@ -67,7 +86,12 @@ class ToFDriver(LeafSystem):
                 f"{self._collector.rejected} lines rejected)",
                 context.get_time(),
             )
-        if latest is not None:
-            valid = latest[0].valid
-            ranges = np.where(valid > 0, latest[0].ranges, self._no_return_range)
-            state.set_value(self._state, np.concatenate([ranges, valid]))
+        held = context.get_discrete_state(self._state).value()
+        if latest is not None and latest[1] != held[_RECEIVED]:
+            reading, received = latest
+            ranges = np.where(reading.valid > 0, reading.ranges, self._no_return_range)
+            measured_at = context.get_time() - (now - received) - self._latency
+            state.set_value(
+                self._state,
+                np.r_[ranges, reading.valid, np.full(NUM_SENSORS, measured_at), received],
+            )

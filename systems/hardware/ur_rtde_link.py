@@ -7,6 +7,9 @@ rtde_control.RTDEControlInterface) against a recording fake. A poll thread copie
 controller sample (a new RTDE `timestamp`) into LatestSample with the host time it arrived;
 an error of the vendor interface in that thread is the link's fault. A servoJ or servoStop
 the controller does not accept raises, so the ArmDriver stops the arm and fails the run.
+The control script's watchdog is the streaming timeout, as the Nachi controller's: set to
+1 / `servo_timeout` Hz and kicked with every servoJ, so a PC that stops streaming (dead,
+frozen, cut off) has the controller stop the robot by itself.
 
 Connecting is part of building the station, before any motion: a controller that cannot
 be reached is a ConfigurationError (one line, naming the host and the vendor's message).
@@ -55,11 +58,14 @@ class RtdeControl(Protocol):
         gain: float,
     ) -> bool: ...
     def servoStop(self, a: float) -> bool: ...
+    def setWatchdog(self, min_frequency: float) -> bool: ...
+    def kickWatchdog(self) -> bool: ...
     def stopScript(self) -> None: ...
 
 
 class UrRtdeLink:
-    """ArmLink of a UR arm: servoJ streaming (lookahead_time s, gain 1/s as in URScript)."""
+    """ArmLink of a UR arm: servoJ streaming (lookahead_time s, gain 1/s as in URScript),
+    the controller stopping the robot when no servoJ came for `servo_timeout` s."""
 
     def __init__(
         self,
@@ -69,7 +75,10 @@ class UrRtdeLink:
         lookahead_time: float = 0.1,
         gain: float = 300.0,
         poll_period: float = 0.0005,
+        servo_timeout: float = 0.1,
     ) -> None:
+        if not control.setWatchdog(1.0 / servo_timeout):
+            raise ConfigurationError(f"{name}: the UR controller refused its watchdog")
         self.name = name
         self._receive = receive
         self._control = control
@@ -107,6 +116,7 @@ class UrRtdeLink:
         q = [float(x) for x in q]
         if not self._control.servoJ(q, 0.0, 0.0, period, self._lookahead_time, self._gain):
             raise RuntimeError("servoJ not accepted by the controller")
+        self._control.kickWatchdog()
 
     def stop(self) -> None:
         if not self._control.servoStop(SERVO_STOP_DECELERATION):
@@ -121,7 +131,9 @@ class UrRtdeLink:
                 release()
 
 
-def OpenUrRtde(name: str, host: str, lookahead_time: float, gain: float) -> UrRtdeLink:
+def OpenUrRtde(
+    name: str, host: str, lookahead_time: float, gain: float, servo_timeout: float
+) -> UrRtdeLink:
     """Connects both vendor interfaces to the controller at `host` (RTDE port 30004)."""
     import rtde_control
     import rtde_receive
@@ -141,7 +153,7 @@ def OpenUrRtde(name: str, host: str, lookahead_time: float, gain: float) -> UrRt
         said = "; ".join(line for line in [*vendor.text.splitlines(), error] if line.strip())
         raise ConfigurationError(f"{name}: cannot connect to the UR controller at {host}: {said}")
     sys.stderr.write(vendor.text)
-    return UrRtdeLink(name, receive, control, lookahead_time, gain)
+    return UrRtdeLink(name, receive, control, lookahead_time, gain, servo_timeout=servo_timeout)
 
 
 class CapturedStderr:

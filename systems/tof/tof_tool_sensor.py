@@ -1,8 +1,10 @@
 """ToFToolSensor: six VL6180X-like time-of-flight sensors reading SceneGraph geometry.
 
-The ray casting, noise and detection grid live in tof_tool_sensor_math.py. The outputs are
-what the tool's microcontroller streams, so the hardware driver can produce the same ports:
-the six ranges (m) and their validity flags (1 = a return within range, 0 = none).
+The ray casting, noise, drift and detection grid live in tof_tool_sensor_math.py. The
+outputs are what the tool's microcontroller streams, so the hardware driver can produce the
+same ports: the six ranges (m), their validity flags (1 = a return within range, 0 = none)
+and their measurement instants (s, diagram time), by which a moving consumer looks up the
+tool's pose when a range was taken.
 """
 
 from collections.abc import Callable
@@ -13,12 +15,18 @@ from pydrake.common.value import AbstractValue
 from pydrake.geometry import QueryObject
 from pydrake.math import RigidTransform
 from pydrake.multibody.plant import MultibodyPlant
-from pydrake.systems.framework import BasicVector, Context, LeafSystem, ValueProducer
+from pydrake.systems.framework import BasicVector, Context, DiscreteValues, LeafSystem
 
 from guidedarm.systems.config_checks import CheckFields, InRange, NonNegative, Positive
 from guidedarm.systems.errors import ConfigurationError
 from guidedarm.systems.plant_frames import GetScopedFrame
-from guidedarm.systems.tof.tof_tool_sensor_math import ConeRays, DetectionGrid, Measure, RayCaster
+from guidedarm.systems.tof.tof_tool_sensor_math import (
+    ConeRays,
+    DetectionGrid,
+    DriftStep,
+    Measure,
+    RayCaster,
+)
 
 NUM_SENSORS = 6
 # The radius of the paper's 20 mm shower hose (m).
@@ -31,7 +39,7 @@ def _default_frames() -> list[str]:
 
 @dataclass
 class ToFToolConfig:
-    """A six-sensor ToF tool; ports `<name>.ranges` and `<name>.valid`.
+    """A six-sensor ToF tool; ports `<name>.ranges`, `.valid`, `.measured_at` and the grid's.
 
     sensor_frames: scoped frames of sensors 1..6 (+z = line of sight); 1-3 are the grid rows.
     tool_frame: the tool frame T (centre O of the detection field).
@@ -41,7 +49,15 @@ class ToFToolConfig:
         from station.hose.diameter), DEFAULT_TARGET_RADIUS for a sensor on its own.
     noise_std, quantization: Gaussian noise and resolution of a reading (m).
     seed: seed of the noise generator; None: 0 (path following fills in its `seed`).
-    period: the noise is redrawn every period (s).
+    period: a new range every period (s); range k is available at k period.
+    ranging_time: each range integrates over the ranging_time (s) before it is available;
+        its measurement instant is the middle of that interval (the VL6180X ranges in
+        about 10 ms). At most `period`.
+    offset: constant range offset of each of the six sensors (m), added to every return.
+    drift_rate: each sensor's slow range drift, a random walk whose change over one second
+        has this standard deviation (m); 0: no drift.
+    drift_max: the drift stays within +-drift_max (m; the datasheet's temperature drift
+        reaches 9 mm).
     rings: rings of rays sampling each cone (1 + 3 rings (rings + 1) rays).
     """
 
@@ -54,6 +70,10 @@ class ToFToolConfig:
     quantization: float = NonNegative(0.001)
     seed: int | None = None
     period: float = Positive(0.02)
+    ranging_time: float = NonNegative(0.010)
+    offset: list[float] = InRange(-0.1, 0.1, factory=lambda: [0.0] * NUM_SENSORS)
+    drift_rate: float = NonNegative(0.0)
+    drift_max: float = NonNegative(0.009)
     rings: int = 2
 
     def Validate(self) -> None:
@@ -61,6 +81,12 @@ class ToFToolConfig:
         CheckFields(self)
         if len(self.sensor_frames) != NUM_SENSORS:
             raise ConfigurationError(f"sensor_frames must name {NUM_SENSORS} frames")
+        if len(self.offset) != NUM_SENSORS:
+            raise ConfigurationError(f"offset must hold {NUM_SENSORS} values (m), one a sensor")
+        if not self.ranging_time <= self.period:
+            raise ConfigurationError(
+                f"ranging_time ({self.ranging_time} s) must not exceed period ({self.period} s)"
+            )
 
     def TargetRadius(self) -> float:
         """The target radius in use (m): target_radius, or DEFAULT_TARGET_RADIUS for 0."""
@@ -68,18 +94,38 @@ class ToFToolConfig:
 
 
 # Output ports of a ToF tool, the same in the simulated and the hardware station.
-TOF_PORTS = ("ranges", "valid", "detections", "detection_errors")
+TOF_PORTS = ("ranges", "valid", "measured_at", "detections", "detection_errors")
+
+# A reading in the discrete state: ranges (6, m), valid (6), measured_at (6, s) and the
+# time it becomes available (s).
+_RANGES, _VALID, _MEASURED_AT = (slice(k * NUM_SENSORS, (k + 1) * NUM_SENSORS) for k in range(3))
+_AVAILABLE_AT = 3 * NUM_SENSORS
+# Equal event times computed in two ways differ by rounding only.
+_TIME_TOLERANCE = 1e-9
+
+
+def _NoReading(max_range: float) -> np.ndarray:
+    return np.r_[np.full(NUM_SENSORS, max_range), np.zeros(NUM_SENSORS), -np.ones(7)]
 
 
 class ToFToolSensor(LeafSystem):
     """Ranges of six ToF sensors from the `query_object` input (SceneGraph's QueryObject).
 
-    Output `ranges` (6, m; max_range where there is no return) and `valid` (6, 0 or 1), and
-    the paper's 3 x 3 grid of that reading: `detections` and `detection_errors` (9 each,
-    0 or 1, row-major: row sensor i = 1..3, column sensor j = 4..6; tof_sensing).
-    The noise of a reading at time t comes from np.random.default_rng((seed, floor(t /
-    period))), so a run is reproducible and `seed` changes it. Geometry of the tool's own
-    model instance is not seen (its cones look away from it by construction).
+    Timing: range k (k = 1, 2, ...) integrates over [k period - ranging_time, k period];
+    a periodic discrete update at its measurement instant k period - ranging_time / 2 reads
+    the geometry once and holds it; the outputs at time t show the newest range available
+    at t (so a consumer ticking at k period sees range k). Range 0 is read from the
+    geometry at the start (an initialization event), available at once.
+    Outputs: `ranges` (6, m; max_range where there is no return), `valid` (6, 0 or 1),
+    `measured_at` (6, s: the measurement instant of each sensor's current range, -1 before
+    the first) and the paper's 3 x 3 grid of that reading: `detections` and
+    `detection_errors` (9 each, 0 or 1, row-major: row sensor i = 1..3, column sensor
+    j = 4..6; tof_sensing).
+    A return reads true range + offset + drift, plus noise from
+    np.random.default_rng((seed, k)) for range k, quantised. The drift (a reflected random
+    walk, see DriftStep) advances once a period from np.random.default_rng((seed, k, 1)).
+    Geometry of the tool's own model instance is not seen (its cones look away from it by
+    construction).
     """
 
     def __init__(self, plant: MultibodyPlant, config: ToFToolConfig) -> None:
@@ -103,23 +149,22 @@ class ToFToolSensor(LeafSystem):
         self._query_port = self.DeclareAbstractInputPort(
             "query_object", AbstractValue.Make(QueryObject())
         )
-        self._reading = self.DeclareCacheEntry(
-            "reading",
-            ValueProducer(
-                allocate=lambda: AbstractValue.Make(np.zeros(2 * NUM_SENSORS)),
-                calc=self._CalcReading,
-            ),
-            prerequisites_of_calc={self.time_ticket(), self._query_port.ticket()},
+        # The newest reading (pending) and the one before it (published): the output
+        # shows pending from its availability time on.
+        self._published = self.DeclareDiscreteState(_NoReading(config.max_range))
+        self._pending = self.DeclareDiscreteState(_NoReading(config.max_range))
+        self._drift = self.DeclareDiscreteState(NUM_SENSORS)
+        self.DeclareInitializationDiscreteUpdateEvent(self._Initialize)
+        self.DeclarePeriodicDiscreteUpdateEvent(
+            config.period, config.period - config.ranging_time / 2, self._Measure
         )
+        depends = {self.time_ticket(), self.xd_ticket()}
+        self.DeclareVectorOutputPort("ranges", NUM_SENSORS, self._Output(_RANGES), depends)
+        self.DeclareVectorOutputPort("valid", NUM_SENSORS, self._Output(_VALID), depends)
         self.DeclareVectorOutputPort(
-            "ranges", NUM_SENSORS, self.CalcRanges, prerequisites_of_calc={self._reading.ticket()}
+            "measured_at", NUM_SENSORS, self._Output(_MEASURED_AT), depends
         )
-        self.DeclareVectorOutputPort(
-            "valid", NUM_SENSORS, self.CalcValid, prerequisites_of_calc={self._reading.ticket()}
-        )
-        DeclareGridOutputs(
-            self, MakeDetectionGrid(plant, config), self._Reading, {self._reading.ticket()}
-        )
+        DeclareGridOutputs(self, MakeDetectionGrid(plant, config), self._Reading, depends)
 
     def SensorPosesInWorld(self, context: Context) -> list[RigidTransform]:
         """X_WS of the six sensors."""
@@ -129,29 +174,56 @@ class ToFToolSensor(LeafSystem):
         ]
 
     def TrueRanges(self, context: Context) -> np.ndarray:
-        """Noise-free nearest returns (m; inf when nothing is in range)."""
+        """Noise-free nearest returns at the context's time (m; inf when nothing is in
+        range)."""
         query = self._query_port.Eval(context)
         poses = self.SensorPosesInWorld(context)
         return np.array([self._caster.Range(query, X_WS) for X_WS in poses])
 
-    def _CalcReading(self, context: Context, value: AbstractValue) -> None:
+    def _Read(self, context: Context, k: int, drift: np.ndarray) -> np.ndarray:
+        """Range k from the geometry at the context's time, as a state reading."""
         c = self._config
-        tick = int(np.floor(context.get_time() / c.period + 1e-9))
-        rng = np.random.default_rng((c.seed or 0, tick))
+        t = context.get_time()
+        bias = np.asarray(c.offset) + drift
+        rng = np.random.default_rng((c.seed or 0, k))
         ranges, valid = Measure(
-            self.TrueRanges(context), rng, c.noise_std, c.quantization, c.max_range
+            self.TrueRanges(context) + bias, rng, c.noise_std, c.quantization, c.max_range
         )
-        value.set_value(np.concatenate([ranges, valid.astype(float)]))
+        available = k * c.period if k * c.period > t else t
+        return np.r_[ranges, valid.astype(float), np.full(NUM_SENSORS, t), available]
+
+    def _Initialize(self, context: Context, state: DiscreteValues) -> None:
+        k = int(np.floor(context.get_time() / self._config.period + _TIME_TOLERANCE))
+        drift = context.get_discrete_state(self._drift).value()
+        state.set_value(self._pending, self._Read(context, k, drift))
+
+    def _Measure(self, context: Context, state: DiscreteValues) -> None:
+        c = self._config
+        k = round((context.get_time() + c.ranging_time / 2) / c.period)
+        drift = context.get_discrete_state(self._drift).value()
+        if c.drift_rate > 0:
+            rng = np.random.default_rng((c.seed or 0, k, 1))
+            drift = DriftStep(drift, rng, c.drift_rate, c.period, c.drift_max)
+            state.set_value(self._drift, drift)
+        state.set_value(self._published, context.get_discrete_state(self._pending).value())
+        state.set_value(self._pending, self._Read(context, k, drift))
+
+    def _Current(self, context: Context) -> np.ndarray:
+        """The newest reading available at the context's time."""
+        pending = context.get_discrete_state(self._pending).value()
+        if context.get_time() >= pending[_AVAILABLE_AT] - _TIME_TOLERANCE:
+            return pending
+        return context.get_discrete_state(self._published).value()
 
     def _Reading(self, context: Context) -> tuple[np.ndarray, np.ndarray]:
-        reading = self._reading.Eval(context)
-        return reading[:NUM_SENSORS], reading[NUM_SENSORS:] > 0.5
+        reading = self._Current(context)
+        return reading[_RANGES], reading[_VALID] > 0.5
 
-    def CalcRanges(self, context: Context, output: BasicVector) -> None:
-        output.SetFromVector(self._reading.Eval(context)[:NUM_SENSORS])
+    def _Output(self, part: slice):
+        def calc(context: Context, output: BasicVector) -> None:
+            output.SetFromVector(self._Current(context)[part])
 
-    def CalcValid(self, context: Context, output: BasicVector) -> None:
-        output.SetFromVector(self._reading.Eval(context)[NUM_SENSORS:])
+        return calc
 
 
 def MakeDetectionGrid(plant: MultibodyPlant, config: ToFToolConfig) -> DetectionGrid:

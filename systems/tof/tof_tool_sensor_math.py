@@ -147,6 +147,18 @@ def Measure(
     return np.where(valid, noisy, max_range), valid
 
 
+def DriftStep(
+    drift: np.ndarray, rng: np.random.Generator, rate: float, dt: float, bound: float
+) -> np.ndarray:
+    """The range drift (m) of each sensor dt seconds later: a random walk whose change over
+    one second has standard deviation `rate` (m), reflected at +-bound (the datasheet's
+    temperature drift reaches 9 mm)."""
+    drift = drift + rng.normal(0.0, rate * math.sqrt(dt), size=drift.shape)
+    drift = np.where(drift > bound, 2 * bound - drift, drift)
+    drift = np.where(drift < -bound, -2 * bound - drift, drift)
+    return np.clip(drift, -bound, bound)
+
+
 def AverageReadings(
     readings: Sequence[tuple[np.ndarray, np.ndarray]],
 ) -> tuple[np.ndarray, np.ndarray]:
