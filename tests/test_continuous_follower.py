@@ -1,0 +1,207 @@
+"""Continuous path following: the follower's mathematics on known curves (no Diagram), the
+resolved-rate servo's limits, and one seeded run through the station."""
+
+import dataclasses
+import math
+
+import numpy as np
+import pytest
+from pydrake.math import RigidTransform, RotationMatrix
+
+from guidedarm.systems.errors import ConfigurationError
+from guidedarm.systems.path_following.continuous_follower_math import (
+    BACK,
+    DONE,
+    FOLLOW,
+    SEARCH,
+    Advance,
+    Confidence,
+    ContinuousConfig,
+    HoseEstimate,
+    JointHistory,
+    OnReading,
+    Reference,
+    TargetSpeed,
+)
+from guidedarm.systems.path_following.differential_ik_servo_math import ServoStep
+from guidedarm.systems.path_following.path_follower_math import OrientationFromVector
+
+DT = 0.004
+READING = 0.01
+
+
+def _Circle(radius: float):
+    """A hose on a horizontal circle through the origin, heading +x (s = arc length)."""
+
+    def point(s: float) -> np.ndarray:
+        a = s / radius
+        return np.array([radius * math.sin(a), radius * (1 - math.cos(a)), 0.1])
+
+    def tangent(s: float) -> np.ndarray:
+        a = s / radius
+        return np.array([math.cos(a), math.sin(a), 0.0])
+
+    return point, tangent
+
+
+def _Follow(point, tangent, seconds, noise=0.0, seen=lambda s: True, config=None, seed=0):
+    """Runs the reference with an ideal arm (the tool is where the target was one reading
+    ago) and readings every 10 ms: the hose point under the tool, plus noise. Returns the
+    reference, the estimate and the tool's distance to the hose at each reading."""
+    config = config or ContinuousConfig()
+    rng = np.random.default_rng(seed)
+    X_WT = RigidTransform(OrientationFromVector(tangent(0.0)), point(0.0))
+    ref, estimate = Reference.Start(X_WT), HoseEstimate.Start(X_WT)
+    errors, s_true = [], 0.0
+    for k in range(int(seconds / DT)):
+        if k % round(READING / DT) == 0:
+            X_WT = ref.Pose()
+            # the hose point in the tool's detection plane: the arc length nearest O
+            O = X_WT.translation()
+            grid = s_true + np.linspace(-0.02, 0.02, 401)
+            s_true = grid[np.argmin([np.linalg.norm(point(g) - O) for g in grid])]
+            S = point(s_true) + rng.normal(0, noise, 3) if seen(s_true) else None
+            errors.append(np.linalg.norm(point(s_true) - O))
+            estimate = estimate.WithReading(X_WT, S, config)
+            ref = OnReading(ref, estimate, X_WT, config)
+        ref = Advance(ref, estimate, DT, config)
+    return ref, estimate, np.array(errors)
+
+
+def test_target_runs_ahead_on_a_straight_hose_at_the_cruise_speed():
+    point, tangent = _Circle(1e6)
+    config = ContinuousConfig()
+    ref, estimate, errors = _Follow(point, tangent, 3.0)
+    assert ref.mode == FOLLOW
+    assert ref.v == pytest.approx(config.speed, abs=1e-3)
+    lead = ref.s - estimate.fit.s
+    assert 0 < lead <= config.look_ahead + 1e-9  # the target is ahead, within the look-ahead
+    assert np.max(errors[50:]) < 1e-4  # on the hose
+    assert ref.r[0] > 0.2  # 3 s at up to 80 mm/s, from rest
+
+
+def test_target_stays_on_a_known_bend_and_slows_there():
+    radius = 0.12
+    point, tangent = _Circle(radius)
+    config = ContinuousConfig()
+    ref, estimate, errors = _Follow(point, tangent, 4.0, noise=0.002)
+    assert ref.mode == FOLLOW
+    # speed held by the turn rate: v <= max_turn_rate / curvature = 63 mm/s < cruise 80
+    bend_limit = math.radians(config.max_turn_rate_deg) * radius
+    assert ref.v < config.speed
+    assert ref.v <= bend_limit * 1.2
+    assert np.mean(errors[100:]) < 0.002 and np.max(errors[100:]) < 0.006
+
+
+def test_speed_falls_with_the_confidence():
+    config = ContinuousConfig()
+    X = RigidTransform(OrientationFromVector([1, 0, 0]), [0, 0, 0])
+    fit = HoseEstimate.Start(X).fit
+    sure = dataclasses.replace(fit, readings=50, detections=50, residual=0.0)
+    noisy = dataclasses.replace(sure, residual=config.residual_limit / 2)
+    half_seen = dataclasses.replace(sure, detections=25)
+    assert Confidence(sure, config) == 1.0
+    assert Confidence(noisy, config) == pytest.approx(0.5)
+    assert TargetSpeed(sure, config) == config.speed
+    assert TargetSpeed(noisy, config) < TargetSpeed(sure, config)
+    assert TargetSpeed(half_seen, config) == pytest.approx(
+        config.min_speed + 0.5 * (config.speed - config.min_speed)
+    )
+
+
+def test_losing_the_hose_slows_searches_and_recovers():
+    point, tangent = _Circle(1e6)
+    config = ContinuousConfig()
+    # a 15 mm gap in the detections at 0.10-0.115 m: the search goes straight on, finds it
+    gap = lambda s: not 0.10 < s < 0.115  # noqa: E731
+    ref, _, errors = _Follow(point, tangent, 5.0, seen=gap)
+    assert ref.mode == FOLLOW and ref.recoveries == 1
+    assert np.max(errors) < 1e-3
+
+
+def test_the_end_of_the_hose_stops_the_run_at_the_last_estimate():
+    point, tangent = _Circle(1e6)
+    config = ContinuousConfig()
+    end = 0.2
+    ref, estimate, _ = _Follow(point, tangent, 12.0, seen=lambda s: s < end)
+    assert ref.mode == DONE and ref.recoveries == 0
+    # the search went past the end and backed up to the last estimate
+    assert estimate.fit.p[0] == pytest.approx(end, abs=0.002)
+    assert ref.r[0] == pytest.approx(estimate.fit.p[0], abs=0.002)
+
+
+def test_search_legs_run_forward_then_back():
+    X = RigidTransform(OrientationFromVector([1, 0, 0]), [0, 0, 0])
+    config = ContinuousConfig()
+    estimate = HoseEstimate.Start(X)
+    ref = dataclasses.replace(Reference.Start(X), mode=SEARCH)
+    modes, farthest = [], 0.0
+    for _ in range(int(4 / DT)):
+        ref = Advance(ref, estimate, DT, config)
+        modes.append(ref.mode)
+        farthest = max(farthest, ref.r[0])
+        assert ref.v <= config.search_speed + 1e-12
+    assert BACK in modes and modes[-1] == DONE
+    assert farthest == pytest.approx(config.search_distance, abs=1e-3)
+
+
+def test_joint_history_interpolates_at_the_stamp():
+    history = JointHistory(0.1)
+    for k in range(100):
+        history.Add(k * DT, np.full(2, k * DT))
+    assert history.At(0.3).tolist() == pytest.approx([0.3, 0.3])
+    assert history.At(0.3942) == pytest.approx([0.3942, 0.3942])
+    assert history.At(0.0)[0] == pytest.approx(0.396 - 0.1 - DT, abs=DT)  # older than kept
+
+
+def test_servo_step_keeps_speed_and_acceleration_limits():
+    rng = np.random.default_rng(1)
+    n = 6
+    q, v = np.zeros(n), np.zeros(n)
+    limits = (np.full(n, -3.0), np.full(n, 3.0))
+    for _ in range(500):
+        J = rng.normal(size=(6, n))
+        V = rng.normal(size=6) * 5
+        q_next, v_next, _ = ServoStep(
+            J, V, q, v, DT, np.ones(n), np.full(n, 5.0), limits, np.eye(3), np.ones(6), 0.02
+        )
+        assert np.all(np.abs(v_next) <= 1.0 + 1e-12)
+        assert np.all(np.abs(v_next - v) <= 5.0 * DT + 1e-12)
+        assert np.allclose(q_next, q + v_next * DT)
+        q, v = q_next, v_next
+
+
+def test_servo_step_follows_a_feasible_velocity_exactly():
+    J = np.eye(6)
+    V = np.full(6, 0.01)
+    R = RotationMatrix.MakeZRotation(0.3).matrix()
+    weights = np.array([0.1, 1, 1, 1, 1, 1])
+    q, v, limited = ServoStep(
+        J,
+        V,
+        np.zeros(6),
+        V.copy(),
+        DT,
+        np.ones(6),
+        np.full(6, 5.0),
+        (np.full(6, -1.0), np.full(6, 1.0)),
+        R,
+        weights,
+        1e-6,
+    )
+    assert not limited
+    assert v == pytest.approx(V, abs=1e-6)
+
+
+@pytest.mark.parametrize(
+    "field, value, message",
+    [
+        ("min_speed", 0.2, "min_speed <= speed"),
+        ("loss_distance", 0.03, "loss_distance < search_distance"),
+        ("look_ahead", 0.007, "loss_distance < look_ahead"),
+        ("history", 0.01, "history >= 10 servo_period"),
+    ],
+)
+def test_config_rules_between_fields(field, value, message):
+    with pytest.raises(ConfigurationError, match=message):
+        dataclasses.replace(ContinuousConfig(), **{field: value}).Validate()
