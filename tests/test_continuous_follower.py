@@ -57,11 +57,11 @@ def _Follow(point, tangent, seconds, noise=0.0, seen=lambda s: True, config=None
         if k % round(READING / DT) == 0:
             X_WT = ref.Pose()
             # the hose point in the tool's detection plane: the arc length nearest O
-            O = X_WT.translation()
+            p_WO = X_WT.translation()
             grid = s_true + np.linspace(-0.02, 0.02, 401)
-            s_true = grid[np.argmin([np.linalg.norm(point(g) - O) for g in grid])]
+            s_true = grid[np.argmin([np.linalg.norm(point(g) - p_WO) for g in grid])]
             S = point(s_true) + rng.normal(0, noise, 3) if seen(s_true) else None
-            errors.append(np.linalg.norm(point(s_true) - O))
+            errors.append(np.linalg.norm(point(s_true) - p_WO))
             estimate = estimate.WithReading(X_WT, S, config)
             ref = OnReading(ref, estimate, X_WT, config)
         ref = Advance(ref, estimate, DT, config)
@@ -84,7 +84,7 @@ def test_target_stays_on_a_known_bend_and_slows_there():
     radius = 0.12
     point, tangent = _Circle(radius)
     config = ContinuousConfig()
-    ref, estimate, errors = _Follow(point, tangent, 4.0, noise=0.002)
+    ref, _, errors = _Follow(point, tangent, 4.0, noise=0.002)
     assert ref.mode == FOLLOW
     # speed held by the turn rate: v <= max_turn_rate / curvature = 63 mm/s < cruise 80
     bend_limit = math.radians(config.max_turn_rate_deg) * radius
@@ -111,7 +111,6 @@ def test_speed_falls_with_the_confidence():
 
 def test_losing_the_hose_slows_searches_and_recovers():
     point, tangent = _Circle(1e6)
-    config = ContinuousConfig()
     # a 15 mm gap in the detections at 0.10-0.115 m: the search goes straight on, finds it
     gap = lambda s: not 0.10 < s < 0.115  # noqa: E731
     ref, _, errors = _Follow(point, tangent, 5.0, seen=gap)
@@ -121,7 +120,6 @@ def test_losing_the_hose_slows_searches_and_recovers():
 
 def test_the_end_of_the_hose_stops_the_run_at_the_last_estimate():
     point, tangent = _Circle(1e6)
-    config = ContinuousConfig()
     end = 0.2
     ref, estimate, _ = _Follow(point, tangent, 12.0, seen=lambda s: s < end)
     assert ref.mode == DONE and ref.recoveries == 0
@@ -176,7 +174,7 @@ def test_servo_step_follows_a_feasible_velocity_exactly():
     V = np.full(6, 0.01)
     R = RotationMatrix.MakeZRotation(0.3).matrix()
     weights = np.array([0.1, 1, 1, 1, 1, 1])
-    q, v, limited = ServoStep(
+    _, v, limited = ServoStep(
         J,
         V,
         np.zeros(6),

@@ -78,8 +78,8 @@ class ContinuousConfig:
         servo_damping: damping of the least squares (rad/s per unit error).
     history: the measured joints kept for motion compensation (s).
     loss_distance: travel past the latest estimate without the hose before a search (m).
-    search_distance: how far past the latest estimate a search goes (m); search_speed
-        (m/s).
+    search_distance: how far past the latest estimate a search goes (m).
+    search_speed: the tool's speed while it searches and backs up (m/s).
     search_turns_deg: after the straight search, retries from the latest estimate in these
         directions, turned about the world z axis (deg); every one lost = the hose's end.
         Empty (the default): the straight search alone; a retry turns the tool about its
