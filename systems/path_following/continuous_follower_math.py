@@ -68,9 +68,10 @@ class ContinuousConfig:
         hose's end the cones still see its end cap behind the detection plane, each
         reading a little farther off.
     correction_gain: the target moves toward the estimated path at this rate times the
-        distance (1/s; a first-order filter of the fit's noise), at most
-        max_correction_speed (m/s); its x axis turns toward the tangent at the same rate,
-        at most max_turn_rate_deg (deg/s).
+        distance, and its x axis turns toward the path's heading at this rate times the
+        angle (1/s; a first-order filter of the fit's noise).
+    max_correction_speed: the fastest correction of the target's position (m/s).
+    max_turn_rate_deg: the fastest turn of the target's x axis (deg/s).
     servo_period: the target and the differential IK's tick (s); servo_gain: the
         differential IK's gain on the tool's pose error (1/s), beside the target's own
         velocity; roll_weight: the weight of the tool's roll about x_T (the hose's axis,
