@@ -203,3 +203,34 @@ def test_servo_step_follows_a_feasible_velocity_exactly():
 def test_config_rules_between_fields(field, value, message):
     with pytest.raises(ConfigurationError, match=message):
         dataclasses.replace(ContinuousConfig(), **{field: value}).Validate()
+
+
+@pytest.mark.slow
+def test_continuous_run_through_the_station_paper_path_3(tmp_path):
+    """One seeded run of `motion: continuous` (ranging) through the simulated station:
+    success, full coverage, no collisions, and the issue's goals for speed and error."""
+    from guidedarm.diagrams.cli.main import main
+
+    out = tmp_path / "run"
+    code = main(
+        [
+            "run",
+            "path_following",
+            "--out",
+            str(out),
+            "--set",
+            "path=paper_path_3",
+            "--set",
+            "motion=continuous",
+            "--set",
+            "estimator=ranging",
+        ]
+    )
+    import json
+
+    summary = json.loads((out / "summary.json").read_text())
+    assert code == 0 and summary["success"], summary["failure"]
+    assert summary["coverage"] >= 0.95 and summary["collisions"] == 0
+    assert summary["average_speed_mm_s"] >= 40
+    assert summary["tracking_error_mean_mm"] <= 3 and summary["tracking_error_max_mm"] <= 10
+    assert (out / "speed_along_path.png").exists()

@@ -1,0 +1,91 @@
+"""Stop-and-go against continuous path following through the station: the four paper
+paths and random_0..19 with the ranging estimator in `continuous` mode, the paper paths
+also stop-and-go (joint_trajectory) and continuous with the grid estimator. Prints one
+row per run (success, coverage, average speed, tracking mean / max, collisions, simulated
+and wall time) and the continuous set's totals against the goals (speed >= 40 mm/s,
+tracking mean <= 3 mm, max <= 10 mm).
+
+    .venv/bin/python tests/benchmarks/bench_continuous_following.py [--quick]
+
+--quick: paper paths only. One run after another (about 30-60 s each on a quiet core).
+"""
+
+import json
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+GUIDEDARM = str(Path(sys.executable).with_name("guidedarm"))
+FIELDS = (
+    "success",
+    "coverage",
+    "average_speed_mm_s",
+    "tracking_error_mean_mm",
+    "tracking_error_max_mm",
+    "collisions",
+    "sim_time_s",
+)
+
+
+def RunOne(path: str, motion: str, estimator: str) -> dict:
+    out = Path(tempfile.mkdtemp(prefix="bench_cont_"))
+    start = time.perf_counter()
+    subprocess.run(
+        [
+            GUIDEDARM,
+            "run",
+            "path_following",
+            "--out",
+            str(out),
+            "--set",
+            f"path={path}",
+            "--set",
+            f"motion={motion}",
+            "--set",
+            f"estimator={estimator}",
+        ],
+        capture_output=True,
+        check=False,
+    )
+    summary = json.loads((out / "summary.json").read_text())
+    summary["wall_s"] = round(time.perf_counter() - start, 1)
+    return summary
+
+
+def main() -> None:
+    paths = [f"paper_path_{k}" for k in range(1, 5)]
+    if "--quick" not in sys.argv:
+        paths += [f"random_{k}" for k in range(20)]
+    runs = [(p, "continuous", "ranging") for p in paths]
+    runs += [(p, "continuous", "grid") for p in paths[:4]]
+    runs += [(p, "joint_trajectory", "ranging") for p in paths[:4]]
+    print("| path | motion | estimator | " + " | ".join(FIELDS) + " | wall_s |")
+    print("|" + "---|" * (len(FIELDS) + 4))
+    results = []
+    for path, motion, estimator in runs:
+        s = RunOne(path, motion, estimator)
+        results.append((path, motion, estimator, s))
+        cells = [str(s.get(f)) for f in FIELDS] + [str(s["wall_s"])]
+        print(f"| {path} | {motion} | {estimator} | " + " | ".join(cells) + " |", flush=True)
+    main_set = [s for p, m, e, s in results if m == "continuous" and e == "ranging"]
+    ok = [
+        s
+        for s in main_set
+        if s["success"]
+        and s["coverage"] >= 0.95
+        and not s["collisions"]
+        and s["average_speed_mm_s"] >= 40
+        and s["tracking_error_mean_mm"] <= 3
+        and s["tracking_error_max_mm"] <= 10
+    ]
+    print(
+        f"continuous ranging: {len(ok)} / {len(main_set)} meet every goal; "
+        f"slowest {min(s['average_speed_mm_s'] for s in main_set)} mm/s, worst max "
+        f"{max(s['tracking_error_max_mm'] for s in main_set)} mm"
+    )
+
+
+if __name__ == "__main__":
+    main()
