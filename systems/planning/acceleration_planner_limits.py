@@ -242,13 +242,27 @@ def GovernorBraking(
     return -d * qd
 
 
+def JerkLimited(
+    qdd: np.ndarray,
+    qdd_previous: np.ndarray,
+    max_change: float,
+    lower: np.ndarray,
+    upper: np.ndarray,
+) -> np.ndarray:
+    """qdd reached from qdd_previous by a change of at most max_change per joint (rad/s^2
+    in one step), then kept within [lower, upper]: the bounds move continuously with qd,
+    so the result stays continuous, and no limit is exceeded."""
+    step = np.clip(qdd - qdd_previous, -max_change, max_change)
+    return np.clip(qdd_previous + step, lower, upper)
+
+
 def BrakingAcceleration(
     qd: np.ndarray,
     qdd_previous: np.ndarray,
     lower: np.ndarray,
     upper: np.ndarray,
     dt: float,
-    max_change: np.ndarray,
+    max_change: float,
 ) -> np.ndarray:
     """The fallback when no admissible c exists: towards q'' = -beta qd, every joint slowing
     in proportion (the joint-space direction of motion kept) as hard as [lower, upper] allow
@@ -260,5 +274,4 @@ def BrakingAcceleration(
         if abs(qd_i) > 1e-12:
             room = -lo if qd_i > 0 else hi
             beta = min(beta, max(room, 0.0) / abs(qd_i))
-    step = np.clip(-beta * qd - qdd_previous, -max_change, max_change)
-    return np.clip(qdd_previous + step, lower, upper)
+    return JerkLimited(-beta * qd, qdd_previous, max_change, lower, upper)

@@ -30,6 +30,7 @@ systems/planning/acceleration_planner.py wraps the law in a LeafSystem.
 """
 
 import copy
+import math
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -53,6 +54,7 @@ from guidedarm.systems.planning.acceleration_planner_limits import (
     AdmissibleScaling,
     BrakingAcceleration,
     GovernorBraking,
+    JerkLimited,
     ScalingReturn,
     StepBounds,
     VelocityPenalty,
@@ -91,6 +93,41 @@ def AccelerationTerms(
     return -solved[:, 0], -solved[:, 1]
 
 
+def ApproachTerms(
+    kin: TcpKinematics,
+    qd: np.ndarray,
+    e: np.ndarray,
+    rates: tuple[float, float, float],
+    inverse_braking: np.ndarray,
+    damping: float = 0.0,
+) -> tuple[np.ndarray, np.ndarray]:
+    """The robust mode's (a, b) with the braking approach: the error dynamics
+    e'' = -(k + r) e' - (k r + r') e, i.e. e' tracks -r e at the rate k, where (9) has the
+    constant r = r0 (rates = (r0, k, r_max): the roots of (9) and the rate at the target,
+    1/s). r = sqrt(r0^2 + h), h = 2 / (d + 2 / (r_max^2 - r0^2)), grows as the joint
+    displacement to go u = J^-1 e shrinks, d = ||u * inverse_braking||_4 (s^2;
+    inverse_braking = 1 / (eta A) per joint, s^2/rad): a joint u_i from the target moves at
+    most about sqrt(2 eta A_i u_i), the speed from which braking at eta A_i stops it there.
+    r' follows d' = grad d . qd (u' = qd to first order), so q'' stays continuous."""
+    rhs = np.empty((6, 3))
+    rhs[:, 0] = kin.Jdot_qdot
+    rhs[:, 1] = kin.J @ qd
+    rhs[:, 2] = e
+    solved = DampedSolve(kin.J, rhs, damping)
+    r0, k, r_max = rates
+    u = solved[:, 2]
+    x = np.abs(u) * inverse_braking
+    d = float(np.sum(x**4)) ** 0.25
+    if d < 1e-12:
+        r, r_dot = r_max, 0.0
+    else:
+        h = 2.0 / (d + 2.0 / (r_max * r_max - r0 * r0))
+        r = math.sqrt(r0 * r0 + h)
+        d_dot = float(np.sum((x / d) ** 3 * np.sign(u) * inverse_braking * qd))
+        r_dot = -0.25 * h * h / r * d_dot
+    return -solved[:, 0], -(k + r) * solved[:, 1] - (k * r + r_dot) * u
+
+
 class AccelerationPlanning:
     """One planner: kinematics, waypoints P = [p_1 .. p_w] (rows [x y z roll pitch yaw] in
     the base frame, m and rad), limits (None switches a constraint off) and parameters.
@@ -123,6 +160,12 @@ class AccelerationPlanning:
         self.scaling = (
             AccelerationScaling(*acceleration_limits) if acceleration_limits is not None else None
         )
+        self.inverse_braking = None
+        if parameters.robust and parameters.approach_acceleration > 0 and self.scaling:
+            braking = np.minimum(self.scaling.upper, -self.scaling.lower)
+            self.inverse_braking = 1.0 / (parameters.approach_acceleration * braking)
+            r0 = parameters.SlowRoot()
+            self.approach_rates = (r0, parameters.gain_v - r0, parameters.approach_rate)
 
     def _SetWaypoints(self, waypoints: np.ndarray, joint_waypoints: np.ndarray | None) -> None:
         waypoints = np.atleast_2d(np.asarray(waypoints, float))
@@ -194,7 +237,12 @@ class AccelerationPlanning:
             damping = DampingFactor(
                 kin.min_singular_value, params.damping_threshold, params.max_damping
             )
-        a, b = AccelerationTerms(kin, state.qd, e, params.gain_p, params.gain_v, damping)
+        if self.inverse_braking is not None:
+            a, b = ApproachTerms(
+                kin, state.qd, e, self.approach_rates, self.inverse_braking, damping
+            )
+        else:
+            a, b = AccelerationTerms(kin, state.qd, e, params.gain_p, params.gain_v, damping)
         if self.penalty is not None:
             b = b + self.penalty.Perturbation(state.qd)
         if params.robust and self.joint_waypoints is not None:
@@ -224,8 +272,8 @@ class AccelerationPlanning:
         return a + c * b, c, c_hat0, t0
 
     def _LimitRobust(self, state: PlannerState, a: np.ndarray, b: np.ndarray):
-        """(17) with the governor, the step bounds and the braking fallback:
-        (q'', c, c_hat0, t0, braking)."""
+        """(17) with the governor, the step bounds and the braking fallback, reached from
+        the last acceleration at most at max_jerk: (q'', c, c_hat0, t0, braking)."""
         params = self.parameters
         if self.scaling is None and self.penalty is None:
             return a + b, 1.0, state.c_hat0, state.t0, False
@@ -236,19 +284,19 @@ class AccelerationPlanning:
         c_free = 1.0
         if accel is not None:
             a = a + GovernorBraking(a, state.qd, *accel, params.bias_margin, params.governor_gain)
-            c_free = ScalingReturn(c_hat0, state.t, t0, params.scaling_recovery_rate)
+            c_free = ScalingReturn(c_hat0, state.t, t0, params.robust_recovery_rate)
+        max_change = params.max_jerk * params.time_step
         c_lo, c_hi = AdmissibleScaling(a, b, lower, upper)
         if c_lo > c_hi:
-            ramp = params.time_step / params.braking_ramp
-            limit = accel[1] if accel is not None else np.full(6, np.inf)
             braking = BrakingAcceleration(
-                state.qd, state.qdd, lower, upper, params.time_step, ramp * limit
+                state.qd, state.qdd, lower, upper, params.time_step, max_change
             )
             return braking, 0.0, 0.0, state.t, True
         c = min(max(c_free, c_lo), c_hi)
         if c != c_free:
             c_hat0, t0 = c, state.t
-        return a + c * b, c, c_hat0, t0, False
+        qdd = JerkLimited(a + c * b, state.qdd, max_change, lower, upper)
+        return qdd, c, c_hat0, t0, False
 
     def _BlendJointSpace(
         self, state: PlannerState, sigma: float, a: np.ndarray, b: np.ndarray
