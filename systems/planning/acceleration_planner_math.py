@@ -102,19 +102,21 @@ def ApproachTerms(
     damping: float = 0.0,
 ) -> tuple[np.ndarray, np.ndarray]:
     """The robust mode's (a, b) with the braking approach: the error dynamics
-    e'' = -(k + r) e' - (k r + r') e, i.e. e' tracks -r e at the rate k, where (9) has the
-    constant r = r0 (rates = (r0, k, r_max): the roots of (9) and the rate at the target,
-    1/s). r = sqrt(r0^2 + h), h = 2 / (d + 2 / (r_max^2 - r0^2)), grows as the joint
+    e'' = -(k + r) e' - (k r + r') e, i.e. e' tracks -r e at the rate k. (9) is this with
+    constants r = r0 and k = k0, its roots (rates = (r0, k0, r_max), 1/s). Here
+    r = sqrt(r0^2 + h), h = 2 / (d + 2 / (r_max^2 - r0^2)), grows as the joint
     displacement to go u = J^-1 e shrinks, d = ||u * inverse_braking||_4 (s^2;
     inverse_braking = 1 / (eta A) per joint, s^2/rad): a joint u_i from the target moves at
-    most about sqrt(2 eta A_i u_i), the speed from which braking at eta A_i stops it there.
-    r' follows d' = grad d . qd (u' = qd to first order), so q'' stays continuous."""
+    most about sqrt(2 eta A_i u_i), the speed from which braking at eta A_i stops it there
+    (the square-root law of time-optimal braking), r0 far away, r_max at the target; k
+    rises with r in proportion (k = k0 r / r0), so the slower root is r, not k0. r' follows
+    d' = grad d . qd (u' = qd to first order), so q'' stays continuous in the state."""
     rhs = np.empty((6, 3))
     rhs[:, 0] = kin.Jdot_qdot
     rhs[:, 1] = kin.J @ qd
     rhs[:, 2] = e
     solved = DampedSolve(kin.J, rhs, damping)
-    r0, k, r_max = rates
+    r0, k0, r_max = rates
     u = solved[:, 2]
     x = np.abs(u) * inverse_braking
     d = float(np.sum(x**4)) ** 0.25
@@ -125,6 +127,7 @@ def ApproachTerms(
         r = math.sqrt(r0 * r0 + h)
         d_dot = float(np.sum((x / d) ** 3 * np.sign(u) * inverse_braking * qd))
         r_dot = -0.25 * h * h / r * d_dot
+    k = k0 * r / r0
     return -solved[:, 0], -(k + r) * solved[:, 1] - (k * r + r_dot) * u
 
 
