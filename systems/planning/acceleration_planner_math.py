@@ -44,6 +44,7 @@ from guidedarm.systems.planning.acceleration_planner_kinematics import (
     BlendedTarget,
     DampedSolve,
     DampingFactor,
+    InverseAndConditioning,
     PlanningError,
     PoseError,
     TcpKinematics,
@@ -83,13 +84,15 @@ def AccelerationTerms(
     gain_p: float,
     gain_v: float,
     damping: float = 0.0,
+    inverse: np.ndarray | None = None,
 ) -> tuple[np.ndarray, np.ndarray]:
     """Eq. (13) split as in (17): a = -J^-1 Jdot qd and b = -J^-1 (Lambda_V J qd +
-    Lambda_P e) (rad/s^2), with J^-1 the damped inverse J^# when damping (lambda^2) > 0."""
+    Lambda_P e) (rad/s^2), with J^-1 the damped inverse J^# when damping (lambda^2) > 0
+    (`inverse`: J^-1 if already known)."""
     rhs = np.empty((6, 2))
     rhs[:, 0] = kin.Jdot_qdot
     rhs[:, 1] = gain_v * (kin.J @ qd) + gain_p * e
-    solved = DampedSolve(kin.J, rhs, damping)
+    solved = DampedSolve(kin.J, rhs, damping, inverse)
     return -solved[:, 0], -solved[:, 1]
 
 
@@ -100,6 +103,7 @@ def ApproachTerms(
     rates: tuple[float, float, float],
     inverse_braking: np.ndarray,
     damping: float = 0.0,
+    inverse: np.ndarray | None = None,
 ) -> tuple[np.ndarray, np.ndarray]:
     """The robust mode's (a, b) with the braking approach: the error dynamics
     e'' = -(k + r) e' - (k r + r') e, i.e. e' tracks -r e at the rate k. (9) is this with
@@ -115,17 +119,18 @@ def ApproachTerms(
     rhs[:, 0] = kin.Jdot_qdot
     rhs[:, 1] = kin.J @ qd
     rhs[:, 2] = e
-    solved = DampedSolve(kin.J, rhs, damping)
+    solved = DampedSolve(kin.J, rhs, damping, inverse)
     r0, k0, r_max = rates
     u = solved[:, 2]
     x = np.abs(u) * inverse_braking
-    d = float(np.sum(x**4)) ** 0.25
+    x2 = x * x
+    d = float(x2 @ x2) ** 0.25
     if d < 1e-12:
         r, r_dot = r_max, 0.0
     else:
         h = 2.0 / (d + 2.0 / (r_max * r_max - r0 * r0))
         r = math.sqrt(r0 * r0 + h)
-        d_dot = float(np.sum((x / d) ** 3 * np.sign(u) * inverse_braking * qd))
+        d_dot = float((x2 * x * np.sign(u) * inverse_braking) @ qd) / d**3
         r_dot = -0.25 * h * h / r * d_dot
     k = k0 * r / r0
     return -solved[:, 0], -(k + r) * solved[:, 1] - (k * r + r_dot) * u
@@ -235,21 +240,23 @@ class AccelerationPlanning:
         kin = self.kinematics.Evaluate(state.q, state.qd, analytic=not params.robust)
         state = self._AdvanceWaypoints(state, kin)
         e = self._Error(kin, self._Target(state))
-        damping = 0.0
+        damping, inverse, sigma = 0.0, None, math.inf
         if params.robust:
-            damping = DampingFactor(
-                kin.min_singular_value, params.damping_threshold, params.max_damping
-            )
+            floor = max(params.damping_threshold, params.joint_space_blend[1])
+            inverse, sigma = InverseAndConditioning(kin, floor)
+            damping = DampingFactor(sigma, params.damping_threshold, params.max_damping)
         if self.inverse_braking is not None:
             a, b = ApproachTerms(
-                kin, state.qd, e, self.approach_rates, self.inverse_braking, damping
+                kin, state.qd, e, self.approach_rates, self.inverse_braking, damping, inverse
             )
         else:
-            a, b = AccelerationTerms(kin, state.qd, e, params.gain_p, params.gain_v, damping)
+            a, b = AccelerationTerms(
+                kin, state.qd, e, params.gain_p, params.gain_v, damping, inverse
+            )
         if self.penalty is not None:
             b = b + self.penalty.Perturbation(state.qd)
         if params.robust and self.joint_waypoints is not None:
-            a, b = self._BlendJointSpace(state, kin.min_singular_value, a, b)
+            a, b = self._BlendJointSpace(state, sigma, a, b)
         if params.robust:
             qdd, c, c_hat0, t0, braking = self._LimitRobust(state, a, b)
         else:
@@ -343,12 +350,12 @@ class AccelerationPlanning:
         params = self.parameters
         if params.robust:
             e = PoseError(kin, *self._poses[index])
-            orientation = float(np.linalg.norm(e[3:]))
+            orientation = _Norm(e[3:])
         else:
             e = TrackingError(kin.p, self.waypoints[index])
             orientation = float(np.max(np.abs(e[3:])))
         return bool(
-            np.linalg.norm(e[:3]) <= params.position_tolerance
+            _Norm(e[:3]) <= params.position_tolerance
             and orientation <= params.orientation_tolerance
         )
 
@@ -360,25 +367,30 @@ class AccelerationPlanning:
                 state.done_time = state.t
             return state
         if self.parameters.stop_at_waypoints:
-            resting = np.linalg.norm(tcp_velocity) <= self.parameters.rest_speed
+            resting = _Norm(tcp_velocity) <= self.parameters.rest_speed
             if resting and self._Reached(kin, state.index):
                 state.index += 1
                 if self.scaling is not None:  # a new elementary task starts smoothly
                     state.c_hat0, state.t0 = 0.0, state.t
             return state
         radius = self.parameters.neighbourhood_radius
-        if not state.inside and np.linalg.norm(kin.x - self.waypoints[state.index, :3]) < radius:
+        if not state.inside and _Norm(kin.x - self.waypoints[state.index, :3]) < radius:
             state.inside, state.sigma = True, 0.0
         if state.inside:
             # sigma grows with the TCP path length travelled since entering the sphere and
             # reaches 1 after blend_length: continuous in time, 0 at entry, and it keeps
             # growing whenever the TCP moves, so the TCP cannot settle at p_i.
-            path = np.linalg.norm(tcp_velocity) * self.parameters.time_step
+            path = _Norm(tcp_velocity) * self.parameters.time_step
             state.sigma = min(1.0, state.sigma + path / self.parameters.blend_length)
             if state.sigma >= 1.0:
                 state.index += 1
                 state.inside, state.sigma = False, 0.0
         return state
+
+
+def _Norm(v: np.ndarray) -> float:
+    """|v| of a short vector (np.linalg.norm's dispatch costs more than the sum)."""
+    return math.sqrt(float(v @ v))
 
 
 def RunPlanning(
