@@ -23,7 +23,7 @@ from guidedarm.systems.path_following.continuous_follower_math import (
     Reference,
     TargetSpeed,
 )
-from guidedarm.systems.path_following.differential_ik_servo_math import ServoStep
+from guidedarm.systems.path_following.differential_ik_servo_math import JointLimits, ServoStep
 from guidedarm.systems.path_following.path_follower_math import OrientationFromVector
 
 DT = 0.004
@@ -152,20 +152,25 @@ def test_joint_history_interpolates_at_the_stamp():
     assert history.At(0.0)[0] == pytest.approx(0.396 - 0.1 - DT, abs=DT)  # older than kept
 
 
-def test_servo_step_keeps_speed_and_acceleration_limits():
+def _Limits(n: int, q_limit: float = 3.0) -> JointLimits:
+    return JointLimits(np.full(n, -q_limit), np.full(n, q_limit), np.ones(n), np.full(n, 5.0))
+
+
+def test_servo_step_keeps_speed_acceleration_and_position_limits():
     rng = np.random.default_rng(1)
     n = 6
     q, v = np.zeros(n), np.zeros(n)
-    limits = (np.full(n, -3.0), np.full(n, 3.0))
-    for _ in range(500):
+    limits = _Limits(n)
+    for _ in range(2000):
         J = rng.normal(size=(6, n))
-        V = rng.normal(size=6) * 5
+        V, error = rng.normal(size=6), rng.normal(size=6)
         q_next, v_next, _ = ServoStep(
-            J, V, q, v, DT, np.ones(n), np.full(n, 5.0), limits, np.eye(3), np.ones(6), 0.02
+            J, V, error, q, v, DT, limits, np.eye(3), np.ones(6), 0.02, 20
         )
         assert np.all(np.abs(v_next) <= 1.0 + 1e-12)
         assert np.all(np.abs(v_next - v) <= 5.0 * DT + 1e-12)
         assert np.allclose(q_next, q + v_next * DT)
+        assert np.all(np.abs(q_next) <= 3.0 + 1e-12)
         q, v = q_next, v_next
 
 
@@ -175,20 +180,24 @@ def test_servo_step_follows_a_feasible_velocity_exactly():
     R = RotationMatrix.MakeZRotation(0.3).matrix()
     weights = np.array([0.1, 1, 1, 1, 1, 1])
     _, v, limited = ServoStep(
-        J,
-        V,
-        np.zeros(6),
-        V.copy(),
-        DT,
-        np.ones(6),
-        np.full(6, 5.0),
-        (np.full(6, -1.0), np.full(6, 1.0)),
-        R,
-        weights,
-        1e-6,
+        J, V, np.zeros(6), np.zeros(6), V.copy(), DT, _Limits(6), R, weights, 1e-6, 20
     )
     assert not limited
     assert v == pytest.approx(V, abs=1e-6)
+
+
+def test_servo_closes_a_large_error_without_overshoot():
+    """A 0.5 rad error with the acceleration limits binding: the braking curve brings every
+    joint in without passing the target (a proportional law at gain 20 swung past it)."""
+    J = np.eye(6)
+    error_q = np.array([0.5, -0.3, 0.2, 0.0, 0.1, -0.4])
+    q, v = np.zeros(6), np.zeros(6)
+    for _ in range(int(3.0 / DT)):
+        q, v, _ = ServoStep(
+            J, np.zeros(6), error_q - q, q, v, DT, _Limits(6), np.eye(3), np.ones(6), 1e-6, 20
+        )
+        assert np.all(np.sign(error_q - q) * np.sign(error_q) >= -1e-3 * np.abs(error_q))
+    assert q == pytest.approx(error_q, abs=1e-4)
 
 
 @pytest.mark.parametrize(

@@ -12,7 +12,11 @@ from pydrake.multibody.plant import MultibodyPlant
 from pydrake.multibody.tree import Frame, JacobianWrtVariable
 from pydrake.systems.framework import BasicVector, Context, DiscreteValues, LeafSystem
 
-from guidedarm.systems.path_following.differential_ik_servo_math import PoseError, ServoStep
+from guidedarm.systems.path_following.differential_ik_servo_math import (
+    JointLimits,
+    PoseError,
+    ServoStep,
+)
 
 
 class DifferentialIkServo(LeafSystem):
@@ -45,9 +49,12 @@ class DifferentialIkServo(LeafSystem):
         self._plant_context = plant.CreateDefaultContext()
         self._period, self._gain = period, gain
         self._weights, self._damping = np.asarray(weights, float), damping
-        self._max_speed = np.full(n, max_speed)
-        self._max_acceleration = np.full(n, max_acceleration)
-        self._q_limits = (plant.GetPositionLowerLimits(), plant.GetPositionUpperLimits())
+        self._limits = JointLimits(
+            plant.GetPositionLowerLimits(),
+            plant.GetPositionUpperLimits(),
+            np.full(n, max_speed),
+            np.full(n, max_acceleration),
+        )
         self._target = self.DeclareAbstractInputPort(
             "X_WT_desired", AbstractValue.Make(RigidTransform())
         )
@@ -77,24 +84,24 @@ class DifferentialIkServo(LeafSystem):
             plant.world_frame(),
         )
         X_WD = self._target.Eval(context)
-        V = self._gain * PoseError(X_WT, X_WD)
+        V_target = np.zeros(6)
         if x[-1] > 0.5:
             X_previous = RigidTransform(
                 RotationMatrix(x[2 * n + 1 : 2 * n + 10].reshape(3, 3)), x[2 * n + 10 : 2 * n + 13]
             )
-            V = V + PoseError(X_previous, X_WD) / self._period
+            V_target = PoseError(X_previous, X_WD) / self._period
         q_next, v_next, limited = ServoStep(
             J,
-            V,
+            V_target,
+            PoseError(X_WT, X_WD),
             q,
             v,
             self._period,
-            self._max_speed,
-            self._max_acceleration,
-            self._q_limits,
+            self._limits,
             X_WT.rotation().matrix(),
             self._weights,
             self._damping,
+            self._gain,
         )
         target = np.concatenate([X_WD.rotation().matrix().ravel(), X_WD.translation(), [1.0]])
         discrete.set_value(self._state, np.concatenate([q_next, v_next, [float(limited)], target]))
