@@ -162,7 +162,7 @@ def AddContinuousFollowing(
             setup.motion.max_joint_speed,
             setup.motion.max_joint_acceleration,
             config.servo_gain,
-            [config.roll_weight, 1.0, 1.0, 1.0, 1.0, 1.0],
+            config.ServoWeights(),
             config.servo_damping,
         ),
     )

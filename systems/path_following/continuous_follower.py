@@ -25,6 +25,7 @@ from pydrake.multibody.tree import Frame
 from pydrake.systems.framework import BasicVector, Context, LeafSystem, State
 
 from guidedarm.systems.path_following.continuous_follower_math import (
+    BACK,
     DONE,
     FOLLOW,
     Advance,
@@ -168,7 +169,11 @@ class ContinuousFollower(LeafSystem):
         p_WO = X_WT.translation()
         S_T, _ = EstimateHose(self._grid, self._estimator, ranges, valid)
         S_W = None if S_T is None else X_WT @ np.asarray(S_T, float)
-        estimate = run.estimate.WithReading(X_WT, S_W, self._config)
+        estimate = run.estimate
+        # Backing up retraces the estimated trail: readings taken backwards would run the
+        # fit's path coordinate backwards and drag the trail's end (the target) with it.
+        if run.reference.mode != BACK:
+            estimate = estimate.WithReading(X_WT, S_W, self._config)
         reference = OnReading(run.reference, estimate, X_WT, self._config)
         if not estimate.IsDetected():
             S_W = None

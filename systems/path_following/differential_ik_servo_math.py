@@ -3,7 +3,11 @@ joint limits (rad, rad/s, rad/s^2; frames: world W, the controlled frame T).
 
 With W = diag(weights) on the rows of J expressed in T (roll about x_T, pitch, yaw, then
 x, y, z) and the damped weighted pseudo-inverse
-    J# V = argmin |W (J v - V)|^2 + damping^2 |v - v_centre|^2,
+    J# V = argmin |W (J v - V)|^2 + lambda^2 |v - v_centre|^2,
+    lambda^2 = damping^2 (1 - (sigma_min / damping)^2) when the smallest singular value
+    sigma_min of W J is below `damping`, else MIN_DAMPING^2
+(the damping grows only near a singularity, where it trades the least weighted motion,
+the tool's orientation, for bounded joint speeds; elsewhere the task is met exactly),
 one period is
     v_ff  = J# V_target            the target's own velocity, fed forward, so that a
                                    steadily moving target leaves no growing lag
@@ -16,8 +20,10 @@ one period is
              position limit.
 
 v_centre pulls each joint toward the middle of its range (stronger near the limits); the
-damping term makes it act only where the task leaves freedom (the lightly weighted roll,
-or near a singularity), so the task itself is unchanged.
+damping term makes it act only where the task leaves freedom (near a singularity), so the
+task itself is unchanged. The weights of the rotation rows are lengths (m/rad): a rotation
+error of 1 rad counts as much as a position error of that length, so the tool's position,
+which the tracking needs, comes first when the two conflict.
 
 The feedback is proportional (gain, 1/s) for small errors and follows the braking curve
 sqrt(2 a_fb |dq|) for large ones, a_fb a share of the acceleration limits: a joint
@@ -43,6 +49,8 @@ from pydrake.math import RigidTransform
 FEEDBACK_ACCELERATION_SHARE = 0.5
 # The joint-centring velocity at a joint's limit, as a share of its speed limit.
 CENTRING_SPEED_SHARE = 0.3
+# The damping away from singularities (a regularisation only).
+MIN_DAMPING = 1e-3
 
 
 @dataclass(frozen=True)
@@ -92,8 +100,10 @@ def ServoStep(
     n = J.shape[1]
     to_T = np.kron(np.eye(2), R_WT.T) * np.asarray(weights, float)[:, None]
     J_T = to_T @ J
-    M = J_T.T @ J_T + damping**2 * np.eye(n)
-    centre = damping**2 * CentringVelocity(q, limits)
+    sigma_min = float(np.linalg.svd(J_T, compute_uv=False)[-1])
+    lam2 = max(damping**2 - sigma_min**2, MIN_DAMPING**2)
+    M = J_T.T @ J_T + lam2 * np.eye(n)
+    centre = lam2 * CentringVelocity(q, limits)
     v_ff = np.linalg.solve(M, J_T.T @ (to_T @ V_target) + centre)
     dq = np.linalg.solve(M, J_T.T @ (to_T @ error))
     a_fb = FEEDBACK_ACCELERATION_SHARE * limits.acceleration
