@@ -6,7 +6,11 @@ import math
 
 import numpy as np
 import pytest
+from pydrake.common.value import AbstractValue
 from pydrake.math import RigidTransform, RotationMatrix
+from pydrake.systems.analysis import Simulator
+from pydrake.systems.framework import DiagramBuilder, LeafSystem
+from pydrake.systems.primitives import LogVectorOutput
 
 from guidedarm.systems.errors import ConfigurationError
 from guidedarm.systems.path_following.continuous_follower_math import (
@@ -243,3 +247,76 @@ def test_continuous_run_through_the_station_paper_path_3(tmp_path):
     assert summary["average_speed_mm_s"] >= 40
     assert summary["tracking_error_mean_mm"] <= 3 and summary["tracking_error_max_mm"] <= 10
     assert (out / "speed_along_path.png").exists()
+
+
+class _RisingTarget(LeafSystem):
+    """X_WT_desired: the start pose raised at `speed` (m/s)."""
+
+    def __init__(self, X_start: RigidTransform, speed: float) -> None:
+        super().__init__()
+        self._X, self._speed = X_start, speed
+        self.DeclareAbstractOutputPort(
+            "X_WT_desired", lambda: AbstractValue.Make(RigidTransform()), self._Calc
+        )
+
+    def _Calc(self, context, output) -> None:
+        p = self._X.translation() + [0.0, 0.0, self._speed * context.get_time()]
+        output.set_value(RigidTransform(self._X.rotation(), p))
+
+
+def test_servo_stops_the_arm_at_the_workspace_walls():
+    """A target rising through a ceiling 30 mm above the arm's highest body: the servo brakes
+    every body origin to a stop inside the walls and says which body reached them."""
+    from guidedarm.diagrams.cli.command_run import LoadScenario
+    from guidedarm.diagrams.tasks.path_following_setup import MakeSetup
+    from guidedarm.systems.path_following.differential_ik_servo import DifferentialIkServo
+    from guidedarm.systems.path_following.workspace import WorkspaceConfig
+    from guidedarm.systems.plant_frames import GetScopedFrame
+
+    _, scenario, _ = LoadScenario("path_following", ["motion=continuous"])
+    setup = MakeSetup(scenario)
+    plant = setup.solver.plant
+    tool = GetScopedFrame(plant, setup.station.tof_tools["tof"].tool_frame, "tool")
+    context = plant.CreateDefaultContext()
+    moved = plant.GetBodiesKinematicallyAffectedBy(list(plant.GetJointIndices()))
+    X_BW = setup.X_WB.inverse()
+
+    def BodyHeights(q):
+        plant.SetPositions(context, q)
+        return [
+            (X_BW @ plant.EvalBodyPoseInWorld(context, plant.get_body(b)).translation())[2]
+            for b in moved
+        ]
+
+    ceiling = max(BodyHeights(setup.q_start)) + 0.03
+    walls = WorkspaceConfig(z=[0.005, ceiling])
+    plant.SetPositions(context, setup.q_start)
+    X_start = tool.CalcPoseInWorld(context)
+    config = ContinuousConfig()
+    builder = DiagramBuilder()
+    target = builder.AddSystem(_RisingTarget(X_start, 0.1))
+    servo = builder.AddSystem(
+        DifferentialIkServo(
+            plant,
+            tool,
+            setup.q_start,
+            DT,
+            1.0,
+            5.0,
+            config.servo_gain,
+            config.ServoWeights(),
+            config.servo_damping,
+            walls,
+            setup.X_WB,
+        )
+    )
+    builder.Connect(target.get_output_port(), servo.GetInputPort("X_WT_desired"))
+    log = LogVectorOutput(servo.GetOutputPort("position_commanded"), builder, DT)
+    simulator = Simulator(builder.Build())
+    simulator.AdvanceTo(3.0)
+    root = simulator.get_context()
+    heights = np.array([BodyHeights(q) for q in log.FindLog(root).data().T])
+    failure = servo.GetOutputPort("failure").Eval(servo.GetMyContextFromRoot(root))
+    assert "would leave the workspace" in failure and f"z [0.005, {ceiling:g}]" in failure
+    assert heights.max() <= ceiling
+    assert heights.max() > ceiling - 0.02  # it did rise toward the ceiling

@@ -10,7 +10,8 @@ done). Then the target pose moves one period along the estimate
 commands (path_following_diagram.AddPathFollowing wires both).
 
 It reads only `<tof>.ranges`, `<tof>.valid`, `<tof>.measured_at` and
-`<arm>.position_measured`, which the simulated and the hardware stations both export.
+`<arm>.position_measured`, which the simulated and the hardware stations both export, and
+the servo's `failure` (a workspace wall reached), which ends the run.
 """
 
 from __future__ import annotations
@@ -66,7 +67,8 @@ class _Run:
 
 class ContinuousFollower(LeafSystem):
     """Inputs: `ranges` (6, m), `valid` (6), `measured_at` (6, s; -1 before the first
-    reading), `position_measured` (n, rad).
+    reading), `position_measured` (n, rad), `servo_failure` (str, '' while the servo
+    follows; anything else ends the run with that reason).
 
     Outputs: `X_WT_desired` (RigidTransform of the tool frame T in world W, the target
     for the next period), `step_record` (RECORD_FIELDS of the latest reading: t its
@@ -103,6 +105,7 @@ class ContinuousFollower(LeafSystem):
         self._valid = self.DeclareVectorInputPort("valid", 6)
         self._measured_at = self.DeclareVectorInputPort("measured_at", 6)
         self._position = self.DeclareVectorInputPort("position_measured", n)
+        self._servo_failure = self.DeclareAbstractInputPort("servo_failure", AbstractValue.Make(""))
         self._run = self.DeclareAbstractState(AbstractValue.Make(start))
         self.DeclarePeriodicUnrestrictedUpdateEvent(config.servo_period, 0.0, self._Update)
         state_only = {self.xa_ticket()}
@@ -154,6 +157,11 @@ class ContinuousFollower(LeafSystem):
         stamp = float(np.mean(stamps))
         if np.all(stamps >= 0) and stamp > run.stamp + 1e-9:
             run = self._Read(context, run, stamp)
+        servo_failure = self._servo_failure.Eval(context)
+        if servo_failure:
+            run = replace(
+                run, failure=f"the servo stopped the arm at t = {t:.2f} s: {servo_failure}"
+            )
         if not run.failure:
             reference = Advance(
                 run.reference, run.estimate, self._config.servo_period, self._config

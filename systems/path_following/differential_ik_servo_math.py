@@ -127,3 +127,17 @@ def ServoStep(
     v_next = np.clip(v_next, low, np.maximum(high, low))
     limited = scale < 1.0 or speed_ratio < 1.0
     return q + v_next * period, v_next, limited
+
+
+def StoppingPositions(q: np.ndarray, v: np.ndarray, limits: JointLimits) -> np.ndarray:
+    """Where each joint comes to rest (rad) braking from v at its acceleration limit."""
+    return q + v * np.abs(v) / (2 * limits.acceleration)
+
+
+def BrakeStep(
+    q: np.ndarray, v: np.ndarray, period: float, limits: JointLimits
+) -> tuple[np.ndarray, np.ndarray]:
+    """(q_next, v_next): one period of braking every joint at its acceleration limit."""
+    step = limits.acceleration * period
+    v_next = v - np.clip(v, -step, step)
+    return q + v_next * period, v_next
