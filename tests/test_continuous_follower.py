@@ -6,7 +6,11 @@ import math
 
 import numpy as np
 import pytest
+from pydrake.common.value import AbstractValue
 from pydrake.math import RigidTransform, RotationMatrix
+from pydrake.systems.analysis import Simulator
+from pydrake.systems.framework import DiagramBuilder, LeafSystem
+from pydrake.systems.primitives import LogVectorOutput
 
 from guidedarm.systems.errors import ConfigurationError
 from guidedarm.systems.path_following.continuous_follower_math import (
@@ -23,7 +27,7 @@ from guidedarm.systems.path_following.continuous_follower_math import (
     Reference,
     TargetSpeed,
 )
-from guidedarm.systems.path_following.differential_ik_servo_math import ServoStep
+from guidedarm.systems.path_following.differential_ik_servo_math import JointLimits, ServoStep
 from guidedarm.systems.path_following.path_follower_math import OrientationFromVector
 
 DT = 0.004
@@ -152,20 +156,25 @@ def test_joint_history_interpolates_at_the_stamp():
     assert history.At(0.0)[0] == pytest.approx(0.396 - 0.1 - DT, abs=DT)  # older than kept
 
 
-def test_servo_step_keeps_speed_and_acceleration_limits():
+def _Limits(n: int, q_limit: float = 3.0) -> JointLimits:
+    return JointLimits(np.full(n, -q_limit), np.full(n, q_limit), np.ones(n), np.full(n, 5.0))
+
+
+def test_servo_step_keeps_speed_acceleration_and_position_limits():
     rng = np.random.default_rng(1)
     n = 6
     q, v = np.zeros(n), np.zeros(n)
-    limits = (np.full(n, -3.0), np.full(n, 3.0))
-    for _ in range(500):
+    limits = _Limits(n)
+    for _ in range(2000):
         J = rng.normal(size=(6, n))
-        V = rng.normal(size=6) * 5
+        V, error = rng.normal(size=6), rng.normal(size=6)
         q_next, v_next, _ = ServoStep(
-            J, V, q, v, DT, np.ones(n), np.full(n, 5.0), limits, np.eye(3), np.ones(6), 0.02
+            J, V, error, q, v, DT, limits, np.eye(3), np.ones(6), 0.02, 20
         )
         assert np.all(np.abs(v_next) <= 1.0 + 1e-12)
         assert np.all(np.abs(v_next - v) <= 5.0 * DT + 1e-12)
         assert np.allclose(q_next, q + v_next * DT)
+        assert np.all(np.abs(q_next) <= 3.0 + 1e-12)
         q, v = q_next, v_next
 
 
@@ -175,20 +184,24 @@ def test_servo_step_follows_a_feasible_velocity_exactly():
     R = RotationMatrix.MakeZRotation(0.3).matrix()
     weights = np.array([0.1, 1, 1, 1, 1, 1])
     _, v, limited = ServoStep(
-        J,
-        V,
-        np.zeros(6),
-        V.copy(),
-        DT,
-        np.ones(6),
-        np.full(6, 5.0),
-        (np.full(6, -1.0), np.full(6, 1.0)),
-        R,
-        weights,
-        1e-6,
+        J, V, np.zeros(6), np.zeros(6), V.copy(), DT, _Limits(6), R, weights, 1e-6, 20
     )
     assert not limited
-    assert v == pytest.approx(V, abs=1e-6)
+    assert v == pytest.approx(V, rel=1e-3)
+
+
+def test_servo_closes_a_large_error_without_overshoot():
+    """A 0.5 rad error with the acceleration limits binding: the braking curve brings every
+    joint in without passing the target (a proportional law at gain 20 swung past it)."""
+    J = np.eye(6)
+    error_q = np.array([0.5, -0.3, 0.2, 0.0, 0.1, -0.4])
+    q, v = np.zeros(6), np.zeros(6)
+    for _ in range(int(3.0 / DT)):
+        q, v, _ = ServoStep(
+            J, np.zeros(6), error_q - q, q, v, DT, _Limits(6), np.eye(3), np.ones(6), 1e-6, 20
+        )
+        assert np.all(np.sign(error_q - q) * np.sign(error_q) >= -1e-3 * np.abs(error_q))
+    assert q == pytest.approx(error_q, abs=1e-4)
 
 
 @pytest.mark.parametrize(
@@ -234,3 +247,76 @@ def test_continuous_run_through_the_station_paper_path_3(tmp_path):
     assert summary["average_speed_mm_s"] >= 40
     assert summary["tracking_error_mean_mm"] <= 3 and summary["tracking_error_max_mm"] <= 10
     assert (out / "speed_along_path.png").exists()
+
+
+class _RisingTarget(LeafSystem):
+    """X_WT_desired: the start pose raised at `speed` (m/s)."""
+
+    def __init__(self, X_start: RigidTransform, speed: float) -> None:
+        super().__init__()
+        self._X, self._speed = X_start, speed
+        self.DeclareAbstractOutputPort(
+            "X_WT_desired", lambda: AbstractValue.Make(RigidTransform()), self._Calc
+        )
+
+    def _Calc(self, context, output) -> None:
+        p = self._X.translation() + [0.0, 0.0, self._speed * context.get_time()]
+        output.set_value(RigidTransform(self._X.rotation(), p))
+
+
+def test_servo_stops_the_arm_at_the_workspace_walls():
+    """A target rising through a ceiling 30 mm above the arm's highest body: the servo brakes
+    every body origin to a stop inside the walls and says which body reached them."""
+    from guidedarm.diagrams.cli.command_run import LoadScenario
+    from guidedarm.diagrams.tasks.path_following_setup import MakeSetup
+    from guidedarm.systems.path_following.differential_ik_servo import DifferentialIkServo
+    from guidedarm.systems.path_following.workspace import WorkspaceConfig
+    from guidedarm.systems.plant_frames import GetScopedFrame
+
+    _, scenario, _ = LoadScenario("path_following", ["motion=continuous"])
+    setup = MakeSetup(scenario)
+    plant = setup.solver.plant
+    tool = GetScopedFrame(plant, setup.station.tof_tools["tof"].tool_frame, "tool")
+    context = plant.CreateDefaultContext()
+    moved = plant.GetBodiesKinematicallyAffectedBy(list(plant.GetJointIndices()))
+    X_BW = setup.X_WB.inverse()
+
+    def BodyHeights(q):
+        plant.SetPositions(context, q)
+        return [
+            (X_BW @ plant.EvalBodyPoseInWorld(context, plant.get_body(b)).translation())[2]
+            for b in moved
+        ]
+
+    ceiling = max(BodyHeights(setup.q_start)) + 0.03
+    walls = WorkspaceConfig(z=[0.005, ceiling])
+    plant.SetPositions(context, setup.q_start)
+    X_start = tool.CalcPoseInWorld(context)
+    config = ContinuousConfig()
+    builder = DiagramBuilder()
+    target = builder.AddSystem(_RisingTarget(X_start, 0.1))
+    servo = builder.AddSystem(
+        DifferentialIkServo(
+            plant,
+            tool,
+            setup.q_start,
+            DT,
+            1.0,
+            5.0,
+            config.servo_gain,
+            config.ServoWeights(),
+            config.servo_damping,
+            walls,
+            setup.X_WB,
+        )
+    )
+    builder.Connect(target.get_output_port(), servo.GetInputPort("X_WT_desired"))
+    log = LogVectorOutput(servo.GetOutputPort("position_commanded"), builder, DT)
+    simulator = Simulator(builder.Build())
+    simulator.AdvanceTo(3.0)
+    root = simulator.get_context()
+    heights = np.array([BodyHeights(q) for q in log.FindLog(root).data().T])
+    failure = servo.GetOutputPort("failure").Eval(servo.GetMyContextFromRoot(root))
+    assert "would leave the workspace" in failure and f"z [0.005, {ceiling:g}]" in failure
+    assert heights.max() <= ceiling
+    assert heights.max() > ceiling - 0.02  # it did rise toward the ceiling

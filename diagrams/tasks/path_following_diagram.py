@@ -132,11 +132,12 @@ def AddContinuousFollowing(
     """Adds a ContinuousFollower ("path_follower") and a DifferentialIkServo
     ("differential_ik") on setup.solver's controller plant, the ToF tool frame T the
     controlled frame, both ticking every setup.continuous.servo_period, within the
-    scenario's joint speed and acceleration limits:
+    scenario's joint speed and acceleration limits and setup.workspace's walls:
 
     station `<tof>.ranges`, `<tof>.valid`, `<tof>.measured_at`, `<arm>.position_measured`
         ──> ContinuousFollower ──X_WT_desired──> DifferentialIkServo
         ──position_commanded──> station `<arm>.position_commanded`
+    DifferentialIkServo `failure` ──> ContinuousFollower `servo_failure`
     """
     arm, tof = setup.arm, setup.tool_name
     if not station.HasOutputPort(f"{tof}.measured_at"):
@@ -162,8 +163,10 @@ def AddContinuousFollowing(
             setup.motion.max_joint_speed,
             setup.motion.max_joint_acceleration,
             config.servo_gain,
-            [config.roll_weight, 1.0, 1.0, 1.0, 1.0, 1.0],
+            config.ServoWeights(),
             config.servo_damping,
+            setup.workspace,
+            setup.X_WB,
         ),
     )
     for port in ("ranges", "valid", "measured_at"):
@@ -173,6 +176,7 @@ def AddContinuousFollowing(
         follower.GetInputPort("position_measured"),
     )
     builder.Connect(follower.GetOutputPort("X_WT_desired"), servo.GetInputPort("X_WT_desired"))
+    builder.Connect(servo.GetOutputPort("failure"), follower.GetInputPort("servo_failure"))
     builder.Connect(
         servo.GetOutputPort("position_commanded"),
         station.GetInputPort(f"{arm}.position_commanded"),

@@ -10,7 +10,8 @@ done). Then the target pose moves one period along the estimate
 commands (path_following_diagram.AddPathFollowing wires both).
 
 It reads only `<tof>.ranges`, `<tof>.valid`, `<tof>.measured_at` and
-`<arm>.position_measured`, which the simulated and the hardware stations both export.
+`<arm>.position_measured`, which the simulated and the hardware stations both export, and
+the servo's `failure` (a workspace wall reached), which ends the run.
 """
 
 from __future__ import annotations
@@ -25,6 +26,7 @@ from pydrake.multibody.tree import Frame
 from pydrake.systems.framework import BasicVector, Context, LeafSystem, State
 
 from guidedarm.systems.path_following.continuous_follower_math import (
+    BACK,
     DONE,
     FOLLOW,
     Advance,
@@ -65,7 +67,8 @@ class _Run:
 
 class ContinuousFollower(LeafSystem):
     """Inputs: `ranges` (6, m), `valid` (6), `measured_at` (6, s; -1 before the first
-    reading), `position_measured` (n, rad).
+    reading), `position_measured` (n, rad), `servo_failure` (str, '' while the servo
+    follows; anything else ends the run with that reason).
 
     Outputs: `X_WT_desired` (RigidTransform of the tool frame T in world W, the target
     for the next period), `step_record` (RECORD_FIELDS of the latest reading: t its
@@ -102,6 +105,7 @@ class ContinuousFollower(LeafSystem):
         self._valid = self.DeclareVectorInputPort("valid", 6)
         self._measured_at = self.DeclareVectorInputPort("measured_at", 6)
         self._position = self.DeclareVectorInputPort("position_measured", n)
+        self._servo_failure = self.DeclareAbstractInputPort("servo_failure", AbstractValue.Make(""))
         self._run = self.DeclareAbstractState(AbstractValue.Make(start))
         self.DeclarePeriodicUnrestrictedUpdateEvent(config.servo_period, 0.0, self._Update)
         state_only = {self.xa_ticket()}
@@ -153,6 +157,11 @@ class ContinuousFollower(LeafSystem):
         stamp = float(np.mean(stamps))
         if np.all(stamps >= 0) and stamp > run.stamp + 1e-9:
             run = self._Read(context, run, stamp)
+        servo_failure = self._servo_failure.Eval(context)
+        if servo_failure:
+            run = replace(
+                run, failure=f"the servo stopped the arm at t = {t:.2f} s: {servo_failure}"
+            )
         if not run.failure:
             reference = Advance(
                 run.reference, run.estimate, self._config.servo_period, self._config
@@ -168,7 +177,11 @@ class ContinuousFollower(LeafSystem):
         p_WO = X_WT.translation()
         S_T, _ = EstimateHose(self._grid, self._estimator, ranges, valid)
         S_W = None if S_T is None else X_WT @ np.asarray(S_T, float)
-        estimate = run.estimate.WithReading(X_WT, S_W, self._config)
+        estimate = run.estimate
+        # Backing up retraces the estimated trail: readings taken backwards would run the
+        # fit's path coordinate backwards and drag the trail's end (the target) with it.
+        if run.reference.mode != BACK:
+            estimate = estimate.WithReading(X_WT, S_W, self._config)
         reference = OnReading(run.reference, estimate, X_WT, self._config)
         if not estimate.IsDetected():
             S_W = None

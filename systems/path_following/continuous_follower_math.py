@@ -74,9 +74,11 @@ class ContinuousConfig:
     max_turn_rate_deg: the fastest turn of the target's x axis (deg/s).
     servo_period: the target and the differential IK's tick (s); servo_gain: the
         differential IK's gain on the tool's pose error (1/s), beside the target's own
-        velocity; roll_weight: the weight of the tool's roll about x_T (the hose's axis,
-        which the detection does not need) against 1 for the other five motions;
-        servo_damping: damping of the least squares (rad/s per unit error).
+        velocity; rotation_weight: the length (m) a rotation of 1 rad of the tool counts
+        as against its position (the position, which the tracking needs, comes first);
+        roll_weight: the share of that weight of the roll about x_T (the hose's axis, which
+        the detection does not need); servo_damping: the largest damping of the least
+        squares, reached at a singularity (differential_ik_servo_math).
     history: the measured joints kept for motion compensation (s).
     loss_distance: travel past the latest estimate without the hose before a search (m).
     search_distance: how far past the latest estimate a search goes (m).
@@ -101,13 +103,19 @@ class ContinuousConfig:
     max_turn_rate_deg: float = Positive(30.0)
     servo_period: float = Positive(0.004)
     servo_gain: float = Positive(20.0)
+    rotation_weight: float = Positive(0.05)
     roll_weight: float = InRange(0.0, 1.0, 0.1)
-    servo_damping: float = Positive(0.02)
+    servo_damping: float = Positive(0.01)
     history: float = Positive(0.3)
     loss_distance: float = Positive(0.008)
     search_distance: float = Positive(0.025)
     search_speed: float = Positive(0.02)
     search_turns_deg: list[float] = InRange(-90.0, 90.0, factory=list)
+
+    def ServoWeights(self) -> list[float]:
+        """The DifferentialIkServo's six weights (roll, pitch, yaw about T; x, y, z)."""
+        w = self.rotation_weight
+        return [self.roll_weight * w, w, w, 1.0, 1.0, 1.0]
 
     def Validate(self) -> None:
         """Raises ConfigurationError naming the first bad field or rule."""

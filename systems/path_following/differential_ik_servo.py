@@ -1,6 +1,10 @@
 """DifferentialIkServo: streams joint positions that bring a frame to a moving target pose,
 within joint position, velocity and acceleration limits (differential_ik_servo_math: damped
-least-squares resolved-rate control, each period, at the servo's own commanded q and v).
+least-squares resolved-rate control, each period, at the servo's own commanded q and v),
+and inside the cell's workspace walls: when the arm, braking from the next period's
+velocity at the acceleration limits, would carry the origin of one of the bodies the arm
+moves past a wall (WorkspaceConfig, the constraint ToolPoseIk gives the IK of stop-and-go),
+the servo brakes to a stop there and reports why on `failure`.
 """
 
 from __future__ import annotations
@@ -12,19 +16,28 @@ from pydrake.multibody.plant import MultibodyPlant
 from pydrake.multibody.tree import Frame, JacobianWrtVariable
 from pydrake.systems.framework import BasicVector, Context, DiscreteValues, LeafSystem
 
-from guidedarm.systems.path_following.differential_ik_servo_math import PoseError, ServoStep
+from guidedarm.systems.path_following.differential_ik_servo_math import (
+    BrakeStep,
+    JointLimits,
+    PoseError,
+    ServoStep,
+    StoppingPositions,
+)
+from guidedarm.systems.path_following.workspace import WorkspaceConfig
 
 
 class DifferentialIkServo(LeafSystem):
     """Input `X_WT_desired` (RigidTransform of `frame` in world W). Outputs
     `position_commanded` (n, rad) and `velocity_commanded` (n, rad/s), the state; `status`
-    ([1 when a limit bound the latest period's velocity, else 0]).
+    ([1 when a limit bound the latest period's velocity, else 0]); `failure` (str: which
+    body reached which wall, '' while none has).
 
     plant: a controller plant whose positions are exactly the arm's n joints; frame: the
     controlled frame on it; q_initial: the start joints (rad); period (s); max_speed
     (rad/s) and max_acceleration (rad/s^2) per joint; the plant's position limits apply;
     gain: of the pose error (1/s); weights (6: roll about x_T, pitch, yaw, x, y, z) and
-    damping: of the least squares (differential_ik_servo_math.ServoStep).
+    damping: of the least squares (differential_ik_servo_math.ServoStep); workspace and
+    X_WB: the walls (m, the arm's base frame B) and B's pose in W, None: no walls.
     """
 
     def __init__(
@@ -38,6 +51,8 @@ class DifferentialIkServo(LeafSystem):
         gain: float,
         weights: np.ndarray,
         damping: float,
+        workspace: WorkspaceConfig | None = None,
+        X_WB: RigidTransform | None = None,
     ) -> None:
         super().__init__()
         n = plant.num_positions()
@@ -45,14 +60,23 @@ class DifferentialIkServo(LeafSystem):
         self._plant_context = plant.CreateDefaultContext()
         self._period, self._gain = period, gain
         self._weights, self._damping = np.asarray(weights, float), damping
-        self._max_speed = np.full(n, max_speed)
-        self._max_acceleration = np.full(n, max_acceleration)
-        self._q_limits = (plant.GetPositionLowerLimits(), plant.GetPositionUpperLimits())
+        self._limits = JointLimits(
+            plant.GetPositionLowerLimits(),
+            plant.GetPositionUpperLimits(),
+            np.full(n, max_speed),
+            np.full(n, max_acceleration),
+        )
+        self._workspace, self._X_BW = workspace, (X_WB or RigidTransform()).inverse()
+        moved = plant.GetBodiesKinematicallyAffectedBy(
+            [plant.get_joint(j).index() for j in plant.GetJointIndices()]
+        )
+        self._bodies = [plant.get_body(b) for b in moved]
         self._target = self.DeclareAbstractInputPort(
             "X_WT_desired", AbstractValue.Make(RigidTransform())
         )
-        # [q, v, status, the previous target's rotation (9) and position (3), 1 once set]
-        initial = np.concatenate([np.asarray(q_initial, float), np.zeros(n + 14)])
+        # [q, v, status, the previous target's rotation (9) and position (3), 1 once set,
+        # 1 + the index in _bodies of the body at a wall (0: none)]
+        initial = np.concatenate([np.asarray(q_initial, float), np.zeros(n + 15)])
         self._state = self.DeclareDiscreteState(initial)
         self.DeclarePeriodicDiscreteUpdateEvent(period, 0.0, self._Update)
         self.DeclareVectorOutputPort("position_commanded", n, lambda c, o: self._Output(c, o, 0, n))
@@ -60,11 +84,22 @@ class DifferentialIkServo(LeafSystem):
             "velocity_commanded", n, lambda c, o: self._Output(c, o, n, 2 * n)
         )
         self.DeclareVectorOutputPort("status", 1, lambda c, o: self._Output(c, o, 2 * n, 2 * n + 1))
+        self.DeclareAbstractOutputPort(
+            "failure",
+            lambda: AbstractValue.Make(""),
+            self._CalcFailure,
+            prerequisites_of_calc={self.xd_ticket()},
+        )
 
     def _Update(self, context: Context, discrete: DiscreteValues) -> None:
         n = self._n
         x = context.get_discrete_state(self._state).get_value()
         q, v = x[:n], x[n : 2 * n]
+        if x[-1] > 0:  # at a wall: brake to a stop and stay
+            state = x.copy()
+            state[:n], state[n : 2 * n] = BrakeStep(q, v, self._period, self._limits)
+            discrete.set_value(self._state, state)
+            return
         plant, plant_context = self._plant, self._plant_context
         plant.SetPositions(plant_context, q)
         X_WT = self._frame.CalcPoseInWorld(plant_context)
@@ -77,27 +112,53 @@ class DifferentialIkServo(LeafSystem):
             plant.world_frame(),
         )
         X_WD = self._target.Eval(context)
-        V = self._gain * PoseError(X_WT, X_WD)
+        V_target = np.zeros(6)
         if x[-1] > 0.5:
             X_previous = RigidTransform(
                 RotationMatrix(x[2 * n + 1 : 2 * n + 10].reshape(3, 3)), x[2 * n + 10 : 2 * n + 13]
             )
-            V = V + PoseError(X_previous, X_WD) / self._period
+            V_target = PoseError(X_previous, X_WD) / self._period
         q_next, v_next, limited = ServoStep(
             J,
-            V,
+            V_target,
+            PoseError(X_WT, X_WD),
             q,
             v,
             self._period,
-            self._max_speed,
-            self._max_acceleration,
-            self._q_limits,
+            self._limits,
             X_WT.rotation().matrix(),
             self._weights,
             self._damping,
+            self._gain,
         )
         target = np.concatenate([X_WD.rotation().matrix().ravel(), X_WD.translation(), [1.0]])
-        discrete.set_value(self._state, np.concatenate([q_next, v_next, [float(limited)], target]))
+        wall = self._BodyAtWall(StoppingPositions(q_next, v_next, self._limits))
+        if wall:
+            q_next, v_next = BrakeStep(q, v, self._period, self._limits)
+        discrete.set_value(
+            self._state, np.concatenate([q_next, v_next, [float(limited)], target, [wall]])
+        )
+
+    def _BodyAtWall(self, q: np.ndarray) -> int:
+        """1 + the index of the first body whose origin at q lies outside the walls, or 0."""
+        if self._workspace is None:
+            return 0
+        self._plant.SetPositions(self._plant_context, q)
+        points = [
+            self._X_BW @ self._plant.EvalBodyPoseInWorld(self._plant_context, b).translation()
+            for b in self._bodies
+        ]
+        k = self._workspace.FirstOutside(np.array(points))
+        return 0 if k is None else k + 1
+
+    def _CalcFailure(self, context: Context, output: AbstractValue) -> None:
+        k = int(context.get_discrete_state(self._state).get_value()[-1])
+        output.set_value(
+            ""
+            if k == 0
+            else f"{self._bodies[k - 1].name()} would leave the workspace "
+            f"({self._workspace.Describe()}; m, base frame)"
+        )
 
     def _Output(self, context: Context, output: BasicVector, start: int, end: int) -> None:
         output.SetFromVector(context.get_discrete_state(self._state).get_value()[start:end])

@@ -1,25 +1,66 @@
 """Mathematics of the DifferentialIkServo: one period of resolved-rate control within
 joint limits (rad, rad/s, rad/s^2; frames: world W, the controlled frame T).
 
-    V = [w; v] = the target's own velocity (its change over the last period)
-                 + gain x pose error of T (axis-angle, translation; in W)
-    v_next = argmin |W (J v - V)|^2 + damping^2 |v|^2, W = diag(weights) on the rows of
-             J and V expressed in T (roll about x_T, pitch, yaw, then x, y, z)
-    v_next = v_prev + a (clip(v_wanted, speed limits) - v_prev), a in [0, 1] the largest
-    that keeps every joint within v_prev +- acceleration x period; then clipped so that
-    q + v_next period stays within the position limits
-    q_next = q + v_next period
+With W = diag(weights) on the rows of J expressed in T (roll about x_T, pitch, yaw, then
+x, y, z) and the damped weighted pseudo-inverse
+    J# V = argmin |W (J v - V)|^2 + lambda^2 |v - v_centre|^2,
+    lambda^2 = damping^2 (1 - (sigma_min / damping)^2) when the smallest singular value
+    sigma_min of W J is below `damping`, else MIN_DAMPING^2
+(the damping grows only near a singularity, where it trades the least weighted motion,
+the tool's orientation, for bounded joint speeds; elsewhere the task is met exactly),
+one period is
+    v_ff  = J# V_target            the target's own velocity, fed forward, so that a
+                                   steadily moving target leaves no growing lag
+    dq    = J# error               the joints' displacement that closes the pose error
+    v_fb  = dq min(gain, sqrt(2 a_fb / max_i |dq_i| / a_i))
+    v_wanted = (v_ff + v_fb), scaled down as a whole into the speed limits
+    v_next = v + s (v_wanted - v), s in [0, 1] the largest that keeps every joint within
+             v +- acceleration x period
+    q_next = q + v_next period, v_next braked so that every joint can stop before its
+             position limit.
 
-Drake's DoDifferentialInverseKinematics keeps J v_next parallel to V; with acceleration
-limits that has no solution whenever the error turns faster than the joints may (each
-noisy correction of the target), and the arm stalls. The damped least squares above always
-has one: when a limit binds, the frame's velocity bends a little instead. The gain (1/s)
-makes the error decay smoothly; an error / period (dead-beat) demand saturates the
-acceleration limits at every correction and rings.
+v_centre pulls each joint toward the middle of its range (stronger near the limits); the
+damping term makes it act only where the task leaves freedom (near a singularity), so the
+task itself is unchanged. The weights of the rotation rows are lengths (m/rad): a rotation
+error of 1 rad counts as much as a position error of that length, so the tool's position,
+which the tracking needs, comes first when the two conflict.
+
+The feedback is proportional (gain, 1/s) for small errors and follows the braking curve
+sqrt(2 a_fb |dq|) for large ones, a_fb a share of the acceleration limits: a joint
+commanded faster than it can brake before the error closes overshoots, and with the
+acceleration limits binding the overshoot grows into a swinging limit cycle. Scaling the
+whole velocity (and its change), not clipping joint by joint, keeps the frame's motion
+along the commanded direction: a clipped joint bends it, and in a fast turn the bent
+motion fed back into a growing error.
+
+Drake's DoDifferentialInverseKinematics keeps J v_next parallel to V and assumes the
+joints start at rest; with acceleration limits that has no solution whenever the error
+turns faster than the joints may, and the arm stalls. The damped least squares always has
+one.
 """
+
+from dataclasses import dataclass
 
 import numpy as np
 from pydrake.math import RigidTransform
+
+# Share of the acceleration limits the error feedback may plan with: the rest is kept for
+# the changes of the feed-forward (the target's turns and speed changes).
+FEEDBACK_ACCELERATION_SHARE = 0.5
+# The joint-centring velocity at a joint's limit, as a share of its speed limit.
+CENTRING_SPEED_SHARE = 0.3
+# The damping away from singularities (a regularisation only).
+MIN_DAMPING = 1e-3
+
+
+@dataclass(frozen=True)
+class JointLimits:
+    """Per joint: position range (rad), speed (rad/s) and acceleration (rad/s^2) limits."""
+
+    lower: np.ndarray
+    upper: np.ndarray
+    speed: np.ndarray
+    acceleration: np.ndarray
 
 
 def PoseError(X_current: RigidTransform, X_desired: RigidTransform) -> np.ndarray:
@@ -30,39 +71,73 @@ def PoseError(X_current: RigidTransform, X_desired: RigidTransform) -> np.ndarra
     return np.concatenate([w, X_desired.translation() - X_current.translation()])
 
 
+def CentringVelocity(q: np.ndarray, limits: JointLimits) -> np.ndarray:
+    """Joint velocities (rad/s) toward the middle of each joint's range: 0 there,
+    CENTRING_SPEED_SHARE of the speed limit at a limit, cubic in between."""
+    middle = 0.5 * (limits.lower + limits.upper)
+    half = np.maximum(0.5 * (limits.upper - limits.lower), 1e-9)
+    x = np.clip((middle - q) / half, -1.0, 1.0)
+    return CENTRING_SPEED_SHARE * limits.speed * x**3
+
+
 def ServoStep(
     J: np.ndarray,
-    V: np.ndarray,
+    V_target: np.ndarray,
+    error: np.ndarray,
     q: np.ndarray,
     v: np.ndarray,
     period: float,
-    max_speed: np.ndarray,
-    max_acceleration: np.ndarray,
-    q_limits: tuple[np.ndarray, np.ndarray],
+    limits: JointLimits,
     R_WT: np.ndarray,
     weights: np.ndarray,
     damping: float,
+    gain: float,
 ) -> tuple[np.ndarray, np.ndarray, bool]:
-    """(q_next, v_next, limited): one period (module docstring); J is the 6 x n spatial
-    velocity Jacobian of T in W at q, V the wanted spatial velocity of T; limited: whether
-    a limit changed v_next. R_WT: T's orientation (3 x 3)."""
+    """(q_next, v_next, limited): one period (module docstring). J: the 6 x n spatial
+    velocity Jacobian of T in W at q; V_target: the target's spatial velocity and error:
+    the pose error of T (both [w; v] in W, PoseError's order); R_WT: T's orientation
+    (3 x 3); limited: whether a speed or acceleration limit changed v_next."""
     n = J.shape[1]
     to_T = np.kron(np.eye(2), R_WT.T) * np.asarray(weights, float)[:, None]
-    J_T, V_T = to_T @ J, to_T @ V
-    v_wanted = np.linalg.solve(J_T.T @ J_T + damping**2 * np.eye(n), J_T.T @ V_T)
-    # The wanted velocity is clipped to the speed limits, then the change of v is scaled
-    # (not clipped joint by joint) into the acceleration limits, so that the frame's
-    # acceleration keeps its direction: clipping each joint bent it, and in a fast turn
-    # the bent motion fed back into a growing error. (Scaling for the speed limits too
-    # would freeze every joint while one is at its limit.)
-    dv = np.clip(v_wanted, -max_speed, max_speed) - v
-    step = max_acceleration * period
-    need = np.abs(dv)
-    ratio = np.where(need > step, step / np.maximum(need, 1e-300), 1.0)
-    scale = float(np.min(ratio))
+    J_T = to_T @ J
+    sigma_min = float(np.linalg.svd(J_T, compute_uv=False)[-1])
+    lam2 = max(damping**2 - sigma_min**2, MIN_DAMPING**2)
+    M = J_T.T @ J_T + lam2 * np.eye(n)
+    centre = lam2 * CentringVelocity(q, limits)
+    v_ff = np.linalg.solve(M, J_T.T @ (to_T @ V_target) + centre)
+    dq = np.linalg.solve(M, J_T.T @ (to_T @ error))
+    a_fb = FEEDBACK_ACCELERATION_SHARE * limits.acceleration
+    reach = float(np.max(np.abs(dq) / a_fb))
+    v_fb = dq * (min(gain, np.sqrt(2.0 / reach)) if reach > 0 else gain)
+    v_wanted = v_ff + v_fb
+    speed_ratio = float(np.min(limits.speed / np.maximum(np.abs(v_wanted), 1e-300)))
+    v_wanted = v_wanted * min(1.0, speed_ratio)
+    dv = v_wanted - v
+    step = limits.acceleration * period
+    scale = float(np.min(np.where(np.abs(dv) > step, step / np.maximum(np.abs(dv), 1e-300), 1.0)))
     v_next = v + scale * dv
-    low = (q_limits[0] - q) / period
-    high = np.maximum((q_limits[1] - q) / period, low)
-    v_next = np.clip(v_next, low, high)
-    limited = scale < 1.0 or bool(np.any(np.abs(v_wanted) > max_speed))
+    # Braking: at most the speed from which the joint stops at its limit, and never past it.
+    a = limits.acceleration
+    high = np.minimum(
+        np.sqrt(2 * a * np.maximum(limits.upper - q, 0.0)), (limits.upper - q) / period
+    )
+    low = np.maximum(
+        -np.sqrt(2 * a * np.maximum(q - limits.lower, 0.0)), (limits.lower - q) / period
+    )
+    v_next = np.clip(v_next, low, np.maximum(high, low))
+    limited = scale < 1.0 or speed_ratio < 1.0
     return q + v_next * period, v_next, limited
+
+
+def StoppingPositions(q: np.ndarray, v: np.ndarray, limits: JointLimits) -> np.ndarray:
+    """Where each joint comes to rest (rad) braking from v at its acceleration limit."""
+    return q + v * np.abs(v) / (2 * limits.acceleration)
+
+
+def BrakeStep(
+    q: np.ndarray, v: np.ndarray, period: float, limits: JointLimits
+) -> tuple[np.ndarray, np.ndarray]:
+    """(q_next, v_next): one period of braking every joint at its acceleration limit."""
+    step = limits.acceleration * period
+    v_next = v - np.clip(v, -step, step)
+    return q + v_next * period, v_next
