@@ -45,8 +45,8 @@ class ToFToolConfig:
     tool_frame: the tool frame T (centre O of the detection field).
     cone_angle_deg: vertex angle of each sensor's cone; max_range: no return beyond it (m).
     target_radius: radius of the round target (the hose) that the detection grid's
-        consistency check assumes (m); 0: the followed hose's (path following fills it in
-        from station.hose.diameter), DEFAULT_TARGET_RADIUS for a sensor on its own.
+        consistency check assumes (m); 0: the station hose's radius
+        (StationScenario.ToFTool), DEFAULT_TARGET_RADIUS without a hose.
     noise_std, quantization: Gaussian noise and resolution of a reading (m).
     seed: seed of the noise generator; None: 0 (path following fills in its `seed`).
     period: a new range every period (s); range k is available at k period.
