@@ -21,7 +21,7 @@ from guidedarm.systems.planning.acceleration_planner_kinematics import (
 from guidedarm.systems.planning.acceleration_planner_limits import (
     AdmissibleScaling,
     BrakingAcceleration,
-    GovernorBraking,
+    GovernorDamping,
 )
 from guidedarm.systems.planning.acceleration_planner_math import (
     AccelerationPlanning,
@@ -112,11 +112,9 @@ def test_admissible_scaling_is_rule_a_or_b_and_detects_an_empty_interval():
 def test_governor_brakes_above_the_margin_only_and_keeps_c_zero_admissible():
     lower, upper = -np.ones(3), np.ones(3)
     qd = np.array([0.5, -0.4, 0.2])
-    np.testing.assert_array_equal(
-        GovernorBraking(np.array([0.4, 0.0, 0.1]), qd, lower, upper, 0.5, 5.0), 0.0
-    )
+    assert GovernorDamping(np.array([0.4, 0.0, 0.1]), qd, lower, upper, 0.5, 5.0) == 0.0
     a = np.array([0.9, -0.2, 0.0])
-    braking = GovernorBraking(a, qd, lower, upper, 0.5, 5.0)
+    braking = -GovernorDamping(a, qd, lower, upper, 0.5, 5.0) * qd
     assert np.all(braking * qd <= 0) and np.any(braking != 0)  # slows every moving joint
     assert np.all(a + braking <= upper) and np.all(a + braking >= lower)
 

@@ -128,8 +128,7 @@ def InverseAndConditioning(kin: TcpKinematics, floor: float) -> tuple[np.ndarray
     # which cost three times the 6 x 6 inverse; a singular J gives NaNs (and NumPy's
     # "invalid value" warning), which fail the bound test below.
     inverse = _umath_linalg.inv(kin.J, signature="d->d")
-    flat = inverse.ravel()
-    norm2 = float(flat @ flat)
+    norm2 = float(np.vdot(inverse, inverse))
     if norm2 <= 1.0 / (floor * floor):  # False for NaN as well
         return inverse, 1.0 / math.sqrt(norm2)
     return None, kin.min_singular_value
@@ -145,7 +144,7 @@ def DampedSolve(
     return J.T @ np.linalg.solve(J @ J.T + damping * np.eye(J.shape[0]), rhs)
 
 
-@dataclass
+@dataclass(slots=True)
 class TcpKinematics:
     """The TCP at (q, qd): position x (m) and rotation R of T in B, Euler angles rpy (rad),
     the Jacobian J (6 x 6, rows [translational; rotational]: analytic with Euler rates in
@@ -214,15 +213,12 @@ class ArmKinematics:
         # Drake's spatial rows are [rotational; translational]; the planner's [x; rotation]
         self._rows = np.array([3, 4, 5, 0, 1, 2])
         self._origin = np.zeros(3)
-        self._state = np.zeros(12)
 
     def Evaluate(self, q: np.ndarray, qd: np.ndarray, analytic: bool = True) -> TcpKinematics:
         """Kinematics at joint positions q (rad) and velocities qd (rad/s): one update of
         the plant's context, then the pose, J_g and the bias acceleration from its caches."""
         plant, context = self.plant, self._context
-        self._state[:6] = q
-        self._state[6:] = qd
-        plant.SetPositionsAndVelocities(context, self.instance, self._state)
+        plant.SetPositionsAndVelocities(context, self.instance, np.concatenate((q, qd)))
         X_BT = plant.CalcRelativeTransform(context, self.base_frame, self.tool_frame)
         pose = X_BT.GetAsMatrix34()
         # T's origin, measured and expressed in B, with respect to v; rows [x; rotation].

@@ -61,16 +61,17 @@ class VelocityPenalty:
         self.min_distance = min_distance
         self.zero = np.zeros(lower.shape)
         self.zero.flags.writeable = False
-        self._limits = (lower.tolist(), upper.tolist(), self.range.tolist())
+        # the velocities at which every d_i >= theta
+        band = theta * self.range
+        self._inside = ((lower + band).tolist(), (upper - band).tolist())
 
     def Perturbation(self, qd: np.ndarray) -> np.ndarray:
         """dq'' (rad/s^2) of eq. (15) for the penalty (14); `zero` (this object's read-only
         zeros) where every d_i >= theta, found in scalar arithmetic (the common case)."""
-        band = self.theta
-        if all(
-            lo + band * span < qd_i < hi - band * span
-            for qd_i, lo, hi, span in zip(qd.tolist(), *self._limits, strict=True)
-        ):
+        for qd_i, lo, hi in zip(qd.tolist(), *self._inside, strict=True):
+            if not lo < qd_i < hi:
+                break
+        else:
             return self.zero
         to_lower = (qd - self.lower) / self.range
         to_upper = (self.upper - qd) / self.range
@@ -194,9 +195,12 @@ def StepBounds(
     if velocity is None:
         return lower, upper
     tightened_lower, tightened_upper = [], []
+    # conditional expressions: builtin min / max calls cost more than the comparison
     for qd_i, lo, hi, v_lo, v_hi in zip(qd, lower, upper, *velocity, strict=True):
-        tightened_lower.append(max(lo, rate * (v_lo - qd_i)))
-        tightened_upper.append(min(hi, rate * (v_hi - qd_i)))
+        bound = rate * (v_lo - qd_i)
+        tightened_lower.append(bound if bound > lo else lo)
+        bound = rate * (v_hi - qd_i)
+        tightened_upper.append(bound if bound < hi else hi)
     return tightened_lower, tightened_upper
 
 
@@ -217,21 +221,23 @@ def AdmissibleScaling(
         bound_hi, bound_lo = (hi - a_i) / b_i, (lo - a_i) / b_i
         if b_i < 0:
             bound_hi, bound_lo = bound_lo, bound_hi
-        c_hi = min(c_hi, bound_hi)
-        c_lo = max(c_lo, bound_lo)
+        if bound_hi < c_hi:
+            c_hi = bound_hi
+        if bound_lo > c_lo:
+            c_lo = bound_lo
     return c_lo, c_hi
 
 
-def GovernorBraking(
+def GovernorDamping(
     a: list[float],
     qd: list[float],
     lower: list[float],
     upper: list[float],
     margin: float,
     gain: float,
-) -> list[float]:
-    """The speed governor's braking -d qd (rad/s^2) that keeps a = -J^-1 Jdot qd within
-    `margin` of the acceleration limits ahead of time.
+) -> float:
+    """The speed governor's joint damping d (1/s): its braking -d qd (rad/s^2) keeps
+    a = -J^-1 Jdot qd within `margin` of the acceleration limits ahead of time.
 
     a(q, s qd) = s^2 a(q, qd): at the load r = max_i |a_i| / limit_i the speed may grow by
     sqrt(margin / r) before a uses `margin` of the limits. Above that the governor adds
@@ -239,18 +245,20 @@ def GovernorBraking(
     the margin, i.e. it raises the damping Lambda_V of (9) along the motion; d is capped so
     that a - d qd stays within [lower, upper], which keeps c = 0 admissible.
     """
-    load = max(
-        abs(a_i) / (hi if a_i >= 0 else -lo) for a_i, lo, hi in zip(a, lower, upper, strict=True)
-    )
+    load = 0.0
+    for a_i, lo, hi in zip(a, lower, upper, strict=True):
+        share = a_i / hi if a_i >= 0 else a_i / lo
+        if share > load:
+            load = share
     if load <= margin:
-        return [0.0] * len(qd)
+        return 0.0
     d = gain * (load / margin - 1.0)
     for a_i, qd_i, lo, hi in zip(a, qd, lower, upper, strict=True):
         # the room of the joint in the direction the braking pushes it
         if abs(qd_i) > 1e-12:
             room = hi - a_i if qd_i < 0 else a_i - lo
             d = min(d, max(room, 0.0) / abs(qd_i))
-    return [-d * qd_i for qd_i in qd]
+    return d
 
 
 def JerkLimited(
@@ -263,10 +271,17 @@ def JerkLimited(
     """qdd reached from qdd_previous by a change of at most max_change per joint (rad/s^2
     in one step), then kept within [lower, upper]: the bounds move continuously with qd,
     so the result stays continuous, and no limit is exceeded."""
-    return [
-        min(max(previous + min(max(value - previous, -max_change), max_change), lo), hi)
-        for value, previous, lo, hi in zip(qdd, qdd_previous, lower, upper, strict=True)
-    ]
+    limited = []
+    for value, previous, lo, hi in zip(qdd, qdd_previous, lower, upper, strict=True):
+        change = value - previous
+        if change > max_change:
+            value = previous + max_change
+        elif change < -max_change:
+            value = previous - max_change
+        if value < lo:
+            value = lo
+        limited.append(hi if value > hi else value)
+    return limited
 
 
 def BrakingAcceleration(

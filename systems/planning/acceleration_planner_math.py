@@ -54,7 +54,7 @@ from guidedarm.systems.planning.acceleration_planner_limits import (
     AccelerationScaling,
     AdmissibleScaling,
     BrakingAcceleration,
-    GovernorBraking,
+    GovernorDamping,
     JerkLimited,
     ScalingReturn,
     StepBounds,
@@ -129,10 +129,10 @@ def ApproachTerms(
     # d and its rate in scalar arithmetic (six joints cost less than NumPy's calls)
     x4_sum, rate_sum = 0.0, 0.0
     for u_i, w_i, qd_i in zip(u.tolist(), inverse_braking, qd.tolist(), strict=True):
-        x = abs(u_i) * w_i
-        x3 = x * x * x
-        x4_sum += x3 * x
-        rate_sum += math.copysign(x3, u_i) * w_i * qd_i
+        x = u_i * w_i  # |x| the joint's term of d (w_i > 0)
+        x2 = x * x
+        x4_sum += x2 * x2
+        rate_sum += x2 * x * w_i * qd_i
     d = x4_sum**0.25
     if d < 1e-12:
         r, r_dot = r_max, 0.0
@@ -175,6 +175,10 @@ class AccelerationPlanning:
         )
         self.scaling = (
             AccelerationScaling(*acceleration_limits) if acceleration_limits is not None else None
+        )
+        # below it the robust step needs the smallest singular value itself
+        self._conditioning_floor = max(
+            parameters.damping_threshold, parameters.joint_space_blend[1]
         )
         # the robust step's limits as floats (see StepBounds)
         self._acceleration_bounds = (
@@ -253,14 +257,12 @@ class AccelerationPlanning:
         """The state one time step later (raises PlanningError if it cannot continue)."""
         params = self.parameters
         kin = self.kinematics.Evaluate(state.q, state.qd, analytic=not params.robust)
-        tcp_velocity = kin.J[:3] @ state.qd
-        state, e = self._AdvanceWaypoints(state, kin, tcp_velocity)
+        state, e = self._AdvanceWaypoints(state, kin)
         if e is None:
             e = self._Error(kin, self._Target(state))
         damping, inverse, sigma = 0.0, None, math.inf
         if params.robust:
-            floor = max(params.damping_threshold, params.joint_space_blend[1])
-            inverse, sigma = InverseAndConditioning(kin, floor)
+            inverse, sigma = InverseAndConditioning(kin, self._conditioning_floor)
             damping = DampingFactor(sigma, params.damping_threshold, params.max_damping)
         if self.inverse_braking is not None:
             a, b = ApproachTerms(
@@ -283,8 +285,9 @@ class AccelerationPlanning:
         if not math.isfinite(float(qdd @ qdd)):
             raise PlanningError(f"non-finite joint acceleration at t = {state.t:.3f} s")
         dt = params.time_step
-        state.q = state.q + dt * (state.qd + (0.5 * dt) * qdd)
-        state.qd = state.qd + dt * qdd
+        qd_next = state.qd + dt * qdd
+        state.q = state.q + (0.5 * dt) * (state.qd + qd_next)  # q'' held over the step
+        state.qd = qd_next
         state.qdd = qdd
         state.c, state.c_hat0, state.t0, state.braking = c, c_hat0, t0, braking
         state.t = state.t + dt
@@ -312,8 +315,9 @@ class AccelerationPlanning:
         c_hat0, t0 = state.c_hat0, state.t0
         c_free = 1.0
         if accel is not None:
-            governor = GovernorBraking(a, qd, *accel, params.bias_margin, params.governor_gain)
-            a = [a_i + g_i for a_i, g_i in zip(a, governor, strict=True)]
+            d = GovernorDamping(a, qd, *accel, params.bias_margin, params.governor_gain)
+            if d > 0.0:
+                a = [a_i - d * qd_i for a_i, qd_i in zip(a, qd, strict=True)]
             c_free = ScalingReturn(c_hat0, state.t, t0, params.robust_recovery_rate)
         max_change = params.max_jerk * params.time_step
         c_lo, c_hi = AdmissibleScaling(a, b, lower, upper)
@@ -377,11 +381,10 @@ class AccelerationPlanning:
         )
 
     def _AdvanceWaypoints(
-        self, state: PlannerState, kin: TcpKinematics, tcp_velocity: np.ndarray
+        self, state: PlannerState, kin: TcpKinematics
     ) -> tuple[PlannerState, np.ndarray | None]:
-        """The waypoint bookkeeping (tcp_velocity: the TCP's, m/s in B), and the error to
-        the last waypoint once the TCP moves towards it (None before: the target then
-        depends on the bookkeeping)."""
+        """The waypoint bookkeeping, and the error to the last waypoint once the TCP moves
+        towards it (None before: the target then depends on the bookkeeping)."""
         last = len(self.waypoints) - 1
         if state.index == last:
             e = self._Error(kin, self._Target(state))
@@ -389,20 +392,20 @@ class AccelerationPlanning:
                 state.done_time = state.t
             return state, e
         if self.parameters.stop_at_waypoints:
-            resting = _Norm(tcp_velocity) <= self.parameters.rest_speed
+            resting = _Norm(kin.J[:3] @ state.qd) <= self.parameters.rest_speed
             if resting and self._Reached(kin, state.index, self._Error(kin, self._Target(state))):
                 state.index += 1
                 if self.scaling is not None:  # a new elementary task starts smoothly
                     state.c_hat0, state.t0 = 0.0, state.t
             return state, None
         radius = self.parameters.neighbourhood_radius
-        if not state.inside and _Norm(kin.x - self.waypoints[state.index, :3]) < radius:
+        if not state.inside and _Norm(kin.x - self._poses[state.index][0]) < radius:
             state.inside, state.sigma = True, 0.0
         if state.inside:
             # sigma grows with the TCP path length travelled since entering the sphere and
             # reaches 1 after blend_length: continuous in time, 0 at entry, and it keeps
             # growing whenever the TCP moves, so the TCP cannot settle at p_i.
-            path = _Norm(tcp_velocity) * self.parameters.time_step
+            path = _Norm(kin.J[:3] @ state.qd) * self.parameters.time_step
             state.sigma = min(1.0, state.sigma + path / self.parameters.blend_length)
             if state.sigma >= 1.0:
                 state.index += 1
