@@ -21,7 +21,7 @@ from guidedarm.systems.planning.acceleration_planner_kinematics import (
 from guidedarm.systems.planning.acceleration_planner_limits import (
     AdmissibleScaling,
     BrakingAcceleration,
-    GovernorBraking,
+    GovernorDamping,
 )
 from guidedarm.systems.planning.acceleration_planner_math import (
     AccelerationPlanning,
@@ -112,11 +112,9 @@ def test_admissible_scaling_is_rule_a_or_b_and_detects_an_empty_interval():
 def test_governor_brakes_above_the_margin_only_and_keeps_c_zero_admissible():
     lower, upper = -np.ones(3), np.ones(3)
     qd = np.array([0.5, -0.4, 0.2])
-    np.testing.assert_array_equal(
-        GovernorBraking(np.array([0.4, 0.0, 0.1]), qd, lower, upper, 0.5, 5.0), 0.0
-    )
+    assert GovernorDamping(np.array([0.4, 0.0, 0.1]), qd, lower, upper, 0.5, 5.0) == 0.0
     a = np.array([0.9, -0.2, 0.0])
-    braking = GovernorBraking(a, qd, lower, upper, 0.5, 5.0)
+    braking = -GovernorDamping(a, qd, lower, upper, 0.5, 5.0) * qd
     assert np.all(braking * qd <= 0) and np.any(braking != 0)  # slows every moving joint
     assert np.all(a + braking <= upper) and np.all(a + braking >= lower)
 
@@ -124,14 +122,13 @@ def test_governor_brakes_above_the_margin_only_and_keeps_c_zero_admissible():
 def test_braking_fallback_slows_every_joint_within_the_limits_from_the_last_acceleration():
     qd = np.array([1.0, -0.5, 0.0, 0.2, -2.0, 0.01])
     lower, upper = -np.full(6, 1.4), np.full(6, 1.4)
-    unlimited = np.full(6, np.inf)
-    qdd = BrakingAcceleration(qd, np.zeros(6), lower, upper, 0.002, unlimited)
+    qdd = np.asarray(BrakingAcceleration(qd, np.zeros(6), lower, upper, 0.002, np.inf))
     assert np.all(qdd >= lower) and np.all(qdd <= upper)
     assert np.all(qdd * qd <= 0) and np.abs(qdd).max() == pytest.approx(1.4)
     np.testing.assert_allclose(qdd / np.abs(qdd).max(), -qd / np.abs(qd).max())  # direction kept
     # from the last acceleration, at most max_change per step towards full braking
     previous = np.full(6, 0.5)
-    ramped = BrakingAcceleration(qd, previous, lower, upper, 0.002, np.full(6, 0.07))
+    ramped = np.asarray(BrakingAcceleration(qd, previous, lower, upper, 0.002, 0.07))
     np.testing.assert_allclose(ramped, previous + np.clip(qdd - previous, -0.07, 0.07))
 
 

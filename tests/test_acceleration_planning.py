@@ -90,6 +90,28 @@ def test_analytic_jacobian_and_bias_match_finite_differences(name):
         np.testing.assert_allclose(kin.Jdot_qdot, jdot_fd, atol=1e-5)
 
 
+@pytest.mark.parametrize("name", SCENARIOS)
+def test_geometric_jacobian_and_bias_match_finite_differences(name):
+    """The robust mode's kinematics (one context update per evaluation): rows [x; omega],
+    J the derivative of the TCP position and of the rotation (omega from R' R^T), and
+    Jdot qd = d(J qd)/dt along q + t qd, on each of the three arms."""
+    kinematics = _Setup(name)[1].planning.kinematics
+    rng = np.random.default_rng(5)
+    h = 1e-6
+    for _ in range(5):
+        q = rng.uniform(-2, 2, 6)
+        qd = rng.uniform(-1, 1, 6)
+        kin = kinematics.Evaluate(q, qd, analytic=False)
+        later = kinematics.Evaluate(q + h * qd, qd, analytic=False)
+        earlier = kinematics.Evaluate(q - h * qd, qd, analytic=False)
+        np.testing.assert_allclose(kin.J[:3] @ qd, (later.x - earlier.x) / (2 * h), atol=1e-7)
+        skew = (later.R - earlier.R) / (2 * h) @ kin.R.T
+        omega = [skew[2, 1], skew[0, 2], skew[1, 0]]
+        np.testing.assert_allclose(kin.J[3:] @ qd, omega, atol=1e-7)
+        jdot_fd = (later.J @ qd - earlier.J @ qd) / (2 * h)
+        np.testing.assert_allclose(kin.Jdot_qdot, jdot_fd, atol=1e-6)
+
+
 def _Wrapped(difference: np.ndarray) -> np.ndarray:
     difference[3:] = WrapAngle(difference[3:])
     return difference

@@ -18,6 +18,7 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
+from numpy.linalg import _umath_linalg
 from pydrake.math import RollPitchYaw, RotationMatrix
 from pydrake.multibody.plant import MultibodyPlant
 from pydrake.multibody.tree import Frame, JacobianWrtVariable, ModelInstanceIndex
@@ -68,21 +69,29 @@ def EulerRateMatrixDotTimesRate(rpy: np.ndarray, rpy_dot: np.ndarray) -> np.ndar
 
 def RotationVector(R: np.ndarray) -> np.ndarray:
     """log(R) as a rotation vector theta n (rad), theta in [0, pi]; accurate near 0 and pi."""
-    w = np.array([R[2, 1] - R[1, 2], R[0, 2] - R[2, 0], R[1, 0] - R[0, 1]])
-    cos_theta = min(1.0, max(-1.0, 0.5 * (R[0, 0] + R[1, 1] + R[2, 2] - 1.0)))
-    sin_theta = 0.5 * math.sqrt(w @ w)
+    return np.array(_RotationVector(R.tolist()))
+
+
+def _RotationVector(R: list[list[float]]) -> list[float]:
+    """RotationVector of R given as rows of floats (scalar arithmetic: a 3 x 3 costs less
+    than NumPy's per-call overhead)."""
+    (r00, r01, r02), (r10, r11, r12), (r20, r21, r22) = R
+    w0, w1, w2 = r21 - r12, r02 - r20, r10 - r01
+    cos_theta = min(1.0, max(-1.0, 0.5 * (r00 + r11 + r22 - 1.0)))
+    sin_theta = 0.5 * math.sqrt(w0 * w0 + w1 * w1 + w2 * w2)
     theta = math.atan2(sin_theta, cos_theta)
     if theta < 1e-8:
-        return 0.5 * w
+        return [0.5 * w0, 0.5 * w1, 0.5 * w2]
     if theta < math.pi - 1e-4:
-        return (theta / (2.0 * sin_theta)) * w
+        f = theta / (2.0 * sin_theta)
+        return [f * w0, f * w1, f * w2]
     # Near pi the skew part vanishes: the axis is the dominant column of (R + I) / 2 = n n^T.
-    nn = 0.5 * (R + np.eye(3))
+    nn = 0.5 * (np.array(R) + np.eye(3))
     k = int(np.argmax(np.diag(nn)))
     axis = nn[:, k] / math.sqrt(max(nn[k, k], 1e-300))
-    if axis @ w < 0:
+    if axis[0] * w0 + axis[1] * w1 + axis[2] * w2 < 0:
         axis = -axis
-    return theta * axis
+    return (theta * axis).tolist()
 
 
 def RotationFromVector(v: np.ndarray) -> np.ndarray:
@@ -115,13 +124,13 @@ def InverseAndConditioning(kin: TcpKinematics, floor: float) -> tuple[np.ndarray
     1 / ||J^-1||_F, when that bound already reaches floor; else (None, the smallest singular
     value itself, from an SVD). One 6 x 6 inverse per step instead of an SVD and a solve
     where the arm is well conditioned, i.e. wherever no damping or blending depends on s."""
-    try:
-        inverse = np.linalg.inv(kin.J)
-    except np.linalg.LinAlgError:
-        return None, kin.min_singular_value
-    bound = 1.0 / math.sqrt(float(np.sum(inverse * inverse)))
-    if bound >= floor:
-        return inverse, bound
+    # The LAPACK gufunc behind np.linalg.inv, without its checks and error-state context,
+    # which cost three times the 6 x 6 inverse; a singular J gives NaNs (and NumPy's
+    # "invalid value" warning), which fail the bound test below.
+    inverse = _umath_linalg.inv(kin.J, signature="d->d")
+    norm2 = float(np.vdot(inverse, inverse))
+    if norm2 <= 1.0 / (floor * floor):  # False for NaN as well
+        return inverse, 1.0 / math.sqrt(norm2)
     return None, kin.min_singular_value
 
 
@@ -135,7 +144,7 @@ def DampedSolve(
     return J.T @ np.linalg.solve(J @ J.T + damping * np.eye(J.shape[0]), rhs)
 
 
-@dataclass
+@dataclass(slots=True)
 class TcpKinematics:
     """The TCP at (q, qd): position x (m) and rotation R of T in B, Euler angles rpy (rad),
     the Jacobian J (6 x 6, rows [translational; rotational]: analytic with Euler rates in
@@ -198,36 +207,44 @@ class ArmKinematics:
         self.min_singular_value = min_singular_value
         self._context = plant.CreateDefaultContext()
         velocity_start = np.arange(plant.num_velocities())
-        self._columns = plant.GetVelocitiesFromArray(instance, velocity_start).astype(int)
+        columns = plant.GetVelocitiesFromArray(instance, velocity_start).astype(int)
+        # the arm's columns of J_g (None: all of them, in order)
+        self._columns = None if np.array_equal(columns, np.arange(6)) else columns
+        # Drake's spatial rows are [rotational; translational]; the planner's [x; rotation]
+        self._rows = np.array([3, 4, 5, 0, 1, 2])
         self._origin = np.zeros(3)
 
     def Evaluate(self, q: np.ndarray, qd: np.ndarray, analytic: bool = True) -> TcpKinematics:
-        """Kinematics at joint positions q (rad) and velocities qd (rad/s)."""
+        """Kinematics at joint positions q (rad) and velocities qd (rad/s): one update of
+        the plant's context, then the pose, J_g and the bias acceleration from its caches."""
         plant, context = self.plant, self._context
-        plant.SetPositions(context, self.instance, q)
-        plant.SetVelocities(context, self.instance, qd)
+        plant.SetPositionsAndVelocities(context, self.instance, np.concatenate((q, qd)))
         X_BT = plant.CalcRelativeTransform(context, self.base_frame, self.tool_frame)
-        R = X_BT.rotation()
-        rpy = RollPitchYaw(R).vector() if analytic else None
-        # T's origin, measured and expressed in B, with respect to v.
-        point = (JacobianWrtVariable.kV, self.tool_frame, self._origin, self.base_frame)
-        Jg = plant.CalcJacobianSpatialVelocity(context, *point, self.base_frame)[:, self._columns]
-        bias = plant.CalcBiasSpatialAcceleration(context, *point, self.base_frame)
-        sigma = float(np.linalg.svd(Jg, compute_uv=False)[-1]) if analytic else None
-        J = np.empty((6, 6))
-        J[:3] = Jg[3:]
-        Jdot_qdot = np.empty(6)
-        Jdot_qdot[:3] = bias.translational()
-        if analytic:
-            self._CheckSingularity(sigma, rpy, q)
-            B_inv = EulerRateMatrixInverse(rpy)
-            J[3:] = B_inv @ Jg[:3]
-            rpy_dot = J[3:] @ qd
-            Jdot_qdot[3:] = B_inv @ (bias.rotational() - EulerRateMatrixDotTimesRate(rpy, rpy_dot))
-        else:
-            J[3:] = Jg[:3]
-            Jdot_qdot[3:] = bias.rotational()
-        return TcpKinematics(X_BT.translation(), R.matrix(), rpy, J, Jdot_qdot, sigma)
+        pose = X_BT.GetAsMatrix34()
+        # T's origin, measured and expressed in B, with respect to v; rows [x; rotation].
+        Jg = plant.CalcJacobianSpatialVelocity(
+            context, JacobianWrtVariable.kV, self.tool_frame, self._origin, self.base_frame,
+            self.base_frame,
+        )  # fmt: skip
+        if self._columns is not None:
+            Jg = Jg.take(self._columns, axis=1)
+        # take: a copy in the planner's row order, several times cheaper than fancy indexing
+        J = Jg.take(self._rows, axis=0)
+        bias = plant.CalcBiasSpatialAcceleration(
+            context, JacobianWrtVariable.kV, self.tool_frame, self._origin, self.base_frame,
+            self.base_frame,
+        )  # fmt: skip
+        Jdot_qdot = bias.get_coeffs().take(self._rows)
+        if not analytic:
+            return TcpKinematics(pose[:, 3], pose[:, :3], None, J, Jdot_qdot)
+        rpy = RollPitchYaw(X_BT.rotation()).vector()
+        sigma = float(np.linalg.svd(J, compute_uv=False)[-1])
+        self._CheckSingularity(sigma, rpy, q)
+        B_inv = EulerRateMatrixInverse(rpy)
+        J[3:] = B_inv @ J[3:]
+        rpy_dot = J[3:] @ qd
+        Jdot_qdot[3:] = B_inv @ (Jdot_qdot[3:] - EulerRateMatrixDotTimesRate(rpy, rpy_dot))
+        return TcpKinematics(pose[:, 3], pose[:, :3], rpy, J, Jdot_qdot, sigma)
 
     def Position(self, q: np.ndarray) -> np.ndarray:
         """p = k(q): TCP position (m) and Z-Y-X Euler angles (rad) in the base frame."""
@@ -267,7 +284,7 @@ def TrackingError(p: np.ndarray, target: np.ndarray) -> np.ndarray:
 
 def PoseError(kin: TcpKinematics, x_target: np.ndarray, R_target: np.ndarray) -> np.ndarray:
     """The robust mode's e: [x - x_target; rotation vector of R R_target^T] (m, rad, in B)."""
-    return np.concatenate([kin.x - x_target, RotationError(kin.R, R_target)])
+    return np.array((kin.x - x_target).tolist() + _RotationVector((kin.R @ R_target.T).tolist()))
 
 
 def BlendedTarget(p_i: np.ndarray, p_next: np.ndarray, sigma: float) -> np.ndarray:

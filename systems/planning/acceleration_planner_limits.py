@@ -61,9 +61,18 @@ class VelocityPenalty:
         self.min_distance = min_distance
         self.zero = np.zeros(lower.shape)
         self.zero.flags.writeable = False
+        # the velocities at which every d_i >= theta
+        band = theta * self.range
+        self._inside = ((lower + band).tolist(), (upper - band).tolist())
 
     def Perturbation(self, qd: np.ndarray) -> np.ndarray:
-        """dq'' (rad/s^2) of eq. (15) for the penalty (14); zero where every d_i >= theta."""
+        """dq'' (rad/s^2) of eq. (15) for the penalty (14); `zero` (this object's read-only
+        zeros) where every d_i >= theta, found in scalar arithmetic (the common case)."""
+        for qd_i, lo, hi in zip(qd.tolist(), *self._inside, strict=True):
+            if not lo < qd_i < hi:
+                break
+        else:
+            return self.zero
         to_lower = (qd - self.lower) / self.range
         to_upper = (self.upper - qd) / self.range
         d = np.maximum(np.minimum(to_lower, to_upper), self.min_distance)
@@ -167,26 +176,36 @@ class AccelerationScaling:
 
 
 def StepBounds(
-    acceleration: tuple[np.ndarray, np.ndarray] | None,
-    velocity: tuple[np.ndarray, np.ndarray] | None,
-    qd: np.ndarray,
+    acceleration: tuple[list[float], list[float]] | None,
+    velocity: tuple[list[float], list[float]] | None,
+    qd: list[float],
     rate: float,
-) -> tuple[np.ndarray, np.ndarray]:
+) -> tuple[list[float], list[float]]:
     """Bounds on q'' for the next step: the acceleration limits, tightened to
     rate (velocity limit - qd) near the velocity limits, so that qd approaches a limit at
     most exponentially (time constant 1 / rate, s) and never passes it for rate <= 1 / dt:
     the robust mode's hard guarantee behind the penalty (14)-(15), which only acts through
-    the scaled part c b. The bounds move continuously with qd, so q'' does too."""
-    lower = np.full(qd.shape, -np.inf) if acceleration is None else acceleration[0]
-    upper = np.full(qd.shape, np.inf) if acceleration is None else acceleration[1]
-    if velocity is not None:
-        lower = np.maximum(lower, rate * (velocity[0] - qd))
-        upper = np.minimum(upper, rate * (velocity[1] - qd))
-    return lower, upper
+    the scaled part c b. The bounds move continuously with qd, so q'' does too.
+
+    The robust step's functions below take and return sequences of six floats (lists):
+    for six joints plain floats cost several times less than NumPy's small-array calls."""
+    n = len(qd)
+    lower = [-math.inf] * n if acceleration is None else acceleration[0]
+    upper = [math.inf] * n if acceleration is None else acceleration[1]
+    if velocity is None:
+        return lower, upper
+    tightened_lower, tightened_upper = [], []
+    # conditional expressions: builtin min / max calls cost more than the comparison
+    for qd_i, lo, hi, v_lo, v_hi in zip(qd, lower, upper, *velocity, strict=True):
+        bound = rate * (v_lo - qd_i)
+        tightened_lower.append(bound if bound > lo else lo)
+        bound = rate * (v_hi - qd_i)
+        tightened_upper.append(bound if bound < hi else hi)
+    return tightened_lower, tightened_upper
 
 
 def AdmissibleScaling(
-    a: np.ndarray, b: np.ndarray, lower: np.ndarray, upper: np.ndarray
+    a: list[float], b: list[float], lower: list[float], upper: list[float]
 ) -> tuple[float, float]:
     """The interval [c_lo, c_hi] of c >= 0 with lower <= a + c b <= upper for every joint
     (both limits of every joint, not only the violators' violated ones); c_lo > c_hi when
@@ -194,10 +213,7 @@ def AdmissibleScaling(
     (a) or (b) whenever those are admissible, and an empty interval is detected instead of
     leaving a joint unchecked."""
     c_lo, c_hi = 0.0, math.inf
-    # six joints: plain floats are several times faster than NumPy's small-array calls
-    for a_i, b_i, lo, hi in zip(
-        a.tolist(), b.tolist(), lower.tolist(), upper.tolist(), strict=True
-    ):
+    for a_i, b_i, lo, hi in zip(a, b, lower, upper, strict=True):
         if abs(b_i) < 1e-12:
             if a_i > hi or a_i < lo:
                 return 1.0, 0.0
@@ -205,21 +221,23 @@ def AdmissibleScaling(
         bound_hi, bound_lo = (hi - a_i) / b_i, (lo - a_i) / b_i
         if b_i < 0:
             bound_hi, bound_lo = bound_lo, bound_hi
-        c_hi = min(c_hi, bound_hi)
-        c_lo = max(c_lo, bound_lo)
+        if bound_hi < c_hi:
+            c_hi = bound_hi
+        if bound_lo > c_lo:
+            c_lo = bound_lo
     return c_lo, c_hi
 
 
-def GovernorBraking(
-    a: np.ndarray,
-    qd: np.ndarray,
-    lower: np.ndarray,
-    upper: np.ndarray,
+def GovernorDamping(
+    a: list[float],
+    qd: list[float],
+    lower: list[float],
+    upper: list[float],
     margin: float,
     gain: float,
-) -> np.ndarray:
-    """The speed governor's braking -d qd (rad/s^2) that keeps a = -J^-1 Jdot qd within
-    `margin` of the acceleration limits ahead of time.
+) -> float:
+    """The speed governor's joint damping d (1/s): its braking -d qd (rad/s^2) keeps
+    a = -J^-1 Jdot qd within `margin` of the acceleration limits ahead of time.
 
     a(q, s qd) = s^2 a(q, qd): at the load r = max_i |a_i| / limit_i the speed may grow by
     sqrt(margin / r) before a uses `margin` of the limits. Above that the governor adds
@@ -227,54 +245,61 @@ def GovernorBraking(
     the margin, i.e. it raises the damping Lambda_V of (9) along the motion; d is capped so
     that a - d qd stays within [lower, upper], which keeps c = 0 admissible.
     """
-    a_list, qd_list = a.tolist(), qd.tolist()
-    lower_list, upper_list = lower.tolist(), upper.tolist()
-    load = max(
-        abs(a_i) / (hi if a_i >= 0 else -lo)
-        for a_i, lo, hi in zip(a_list, lower_list, upper_list, strict=True)
-    )
+    load = 0.0
+    for a_i, lo, hi in zip(a, lower, upper, strict=True):
+        share = a_i / hi if a_i >= 0 else a_i / lo
+        if share > load:
+            load = share
     if load <= margin:
-        return np.zeros_like(qd)
+        return 0.0
     d = gain * (load / margin - 1.0)
-    for a_i, qd_i, lo, hi in zip(a_list, qd_list, lower_list, upper_list, strict=True):
+    for a_i, qd_i, lo, hi in zip(a, qd, lower, upper, strict=True):
         # the room of the joint in the direction the braking pushes it
         if abs(qd_i) > 1e-12:
             room = hi - a_i if qd_i < 0 else a_i - lo
             d = min(d, max(room, 0.0) / abs(qd_i))
-    return -d * qd
+    return d
 
 
 def JerkLimited(
-    qdd: np.ndarray,
-    qdd_previous: np.ndarray,
+    qdd: list[float],
+    qdd_previous: list[float],
     max_change: float,
-    lower: np.ndarray,
-    upper: np.ndarray,
-) -> np.ndarray:
+    lower: list[float],
+    upper: list[float],
+) -> list[float]:
     """qdd reached from qdd_previous by a change of at most max_change per joint (rad/s^2
     in one step), then kept within [lower, upper]: the bounds move continuously with qd,
     so the result stays continuous, and no limit is exceeded."""
-    # np.minimum / np.maximum: np.clip's dispatch costs more than the six joints
-    step = np.minimum(np.maximum(qdd - qdd_previous, -max_change), max_change)
-    return np.minimum(np.maximum(qdd_previous + step, lower), upper)
+    limited = []
+    for value, previous, lo, hi in zip(qdd, qdd_previous, lower, upper, strict=True):
+        change = value - previous
+        if change > max_change:
+            value = previous + max_change
+        elif change < -max_change:
+            value = previous - max_change
+        if value < lo:
+            value = lo
+        limited.append(hi if value > hi else value)
+    return limited
 
 
 def BrakingAcceleration(
-    qd: np.ndarray,
-    qdd_previous: np.ndarray,
-    lower: np.ndarray,
-    upper: np.ndarray,
+    qd: list[float],
+    qdd_previous: list[float],
+    lower: list[float],
+    upper: list[float],
     dt: float,
     max_change: float,
-) -> np.ndarray:
+) -> list[float]:
     """The fallback when no admissible c exists: towards q'' = -beta qd, every joint slowing
     in proportion (the joint-space direction of motion kept) as hard as [lower, upper] allow
     and at most to rest within the step (beta <= 1/dt), reached from the previous q'' by
     changes of at most max_change per step (rad/s^2) and kept within [lower, upper].
     Slowing shrinks a with qd^2 until the scaling is admissible again."""
     beta = 1.0 / dt
-    for qd_i, lo, hi in zip(qd.tolist(), lower.tolist(), upper.tolist(), strict=True):
+    for qd_i, lo, hi in zip(qd, lower, upper, strict=True):
         if abs(qd_i) > 1e-12:
             room = -lo if qd_i > 0 else hi
             beta = min(beta, max(room, 0.0) / abs(qd_i))
-    return JerkLimited(-beta * qd, qdd_previous, max_change, lower, upper)
+    return JerkLimited([-beta * qd_i for qd_i in qd], qdd_previous, max_change, lower, upper)

@@ -54,7 +54,7 @@ from guidedarm.systems.planning.acceleration_planner_limits import (
     AccelerationScaling,
     AdmissibleScaling,
     BrakingAcceleration,
-    GovernorBraking,
+    GovernorDamping,
     JerkLimited,
     ScalingReturn,
     StepBounds,
@@ -101,7 +101,7 @@ def ApproachTerms(
     qd: np.ndarray,
     e: np.ndarray,
     rates: tuple[float, float, float],
-    inverse_braking: np.ndarray,
+    inverse_braking: list[float],
     damping: float = 0.0,
     inverse: np.ndarray | None = None,
 ) -> tuple[np.ndarray, np.ndarray]:
@@ -115,25 +115,33 @@ def ApproachTerms(
     (the square-root law of time-optimal braking), r0 far away, r_max at the target; k
     rises with r in proportion (k = k0 r / r0), so the slower root is r, not k0. r' follows
     d' = grad d . qd (u' = qd to first order), so q'' stays continuous in the state."""
-    rhs = np.empty((6, 3))
-    rhs[:, 0] = kin.Jdot_qdot
-    rhs[:, 1] = kin.J @ qd
-    rhs[:, 2] = e
-    solved = DampedSolve(kin.J, rhs, damping, inverse)
+    if damping == 0.0 and inverse is not None:
+        # J^-1 J qd = qd: two products instead of three
+        minus_a, v, u = inverse @ kin.Jdot_qdot, qd, inverse @ e
+    else:
+        rhs = np.empty((6, 3))
+        rhs[:, 0] = kin.Jdot_qdot
+        rhs[:, 1] = kin.J @ qd
+        rhs[:, 2] = e
+        solved = DampedSolve(kin.J, rhs, damping, inverse)
+        minus_a, v, u = solved[:, 0], solved[:, 1], solved[:, 2]
     r0, k0, r_max = rates
-    u = solved[:, 2]
-    x = np.abs(u) * inverse_braking
-    x2 = x * x
-    d = float(x2 @ x2) ** 0.25
+    # d and its rate in scalar arithmetic (six joints cost less than NumPy's calls)
+    x4_sum, rate_sum = 0.0, 0.0
+    for u_i, w_i, qd_i in zip(u.tolist(), inverse_braking, qd.tolist(), strict=True):
+        x = u_i * w_i  # |x| the joint's term of d (w_i > 0)
+        x2 = x * x
+        x4_sum += x2 * x2
+        rate_sum += x2 * x * w_i * qd_i
+    d = x4_sum**0.25
     if d < 1e-12:
         r, r_dot = r_max, 0.0
     else:
         h = 2.0 / (d + 2.0 / (r_max * r_max - r0 * r0))
         r = math.sqrt(r0 * r0 + h)
-        d_dot = float((x2 * x * np.sign(u) * inverse_braking) @ qd) / d**3
-        r_dot = -0.25 * h * h / r * d_dot
+        r_dot = -0.25 * h * h / r * rate_sum / (d * d * d)
     k = k0 * r / r0
-    return -solved[:, 0], -(k + r) * solved[:, 1] - (k * r + r_dot) * u
+    return -minus_a, -(k + r) * v - (k * r + r_dot) * u
 
 
 class AccelerationPlanning:
@@ -168,10 +176,21 @@ class AccelerationPlanning:
         self.scaling = (
             AccelerationScaling(*acceleration_limits) if acceleration_limits is not None else None
         )
+        # below it the robust step needs the smallest singular value itself
+        self._conditioning_floor = max(
+            parameters.damping_threshold, parameters.joint_space_blend[1]
+        )
+        # the robust step's limits as floats (see StepBounds)
+        self._acceleration_bounds = (
+            (self.scaling.lower.tolist(), self.scaling.upper.tolist()) if self.scaling else None
+        )
+        self._velocity_bounds = (
+            (self.penalty.lower.tolist(), self.penalty.upper.tolist()) if self.penalty else None
+        )
         self.inverse_braking = None
         if parameters.robust and parameters.approach_acceleration > 0 and self.scaling:
             braking = np.minimum(self.scaling.upper, -self.scaling.lower)
-            self.inverse_braking = 1.0 / (parameters.approach_acceleration * braking)
+            self.inverse_braking = (1.0 / (parameters.approach_acceleration * braking)).tolist()
             r0 = parameters.SlowRoot()
             self.approach_rates = (r0, parameters.gain_v - r0, parameters.approach_rate)
 
@@ -238,12 +257,12 @@ class AccelerationPlanning:
         """The state one time step later (raises PlanningError if it cannot continue)."""
         params = self.parameters
         kin = self.kinematics.Evaluate(state.q, state.qd, analytic=not params.robust)
-        state = self._AdvanceWaypoints(state, kin)
-        e = self._Error(kin, self._Target(state))
+        state, e = self._AdvanceWaypoints(state, kin)
+        if e is None:
+            e = self._Error(kin, self._Target(state))
         damping, inverse, sigma = 0.0, None, math.inf
         if params.robust:
-            floor = max(params.damping_threshold, params.joint_space_blend[1])
-            inverse, sigma = InverseAndConditioning(kin, floor)
+            inverse, sigma = InverseAndConditioning(kin, self._conditioning_floor)
             damping = DampingFactor(sigma, params.damping_threshold, params.max_damping)
         if self.inverse_braking is not None:
             a, b = ApproachTerms(
@@ -254,18 +273,21 @@ class AccelerationPlanning:
                 kin, state.qd, e, params.gain_p, params.gain_v, damping, inverse
             )
         if self.penalty is not None:
-            b = b + self.penalty.Perturbation(state.qd)
+            penalty = self.penalty.Perturbation(state.qd)
+            if penalty is not self.penalty.zero:
+                b = b + penalty
         if params.robust and self.joint_waypoints is not None:
             a, b = self._BlendJointSpace(state, sigma, a, b)
         if params.robust:
             qdd, c, c_hat0, t0, braking = self._LimitRobust(state, a, b)
         else:
             qdd, c, c_hat0, t0, braking = (*self._LimitSeed(state, a, b), False)
-        if not np.all(np.isfinite(qdd)):
+        if not math.isfinite(float(qdd @ qdd)):
             raise PlanningError(f"non-finite joint acceleration at t = {state.t:.3f} s")
         dt = params.time_step
-        state.q = state.q + dt * state.qd + 0.5 * dt * dt * qdd
-        state.qd = state.qd + dt * qdd
+        qd_next = state.qd + dt * qdd
+        state.q = state.q + (0.5 * dt) * (state.qd + qd_next)  # q'' held over the step
+        state.qd = qd_next
         state.qdd = qdd
         state.c, state.c_hat0, state.t0, state.braking = c, c_hat0, t0, braking
         state.t = state.t + dt
@@ -285,28 +307,31 @@ class AccelerationPlanning:
         """(17) with the governor, the step bounds and the braking fallback, reached from
         the last acceleration at most at max_jerk: (q'', c, c_hat0, t0, braking)."""
         params = self.parameters
-        if self.scaling is None and self.penalty is None:
+        accel, velocity = self._acceleration_bounds, self._velocity_bounds
+        if accel is None and velocity is None:
             return a + b, 1.0, state.c_hat0, state.t0, False
-        accel = (self.scaling.lower, self.scaling.upper) if self.scaling is not None else None
-        velocity = (self.penalty.lower, self.penalty.upper) if self.penalty is not None else None
-        lower, upper = StepBounds(accel, velocity, state.qd, params.velocity_bound_rate)
+        qd, qdd_previous, a, b = state.qd.tolist(), state.qdd.tolist(), a.tolist(), b.tolist()
+        lower, upper = StepBounds(accel, velocity, qd, params.velocity_bound_rate)
         c_hat0, t0 = state.c_hat0, state.t0
         c_free = 1.0
         if accel is not None:
-            a = a + GovernorBraking(a, state.qd, *accel, params.bias_margin, params.governor_gain)
+            d = GovernorDamping(a, qd, *accel, params.bias_margin, params.governor_gain)
+            if d > 0.0:
+                a = [a_i - d * qd_i for a_i, qd_i in zip(a, qd, strict=True)]
             c_free = ScalingReturn(c_hat0, state.t, t0, params.robust_recovery_rate)
         max_change = params.max_jerk * params.time_step
         c_lo, c_hi = AdmissibleScaling(a, b, lower, upper)
         if c_lo > c_hi:
             braking = BrakingAcceleration(
-                state.qd, state.qdd, lower, upper, params.time_step, max_change
+                qd, qdd_previous, lower, upper, params.time_step, max_change
             )
-            return braking, 0.0, 0.0, state.t, True
+            return np.array(braking), 0.0, 0.0, state.t, True
         c = min(max(c_free, c_lo), c_hi)
         if c != c_free:
             c_hat0, t0 = c, state.t
-        qdd = JerkLimited(a + c * b, state.qdd, max_change, lower, upper)
-        return qdd, c, c_hat0, t0, False
+        unlimited = [a_i + c * b_i for a_i, b_i in zip(a, b, strict=True)]
+        qdd = JerkLimited(unlimited, qdd_previous, max_change, lower, upper)
+        return np.array(qdd), c, c_hat0, t0, False
 
     def _BlendJointSpace(
         self, state: PlannerState, sigma: float, a: np.ndarray, b: np.ndarray
@@ -346,46 +371,46 @@ class AccelerationPlanning:
             return PoseError(kin, *target)
         return TrackingError(kin.p, target)
 
-    def _Reached(self, kin: TcpKinematics, index: int) -> bool:
+    def _Reached(self, kin: TcpKinematics, index: int, e: np.ndarray) -> bool:
+        """The TCP within the tolerances of waypoint `index`, e the error to it."""
         params = self.parameters
-        if params.robust:
-            e = PoseError(kin, *self._poses[index])
-            orientation = _Norm(e[3:])
-        else:
-            e = TrackingError(kin.p, self.waypoints[index])
-            orientation = float(np.max(np.abs(e[3:])))
+        orientation = _Norm(e[3:]) if params.robust else float(np.max(np.abs(e[3:])))
         return bool(
             _Norm(e[:3]) <= params.position_tolerance
             and orientation <= params.orientation_tolerance
         )
 
-    def _AdvanceWaypoints(self, state: PlannerState, kin: TcpKinematics) -> PlannerState:
+    def _AdvanceWaypoints(
+        self, state: PlannerState, kin: TcpKinematics
+    ) -> tuple[PlannerState, np.ndarray | None]:
+        """The waypoint bookkeeping, and the error to the last waypoint once the TCP moves
+        towards it (None before: the target then depends on the bookkeeping)."""
         last = len(self.waypoints) - 1
-        tcp_velocity = kin.J[:3] @ state.qd
         if state.index == last:
-            if not state.done and self._Reached(kin, last):
+            e = self._Error(kin, self._Target(state))
+            if not state.done and self._Reached(kin, last, e):
                 state.done_time = state.t
-            return state
+            return state, e
         if self.parameters.stop_at_waypoints:
-            resting = _Norm(tcp_velocity) <= self.parameters.rest_speed
-            if resting and self._Reached(kin, state.index):
+            resting = _Norm(kin.J[:3] @ state.qd) <= self.parameters.rest_speed
+            if resting and self._Reached(kin, state.index, self._Error(kin, self._Target(state))):
                 state.index += 1
                 if self.scaling is not None:  # a new elementary task starts smoothly
                     state.c_hat0, state.t0 = 0.0, state.t
-            return state
+            return state, None
         radius = self.parameters.neighbourhood_radius
-        if not state.inside and _Norm(kin.x - self.waypoints[state.index, :3]) < radius:
+        if not state.inside and _Norm(kin.x - self._poses[state.index][0]) < radius:
             state.inside, state.sigma = True, 0.0
         if state.inside:
             # sigma grows with the TCP path length travelled since entering the sphere and
             # reaches 1 after blend_length: continuous in time, 0 at entry, and it keeps
             # growing whenever the TCP moves, so the TCP cannot settle at p_i.
-            path = _Norm(tcp_velocity) * self.parameters.time_step
+            path = _Norm(kin.J[:3] @ state.qd) * self.parameters.time_step
             state.sigma = min(1.0, state.sigma + path / self.parameters.blend_length)
             if state.sigma >= 1.0:
                 state.index += 1
                 state.inside, state.sigma = False, 0.0
-        return state
+        return state, None
 
 
 def _Norm(v: np.ndarray) -> float:
