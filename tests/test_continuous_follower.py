@@ -101,11 +101,11 @@ def test_speed_falls_with_the_confidence():
     config = ContinuousConfig()
     X = RigidTransform(OrientationFromVector([1, 0, 0]), [0, 0, 0])
     fit = HoseEstimate.Start(X).fit
-    sure = dataclasses.replace(fit, readings=50, detections=50, residual=0.0)
-    noisy = dataclasses.replace(sure, residual=config.residual_limit / 2)
+    sure = dataclasses.replace(fit, readings=50, detections=50, spread=0.0, span=0.03)
+    noisy = dataclasses.replace(sure, spread=config.spread_limit / 2)
     half_seen = dataclasses.replace(sure, detections=25)
     assert Confidence(sure, config) == 1.0
-    assert Confidence(noisy, config) == pytest.approx(0.5)
+    assert Confidence(noisy, config) == pytest.approx(0.75)
     assert TargetSpeed(sure, config) == config.speed
     assert TargetSpeed(noisy, config) < TargetSpeed(sure, config)
     assert TargetSpeed(half_seen, config) == pytest.approx(
