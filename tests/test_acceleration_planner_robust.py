@@ -45,10 +45,10 @@ def _Setup(name: str, *overrides: str):
     return MakePlannerSetup(scenario)
 
 
-def _Run(setup, waypoints, q0, max_time=20.0, robust=True):
+def _Run(setup, waypoints, q0, max_time=20.0, robust=True, **settings):
     planning = setup.planning
     joints = SolveWaypointIk(planning.kinematics, waypoints, q0) if robust else None
-    config = PlannerConfig(robust=robust)
+    config = PlannerConfig(robust=robust, **settings)
     law = AccelerationPlanning(
         planning.kinematics,
         waypoints,
@@ -135,16 +135,25 @@ def test_braking_fallback_slows_every_joint_within_the_limits_from_the_last_acce
     np.testing.assert_allclose(ramped, previous + np.clip(qdd - previous, -0.07, 0.07))
 
 
-def test_on_the_seeds_task_within_5_percent_of_the_seeds_law_and_continuous(setups):
+def test_on_the_seeds_task_faster_than_the_seeds_law_and_continuous(setups):
+    """The braking approach and the faster return of c shorten the paper's task by more
+    than 5 % (4.55 s vs 5.41 s); with both off (the paper's exponential approach and
+    return rate) the robust mode stays within 5 % of the paper's law. Both keep q''
+    continuous: no step beyond max_jerk * dt = 0.1 rad/s^2."""
     setup = setups["ur10e"]
     waypoints = setup.planning.waypoints
     robust = _Run(setup, waypoints, setup.q0)
+    paper_timed = _Run(
+        setup, waypoints, setup.q0, approach_acceleration=0.0, robust_recovery_rate=1.0
+    )
     seed = _Run(setup, waypoints, setup.q0, robust=False)
-    _AssertFinishedWithinLimits(setup, robust, waypoints)
-    assert robust.done_time == pytest.approx(seed.done_time, rel=0.05)
-    assert robust.qdd[0].tolist() == [0.0] * 6 and robust.c[0] == 0  # the smooth start
-    # continuous accelerations: no step changes q'' by more than 5 % of the limit
-    assert np.abs(np.diff(robust.qdd, axis=0)).max() <= 0.07
+    for trajectory in (robust, paper_timed):
+        _AssertFinishedWithinLimits(setup, trajectory, waypoints)
+        assert trajectory.qdd[0].tolist() == [0.0] * 6 and trajectory.c[0] == 0  # smooth start
+        assert np.abs(np.diff(trajectory.qdd, axis=0)).max() <= 0.1 + 1e-9
+    assert robust.done_time == pytest.approx(4.55, abs=0.05)
+    assert robust.done_time < 0.9 * seed.done_time
+    assert paper_timed.done_time == pytest.approx(seed.done_time, rel=0.05)
 
 
 def test_the_seeds_case_c_task_finishes_in_the_robust_mode(setups):

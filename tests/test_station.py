@@ -12,6 +12,8 @@ from guidedarm.diagrams.station.scenario import ArmConfig, StationScenario
 from guidedarm.diagrams.station.scene_views import SceneDirectives
 from guidedarm.diagrams.station.station import MakeStation
 from guidedarm.systems.errors import ConfigurationError
+from guidedarm.systems.path_following.hose_geometry import HoseConfig
+from guidedarm.systems.tof.tof_tool_sensor import DEFAULT_TARGET_RADIUS, ToFToolConfig
 
 HOME = {
     "ur10e": [-np.pi / 2, -np.pi / 2, -3 * np.pi / 4, -np.pi / 4, np.pi / 2, np.pi / 4],
@@ -125,3 +127,13 @@ def test_arm_initial_position_is_checked_where_tasks_read_it():
     np.testing.assert_allclose(ArmInitialPosition(plant, "ur10e", ArmConfig()), HOME["ur10e"])
     with pytest.raises(ConfigurationError, match="initial_position has 3 values"):
         ArmInitialPosition(plant, "ur10e", ArmConfig(initial_position=[0.0, 0.0, 0.0]))
+
+
+def test_a_tof_tool_without_target_radius_assumes_the_station_hose():
+    """target_radius 0: the hose's radius when the station has a hose, else the default."""
+    scenario = StationScenario(tof_tools={"tof": ToFToolConfig()})
+    assert scenario.ToFTool("tof").TargetRadius() == DEFAULT_TARGET_RADIUS
+    scenario.hose = HoseConfig(diameter=0.032)
+    assert scenario.ToFTool("tof").target_radius == pytest.approx(0.016)
+    scenario.tof_tools["tof"].target_radius = 0.004
+    assert scenario.ToFTool("tof").target_radius == 0.004

@@ -1,5 +1,6 @@
 """Scenario schemas of the station, loaded with `yaml_load_typed` (see scenario_loading)."""
 
+import dataclasses
 from dataclasses import dataclass, field
 
 from pydrake.multibody.parsing import ModelDirective
@@ -63,3 +64,11 @@ class StationScenario:
     hardware: HardwareConfig = field(default_factory=HardwareConfig)
     hose: HoseConfig | None = None
     tof_tools: dict[str, ToFToolConfig] = field(default_factory=dict)
+
+    def ToFTool(self, name: str) -> ToFToolConfig:
+        """tof_tools[name] with its target_radius resolved: 0 means the station hose's
+        radius (diameter / 2), or the sensor's default without a hose."""
+        tool = self.tof_tools[name]
+        if tool.target_radius or self.hose is None:
+            return tool
+        return dataclasses.replace(tool, target_radius=self.hose.diameter / 2)

@@ -60,7 +60,8 @@ def MakeStation(
         _AddArm(builder, plant, name, arm)
     for name, camera in scenario.cameras.items():
         _AddCamera(builder, plant, scene_graph, name, camera)
-    for name, tof in scenario.tof_tools.items():
+    for name in scenario.tof_tools:
+        tof = scenario.ToFTool(name)
         sensor = builder.AddNamedSystem(f"{name}.sensor", ToFToolSensor(plant, tof))
         builder.Connect(scene_graph.get_query_output_port(), sensor.get_input_port())
         for port in TOF_PORTS:

@@ -4,6 +4,7 @@ Loaded from scenarios with yaml_load_typed (the `planner` key of the waypoints, 
 following and panel tasks); systems/planning/acceleration_planner_math.py uses it.
 """
 
+import math
 from dataclasses import dataclass, field
 
 from guidedarm.systems.config_checks import CheckFields, InRange, Positive
@@ -28,7 +29,11 @@ class PlannerConfig:
         below the per-step change the scaling itself makes (< 0.07 rad/s^2 at 500 Hz on
         the paper's task), while a weaker barrier (rho = 0.001) is so stiff at 500 Hz that,
         unscaled, it chatters.
-    scaling_recovery_rate: rate of the exponential return (18) of c to 1 (1/s).
+    scaling_recovery_rate: rate of the exponential return (18) of c to 1 (1/s), the
+        paper's law's.
+    robust_recovery_rate: the same in the robust mode (1/s); faster than the paper's
+        because max_jerk keeps the accelerations continuous when c returns quickly and
+        is clipped again.
     stop_at_waypoints: stop at every waypoint instead of blending through it; the next
         elementary task starts once the TCP is within the tolerances and slower than
         rest_speed, i.e. practically at rest as boundary condition (3) asks.
@@ -47,8 +52,20 @@ class PlannerConfig:
     governor_gain: robust mode: the governor's joint damping per unit of excess load (1/s).
     velocity_bound_rate: robust mode: near its limit a joint's acceleration is bounded by
         this rate times its distance to the velocity limit (1/s; at most 1 / time_step).
-    braking_ramp: robust mode: the time the braking fallback takes to go from the last
-        acceleration to full braking (s).
+    max_jerk: robust mode: the largest change of a commanded acceleration per second
+        (rad/s^3); every step's q'' is reached from the last one at most this fast (the
+        law, its scaling, the braking fallback and a task given while moving alike), so
+        the accelerations stay continuous where the admissible interval or the step bounds
+        would make them jump.
+    approach_acceleration: robust mode: the fraction eta of the acceleration limits the
+        approach to a target plans to brake with (0 keeps (9)'s exponential approach).
+        (9) factors into (s + r0)(s + k) with r0 the slower root: e' tracks -r0 e at the
+        rate k. The approach raises r0 to r(d) = sqrt(r0^2 + 2 / (d + 2 / (r_max^2 - r0^2)))
+        with d = ||J^-1 e / (eta A)||_4 (s^2, A the acceleration limits): the speed a
+        joint left u_i from the target may have while braking at eta A_i (the square-root
+        law of time-optimal braking), r0 far from the target, r_max at it.
+    approach_rate: robust mode: r_max of the approach (1/s), the exponential rate of the
+        last millimetres.
     joint_space_blend: robust mode: [sigma_full, sigma_start]; as the smallest singular
         value of J_g falls from sigma_start to sigma_full the law hands over, smoothly, to
         the same error dynamics in joint space towards the waypoints' IK solutions, which
@@ -64,6 +81,7 @@ class PlannerConfig:
     velocity_threshold: float = InRange(0.0, 0.5, 0.1, low_open=True, high_open=True)
     penalty_strength: float = Positive(0.003)
     scaling_recovery_rate: float = Positive(1.0)
+    robust_recovery_rate: float = Positive(3.0)
     stop_at_waypoints: bool = False
     rest_speed: float = Positive(0.001)
     time_step: float = Positive(0.002)
@@ -74,7 +92,9 @@ class PlannerConfig:
     bias_margin: float = InRange(0.0, 1.0, 0.5, low_open=True, high_open=True)
     governor_gain: float = Positive(5.0)
     velocity_bound_rate: float = Positive(25.0)
-    braking_ramp: float = Positive(0.04)
+    max_jerk: float = Positive(50.0)
+    approach_acceleration: float = InRange(0.0, 1.0, 0.5, high_open=True)
+    approach_rate: float = Positive(20.0)
     joint_space_blend: list[float] = field(default_factory=lambda: [0.005, 0.02])
 
     def Validate(self) -> None:
@@ -86,8 +106,22 @@ class PlannerConfig:
                 "planner.joint_space_blend needs [sigma_full, sigma_start] with "
                 f"0 <= sigma_full < sigma_start, got {self.joint_space_blend}"
             )
+        if self.approach_acceleration > 0 and not (
+            self.gain_v**2 >= 4 * self.gain_p and self.approach_rate > self.SlowRoot()
+        ):
+            raise ConfigurationError(
+                "planner.approach_acceleration > 0 needs real roots of (9), gain_v^2 >= 4 "
+                f"gain_p, and approach_rate above the slower one, got gain_p {self.gain_p}, "
+                f"gain_v {self.gain_v}, approach_rate {self.approach_rate}"
+            )
         if self.velocity_bound_rate * self.time_step > 1:
             raise ConfigurationError(
                 f"planner.velocity_bound_rate must be at most 1 / time_step, got "
                 f"{self.velocity_bound_rate}"
             )
+
+    def SlowRoot(self) -> float:
+        """r0 (1/s): the slower root of s^2 + gain_v s + gain_p, the rate at which (9)
+        approaches a target (nan for complex roots)."""
+        discriminant = self.gain_v**2 - 4 * self.gain_p
+        return 0.5 * (self.gain_v - math.sqrt(discriminant)) if discriminant >= 0 else math.nan

@@ -110,11 +110,28 @@ def DampingFactor(sigma: float, threshold: float, max_damping: float) -> float:
     return max_damping**2 * (1.0 - (sigma / threshold) ** 2)
 
 
-def DampedSolve(J: np.ndarray, rhs: np.ndarray, damping: float) -> np.ndarray:
+def InverseAndConditioning(kin: TcpKinematics, floor: float) -> tuple[np.ndarray | None, float]:
+    """(J^-1, s) with s >= floor a lower bound of J's smallest singular value,
+    1 / ||J^-1||_F, when that bound already reaches floor; else (None, the smallest singular
+    value itself, from an SVD). One 6 x 6 inverse per step instead of an SVD and a solve
+    where the arm is well conditioned, i.e. wherever no damping or blending depends on s."""
+    try:
+        inverse = np.linalg.inv(kin.J)
+    except np.linalg.LinAlgError:
+        return None, kin.min_singular_value
+    bound = 1.0 / math.sqrt(float(np.sum(inverse * inverse)))
+    if bound >= floor:
+        return inverse, bound
+    return None, kin.min_singular_value
+
+
+def DampedSolve(
+    J: np.ndarray, rhs: np.ndarray, damping: float, inverse: np.ndarray | None = None
+) -> np.ndarray:
     """J^# rhs with J^# = J^T (J J^T + damping I)^-1, the singularity-robust inverse;
-    exactly J^-1 rhs for damping = 0."""
+    exactly J^-1 rhs for damping = 0 (with J^-1 = `inverse` when given)."""
     if damping == 0.0:
-        return np.linalg.solve(J, rhs)
+        return inverse @ rhs if inverse is not None else np.linalg.solve(J, rhs)
     return J.T @ np.linalg.solve(J @ J.T + damping * np.eye(J.shape[0]), rhs)
 
 
@@ -123,7 +140,8 @@ class TcpKinematics:
     """The TCP at (q, qd): position x (m) and rotation R of T in B, Euler angles rpy (rad),
     the Jacobian J (6 x 6, rows [translational; rotational]: analytic with Euler rates in
     the paper's mode, geometric with omega in the robust mode), Jdot qd (m/s^2, rad/s^2) in
-    the same rows, and the smallest singular value of J_g. rpy is only evaluated for the
+    the same rows, and sigma, the smallest singular value of J_g (in the robust mode
+    computed from J, J_g's rows swapped, on first use). rpy is only evaluated for the
     paper's mode (p computes it otherwise)."""
 
     x: np.ndarray
@@ -131,7 +149,13 @@ class TcpKinematics:
     rpy: np.ndarray | None
     J: np.ndarray
     Jdot_qdot: np.ndarray
-    min_singular_value: float
+    sigma: float | None = None
+
+    @property
+    def min_singular_value(self) -> float:
+        if self.sigma is None:
+            self.sigma = float(np.linalg.svd(self.J, compute_uv=False)[-1])
+        return self.sigma
 
     @property
     def p(self) -> np.ndarray:
@@ -189,7 +213,7 @@ class ArmKinematics:
         point = (JacobianWrtVariable.kV, self.tool_frame, self._origin, self.base_frame)
         Jg = plant.CalcJacobianSpatialVelocity(context, *point, self.base_frame)[:, self._columns]
         bias = plant.CalcBiasSpatialAcceleration(context, *point, self.base_frame)
-        sigma = float(np.linalg.svd(Jg, compute_uv=False)[-1])
+        sigma = float(np.linalg.svd(Jg, compute_uv=False)[-1]) if analytic else None
         J = np.empty((6, 6))
         J[:3] = Jg[3:]
         Jdot_qdot = np.empty(6)

@@ -59,6 +59,8 @@ class VelocityPenalty:
         self.theta = theta
         self.rho = rho
         self.min_distance = min_distance
+        self.zero = np.zeros(lower.shape)
+        self.zero.flags.writeable = False
 
     def Perturbation(self, qd: np.ndarray) -> np.ndarray:
         """dq'' (rad/s^2) of eq. (15) for the penalty (14); zero where every d_i >= theta."""
@@ -66,7 +68,7 @@ class VelocityPenalty:
         to_upper = (self.upper - qd) / self.range
         d = np.maximum(np.minimum(to_lower, to_upper), self.min_distance)
         if d.min() >= self.theta:
-            return np.zeros_like(qd)
+            return self.zero
         direction = np.where(to_lower < to_upper, 1.0, -1.0) / self.range
         return np.where(d < self.theta, self.rho / d**2 * direction, 0.0)
 
@@ -242,13 +244,28 @@ def GovernorBraking(
     return -d * qd
 
 
+def JerkLimited(
+    qdd: np.ndarray,
+    qdd_previous: np.ndarray,
+    max_change: float,
+    lower: np.ndarray,
+    upper: np.ndarray,
+) -> np.ndarray:
+    """qdd reached from qdd_previous by a change of at most max_change per joint (rad/s^2
+    in one step), then kept within [lower, upper]: the bounds move continuously with qd,
+    so the result stays continuous, and no limit is exceeded."""
+    # np.minimum / np.maximum: np.clip's dispatch costs more than the six joints
+    step = np.minimum(np.maximum(qdd - qdd_previous, -max_change), max_change)
+    return np.minimum(np.maximum(qdd_previous + step, lower), upper)
+
+
 def BrakingAcceleration(
     qd: np.ndarray,
     qdd_previous: np.ndarray,
     lower: np.ndarray,
     upper: np.ndarray,
     dt: float,
-    max_change: np.ndarray,
+    max_change: float,
 ) -> np.ndarray:
     """The fallback when no admissible c exists: towards q'' = -beta qd, every joint slowing
     in proportion (the joint-space direction of motion kept) as hard as [lower, upper] allow
@@ -260,5 +277,4 @@ def BrakingAcceleration(
         if abs(qd_i) > 1e-12:
             room = -lo if qd_i > 0 else hi
             beta = min(beta, max(room, 0.0) / abs(qd_i))
-    step = np.clip(-beta * qd - qdd_previous, -max_change, max_change)
-    return np.clip(qdd_previous + step, lower, upper)
+    return JerkLimited(-beta * qd, qdd_previous, max_change, lower, upper)

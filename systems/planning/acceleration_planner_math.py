@@ -30,6 +30,7 @@ systems/planning/acceleration_planner.py wraps the law in a LeafSystem.
 """
 
 import copy
+import math
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -43,6 +44,7 @@ from guidedarm.systems.planning.acceleration_planner_kinematics import (
     BlendedTarget,
     DampedSolve,
     DampingFactor,
+    InverseAndConditioning,
     PlanningError,
     PoseError,
     TcpKinematics,
@@ -53,6 +55,7 @@ from guidedarm.systems.planning.acceleration_planner_limits import (
     AdmissibleScaling,
     BrakingAcceleration,
     GovernorBraking,
+    JerkLimited,
     ScalingReturn,
     StepBounds,
     VelocityPenalty,
@@ -81,14 +84,56 @@ def AccelerationTerms(
     gain_p: float,
     gain_v: float,
     damping: float = 0.0,
+    inverse: np.ndarray | None = None,
 ) -> tuple[np.ndarray, np.ndarray]:
     """Eq. (13) split as in (17): a = -J^-1 Jdot qd and b = -J^-1 (Lambda_V J qd +
-    Lambda_P e) (rad/s^2), with J^-1 the damped inverse J^# when damping (lambda^2) > 0."""
+    Lambda_P e) (rad/s^2), with J^-1 the damped inverse J^# when damping (lambda^2) > 0
+    (`inverse`: J^-1 if already known)."""
     rhs = np.empty((6, 2))
     rhs[:, 0] = kin.Jdot_qdot
     rhs[:, 1] = gain_v * (kin.J @ qd) + gain_p * e
-    solved = DampedSolve(kin.J, rhs, damping)
+    solved = DampedSolve(kin.J, rhs, damping, inverse)
     return -solved[:, 0], -solved[:, 1]
+
+
+def ApproachTerms(
+    kin: TcpKinematics,
+    qd: np.ndarray,
+    e: np.ndarray,
+    rates: tuple[float, float, float],
+    inverse_braking: np.ndarray,
+    damping: float = 0.0,
+    inverse: np.ndarray | None = None,
+) -> tuple[np.ndarray, np.ndarray]:
+    """The robust mode's (a, b) with the braking approach: the error dynamics
+    e'' = -(k + r) e' - (k r + r') e, i.e. e' tracks -r e at the rate k. (9) is this with
+    constants r = r0 and k = k0, its roots (rates = (r0, k0, r_max), 1/s). Here
+    r = sqrt(r0^2 + h), h = 2 / (d + 2 / (r_max^2 - r0^2)), grows as the joint
+    displacement to go u = J^-1 e shrinks, d = ||u * inverse_braking||_4 (s^2;
+    inverse_braking = 1 / (eta A) per joint, s^2/rad): a joint u_i from the target moves at
+    most about sqrt(2 eta A_i u_i), the speed from which braking at eta A_i stops it there
+    (the square-root law of time-optimal braking), r0 far away, r_max at the target; k
+    rises with r in proportion (k = k0 r / r0), so the slower root is r, not k0. r' follows
+    d' = grad d . qd (u' = qd to first order), so q'' stays continuous in the state."""
+    rhs = np.empty((6, 3))
+    rhs[:, 0] = kin.Jdot_qdot
+    rhs[:, 1] = kin.J @ qd
+    rhs[:, 2] = e
+    solved = DampedSolve(kin.J, rhs, damping, inverse)
+    r0, k0, r_max = rates
+    u = solved[:, 2]
+    x = np.abs(u) * inverse_braking
+    x2 = x * x
+    d = float(x2 @ x2) ** 0.25
+    if d < 1e-12:
+        r, r_dot = r_max, 0.0
+    else:
+        h = 2.0 / (d + 2.0 / (r_max * r_max - r0 * r0))
+        r = math.sqrt(r0 * r0 + h)
+        d_dot = float((x2 * x * np.sign(u) * inverse_braking) @ qd) / d**3
+        r_dot = -0.25 * h * h / r * d_dot
+    k = k0 * r / r0
+    return -solved[:, 0], -(k + r) * solved[:, 1] - (k * r + r_dot) * u
 
 
 class AccelerationPlanning:
@@ -123,6 +168,12 @@ class AccelerationPlanning:
         self.scaling = (
             AccelerationScaling(*acceleration_limits) if acceleration_limits is not None else None
         )
+        self.inverse_braking = None
+        if parameters.robust and parameters.approach_acceleration > 0 and self.scaling:
+            braking = np.minimum(self.scaling.upper, -self.scaling.lower)
+            self.inverse_braking = 1.0 / (parameters.approach_acceleration * braking)
+            r0 = parameters.SlowRoot()
+            self.approach_rates = (r0, parameters.gain_v - r0, parameters.approach_rate)
 
     def _SetWaypoints(self, waypoints: np.ndarray, joint_waypoints: np.ndarray | None) -> None:
         waypoints = np.atleast_2d(np.asarray(waypoints, float))
@@ -189,16 +240,23 @@ class AccelerationPlanning:
         kin = self.kinematics.Evaluate(state.q, state.qd, analytic=not params.robust)
         state = self._AdvanceWaypoints(state, kin)
         e = self._Error(kin, self._Target(state))
-        damping = 0.0
+        damping, inverse, sigma = 0.0, None, math.inf
         if params.robust:
-            damping = DampingFactor(
-                kin.min_singular_value, params.damping_threshold, params.max_damping
+            floor = max(params.damping_threshold, params.joint_space_blend[1])
+            inverse, sigma = InverseAndConditioning(kin, floor)
+            damping = DampingFactor(sigma, params.damping_threshold, params.max_damping)
+        if self.inverse_braking is not None:
+            a, b = ApproachTerms(
+                kin, state.qd, e, self.approach_rates, self.inverse_braking, damping, inverse
             )
-        a, b = AccelerationTerms(kin, state.qd, e, params.gain_p, params.gain_v, damping)
+        else:
+            a, b = AccelerationTerms(
+                kin, state.qd, e, params.gain_p, params.gain_v, damping, inverse
+            )
         if self.penalty is not None:
             b = b + self.penalty.Perturbation(state.qd)
         if params.robust and self.joint_waypoints is not None:
-            a, b = self._BlendJointSpace(state, kin.min_singular_value, a, b)
+            a, b = self._BlendJointSpace(state, sigma, a, b)
         if params.robust:
             qdd, c, c_hat0, t0, braking = self._LimitRobust(state, a, b)
         else:
@@ -224,8 +282,8 @@ class AccelerationPlanning:
         return a + c * b, c, c_hat0, t0
 
     def _LimitRobust(self, state: PlannerState, a: np.ndarray, b: np.ndarray):
-        """(17) with the governor, the step bounds and the braking fallback:
-        (q'', c, c_hat0, t0, braking)."""
+        """(17) with the governor, the step bounds and the braking fallback, reached from
+        the last acceleration at most at max_jerk: (q'', c, c_hat0, t0, braking)."""
         params = self.parameters
         if self.scaling is None and self.penalty is None:
             return a + b, 1.0, state.c_hat0, state.t0, False
@@ -236,19 +294,19 @@ class AccelerationPlanning:
         c_free = 1.0
         if accel is not None:
             a = a + GovernorBraking(a, state.qd, *accel, params.bias_margin, params.governor_gain)
-            c_free = ScalingReturn(c_hat0, state.t, t0, params.scaling_recovery_rate)
+            c_free = ScalingReturn(c_hat0, state.t, t0, params.robust_recovery_rate)
+        max_change = params.max_jerk * params.time_step
         c_lo, c_hi = AdmissibleScaling(a, b, lower, upper)
         if c_lo > c_hi:
-            ramp = params.time_step / params.braking_ramp
-            limit = accel[1] if accel is not None else np.full(6, np.inf)
             braking = BrakingAcceleration(
-                state.qd, state.qdd, lower, upper, params.time_step, ramp * limit
+                state.qd, state.qdd, lower, upper, params.time_step, max_change
             )
             return braking, 0.0, 0.0, state.t, True
         c = min(max(c_free, c_lo), c_hi)
         if c != c_free:
             c_hat0, t0 = c, state.t
-        return a + c * b, c, c_hat0, t0, False
+        qdd = JerkLimited(a + c * b, state.qdd, max_change, lower, upper)
+        return qdd, c, c_hat0, t0, False
 
     def _BlendJointSpace(
         self, state: PlannerState, sigma: float, a: np.ndarray, b: np.ndarray
@@ -292,12 +350,12 @@ class AccelerationPlanning:
         params = self.parameters
         if params.robust:
             e = PoseError(kin, *self._poses[index])
-            orientation = float(np.linalg.norm(e[3:]))
+            orientation = _Norm(e[3:])
         else:
             e = TrackingError(kin.p, self.waypoints[index])
             orientation = float(np.max(np.abs(e[3:])))
         return bool(
-            np.linalg.norm(e[:3]) <= params.position_tolerance
+            _Norm(e[:3]) <= params.position_tolerance
             and orientation <= params.orientation_tolerance
         )
 
@@ -309,25 +367,30 @@ class AccelerationPlanning:
                 state.done_time = state.t
             return state
         if self.parameters.stop_at_waypoints:
-            resting = np.linalg.norm(tcp_velocity) <= self.parameters.rest_speed
+            resting = _Norm(tcp_velocity) <= self.parameters.rest_speed
             if resting and self._Reached(kin, state.index):
                 state.index += 1
                 if self.scaling is not None:  # a new elementary task starts smoothly
                     state.c_hat0, state.t0 = 0.0, state.t
             return state
         radius = self.parameters.neighbourhood_radius
-        if not state.inside and np.linalg.norm(kin.x - self.waypoints[state.index, :3]) < radius:
+        if not state.inside and _Norm(kin.x - self.waypoints[state.index, :3]) < radius:
             state.inside, state.sigma = True, 0.0
         if state.inside:
             # sigma grows with the TCP path length travelled since entering the sphere and
             # reaches 1 after blend_length: continuous in time, 0 at entry, and it keeps
             # growing whenever the TCP moves, so the TCP cannot settle at p_i.
-            path = np.linalg.norm(tcp_velocity) * self.parameters.time_step
+            path = _Norm(tcp_velocity) * self.parameters.time_step
             state.sigma = min(1.0, state.sigma + path / self.parameters.blend_length)
             if state.sigma >= 1.0:
                 state.index += 1
                 state.inside, state.sigma = False, 0.0
         return state
+
+
+def _Norm(v: np.ndarray) -> float:
+    """|v| of a short vector (np.linalg.norm's dispatch costs more than the sum)."""
+    return math.sqrt(float(v @ v))
 
 
 def RunPlanning(

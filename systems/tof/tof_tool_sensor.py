@@ -20,12 +20,12 @@ from pydrake.systems.framework import BasicVector, Context, DiscreteValues, Leaf
 from guidedarm.systems.config_checks import CheckFields, InRange, NonNegative, Positive
 from guidedarm.systems.errors import ConfigurationError
 from guidedarm.systems.plant_frames import GetScopedFrame
+from guidedarm.systems.tof.primitive_ray_casting import SceneRayCaster
 from guidedarm.systems.tof.tof_tool_sensor_math import (
     ConeRays,
     DetectionGrid,
     DriftStep,
     Measure,
-    RayCaster,
 )
 
 NUM_SENSORS = 6
@@ -45,8 +45,8 @@ class ToFToolConfig:
     tool_frame: the tool frame T (centre O of the detection field).
     cone_angle_deg: vertex angle of each sensor's cone; max_range: no return beyond it (m).
     target_radius: radius of the round target (the hose) that the detection grid's
-        consistency check assumes (m); 0: the followed hose's (path following fills it in
-        from station.hose.diameter), DEFAULT_TARGET_RADIUS for a sensor on its own.
+        consistency check assumes (m); 0: the station hose's radius
+        (StationScenario.ToFTool), DEFAULT_TARGET_RADIUS without a hose.
     noise_std, quantization: Gaussian noise and resolution of a reading (m).
     seed: seed of the noise generator; None: 0 (path following fills in its `seed`).
     period: a new range every period (s); range k is available at k period.
@@ -141,7 +141,7 @@ class ToFToolSensor(LeafSystem):
             for b in plant.GetBodyIndices(instance)
             for g in plant.GetCollisionGeometriesForBody(plant.get_body(b))
         }
-        self._caster = RayCaster(
+        self._caster = SceneRayCaster(
             ConeRays(np.radians(config.cone_angle_deg), config.rings),
             config.max_range,
             frozenset(ignored),
@@ -166,6 +166,10 @@ class ToFToolSensor(LeafSystem):
         )
         DeclareGridOutputs(self, MakeDetectionGrid(plant, config), self._Reading, depends)
 
+    def Caster(self) -> SceneRayCaster:
+        """The ray caster of the six cones."""
+        return self._caster
+
     def SensorPosesInWorld(self, context: Context) -> list[RigidTransform]:
         """X_WS of the six sensors."""
         query = self._query_port.Eval(context)
@@ -176,9 +180,7 @@ class ToFToolSensor(LeafSystem):
     def TrueRanges(self, context: Context) -> np.ndarray:
         """Noise-free nearest returns at the context's time (m; inf when nothing is in
         range)."""
-        query = self._query_port.Eval(context)
-        poses = self.SensorPosesInWorld(context)
-        return np.array([self._caster.Range(query, X_WS) for X_WS in poses])
+        return self._caster.Ranges(self._query_port.Eval(context), self.SensorPosesInWorld(context))
 
     def _Read(self, context: Context, k: int, drift: np.ndarray) -> np.ndarray:
         """Range k from the geometry at the context's time, as a state reading."""
