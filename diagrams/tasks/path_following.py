@@ -100,6 +100,17 @@ def RunPathFollowing(scenario: PathFollowingScenario, context: RunContext) -> di
             "executor=kinematic cannot run with --hardware: it poses a model and drives no "
             "arm (use executor=station)"
         )
+    link = scenario.station.hardware.arms.get(scenario.arm)
+    if (
+        scenario.motion == "continuous"
+        and context.hardware
+        and link
+        and link.command_mode == "move"
+    ):
+        raise ConfigurationError(
+            f"motion=continuous streams a target every servo period: station.hardware.arms."
+            f"{scenario.arm}.command_mode must be 'stream', not 'move'"
+        )
     repeat_seed = scenario.repeat_random_seed
     execution, setup = Run(scenario, context, scenario.random_seed)
     centerline = setup.centerline
