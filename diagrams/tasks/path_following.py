@@ -133,6 +133,8 @@ def RunPathFollowing(scenario: PathFollowingScenario, context: RunContext) -> di
         "motion": scenario.motion,
         "failure": failure,
         "sim_time_s": round(execution.sim_time, 3),
+        # simulated over wall-clock time of the follower's loop (setup and report excluded)
+        "realtime_factor": round(execution.sim_time / max(execution.wall_time, 1e-9), 2),
     }
     context.headline = summary  # the figures below print its headline figures
     if repeat_seed is not None:
