@@ -3,8 +3,9 @@ paths and random_0..19 with the ranging estimator in `continuous` mode, the pape
 also stop-and-go (joint_trajectory) and continuous with the grid estimator. Prints one
 row per run (success, coverage, average speed, tracking mean / max, collisions, simulated
 time, the run's wall time, and the summary's realtime_factor: simulated over wall-clock
-time of the follower's loop on the station, setup and report excluded) and the continuous set's totals against the goals (speed >= 40
-mm/s, tracking mean <= 3 mm, max <= 10 mm).
+time of the follower's loop on the station, setup and report excluded) and the
+continuous set's totals against the goals (speed >= 40 mm/s, tracking mean <= 3 mm,
+max <= 10 mm).
 
     .venv/bin/python tests/benchmarks/bench_continuous_following.py [--quick] [--more]
 
