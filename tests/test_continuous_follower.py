@@ -219,7 +219,7 @@ def test_config_rules_between_fields(field, value, message):
 
 
 @pytest.mark.slow
-@pytest.mark.parametrize("path", ["paper_path_3", "random_7"])
+@pytest.mark.parametrize("path", ["paper_path_3", "random_9"])
 def test_continuous_run_through_the_station(tmp_path, path):
     """One seeded run of `motion: continuous` (ranging) through the simulated station, a
     paper path and a random hose: success, full coverage, no collisions, and the issue's
