@@ -221,6 +221,17 @@ BAD_INPUTS = [
         Run(PF, "executor=kinematic", flags=("--hardware",)),
         "executor=kinematic cannot run with --hardware",
     ),
+    (
+        "continuous-hardware-move",
+        Run(
+            PF,
+            "motion=continuous",
+            "station.hardware.arms.mz04d.driver=nachi_tcp",
+            "station.hardware.arms.mz04d.command_mode=move",
+            flags=("--hardware",),
+        ),
+        "command_mode must be 'stream', not 'move'",
+    ),
     ("follower-steps", Run(PF, "follower.long_step=0.001"), "short_step <= long_step"),
     ("follower-reduction", Run(PF, "follower.rotation_reduction=1"), "[0, 1)"),
     ("follower-readings", Run(PF, "follower.readings=-2"), "follower.readings"),

@@ -100,6 +100,17 @@ def RunPathFollowing(scenario: PathFollowingScenario, context: RunContext) -> di
             "executor=kinematic cannot run with --hardware: it poses a model and drives no "
             "arm (use executor=station)"
         )
+    link = scenario.station.hardware.arms.get(scenario.arm)
+    if (
+        scenario.motion == "continuous"
+        and context.hardware
+        and link
+        and link.command_mode == "move"
+    ):
+        raise ConfigurationError(
+            f"motion=continuous streams a target every servo period: station.hardware.arms."
+            f"{scenario.arm}.command_mode must be 'stream', not 'move'"
+        )
     repeat_seed = scenario.repeat_random_seed
     execution, setup = Run(scenario, context, scenario.random_seed)
     centerline = setup.centerline
@@ -122,6 +133,8 @@ def RunPathFollowing(scenario: PathFollowingScenario, context: RunContext) -> di
         "motion": scenario.motion,
         "failure": failure,
         "sim_time_s": round(execution.sim_time, 3),
+        # simulated over wall-clock time of the follower's loop (setup and report excluded)
+        "realtime_factor": round(execution.sim_time / max(execution.wall_time, 1e-9), 2),
     }
     context.headline = summary  # the figures below print its headline figures
     if repeat_seed is not None:

@@ -15,6 +15,7 @@ kinematic station of the same scene checks for robot-hose contact.
 
 from __future__ import annotations
 
+import time
 from dataclasses import dataclass
 
 import numpy as np
@@ -40,7 +41,8 @@ SAMPLE_PERIOD = 0.02
 class Execution:
     """What a run produced: step records (steps x RECORD_FIELDS), joint samples (times,
     q rows) for the contact check, the simulated time (s), a failure line or None, and the
-    number of steps during which the robot touched the hose."""
+    number of steps during which the robot touched the hose, and the wall-clock time (s) the
+    simulation took (the follower's loop on its station, without setup and report)."""
 
     records: np.ndarray
     sample_times: np.ndarray
@@ -48,6 +50,7 @@ class Execution:
     sim_time: float
     failure: str | None
     collisions: int = 0
+    wall_time: float = 0.0
 
 
 def Execute(setup: Setup, executor: str, context: RunContext) -> Execution:
@@ -99,7 +102,9 @@ def _Simulate(setup: Setup, station: Diagram, context: RunContext, visualized: b
     simulator.Initialize()
     if visualized:
         context.start_recording()
+    start = time.perf_counter()
     simulator.AdvanceTo(setup.max_time)
+    wall_time = time.perf_counter() - start
     if visualized:
         context.write_replay()
     loop = follower.Loop(follower_context)
@@ -114,6 +119,7 @@ def _Simulate(setup: Setup, station: Diagram, context: RunContext, visualized: b
         samples.data().T,
         root.get_time(),
         failure,
+        wall_time=wall_time,
     )
 
 

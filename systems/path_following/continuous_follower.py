@@ -93,6 +93,10 @@ class ContinuousFollower(LeafSystem):
     ) -> None:
         super().__init__()
         config.Validate()
+        if estimator == "grid":
+            # The grid estimator's points are the grid's (spacing apart): a jump of one
+            # spacing is its resolution, not an outlier.
+            config = replace(config, gate=max(config.gate, grid.spacing))
         self._config, self._plant, self._tool = config, plant, tool
         self._grid, self._estimator = grid, estimator
         self._plant_context = plant.CreateDefaultContext()

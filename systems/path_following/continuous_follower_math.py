@@ -55,14 +55,16 @@ class ContinuousConfig:
 
     speed: cruise speed of the tool along the hose (m/s); min_speed: the floor of the
         adapted speed (m/s); acceleration: the tool's speed change (m/s^2).
-    lateral_acceleration: in a bend of curvature k the speed is at most
-        sqrt(lateral_acceleration / k) and max_turn_rate_deg / k (m/s^2).
+    lateral_acceleration: in a bend of curvature k (the fit's, less two standard
+        errors) the speed is at most sqrt(lateral_acceleration / k) and
+        max_turn_rate_deg / k (m/s^2).
     look_ahead: how far the target may run past the latest hose estimate (m).
     fit_length: length of hose behind the latest estimate fitted by the quadratic (m);
         min_fit_points: readings needed before the fit's tangent and curvature are used.
-    residual_limit: fit residual (RMS, m) at which the confidence reaches 0; the speed
-        falls from `speed` toward min_speed with the confidence (the fraction of readings
-        in the fit window that saw the hose, times 1 - residual / residual_limit).
+    spread_limit: the standard error of the estimated hose point at the tool (m) at which
+        the confidence reaches 0; the speed falls from `speed` toward min_speed with the
+        confidence (the fraction of readings in the fit window that saw the hose, times
+        1 - (spread / spread_limit)^2).
     gate: a hose point farther than this from the fit's extrapolation (once the fit has
         min_fit_points) is an outlier, counted as a reading without the hose (m): past the
         hose's end the cones still see its end cap behind the detection plane, each
@@ -72,6 +74,8 @@ class ContinuousConfig:
         angle (1/s; a first-order filter of the fit's noise).
     max_correction_speed: the fastest correction of the target's position (m/s).
     max_turn_rate_deg: the fastest turn of the target's x axis (deg/s).
+    heading_tolerance_deg: the target's x axis lagging the estimated heading by more than
+        this slows the target in proportion (deg).
     servo_period: the target and the differential IK's tick (s); servo_gain: the
         differential IK's gain on the tool's pose error (1/s), beside the target's own
         velocity; rotation_weight: the length (m) a rotation of 1 rad of the tool counts
@@ -96,11 +100,12 @@ class ContinuousConfig:
     look_ahead: float = Positive(0.015)
     fit_length: float = Positive(0.03)
     min_fit_points: int = InRange(3, 10000, 8)
-    residual_limit: float = Positive(0.012)
+    spread_limit: float = Positive(0.006)
     gate: float = Positive(0.008)
     correction_gain: float = Positive(8.0)
     max_correction_speed: float = Positive(0.03)
     max_turn_rate_deg: float = Positive(30.0)
+    heading_tolerance_deg: float = InRange(0.5, 90.0, 10.0)
     servo_period: float = Positive(0.004)
     servo_gain: float = Positive(20.0)
     rotation_weight: float = Positive(0.05)
@@ -171,9 +176,16 @@ class JointHistory:
 class LocalFit:
     """The hose near the latest estimate: point p (m, W) at path coordinate s, unit
     tangent u, curvature vector c (1/m, normal to u), RMS residual (m), readings in the
-    window and how many of them saw the hose, and `heading`, the unit direction of a line
-    fitted to the window: four times less noisy than u (the end slope of a quadratic),
-    lagging it by half the window in bends; the tool's x axis follows it."""
+    window and how many of them saw the hose, `heading` (below), `spread`, the standard
+    error (m) of p (the readings' noise through the fit: it falls as more readings fill
+    the window), and `curvature_error`, the standard error of |c| (1/m; a quadratic on
+    30 mm of readings with 2 mm noise has a curvature of about 10 1/m from the noise
+    alone).
+
+    heading: the unit direction of a line fitted to the window, four times less noisy than
+    u (the end slope of a quadratic) but the path's direction at the window's middle;
+    advanced to its end by the curvature the readings support (significant_curvature).
+    The tool's x axis follows it."""
 
     s: float
     p: np.ndarray
@@ -183,14 +195,29 @@ class LocalFit:
     readings: int
     detections: int
     heading: np.ndarray
+    spread: float = 0.0
+    curvature_error: float = 0.0
+    span: float = 0.0
 
     def Point(self, s: float) -> np.ndarray:
+        """The hose at path coordinate s (m, W): the quadratic within the window; ahead
+        of p, along `heading` bending by the significant curvature (the quadratic's end
+        slope and curvature, extrapolated, carry the noise of the readings ahead)."""
         d = s - self.s
-        return self.p + self.u * d + 0.5 * self.c * d * d
+        if d <= 0:
+            return self.p + self.u * d + 0.5 * self.c * d * d
+        k = self.curvature
+        c = self.c * (self.significant_curvature / k) if k > 0 else self.c
+        return self.p + self.heading * d + 0.5 * c * d * d
 
     @property
     def curvature(self) -> float:
         return float(np.linalg.norm(self.c))
+
+    @property
+    def significant_curvature(self) -> float:
+        """The curvature the readings support (1/m): |c| less two standard errors, >= 0."""
+        return max(self.curvature - 2 * self.curvature_error, 0.0)
 
 
 @dataclass(frozen=True)
@@ -278,19 +305,53 @@ def FitHose(
         p = points[-min(len(d), 4) :].mean(axis=0) if len(d) else previous.p
         # A handful of points says nothing about the noise: residual 0.
         return LocalFit(
-            s_end, p, previous.u, np.zeros(3), 0.0, len(rows), len(detected), previous.heading
+            s_end,
+            p,
+            previous.u,
+            np.zeros(3),
+            0.0,
+            len(rows),
+            len(detected),
+            previous.heading,
+            span=span,
         )
     degree = 2 if span >= 2 * config.fit_length / 3 else 1
     A = np.vander(d, degree + 1, increasing=True)
     coef, *_ = np.linalg.lstsq(A, points, rcond=None)
-    residual = float(np.sqrt(np.mean(np.sum((points - A @ coef) ** 2, axis=1))))
-    heading = _Direction(np.linalg.lstsq(A[:, :2], points, rcond=None)[0][1], previous.heading)
+    squares = float(np.sum((points - A @ coef) ** 2))
+    residual = math.sqrt(squares / len(d))
+    # The noise lies across the hose (the detection plane holds S): two axes of variance
+    # sigma^2 each; the fit's covariance is sigma^2 (A^T A)^-1 per axis.
+    sigma2 = squares / (2 * max(len(d) - degree - 1, 1))
+    covariance = np.linalg.inv(A.T @ A)
+    spread = math.sqrt(2 * sigma2 * covariance[0, 0])
+    slope = np.linalg.lstsq(A[:, :2], points, rcond=None)[0][1]
     u = _Direction(coef[1], previous.u)
     c = np.zeros(3)
+    curvature_error = 0.0
     if degree == 2:
-        a = 2 * coef[2] / max(float(np.linalg.norm(coef[1])), 1e-6) ** 2
+        scale = 2 / max(float(np.linalg.norm(coef[1])), 1e-6) ** 2
+        a = scale * coef[2]
         c = a - (a @ u) * u
-    return LocalFit(s_end, coef[0], u, c, residual, len(rows), len(detected), heading)
+        curvature_error = scale * math.sqrt(sigma2 * covariance[2, 2])
+        k = float(np.linalg.norm(c))
+        if k > 0:  # the line's direction is the path's at the window's centroid
+            shrunk = c * (max(k - 2 * curvature_error, 0.0) / k)
+            slope = slope / max(float(np.linalg.norm(slope)), 1e-9) - shrunk * float(np.mean(d))
+    heading = _Direction(slope, previous.heading)
+    return LocalFit(
+        s_end,
+        coef[0],
+        u,
+        c,
+        residual,
+        len(rows),
+        len(detected),
+        heading,
+        spread,
+        curvature_error,
+        span,
+    )
 
 
 def _Direction(derivative: np.ndarray, previous: np.ndarray) -> np.ndarray:
@@ -303,18 +364,22 @@ def _Direction(derivative: np.ndarray, previous: np.ndarray) -> np.ndarray:
 
 
 def Confidence(fit: LocalFit, config: ContinuousConfig) -> float:
-    """In [0, 1]: the fraction of readings in the fit window that saw the hose, times
-    1 - residual / residual_limit."""
+    """In [0, 1]: the fraction of readings in the fit window that saw the hose, times the
+    fraction of fit_length their detections span (a window still filling knows the path
+    ahead only roughly), times 1 - (spread / spread_limit)^2 (flat while the hose is known
+    to a fraction of the limit, falling to 0 as its uncertainty reaches it)."""
     if fit.readings == 0:
-        return 1.0
+        return 0.0
     seen = fit.detections / fit.readings
-    return float(np.clip(seen * (1 - fit.residual / config.residual_limit), 0.0, 1.0))
+    filled = min(fit.span / config.fit_length, 1.0)
+    known = 1 - (fit.spread / config.spread_limit) ** 2
+    return float(np.clip(seen * filled * known, 0.0, 1.0))
 
 
 def TargetSpeed(fit: LocalFit, config: ContinuousConfig) -> float:
-    """The speed the follower aims for on this fit (m/s): curvature and confidence limits,
-    at least min_speed."""
-    k = fit.curvature
+    """The speed the follower aims for on this fit (m/s): the limits of the bend (its
+    significant curvature) and of the confidence, at least min_speed."""
+    k = fit.significant_curvature
     turn = math.radians(config.max_turn_rate_deg)
     bend = min(math.sqrt(config.lateral_acceleration / k), turn / k) if k > 0 else np.inf
     confident = config.min_speed + (config.speed - config.min_speed) * Confidence(fit, config)
@@ -398,38 +463,37 @@ def Advance(
     else:
         remaining = s_stop - ref.s
     v_goal = min(v_goal, math.sqrt(2 * config.acceleration * max(remaining, 0.0)))
-    # A target whose heading lags the path by more than the turn rate can make up slows
-    # down in proportion: it waits for the tool to turn instead of dragging it off the
-    # hose sideways.
+    # A target whose heading lags the path by more than heading_tolerance_deg slows down in
+    # proportion: it waits for the tool to turn instead of dragging it off the hose
+    # sideways. (The heading of 30 mm of noisy readings wobbles by a few degrees, which
+    # tilts the detection plane harmlessly.)
     lag = math.acos(float(np.clip(ref.x @ fit.heading, -1.0, 1.0))) if ref.mode == FOLLOW else 0.0
-    turn_rate = math.radians(config.max_turn_rate_deg)
-    if config.correction_gain * lag > turn_rate:
-        v_goal *= turn_rate / (config.correction_gain * lag)
+    tolerance = math.radians(config.heading_tolerance_deg)
+    if lag > tolerance:
+        v_goal *= tolerance / lag
     v = ref.v + float(np.clip(v_goal - ref.v, -config.acceleration * dt, config.acceleration * dt))
+    # The target moves with the path it is on (the estimate's curve in FOLLOW, the search's
+    # line, the trail backwards), then is corrected toward the path's point at a bounded
+    # speed: a new fit moves that point, and the correction filters the jump.
     if ref.mode == RETRY:
-        goal = ref.r + ref.retry_direction * v * dt
-        x_goal = ref.retry_direction
         s = ref.s + v * dt
+        moved = ref.r + ref.retry_direction * v * dt
+        goal, x_goal = moved, ref.retry_direction
     elif ref.mode == BACK:
         s = ref.s - v * dt
-        if s <= fit.s:
-            goal, x_goal = estimate.TrailPoint(s)
-        else:  # back along the straight search's or the retry's line
-            direction = fit.u if ref.retry_direction is None else ref.retry_direction
-            goal, x_goal = fit.p + direction * (s - fit.s), direction
+        goal, x_goal = _BackPoint(estimate, ref, s)
+        moved = ref.r + goal - _BackPoint(estimate, ref, ref.s)[0]
     elif ref.mode == SEARCH:  # straight on: the fit's curvature is not extrapolated so far
         s = ref.s + v * dt
         goal, x_goal = fit.p + fit.u * (s - fit.s), fit.u
+        moved = ref.r + fit.u * v * dt
     else:
         s = ref.s + v * dt
         goal, x_goal = fit.Point(s), fit.heading
-    # Moving along x at v, then corrected toward the path at a bounded speed; backing up
-    # follows the trail's bends with the correction budget of its own speed too.
-    sign = -1.0 if ref.mode == BACK else 1.0
-    moved = ref.r + sign * ref.x * v * dt
+        moved = ref.r + goal - fit.Point(ref.s)
     gap = float(np.linalg.norm(goal - moved))
     budget = min(config.correction_gain * gap, config.max_correction_speed) * dt
-    r = _Toward(moved, goal, budget + (v * dt if ref.mode == BACK else 0.0))
+    r = _Toward(moved, goal, budget)
     angle = math.acos(float(np.clip(ref.x @ x_goal, -1.0, 1.0)))
     turn = min(config.correction_gain * angle, math.radians(config.max_turn_rate_deg)) * dt
     x = _Turn(ref.x, x_goal, turn)
@@ -452,6 +516,16 @@ def _NextSearchStage(ref: Reference, estimate: HoseEstimate, config: ContinuousC
     turn = math.radians(config.search_turns_deg[ref.retry])
     direction = RotationMatrix.MakeZRotation(turn) @ fit.u
     return replace(ref, mode=RETRY, retry=ref.retry + 1, retry_direction=direction, s=fit.s, v=0.0)
+
+
+def _BackPoint(estimate: HoseEstimate, ref: Reference, s: float) -> tuple[np.ndarray, np.ndarray]:
+    """(point, direction) of the way back at path coordinate s: the trail behind the
+    latest estimate, the straight search's or the retry's line beyond it."""
+    fit = estimate.fit
+    if s <= fit.s:
+        return estimate.TrailPoint(s)
+    direction = fit.u if ref.retry_direction is None else ref.retry_direction
+    return fit.p + direction * (s - fit.s), direction
 
 
 def _Toward(a: np.ndarray, b: np.ndarray, step: float) -> np.ndarray:
