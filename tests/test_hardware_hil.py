@@ -156,7 +156,7 @@ def test_continuous_following_on_the_emulators_matches_simulation(tmp_path):
     for key, tolerance in HIL_TOLERANCES.items():
         assert abs(hw[key] - sim[key]) <= tolerance, (key, sim[key], hw[key])
     # Relative to the speed: the end of the run waits on the end-of-hose search.
-    assert hw["average_speed_mm_s"] == pytest.approx(sim["average_speed_mm_s"], rel=0.2)
+    assert hw["average_speed_mm_s"] == pytest.approx(sim["average_speed_mm_s"], rel=0.3)
 
 
 # Hardware minus simulated figures allowed (mm). The two runs cannot share a clock: the

@@ -10,7 +10,6 @@ from __future__ import annotations
 
 import argparse
 import socket
-import time
 
 import numpy as np
 from pydrake.multibody.parsing import LoadModelDirectives
@@ -79,12 +78,13 @@ def DefaultCell() -> StationScenario:
 
 
 class ToFTap:
-    """Hands each range of the station's `<tool>.ranges`/`valid` (m, status codes) to a
-    ToFEmulator when it becomes available (every sensor `period` s, at k period), to be
-    written `latency` s later on the host clock: the tool's readout and transfer, which
-    the hardware ToFDriver subtracts (ToFDriverConfig.latency) together with half the
-    ranging time to recover the measurement instant. The emulator steps the station in
-    real time, so its diagram time runs with the host clock."""
+    """Writes each range of the station's `<tool>.ranges`/`valid` (m, status codes) as a
+    ToFEmulator line `latency` s after it becomes available (every sensor `period` s, at
+    k period; the end of its ranging): the tool's readout and transfer, which the hardware
+    ToFDriver subtracts (ToFDriverConfig.latency) together with half the ranging time to
+    recover the measurement instant. It runs in the simulation thread at every step, so
+    the lines keep the emulated arm's time: the station steps in real time, within a step
+    (2 ms) of the host clock while it keeps up."""
 
     def __init__(self, station, tool: str, period: float, emulator: ToFEmulator, latency: float):
         self._ranges = station.GetOutputPort(f"{tool}.ranges")
@@ -93,20 +93,20 @@ class ToFTap:
         self._emulator = emulator
         self._latency = latency
         self._tick = -1
+        self._pending: list[tuple[float, np.ndarray, np.ndarray]] = []  # (due t, reading)
 
     def __call__(self, context: Context) -> None:
         t = context.get_time()
         tick = int(np.floor(t / self._period + 1e-9))
-        if tick == self._tick:
-            return
-        self._tick = tick
-        valid = self._valid.Eval(context) > 0.5
-        since_available = t - tick * self._period
-        self._emulator.Publish(
-            self._ranges.Eval(context).copy(),
-            np.where(valid, 0, NO_TARGET_STATUS),
-            time.monotonic() + max(0.0, self._latency - since_available),
-        )
+        if tick != self._tick:
+            self._tick = tick
+            valid = self._valid.Eval(context) > 0.5
+            status = np.where(valid, 0, NO_TARGET_STATUS)
+            due = tick * self._period + self._latency
+            self._pending.append((due, self._ranges.Eval(context).copy(), status))
+        while self._pending and self._pending[0][0] <= t:
+            _, ranges, status = self._pending.pop(0)
+            self._emulator.Write(ranges, status)
 
 
 def StartEmulators(
@@ -127,7 +127,7 @@ def StartEmulators(
         )
     station = MakeStation(station_scenario)
     tools = station_scenario.tof_tools
-    tofs = {name: ToFEmulator(None, tool.period) for name, tool in tools.items()}
+    tofs = {name: ToFEmulator(None) for name in tools}
     taps = tuple(
         ToFTap(station, name, tool.period, tofs[name], tof_latency) for name, tool in tools.items()
     )
