@@ -332,6 +332,8 @@ def _RunRefused(*args: str) -> subprocess.CompletedProcess:
             ["emulate", "nachi", "--servo-acceleration", "nan"],
             "--servo-acceleration nan: must be positive and finite",
         ),
+        (["emulate", "nachi", "--tof-latency", "-0.01"], "--tof-latency -0.01: must be >= 0"),
+        (["emulate", "tof", "--tof-latency", "inf"], "--tof-latency inf: must be >= 0 and finite"),
     ],
 )
 def test_refusals_before_a_run_are_one_line(args, message, tmp_path):
