@@ -155,17 +155,20 @@ def test_continuous_following_on_the_emulators_matches_simulation(tmp_path):
     assert hw["collisions"] == sim["collisions"] == 0
     for key, tolerance in HIL_TOLERANCES.items():
         assert abs(hw[key] - sim[key]) <= tolerance, (key, sim[key], hw[key])
-    # Relative to the speed: the end of the run waits on the end-of-hose search.
-    assert hw["average_speed_mm_s"] == pytest.approx(sim["average_speed_mm_s"], rel=0.3)
+    assert hw["average_speed_mm_s"] == pytest.approx(sim["average_speed_mm_s"], rel=SPEED_TOLERANCE)
 
 
-# Hardware minus simulated figures allowed (mm). The two runs cannot share a clock: the
-# readings are taken at other instants (the ToF period against the emulator's start), the
-# arm follows the stream one interval (8 ms) plus the link behind, and CPU contention
-# delays targets now and then, so the tool passes a given hose point at other poses.
+# Hardware minus simulated figures allowed (mm), and the relative speed difference. The
+# two runs cannot share a clock: the readings are taken at other instants of the motion,
+# the arm follows the stream one interval (8 ms) plus the link behind, and CPU contention
+# delays targets and readings now and then, so the tool passes a given hose point at other
+# poses. Over 8 successful runs (docs/hardware.md) the largest differences were -0.26,
+# -1.68, +1.26 and +9.06 mm (maxima are single readings), and the speed -3 % to +21 %; the
+# tolerances are 1.3-4 times those.
 HIL_TOLERANCES = {
     "detected_path_error_mean_mm": 1.0,
     "detected_path_error_max_mm": 5.0,
-    "tracking_error_mean_mm": 1.5,
+    "tracking_error_mean_mm": 2.0,
     "tracking_error_max_mm": 12.0,
 }
+SPEED_TOLERANCE = 0.3
