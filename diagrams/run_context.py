@@ -12,6 +12,7 @@ only to write replay.html.
 
 from __future__ import annotations
 
+import gc
 import json
 import logging
 import math
@@ -67,6 +68,13 @@ class RunContext:
         realtime_rate) and shows its simulated time, up to t_final (s), on the Meshcat page
         whenever progress() is called."""
         simulator.set_target_realtime_rate(1.0 if self.hardware else self.realtime_rate)
+        if self.hardware:
+            # Against hardware the diagram must keep real time: a full garbage collection
+            # walks every object built so far (Drake's among them) in one pause, holding
+            # the GIL the link threads need (80-180 ms measured in a hardware run's
+            # process while it was built and reported; several times that on a loaded
+            # machine, against watchdogs of 0.5 s). Frozen objects are never walked again.
+            gc.freeze()
         self._simulator = simulator
         if self.meshcat is not None:
             if PROGRESS_SLIDER in self.meshcat.GetSliderNames():

@@ -1,10 +1,11 @@
 """Faults injected through real processes during `guidedarm run path_following --hardware`
 against `guidedarm emulate nachi` (a separate process): the controller killed (SIGKILL) or
 frozen (SIGSTOP), a second client sending STOP as the pendant would, the ToF stream silenced
-or garbled (a relay between the emulator's pseudo-terminal and the run's), a command beyond
-the acceleration limits. Each run exits 1 within the watchdog + 1 s of the fault with
-summary.json naming the link, the fault and its time, the emulated arm ends STOPPED when
-it is still reachable, and no output holds a traceback.
+or garbled (a relay between the emulator's pseudo-terminal and the run's; silenced also
+while following continuously), a command beyond the acceleration limits. Each run exits 1
+within the watchdog + 1 s of the fault with summary.json naming the link, the fault and its
+time, the emulated arm ends STOPPED when it is still reachable, and no output holds a
+traceback.
 
 Refusals before a run (a UR controller that cannot be reached, settings that cannot run on
 hardware) are one line and exit 2.
@@ -256,6 +257,34 @@ def test_tof_fault_stops_the_arm_and_ends_the_run(fault, cell, tmp_path):
     assert cell.State() == "STOPPED"
 
 
+# Continuous following streams a SERVO every 8 ms (tests/test_hardware_hil.py).
+CONTINUOUS = (
+    "motion=continuous",
+    "estimator=ranging",
+    "continuous.servo_period=0.008",
+    "station.arms.mz04d.control_period=0.008",
+)
+
+
+def test_tof_silent_while_following_continuously_stops_the_arm(cell, tmp_path):
+    """The tool moving at 30-50 mm/s when the ToF link goes quiet: the ToF watchdog stops
+    the braking arm and ends the run as in stop-and-go."""
+    relay = ToFRelay(cell.tof_device)
+    try:
+        run = Run(cell, tmp_path / "out", relay.device, *CONTINUOUS)
+        run.WaitUntilStreaming(cell, moves=125)  # 1 s of targets: the tool is under way
+        moving = cell.Request("READ_JOINTS"), time.sleep(0.05), cell.Request("READ_JOINTS")
+        fault_time = time.monotonic()
+        relay.mode = "silent"
+        elapsed = _CheckEnded(run, "tof silent, continuous", TOF_FAULTS["silent"], fault_time)
+    finally:
+        relay.close()
+    joints = [np.array(reply.split()[2:], float) for reply in moving[::2]]
+    assert np.max(np.abs(joints[1] - joints[0])) > 0.01  # deg in 50 ms: it was moving
+    assert elapsed < WATCHDOG + 1.0
+    assert cell.State() == "STOPPED"
+
+
 def test_refused_command_is_not_sent_and_ends_the_run(cell, tmp_path):
     # The follower accelerates its joints at up to 5 rad/s^2; the guard allows 0.05.
     limits = "station.hardware.arms.mz04d.acceleration_limits=[0.05, 0.05, 0.05, 0.05, 0.05, 0.05]"
@@ -303,6 +332,8 @@ def _RunRefused(*args: str) -> subprocess.CompletedProcess:
             ["emulate", "nachi", "--servo-acceleration", "nan"],
             "--servo-acceleration nan: must be positive and finite",
         ),
+        (["emulate", "nachi", "--tof-latency", "-0.01"], "--tof-latency -0.01: must be >= 0"),
+        (["emulate", "tof", "--tof-latency", "inf"], "--tof-latency inf: must be >= 0 and finite"),
     ],
 )
 def test_refusals_before_a_run_are_one_line(args, message, tmp_path):

@@ -3,6 +3,7 @@ and the whole path through a pseudo-terminal fed by the emulator."""
 
 from __future__ import annotations
 
+import threading
 import time
 
 import numpy as np
@@ -160,3 +161,43 @@ def test_driver_stamps_a_line_with_its_measurement_instant_in_diagram_time():
     context.SetTime(5.04)
     context.SetDiscreteState(driver.EvalUniquePeriodicDiscreteUpdate(context).value())
     assert stamp.Eval(context)[0] == pytest.approx(5.04 - 0.007, abs=0.02)
+
+
+def test_each_line_is_stamped_when_it_arrives():
+    """Lines written 10 ms apart each keep their own receive time, the basis of
+    `measured_at`: the serial transport hands over the bytes that arrived, not fixed-size
+    chunks (a read of 256 bytes waited up to its 50 ms timeout and stamped 2-3 lines with
+    one late time)."""
+    emulator = ToFEmulator(None)
+    collector = ToFLineCollector()
+    transport = SerialTransport(collector, emulator.device, 115200)
+    written = []
+
+    def WriteLines():
+        start = time.monotonic() + 0.1
+        for k in range(50):
+            time.sleep(max(0.0, start + 0.01 * k - time.monotonic()))
+            written.append(time.monotonic())
+            emulator.Write(np.full(6, 0.001 * k), STATUS)
+
+    writer = threading.Thread(target=WriteLines)
+    writer.start()
+    received = {}
+    try:
+        while writer.is_alive() or time.monotonic() < written[-1] + 0.05:
+            latest = collector.latest()
+            if latest is not None:
+                received.setdefault(latest[0].seq, latest[1])
+            time.sleep(0.0005)
+    finally:
+        writer.join()
+        emulator.close()
+        transport.close()
+    delays = np.array([received[k] - written[k] for k in received])
+    print(
+        f"lines seen {len(received)} of 50, delay median {1e3 * np.median(delays):.2f} ms, "
+        f"p90 {1e3 * np.percentile(delays, 90):.2f} ms, max {1e3 * delays.max():.2f} ms"
+    )
+    assert len(received) >= 45  # the test's 0.5 ms polling may miss one under load
+    assert np.all(delays >= 0)
+    assert np.median(delays) < 0.002 and np.percentile(delays, 90) < 0.005

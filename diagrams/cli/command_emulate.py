@@ -10,14 +10,13 @@ from __future__ import annotations
 
 import argparse
 import socket
-import threading
 
 import numpy as np
 from pydrake.multibody.parsing import LoadModelDirectives
 from pydrake.systems.framework import Context
 
 from guidedarm.diagrams.cli.command_run import LoadScenario
-from guidedarm.diagrams.station.hardware_config import CheckPort
+from guidedarm.diagrams.station.hardware_config import CheckPort, ToFDriverConfig
 from guidedarm.diagrams.station.model_paths import MODELS_DIR
 from guidedarm.diagrams.station.scenario import ArmConfig, StationScenario
 from guidedarm.diagrams.station.station import MakeStation
@@ -31,6 +30,7 @@ from guidedarm.systems.hardware.nachi_protocol import DEFAULT_PORT
 from guidedarm.systems.hardware.tof_emulator import ToFEmulator
 from guidedarm.systems.tof.tof_tool_sensor import ToFToolConfig
 
+DEFAULT_TOF_LATENCY = ToFDriverConfig().latency  # s, as the driver assumes by default
 NO_TARGET_STATUS = 11  # VL6180X "max signal to noise ratio": nothing returned in range
 
 
@@ -57,6 +57,13 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         default=DEFAULT_SERVO_TIMEOUT,
         help="seconds without a SERVO target before the arm brakes (nachi)",
     )
+    parser.add_argument(
+        "--tof-latency",
+        type=float,
+        default=DEFAULT_TOF_LATENCY,
+        help="seconds from a range's end of ranging to its line leaving the tool (the "
+        "hardware ToF driver's `latency`)",
+    )
     parser.set_defaults(func=emulate_command)
 
 
@@ -71,30 +78,35 @@ def DefaultCell() -> StationScenario:
 
 
 class ToFTap:
-    """Keeps the newest `<tool>.ranges`/`valid` of the station as (ranges m, status codes),
-    sampled once per sensor `period` (s): ray casting every 2 ms step would be wasted."""
+    """Writes each range of the station's `<tool>.ranges`/`valid` (m, status codes) as a
+    ToFEmulator line `latency` s after it becomes available (every sensor `period` s, at
+    k period; the end of its ranging): the tool's readout and transfer, which the hardware
+    ToFDriver subtracts (ToFDriverConfig.latency) together with half the ranging time to
+    recover the measurement instant. It runs in the simulation thread at every step, so
+    the lines keep the emulated arm's time: the station steps in real time, within a step
+    (2 ms) of the host clock while it keeps up."""
 
-    def __init__(self, station, tool: str, period: float) -> None:
+    def __init__(self, station, tool: str, period: float, emulator: ToFEmulator, latency: float):
         self._ranges = station.GetOutputPort(f"{tool}.ranges")
         self._valid = station.GetOutputPort(f"{tool}.valid")
         self._period = period
+        self._emulator = emulator
+        self._latency = latency
         self._tick = -1
-        self._lock = threading.Lock()
-        self._reading = (np.zeros(6), np.full(6, NO_TARGET_STATUS))
+        self._pending: list[tuple[float, np.ndarray, np.ndarray]] = []  # (due t, reading)
 
     def __call__(self, context: Context) -> None:
-        tick = int(np.floor(context.get_time() / self._period + 1e-9))
-        if tick == self._tick:
-            return
-        self._tick = tick
-        valid = self._valid.Eval(context) > 0.5
-        reading = (self._ranges.Eval(context).copy(), np.where(valid, 0, NO_TARGET_STATUS))
-        with self._lock:
-            self._reading = reading
-
-    def Latest(self) -> tuple[np.ndarray, np.ndarray]:
-        with self._lock:
-            return self._reading
+        t = context.get_time()
+        tick = int(np.floor(t / self._period + 1e-9))
+        if tick != self._tick:
+            self._tick = tick
+            valid = self._valid.Eval(context) > 0.5
+            status = np.where(valid, 0, NO_TARGET_STATUS)
+            due = tick * self._period + self._latency
+            self._pending.append((due, self._ranges.Eval(context).copy(), status))
+        while self._pending and self._pending[0][0] <= t:
+            _, ranges, status = self._pending.pop(0)
+            self._emulator.Write(ranges, status)
 
 
 def StartEmulators(
@@ -104,38 +116,38 @@ def StartEmulators(
     port: int,
     servo_acceleration: float = DEFAULT_SERVO_ACCELERATION,
     servo_timeout: float = DEFAULT_SERVO_TIMEOUT,
+    tof_latency: float = DEFAULT_TOF_LATENCY,
 ) -> tuple[NachiEmulator, dict[str, ToFEmulator]]:
     """The Nachi emulator for `arm` (SERVO loop limits: the model's joint speeds and
-    `servo_acceleration` rad/s^2; `servo_timeout` s) and a ToF emulator per tool."""
+    `servo_acceleration` rad/s^2; `servo_timeout` s) and a ToF emulator per tool, each
+    line leaving `tof_latency` s after its range's end of ranging."""
     if arm not in station_scenario.arms:
         raise ConfigurationError(
             f"--arm {arm}: not an arm of the station {list(station_scenario.arms)}"
         )
     station = MakeStation(station_scenario)
-    taps = {
-        name: ToFTap(station, name, tool.period)
-        for name, tool in station_scenario.tof_tools.items()
-    }
+    tools = station_scenario.tof_tools
+    tofs = {name: ToFEmulator(None) for name in tools}
+    taps = tuple(
+        ToFTap(station, name, tool.period, tofs[name], tof_latency) for name, tool in tools.items()
+    )
     emulator = NachiEmulator(
         station,
         arm,
         host,
         port,
-        observers=tuple(taps.values()),
+        observers=taps,
         servo_acceleration=servo_acceleration,
         servo_timeout=servo_timeout,
     )
-    tofs = {
-        name: ToFEmulator(tap.Latest, station_scenario.tof_tools[name].period)
-        for name, tap in taps.items()
-    }
     return emulator, tofs
 
 
 def CheckArguments(args: argparse.Namespace) -> None:
     """Refuses, before the station is built, a port outside 0..65535, a host that does not
     resolve, a duration, servo acceleration or servo timeout that is not positive and
-    finite (the duration may be infinite), and --port for `tof` (which serves no TCP)."""
+    finite (the duration may be infinite), a ToF latency that is negative or infinite, and
+    --port for `tof` (which serves no TCP)."""
     if args.port is not None and args.device != "nachi":
         raise ConfigurationError("--port applies to `emulate nachi` only")
     CheckPort("--port", DEFAULT_PORT if args.port is None else args.port)
@@ -150,6 +162,8 @@ def CheckArguments(args: argparse.Namespace) -> None:
         if not 0 < value < np.inf:
             flag = "--" + option.replace("_", "-")
             raise ConfigurationError(f"{flag} {value}: must be positive and finite")
+    if not 0 <= args.tof_latency < np.inf:
+        raise ConfigurationError(f"--tof-latency {args.tof_latency}: must be >= 0 and finite")
 
 
 def emulate_command(args: argparse.Namespace) -> int:
@@ -161,7 +175,13 @@ def emulate_command(args: argparse.Namespace) -> int:
         station_scenario = DefaultCell()
     port = 0 if args.device != "nachi" else DEFAULT_PORT if args.port is None else args.port
     emulator, tofs = StartEmulators(
-        station_scenario, args.arm, args.host, port, args.servo_acceleration, args.servo_timeout
+        station_scenario,
+        args.arm,
+        args.host,
+        port,
+        args.servo_acceleration,
+        args.servo_timeout,
+        args.tof_latency,
     )
     if args.device == "nachi":
         print(f"nachi: {args.arm} listening on {args.host}:{emulator.port}", flush=True)

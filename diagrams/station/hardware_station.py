@@ -36,6 +36,11 @@ from guidedarm.systems.hardware.tof_transports import BleTransport, SerialTransp
 from guidedarm.systems.hardware.ur_rtde_link import OpenUrRtde
 from guidedarm.systems.tof.tof_tool_sensor import TOF_PORTS, MakeDetectionGrid
 
+# The ToF driver looks for a new line this many times per ranging period: a line reaches
+# the diagram within a fraction of a period, and two lines never fall into one update
+# (the later would hide the earlier) unless the host stalls.
+TOF_POLLS_PER_PERIOD = 4
+
 
 def MakeHardwareStation(scenario: StationScenario, meshcat: Meshcat | None = None) -> Diagram:
     """Builds the hardware station of `scenario`; connects to every configured device."""
@@ -91,7 +96,12 @@ def MakeHardwareStation(scenario: StationScenario, meshcat: Meshcat | None = Non
         grid = MakeDetectionGrid(plant, tool)
         latency = tool.ranging_time / 2 + config.latency
         system = ToFDriver(
-            collector, tool.period, config.watchdog, tool.max_range, grid, latency=latency
+            collector,
+            tool.period / TOF_POLLS_PER_PERIOD,
+            config.watchdog,
+            tool.max_range,
+            grid,
+            latency=latency,
         )
         builder.AddNamedSystem(f"{name}.driver", system)
         for port in TOF_PORTS:

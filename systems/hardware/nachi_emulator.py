@@ -16,6 +16,7 @@ delivered: a client that sent STOP and vanished has stopped the arm.
 from __future__ import annotations
 
 import contextlib
+import gc
 import socket
 import threading
 from collections.abc import Callable
@@ -288,6 +289,9 @@ class NachiEmulator:
         rounding decide whether a command is sampled now or a period later."""
         self.simulator.set_target_realtime_rate(realtime_rate)
         self.simulator.Initialize()
+        # A full garbage collection over the station's objects would stall the controller
+        # (and the ToF lines written from this thread) in real time: freeze what is built.
+        gc.freeze()
         start = t = self.context.get_time()
         k = 0
         while t < duration and not self._closing.is_set():

@@ -18,10 +18,17 @@ ReadingSource = Callable[[], tuple[np.ndarray, np.ndarray]]
 
 
 class ToFEmulator:
-    """Writes one line per `period` s; `device` is the tty path a driver opens.
+    """Writes protocol lines into a pseudo-terminal; `device` is the tty path a driver opens.
+
+    With a `source`, a thread writes one line of its reading every `period` s on the host
+    clock. Without one, the caller writes each line with Write when its reading leaves the
+    tool (the Nachi emulator's simulation thread: a simulated range's end of ranging plus
+    the tool's readout and transfer latency), so the lines keep the simulation's time.
     `corrupt_every` > 0 truncates every n-th line (for malformed-line tests)."""
 
-    def __init__(self, source: ReadingSource, period: float, corrupt_every: int = 0) -> None:
+    def __init__(
+        self, source: ReadingSource | None, period: float = 0.0, corrupt_every: int = 0
+    ) -> None:
         self._master, slave = os.openpty()
         tty.setraw(slave)  # no echo, no CR/LF translation: the bytes pass as the MCU sent them
         self.device = os.ttyname(slave)
@@ -31,26 +38,35 @@ class ToFEmulator:
         self._corrupt_every = corrupt_every
         self.lines = 0
         self._closing = threading.Event()
-        self._thread = threading.Thread(target=self._Run, name="tof-emulator", daemon=True)
-        self._thread.start()
+        self._thread = None
+        if source is not None:
+            self._thread = threading.Thread(target=self._Run, name="tof-emulator", daemon=True)
+            self._thread.start()
+
+    def Write(self, ranges: np.ndarray, status: np.ndarray) -> bool:
+        """Writes the line of one reading (m, status codes) now; False once the pty is
+        closed."""
+        ranges_mm = np.clip(np.round(1e3 * np.asarray(ranges)), 0, 255)
+        line = FormatTofLine(self.lines, ranges_mm, np.asarray(status)) + "\r\n"
+        self.lines += 1
+        if self._corrupt_every and self.lines % self._corrupt_every == 0:
+            line = line[: len(line) // 2]
+        try:
+            os.write(self._master, line.encode("ascii"))
+        except OSError:
+            return False
+        return True
 
     def _Run(self) -> None:
         next_time = time.monotonic()
         while not self._closing.wait(max(0.0, next_time - time.monotonic())):
             next_time += self._period
-            ranges, status = self._source()
-            ranges_mm = np.clip(np.round(1e3 * np.asarray(ranges)), 0, 255)
-            line = FormatTofLine(self.lines, ranges_mm, np.asarray(status)) + "\r\n"
-            self.lines += 1
-            if self._corrupt_every and self.lines % self._corrupt_every == 0:
-                line = line[: len(line) // 2]
-            try:
-                os.write(self._master, line.encode("ascii"))
-            except OSError:
+            if not self.Write(*self._source()):
                 return
 
     def close(self) -> None:
         self._closing.set()
-        self._thread.join(timeout=1.0)
+        if self._thread is not None:
+            self._thread.join(timeout=1.0)
         os.close(self._master)
         os.close(self._slave)

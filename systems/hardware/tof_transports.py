@@ -31,7 +31,10 @@ class SerialTransport:
     def _Run(self) -> None:
         while not self._closing.is_set():
             try:
-                chunk = self._port.read(256)
+                # What has arrived, at least one byte: read(n) would wait for n bytes or
+                # the timeout, and every line of the chunk would get the chunk's late
+                # receive time (measured_at) and all but the newest would be lost.
+                chunk = self._port.read(max(1, self._port.in_waiting))
             except (serial.SerialException, OSError):
                 return  # device gone: the driver's watchdog reports it
             if chunk:
