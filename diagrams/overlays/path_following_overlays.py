@@ -51,7 +51,7 @@ def AddPathFollowingOverlays(
     camera looks at the scenario's hose, seen from beyond it. Nothing without a Meshcat."""
     if meshcat is None:
         return
-    tof = scenario.tof_tools[tof_name]
+    tof = scenario.ToFTool(tof_name)
     poses = ArmFramePoses(plant, plant.GetModelInstanceByName(arm))
     tool = GetScopedFrame(plant, tof.tool_frame, f"tof_tools.{tof_name}.tool_frame")
     q_measured = station.GetOutputPort(f"{arm}.position_measured")

@@ -86,7 +86,8 @@ def MakeHardwareStation(scenario: StationScenario, meshcat: Meshcat | None = Non
         )
         builder.AddNamedSystem(f"{name}.opencv_camera", system)
         builder.ExportOutput(system.get_output_port(), f"{name}.rgb_image")
-    for name, tool in scenario.tof_tools.items():
+    for name in scenario.tof_tools:
+        tool = scenario.ToFTool(name)
         config = hardware.tof_tools[name]
         collector = ToFLineCollector(name)
         if config.transport == "serial":

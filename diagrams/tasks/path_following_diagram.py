@@ -210,7 +210,8 @@ def MakeKinematicStation(scenario: StationScenario) -> Diagram:
     )
     builder.ExportInput(command.get_input_port(), f"{arm}.position_commanded")
     builder.ExportOutput(command.get_output_port(), f"{arm}.position_measured")
-    for name, tof in scenario.tof_tools.items():
+    for name in scenario.tof_tools:
+        tof = scenario.ToFTool(name)
         sensor = builder.AddNamedSystem(f"{name}.sensor", ToFToolSensor(plant, tof))
         builder.Connect(scene_graph.get_query_output_port(), sensor.get_input_port())
         for port in TOF_PORTS:
