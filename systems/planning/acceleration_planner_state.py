@@ -12,7 +12,7 @@ from dataclasses import dataclass
 import numpy as np
 
 
-@dataclass
+@dataclass(slots=True)
 class PlannerState:
     """Everything the planner carries from one step to the next.
 
