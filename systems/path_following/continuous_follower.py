@@ -68,7 +68,7 @@ class _Run:
 class ContinuousFollower(LeafSystem):
     """Inputs: `ranges` (6, m), `valid` (6), `measured_at` (6, s; -1 before the first
     reading), `position_measured` (n, rad), `servo_failure` (str, '' while the servo
-    follows; anything else ends the run with that reason).
+    follows; anything else ends the run with that reason; unconnected: '').
 
     Outputs: `X_WT_desired` (RigidTransform of the tool frame T in world W, the target
     for the next period), `step_record` (RECORD_FIELDS of the latest reading: t its
@@ -161,7 +161,9 @@ class ContinuousFollower(LeafSystem):
         stamp = float(np.mean(stamps))
         if np.all(stamps >= 0) and stamp > run.stamp + 1e-9:
             run = self._Read(context, run, stamp)
-        servo_failure = self._servo_failure.Eval(context)
+        servo_failure = (
+            self._servo_failure.Eval(context) if self._servo_failure.HasValue(context) else ""
+        )
         if servo_failure:
             run = replace(
                 run, failure=f"the servo stopped the arm at t = {t:.2f} s: {servo_failure}"
