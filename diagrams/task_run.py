@@ -31,8 +31,9 @@ def RunTask(task: TaskDefinition, scenario: Any, context: RunContext) -> dict[st
         metrics = dict(task.run(scenario, context))
     except RunFailedError as e:
         metrics = {"success": False, "failure": str(e)}
-    except KeyboardInterrupt:
-        metrics = {"success": False, "failure": INTERRUPTED}
+    except KeyboardInterrupt as e:
+        cause = f" by {e.args[0]}" if e.args else ""
+        metrics = {"success": False, "failure": f"{INTERRUPTED}{cause}"}
     except GuidedArmError:
         raise
     except Exception as e:  # a bug: keep its traceback beside the summary, not on screen

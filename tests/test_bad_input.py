@@ -183,6 +183,11 @@ BAD_INPUTS = [
     ("tof-offset-range", Run(PF, "station.tof_tools.tof.offset=[0,0,0,0,0,1]"), "offset[5]'"),
     ("tof-negative-drift", Run(PF, "station.tof_tools.tof.drift_rate=-1"), "drift_rate'"),
     ("tof-inf-drift-max", Run(PF, "station.tof_tools.tof.drift_max=.inf"), "drift_max'"),
+    (
+        "tof-drift-without-bound",
+        Run(PF, "station.tof_tools.tof.drift_rate=0.01", "station.tof_tools.tof.drift_max=0"),
+        "needs drift_max > 0",
+    ),
     ("tof-driver-latency", Run(PF, "station.hardware.tof_tools.tof.latency=-1"), "latency'"),
     # --- waypoints and planner
     ("waypoints-inf-time", Run(WP, "max_time=.inf"), "key 'max_time': must be a finite"),
@@ -231,6 +236,46 @@ BAD_INPUTS = [
             flags=("--hardware",),
         ),
         "command_mode must be 'stream', not 'move'",
+    ),
+    (
+        "continuous-hardware-periods",
+        Run(
+            PF,
+            "motion=continuous",
+            "station.hardware.arms.mz04d.driver=nachi_tcp",
+            flags=("--hardware",),
+        ),
+        "must equal station.arms.mz04d.control_period",
+    ),
+    (
+        "continuous-servo-faster-than-arm",
+        Run(PF, "motion=continuous", "continuous.servo_period=1e-4"),
+        "shorter than station.arms.mz04d.control_period",
+    ),
+    (
+        "continuous-ignores-follower",
+        Run(PF, "motion=continuous", "follower.long_step=0.03"),
+        "'follower.long_step' has no effect with motion=continuous",
+    ),
+    (
+        "continuous-ignores-period",
+        Run(PF, "motion=continuous", "period=0.05"),
+        "'period' has no effect",
+    ),
+    (
+        "continuous-ignores-tool-speed",
+        Run(PF, "motion=continuous", "tool_speed=0.02"),
+        "'tool_speed' has no effect",
+    ),
+    (
+        "joint-moves-ignore-continuous",
+        Run(PF, "continuous.speed=0.05"),
+        "'continuous.speed' has no effect with motion=joint_trajectory",
+    ),
+    (
+        "joint-moves-ignore-planner",
+        Run(PF, "planner.gain_p=10"),
+        "'planner.gain_p' has no effect with motion=joint_trajectory",
     ),
     ("follower-steps", Run(PF, "follower.long_step=0.001"), "short_step <= long_step"),
     ("follower-reduction", Run(PF, "follower.rotation_reduction=1"), "[0, 1)"),
@@ -556,7 +601,13 @@ def test_meshcat_run_keeps_serving_without_a_terminal(tmp_path):
         assert text not in out + err
 
 
-def test_ctrl_c_during_a_run_writes_an_interrupted_summary(tmp_path):
+@pytest.mark.parametrize(
+    "signum, failure",
+    [(signal.SIGINT, "interrupted"), (signal.SIGTERM, "interrupted by SIGTERM")],
+    ids=["ctrl-c", "sigterm"],
+)
+def test_a_signal_during_a_run_writes_an_interrupted_summary(tmp_path, signum, failure):
+    """Ctrl-C, or SIGTERM from a supervisor or `timeout`, ends a run with its summary."""
     process = subprocess.Popen(
         [GUIDEDARM, "run", WP, "--out", str(tmp_path)],
         stdin=subprocess.DEVNULL,
@@ -569,11 +620,11 @@ def test_ctrl_c_during_a_run_writes_an_interrupted_summary(tmp_path):
         if line.startswith("guidedarm: running"):
             break
     time.sleep(1.5)
-    process.send_signal(signal.SIGINT)
+    process.send_signal(signum)
     out, err = process.communicate(timeout=120)
     assert process.returncode == 1, err
     summary = json.loads((tmp_path / "summary.json").read_text())
-    assert summary["failure"] == "interrupted"
-    assert err.strip().splitlines()[-1] == "guidedarm: run failed: interrupted"
+    assert summary["failure"] == failure
+    assert err.strip().splitlines()[-1] == f"guidedarm: run failed: {failure}"
     for text in BAD_OUTPUT:
         assert text not in out + err

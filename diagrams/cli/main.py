@@ -2,7 +2,8 @@
 
 Exit codes, for every subcommand: 0 done; 1 a run that started failed (its summary.json
 says why); 2 bad input or configuration, refused with one line on stderr (argument errors
-included); 130 interrupted outside a run; 141 stdout closed early (e.g. `| head -1`).
+included); 130 interrupted (Ctrl-C or SIGTERM) outside a run; 141 stdout closed early
+(e.g. `| head -1`).
 """
 
 from __future__ import annotations
@@ -11,6 +12,7 @@ import argparse
 import importlib
 import os
 import pkgutil
+import signal
 import sys
 
 import guidedarm.diagrams.cli as cli_package
@@ -27,7 +29,9 @@ class OneLineArgumentParser(argparse.ArgumentParser):
     and SystemExit; its subcommand parsers are of the same class."""
 
     def error(self, message: str):
-        raise ConfigurationError(f"{self.prog}: {message} (see {self.prog} --help)")
+        command = self.prog.removeprefix("guidedarm").strip()
+        where = f"{command}: " if command else ""
+        raise ConfigurationError(f"{where}{message} (see {self.prog} --help)")
 
 
 def MakeArgumentParser() -> argparse.ArgumentParser:
@@ -45,6 +49,7 @@ def MakeArgumentParser() -> argparse.ArgumentParser:
 
 def main(argv: list[str] | None = None) -> int:
     """Entry point of the `guidedarm` console script."""
+    signal.signal(signal.SIGTERM, _Terminate)
     try:
         args = MakeArgumentParser().parse_args(argv)
         code = int(args.func(args) or 0)
@@ -60,6 +65,11 @@ def main(argv: list[str] | None = None) -> int:
         # The reader left; send what Python still has to flush into the void, silently.
         os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
         return EXIT_BROKEN_PIPE
+
+
+def _Terminate(signum: int, frame: object) -> None:
+    """SIGTERM (a supervisor, `timeout`) ends a run as Ctrl-C does: with its summary."""
+    raise KeyboardInterrupt("SIGTERM")
 
 
 def _name(module_info: pkgutil.ModuleInfo) -> str:

@@ -111,10 +111,22 @@ def RunPathFollowing(scenario: PathFollowingScenario, context: RunContext) -> di
             f"motion=continuous streams a target every servo period: station.hardware.arms."
             f"{scenario.arm}.command_mode must be 'stream', not 'move'"
         )
+    control_period = scenario.station.arms[scenario.arm].control_period
+    if (
+        scenario.motion == "continuous"
+        and context.hardware
+        and scenario.continuous.servo_period != control_period
+    ):
+        raise ConfigurationError(
+            f"with --hardware, continuous.servo_period ({scenario.continuous.servo_period} s) "
+            f"must equal station.arms.{scenario.arm}.control_period ({control_period} s): the "
+            "driver streams each command it samples, and a command held over two samples "
+            "reads as a velocity step"
+        )
     repeat_seed = scenario.repeat_random_seed
     execution, setup = Run(scenario, context, scenario.random_seed)
     centerline = setup.centerline
-    metrics = Metrics(execution.records, centerline)
+    metrics = Metrics(execution.records, centerline, scenario.motion == "continuous")
     failure = execution.failure
     if failure is None and execution.collisions:
         failure = f"the robot touched the hose during {execution.collisions} step(s)"

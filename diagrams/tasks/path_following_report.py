@@ -87,32 +87,45 @@ class CenterlineMatch:
         return float(np.mean(covered))
 
 
-def Metrics(records: np.ndarray, centerline: np.ndarray) -> dict:
-    """The summary's ground-truth metrics (mm) of one run."""
+def Metrics(records: np.ndarray, centerline: np.ndarray, continuous: bool = False) -> dict:
+    """The summary's ground-truth metrics (mm) of one run. `steps` counts the follower's
+    steps (continuous: its readings); an error without a point to measure is None.
+    Continuous following has no IK steps and no recoveries, so it reports neither."""
     p_WO = Positions(records, "O")
     S = Positions(records, "S")
     detected = Column(records, "detected") > 0.5
     match = CenterlineMatch(p_WO, centerline)
     inside = ~match.beyond
-    tracking = match.Distances(p_WO, inside) if inside.any() else np.zeros(1)
     use = detected & inside
-    detection = match.Distances(S, use) if use.any() else np.zeros(1)
-    coverage = match.Coverage(p_WO) if len(p_WO) else 0.0
-    speed = AverageSpeed(records, match) if len(p_WO) else 0.0
+    tracking = match.Distances(p_WO, inside) if inside.any() else None
+    detection = match.Distances(S, use) if use.any() else None
+    metrics = {
+        "steps": len(records),
+        "coverage": round(match.Coverage(p_WO), 4) if len(p_WO) else 0.0,
+        **_MeanAndMax("tracking_error", tracking),
+        **_MeanAndMax("detected_path_error", detection),
+        "average_speed_mm_s": round(1000 * AverageSpeed(records, match), 1) if len(p_WO) else 0.0,
+        "lost_steps": int(np.sum(~detected)),
+    }
+    if continuous:
+        return metrics
     ik = Column(records, "ik_time")
     ik = ik[ik > 0] if (ik > 0).any() else np.zeros(1)
     return {
-        "steps": len(records),
-        "coverage": round(coverage, 4),
-        "tracking_error_mean_mm": round(1000 * float(np.mean(tracking)), 2),
-        "tracking_error_max_mm": round(1000 * float(np.max(tracking)), 2),
-        "detected_path_error_mean_mm": round(1000 * float(np.mean(detection)), 2),
-        "detected_path_error_max_mm": round(1000 * float(np.max(detection)), 2),
-        "average_speed_mm_s": round(1000 * speed, 1),
-        "lost_steps": int(np.sum(~detected)),
+        **metrics,
         "recoveries": int(Column(records, "recoveries")[-1]) if len(records) else 0,
         "ik_time_median_ms": round(1000 * float(np.median(ik)), 2),
         "ik_time_p99_ms": round(1000 * float(np.percentile(ik, 99)), 2),
+    }
+
+
+def _MeanAndMax(name: str, distances: np.ndarray | None) -> dict:
+    """`<name>_mean_mm` and `<name>_max_mm` of distances (m), None without any."""
+    if distances is None:
+        return {f"{name}_mean_mm": None, f"{name}_max_mm": None}
+    return {
+        f"{name}_mean_mm": round(1000 * float(np.mean(distances)), 2),
+        f"{name}_max_mm": round(1000 * float(np.max(distances)), 2),
     }
 
 

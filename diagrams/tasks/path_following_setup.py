@@ -168,6 +168,54 @@ def _CheckScenario(scenario: PathFollowingScenario) -> None:
         raise ConfigurationError(
             f"station must define arms.{scenario.arm} and tof_tools.{scenario.tof}"
         )
+    _CheckMotionKeys(scenario)
+    arm = scenario.station.arms[scenario.arm]
+    if scenario.motion == "continuous" and scenario.continuous.servo_period < arm.control_period:
+        raise ConfigurationError(
+            f"continuous.servo_period ({scenario.continuous.servo_period} s) is shorter than "
+            f"station.arms.{scenario.arm}.control_period ({arm.control_period} s), the period "
+            "at which the arm takes commands"
+        )
+
+
+# Keys that only one motion reads: set to anything but their default under another motion
+# they would be ignored, so they are refused.
+_MOTION_KEYS = {
+    "tool_speed": ("joint_trajectory", "planner"),
+    "period": ("joint_trajectory", "planner"),
+    "follower": ("joint_trajectory", "planner"),
+    "planner": ("planner",),
+    "continuous": ("continuous",),
+}
+
+
+def _CheckMotionKeys(scenario: PathFollowingScenario) -> None:
+    """Refuses a key set away from its default that scenario.motion does not read."""
+    defaults = type(scenario)()
+    for key, motions in _MOTION_KEYS.items():
+        if scenario.motion in motions:
+            continue
+        changed = _ChangedKey(getattr(scenario, key), getattr(defaults, key), key)
+        if key == "follower" and changed == "follower.estimator":
+            continue
+        if changed:
+            raise ConfigurationError(
+                f"'{changed}' has no effect with motion={scenario.motion} (it is read only "
+                f"with motion={' or '.join(motions)}): remove it or change motion"
+            )
+
+
+def _ChangedKey(value: object, default: object, key: str) -> str:
+    """The dotted name of the first field of `value` that differs from `default`, or ''."""
+    if dataclasses.is_dataclass(value):
+        for f in dataclasses.fields(value):
+            changed = _ChangedKey(
+                getattr(value, f.name), getattr(default, f.name), f"{key}.{f.name}"
+            )
+            if changed:
+                return changed
+        return ""
+    return "" if value == default else key
 
 
 def _ResolveToF(scenario: PathFollowingScenario, station: StationScenario) -> None:

@@ -83,6 +83,11 @@ class ToFToolConfig:
             raise ConfigurationError(f"sensor_frames must name {NUM_SENSORS} frames")
         if len(self.offset) != NUM_SENSORS:
             raise ConfigurationError(f"offset must hold {NUM_SENSORS} values (m), one a sensor")
+        if self.drift_rate > 0 and self.drift_max == 0:
+            raise ConfigurationError(
+                f"drift_rate ({self.drift_rate} m/sqrt(s)) needs drift_max > 0: the drift is "
+                "bounded by drift_max"
+            )
         if not self.ranging_time <= self.period:
             raise ConfigurationError(
                 f"ranging_time ({self.ranging_time} s) must not exceed period ({self.period} s)"
