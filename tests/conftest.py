@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import gc
 import sys
 from pathlib import Path
 
@@ -22,3 +23,13 @@ def run_cli(capsys):
         return code, captured.out, captured.err
 
     return run
+
+
+@pytest.fixture(autouse=True, scope="module")
+def collect_garbage_on_the_main_thread():
+    """Frees each module's reference cycles on the main thread. Drake objects such as
+    Meshcat must be destroyed on the thread that made them; a cycle left to the collector
+    can otherwise be freed on whatever thread triggers a collection (an emulator or link
+    thread of a later test), which aborts the process."""
+    yield
+    gc.collect()

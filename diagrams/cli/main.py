@@ -14,6 +14,7 @@ import os
 import pkgutil
 import signal
 import sys
+import threading
 
 import guidedarm.diagrams.cli as cli_package
 from guidedarm.systems.errors import ConfigurationError, GuidedArmError
@@ -49,7 +50,8 @@ def MakeArgumentParser() -> argparse.ArgumentParser:
 
 def main(argv: list[str] | None = None) -> int:
     """Entry point of the `guidedarm` console script."""
-    signal.signal(signal.SIGTERM, _Terminate)
+    if threading.current_thread() is threading.main_thread():
+        signal.signal(signal.SIGTERM, _Terminate)
     try:
         args = MakeArgumentParser().parse_args(argv)
         code = int(args.func(args) or 0)
