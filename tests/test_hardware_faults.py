@@ -334,6 +334,17 @@ def _RunRefused(*args: str) -> subprocess.CompletedProcess:
         ),
         (["emulate", "nachi", "--tof-latency", "-0.01"], "--tof-latency -0.01: must be >= 0"),
         (["emulate", "tof", "--tof-latency", "inf"], "--tof-latency inf: must be >= 0 and finite"),
+        (["emulate", "tof", "--servo-timeout", "0.5"], "--servo-timeout applies to `emulate"),
+        (
+            ["emulate", "nachi", "--scenario", "ur10e_waypoints", "--arm", "ur10e"]
+            + ["--tof-latency", "0.01", "--port", "0"],
+            "--tof-latency: the station has no tof_tools",
+        ),
+        (
+            ["run", "path_following", "--hardware", "--set"]
+            + ["station.hardware.arms.mz04d={driver: nachi_tcp, gain: 1000}"],
+            "'station.hardware.arms.mz04d.gain': applies to the ur_rtde driver only",
+        ),
     ],
 )
 def test_refusals_before_a_run_are_one_line(args, message, tmp_path):

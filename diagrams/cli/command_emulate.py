@@ -48,21 +48,20 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     parser.add_argument(
         "--servo-acceleration",
         type=float,
-        default=DEFAULT_SERVO_ACCELERATION,
-        help="joint acceleration limit of the SERVO loop, rad/s^2 (nachi)",
+        help=f"joint acceleration limit of the SERVO loop, rad/s^2 (nachi; default "
+        f"{DEFAULT_SERVO_ACCELERATION})",
     )
     parser.add_argument(
         "--servo-timeout",
         type=float,
-        default=DEFAULT_SERVO_TIMEOUT,
-        help="seconds without a SERVO target before the arm brakes (nachi)",
+        help=f"seconds without a SERVO target before the arm brakes (nachi; default "
+        f"{DEFAULT_SERVO_TIMEOUT})",
     )
     parser.add_argument(
         "--tof-latency",
         type=float,
-        default=DEFAULT_TOF_LATENCY,
         help="seconds from a range's end of ranging to its line leaving the tool (the "
-        "hardware ToF driver's `latency`)",
+        f"hardware ToF driver's `latency`; default {DEFAULT_TOF_LATENCY})",
     )
     parser.set_defaults(func=emulate_command)
 
@@ -147,7 +146,7 @@ def CheckArguments(args: argparse.Namespace) -> None:
     """Refuses, before the station is built, a port outside 0..65535, a host that does not
     resolve, a duration, servo acceleration or servo timeout that is not positive and
     finite (the duration may be infinite), a ToF latency that is negative or infinite, and
-    --port for `tof` (which serves no TCP)."""
+    --port and the SERVO options for `tof` (which serves no arm); fills in their defaults."""
     if args.port is not None and args.device != "nachi":
         raise ConfigurationError("--port applies to `emulate nachi` only")
     CheckPort("--port", DEFAULT_PORT if args.port is None else args.port)
@@ -157,12 +156,18 @@ def CheckArguments(args: argparse.Namespace) -> None:
         raise ConfigurationError(f"--host {args.host!r}: cannot be resolved ({e})") from None
     if not args.duration > 0:
         raise ConfigurationError(f"--duration {args.duration}: must be positive")
-    for option in ("servo_acceleration", "servo_timeout"):
+    for option, default in (
+        ("servo_acceleration", DEFAULT_SERVO_ACCELERATION),
+        ("servo_timeout", DEFAULT_SERVO_TIMEOUT),
+    ):
         value = getattr(args, option)
-        if not 0 < value < np.inf:
-            flag = "--" + option.replace("_", "-")
+        flag = "--" + option.replace("_", "-")
+        if value is not None and args.device != "nachi":
+            raise ConfigurationError(f"{flag} applies to `emulate nachi` only")
+        if value is not None and not 0 < value < np.inf:
             raise ConfigurationError(f"{flag} {value}: must be positive and finite")
-    if not 0 <= args.tof_latency < np.inf:
+        setattr(args, option, default if value is None else value)
+    if args.tof_latency is not None and not 0 <= args.tof_latency < np.inf:
         raise ConfigurationError(f"--tof-latency {args.tof_latency}: must be >= 0 and finite")
 
 
@@ -173,6 +178,9 @@ def emulate_command(args: argparse.Namespace) -> int:
         station_scenario = task.Station(scenario)
     else:
         station_scenario = DefaultCell()
+    if args.tof_latency is not None and not station_scenario.tof_tools:
+        raise ConfigurationError("--tof-latency: the station has no tof_tools to emulate")
+    latency = DEFAULT_TOF_LATENCY if args.tof_latency is None else args.tof_latency
     port = 0 if args.device != "nachi" else DEFAULT_PORT if args.port is None else args.port
     emulator, tofs = StartEmulators(
         station_scenario,
@@ -181,7 +189,7 @@ def emulate_command(args: argparse.Namespace) -> int:
         port,
         args.servo_acceleration,
         args.servo_timeout,
-        args.tof_latency,
+        latency,
     )
     if args.device == "nachi":
         print(f"nachi: {args.arm} listening on {args.host}:{emulator.port}", flush=True)

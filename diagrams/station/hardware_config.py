@@ -76,6 +76,11 @@ class ArmDriverConfig:
         _CheckChoice("command_mode", self.command_mode, COMMAND_MODES)
         if self.driver == "ur_rtde" and self.command_mode != "stream":
             raise FieldError("command_mode", "ur_rtde streams servoJ targets: only 'stream'")
+        if self.driver != "ur_rtde":
+            defaults = type(self)()
+            for name in ("servo_timeout", "lookahead_time", "gain"):
+                if getattr(self, name) != getattr(defaults, name):
+                    raise FieldError(name, f"applies to the ur_rtde driver only, not {self.driver}")
         if not self.stale_after <= self.watchdog:
             raise FieldError(
                 "stale_after", f"{self.stale_after} s exceeds the watchdog {self.watchdog} s"
