@@ -8,8 +8,10 @@ continuous set's totals against the goals (speed >= 40 mm/s, tracking mean <= 3 
 max <= 10 mm).
 
     .venv/bin/python tests/benchmarks/bench_continuous_following.py [--quick] [--more]
+        [--set KEY=VALUE ...]
 
---quick: paper paths only; --more: random_20..39 too. One run after another (about
+--quick: paper paths only; --more: random_20..39 too; --set: scenario overrides passed
+to every run (e.g. --set station.plant_config.time_step=0.004). One run after another (about
 10-30 s each in continuous mode, minutes stop-and-go).
 """
 
@@ -32,6 +34,11 @@ FIELDS = (
 )
 
 
+def Overrides(argv: list[str]) -> list[str]:
+    """The `--set KEY=VALUE` pairs of argv, as guidedarm arguments."""
+    return [arg for k, a in enumerate(argv[:-1]) if a == "--set" for arg in ("--set", argv[k + 1])]
+
+
 def RunOne(path: str, motion: str, estimator: str) -> dict:
     out = Path(tempfile.mkdtemp(prefix="bench_cont_"))
     start = time.perf_counter()
@@ -48,6 +55,7 @@ def RunOne(path: str, motion: str, estimator: str) -> dict:
             f"motion={motion}",
             "--set",
             f"estimator={estimator}",
+            *Overrides(sys.argv),
         ],
         capture_output=True,
         check=False,
