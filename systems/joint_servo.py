@@ -34,6 +34,8 @@ class ComputedTorqueLaw:
         self.velocity_indices = np.array([a.joint().velocity_start() for a in actuators])
         self.position_indices = np.array([a.joint().position_start() for a in actuators])
         self._context = plant.CreateDefaultContext()
+        self._nq = plant.num_positions()
+        self._arm_block = np.ix_(self.velocity_indices, self.velocity_indices)
 
     @property
     def num_joints(self) -> int:
@@ -45,11 +47,11 @@ class ComputedTorqueLaw:
         """Actuation of the arm's joints, in the instance's actuator order (N m)."""
         plant = self.plant
         plant.SetPositionsAndVelocities(self._context, plant_state)
-        nq = plant.num_positions()
+        nq = self._nq
         q = plant_state[:nq][self.position_indices]
         v = plant_state[nq:][self.velocity_indices]
         a = self.velocity_indices
-        M = plant.CalcMassMatrix(self._context)[np.ix_(a, a)]
+        M = plant.CalcMassMatrix(self._context)[self._arm_block]
         bias = plant.CalcBiasTerm(self._context)[a]
         gravity = plant.CalcGravityGeneralizedForces(self._context)[a]
         acceleration = self.kp * (q_desired - q) + self.kd * (v_desired - v)

@@ -158,8 +158,8 @@ class ContinuousFollower(LeafSystem):
         history.Add(t, self._position.Eval(context))
         run = replace(run, history=history)
         stamps = self._measured_at.Eval(context)
-        stamp = float(np.mean(stamps))
-        if np.all(stamps >= 0) and stamp > run.stamp + 1e-9:
+        stamp = float(stamps.mean())
+        if stamps.min() >= 0 and stamp > run.stamp + 1e-9:
             run = self._Read(context, run, stamp)
         servo_failure = (
             self._servo_failure.Eval(context) if self._servo_failure.HasValue(context) else ""

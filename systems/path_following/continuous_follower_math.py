@@ -467,11 +467,12 @@ def Advance(
     # proportion: it waits for the tool to turn instead of dragging it off the hose
     # sideways. (The heading of 30 mm of noisy readings wobbles by a few degrees, which
     # tilts the detection plane harmlessly.)
-    lag = math.acos(float(np.clip(ref.x @ fit.heading, -1.0, 1.0))) if ref.mode == FOLLOW else 0.0
+    lag = math.acos(max(-1.0, min(1.0, float(ref.x @ fit.heading)))) if ref.mode == FOLLOW else 0.0
     tolerance = math.radians(config.heading_tolerance_deg)
     if lag > tolerance:
         v_goal *= tolerance / lag
-    v = ref.v + float(np.clip(v_goal - ref.v, -config.acceleration * dt, config.acceleration * dt))
+    dv_max = config.acceleration * dt
+    v = ref.v + max(-dv_max, min(dv_max, v_goal - ref.v))
     # The target moves with the path it is on (the estimate's curve in FOLLOW, the search's
     # line, the trail backwards), then is corrected toward the path's point at a bounded
     # speed: a new fit moves that point, and the correction filters the jump.
@@ -491,10 +492,11 @@ def Advance(
         s = ref.s + v * dt
         goal, x_goal = fit.Point(s), fit.heading
         moved = ref.r + goal - fit.Point(ref.s)
-    gap = float(np.linalg.norm(goal - moved))
+    d = goal - moved
+    gap = math.sqrt(float(d @ d))
     budget = min(config.correction_gain * gap, config.max_correction_speed) * dt
     r = _Toward(moved, goal, budget)
-    angle = math.acos(float(np.clip(ref.x @ x_goal, -1.0, 1.0)))
+    angle = math.acos(max(-1.0, min(1.0, float(ref.x @ x_goal))))
     turn = min(config.correction_gain * angle, math.radians(config.max_turn_rate_deg)) * dt
     x = _Turn(ref.x, x_goal, turn)
     ref = replace(ref, r=r, x=x, s=s, v=v)
@@ -535,14 +537,17 @@ def _Toward(a: np.ndarray, b: np.ndarray, step: float) -> np.ndarray:
 
 
 def _Turn(x: np.ndarray, goal: np.ndarray, angle: float) -> np.ndarray:
-    """x turned toward goal by at most `angle` (rad), unit length."""
-    c = float(np.clip(x @ goal, -1.0, 1.0))
+    """x (unit) turned toward goal by at most `angle` (rad), unit length: within the plane
+    of the two, toward goal's part perpendicular to x."""
+    c = max(-1.0, min(1.0, float(x @ goal)))
     between = math.acos(c)
     if between <= angle:
-        return goal / np.linalg.norm(goal)
-    axis = np.cross(x, goal)
-    if np.linalg.norm(axis) < 1e-12:
-        axis = np.cross(x, [0.0, 0.0, 1.0])
-    axis /= np.linalg.norm(axis)
-    turned = x * math.cos(angle) + np.cross(axis, x) * math.sin(angle)
-    return turned / np.linalg.norm(turned)
+        return goal / math.sqrt(float(goal @ goal))
+    perpendicular = goal - c * x
+    length = math.sqrt(float(perpendicular @ perpendicular))
+    if length < 1e-12:  # goal opposite x: turn toward the world z axis (x if x is z)
+        toward = [0.0, 0.0, 1.0] if abs(x[2]) < 1 - 1e-9 else [1.0, 0.0, 0.0]
+        perpendicular = np.array(toward) - float(x @ toward) * x
+        length = math.sqrt(float(perpendicular @ perpendicular))
+    turned = x * math.cos(angle) + perpendicular * (math.sin(angle) / length)
+    return turned / math.sqrt(float(turned @ turned))

@@ -71,6 +71,10 @@ class DifferentialIkServo(LeafSystem):
             [plant.get_joint(j).index() for j in plant.GetJointIndices()]
         )
         self._bodies = [plant.get_body(b) for b in moved]
+        self._body_indices = [int(b) for b in moved]
+        self._R_BW = self._X_BW.rotation().matrix()
+        self._p_BW = self._X_BW.translation()
+        self._world = plant.world_frame()
         self._target = self.DeclareAbstractInputPort(
             "X_WT_desired", AbstractValue.Make(RigidTransform())
         )
@@ -108,8 +112,8 @@ class DifferentialIkServo(LeafSystem):
             JacobianWrtVariable.kV,
             self._frame,
             np.zeros(3),
-            plant.world_frame(),
-            plant.world_frame(),
+            self._world,
+            self._world,
         )
         X_WD = self._target.Eval(context)
         V_target = np.zeros(6)
@@ -144,11 +148,10 @@ class DifferentialIkServo(LeafSystem):
         if self._workspace is None:
             return 0
         self._plant.SetPositions(self._plant_context, q)
-        points = [
-            self._X_BW @ self._plant.EvalBodyPoseInWorld(self._plant_context, b).translation()
-            for b in self._bodies
-        ]
-        k = self._workspace.FirstOutside(np.array(points))
+        # All body poses in one evaluation of the plant's port, then the origins in B.
+        poses = self._plant.get_body_poses_output_port().Eval(self._plant_context)
+        p_WBo = np.array([poses[i].translation() for i in self._body_indices])
+        k = self._workspace.FirstOutside(p_WBo @ self._R_BW.T + self._p_BW)
         return 0 if k is None else k + 1
 
     def _CalcFailure(self, context: Context, output: AbstractValue) -> None:

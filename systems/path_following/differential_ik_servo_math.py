@@ -98,23 +98,30 @@ def ServoStep(
     the pose error of T (both [w; v] in W, PoseError's order); R_WT: T's orientation
     (3 x 3); limited: whether a speed or acceleration limit changed v_next."""
     n = J.shape[1]
-    to_T = np.kron(np.eye(2), R_WT.T) * np.asarray(weights, float)[:, None]
-    J_T = to_T @ J
-    sigma_min = float(np.linalg.svd(J_T, compute_uv=False)[-1])
-    lam2 = max(damping**2 - sigma_min**2, MIN_DAMPING**2)
-    M = J_T.T @ J_T + lam2 * np.eye(n)
-    centre = lam2 * CentringVelocity(q, limits)
-    v_ff = np.linalg.solve(M, J_T.T @ (to_T @ V_target) + centre)
-    dq = np.linalg.solve(M, J_T.T @ (to_T @ error))
+    w = np.asarray(weights, float)[:, None]
+    R_TW = R_WT.T
+    J_T = np.vstack([R_TW @ J[:3], R_TW @ J[3:]]) * w
+    # The feed-forward and the error as the two columns of one right-hand side.
+    E = np.column_stack([V_target, error])
+    E_T = np.vstack([R_TW @ E[:3], R_TW @ E[3:]]) * w
+    JtJ = J_T.T @ J_T
+    # sigma_min^2 of J_T: the smallest eigenvalue of J_T' J_T.
+    sigma_min2 = max(float(np.linalg.eigvalsh(JtJ)[0]), 0.0)
+    lam2 = max(damping**2 - sigma_min2, MIN_DAMPING**2)
+    rhs = J_T.T @ E_T
+    rhs[:, 0] += lam2 * CentringVelocity(q, limits)
+    solution = np.linalg.solve(JtJ + lam2 * np.eye(n), rhs)
+    v_ff, dq = solution[:, 0], solution[:, 1]
     a_fb = FEEDBACK_ACCELERATION_SHARE * limits.acceleration
-    reach = float(np.max(np.abs(dq) / a_fb))
+    reach = float((np.abs(dq) / a_fb).max())
     v_fb = dq * (min(gain, np.sqrt(2.0 / reach)) if reach > 0 else gain)
     v_wanted = v_ff + v_fb
-    speed_ratio = float(np.min(limits.speed / np.maximum(np.abs(v_wanted), 1e-300)))
+    speed_ratio = float((limits.speed / np.maximum(np.abs(v_wanted), 1e-300)).min())
     v_wanted = v_wanted * min(1.0, speed_ratio)
     dv = v_wanted - v
     step = limits.acceleration * period
-    scale = float(np.min(np.where(np.abs(dv) > step, step / np.maximum(np.abs(dv), 1e-300), 1.0)))
+    excess = np.abs(dv) / step
+    scale = 1.0 / max(1.0, float(excess.max()))
     v_next = v + scale * dv
     # Braking: at most the speed from which the joint stops at its limit, and never past it.
     a = limits.acceleration
@@ -124,7 +131,7 @@ def ServoStep(
     low = np.maximum(
         -np.sqrt(2 * a * np.maximum(q - limits.lower, 0.0)), (limits.lower - q) / period
     )
-    v_next = np.clip(v_next, low, np.maximum(high, low))
+    v_next = np.minimum(np.maximum(v_next, low), np.maximum(high, low))
     limited = scale < 1.0 or speed_ratio < 1.0
     return q + v_next * period, v_next, limited
 

@@ -8,11 +8,21 @@ continuous set's totals against the goals (speed >= 40 mm/s, tracking mean <= 3 
 max <= 10 mm).
 
     .venv/bin/python tests/benchmarks/bench_continuous_following.py [--quick] [--more]
+        [--set KEY=VALUE ...]
 
---quick: paper paths only; --more: random_20..39 too. One run after another (about
+    .venv/bin/python tests/benchmarks/bench_continuous_following.py --breakdown PATH
+        [--set KEY=VALUE ...]
+
+--quick: paper paths only; --more: random_20..39 too; --set: scenario overrides passed
+to every run (e.g. --set station.plant_config.time_step=0.004). --breakdown: one
+continuous ranging run on PATH in this process, printing the CPU time (process time,
+which other processes' load disturbs less than wall time) per simulated second of the
+simulation loop and of each per-tick Python system in it. One run after another (about
 10-30 s each in continuous mode, minutes stop-and-go).
 """
 
+import collections
+import contextlib
 import json
 import subprocess
 import sys
@@ -32,6 +42,11 @@ FIELDS = (
 )
 
 
+def Overrides(argv: list[str]) -> list[str]:
+    """The `--set KEY=VALUE` pairs of argv, as guidedarm arguments."""
+    return [arg for k, a in enumerate(argv[:-1]) if a == "--set" for arg in ("--set", argv[k + 1])]
+
+
 def RunOne(path: str, motion: str, estimator: str) -> dict:
     out = Path(tempfile.mkdtemp(prefix="bench_cont_"))
     start = time.perf_counter()
@@ -48,6 +63,7 @@ def RunOne(path: str, motion: str, estimator: str) -> dict:
             f"motion={motion}",
             "--set",
             f"estimator={estimator}",
+            *Overrides(sys.argv),
         ],
         capture_output=True,
         check=False,
@@ -58,7 +74,74 @@ def RunOne(path: str, motion: str, estimator: str) -> dict:
     return summary
 
 
+def Breakdown(path: str) -> None:
+    """Prints the loop's and each per-tick system's CPU seconds per simulated second."""
+    from guidedarm.diagrams.cli.main import main as guidedarm_main
+    from guidedarm.diagrams.tasks import path_following_execution
+    from guidedarm.systems import joint_servo
+    from guidedarm.systems.path_following import continuous_follower, differential_ik_servo
+    from guidedarm.systems.tof import tof_tool_sensor
+
+    cpu: dict[str, float] = collections.defaultdict(float)
+
+    def Timed(owner: object, name: str, label: str) -> None:
+        f = getattr(owner, name)
+
+        def g(*args, **kwargs):
+            start = time.process_time()
+            try:
+                return f(*args, **kwargs)
+            finally:
+                cpu[label] += time.process_time() - start
+
+        setattr(owner, name, g)
+
+    servo = differential_ik_servo.DifferentialIkServo
+    follower = continuous_follower.ContinuousFollower
+    timed = (
+        (servo, "_Update", "DifferentialIkServo"),
+        (servo, "_BodyAtWall", "  wall check"),
+        (differential_ik_servo, "ServoStep", "  ServoStep"),
+        (follower, "_CalcTarget", "  target pose (in the servo's update)"),
+        (follower, "_Update", "ContinuousFollower"),
+        (follower, "_Read", "  readings"),
+        (continuous_follower, "Advance", "  Advance"),
+        (joint_servo.JointServo, "CalcActuation", "JointServo"),
+        (tof_tool_sensor.ToFToolSensor, "_Measure", "ToF sensor"),
+    )
+    for owner, name, label in timed:
+        Timed(owner, name, label)
+
+    class TimedSimulator(path_following_execution.Simulator):
+        def AdvanceTo(self, t: float):
+            start = time.process_time()
+            try:
+                return super().AdvanceTo(t)
+            finally:
+                cpu["simulation loop"] += time.process_time() - start
+
+    path_following_execution.Simulator = TimedSimulator
+    out = Path(tempfile.mkdtemp(prefix="bench_cont_"))
+    args = ["run", "path_following", "--out", str(out), "--set", f"path={path}"]
+    args += ["--set", "motion=continuous", "--set", "estimator=ranging", *Overrides(sys.argv)]
+    sys.argv = ["guidedarm", *args]
+    with contextlib.suppress(SystemExit):  # the CLI exits with the run's status
+        guidedarm_main()
+    s = json.loads((out / "summary.json").read_text())
+    sim = s["sim_time_s"]
+    print(f"{path}: {sim} s simulated, realtime_factor {s['realtime_factor']} (wall)")
+    print(
+        f"speed {s['average_speed_mm_s']} mm/s, tracking {s['tracking_error_mean_mm']} / "
+        f"{s['tracking_error_max_mm']} mm; CPU s per simulated s:"
+    )
+    for label in ["simulation loop", *(label for _, _, label in timed)]:
+        print(f"  {label:40s} {cpu[label] / sim:.3f}")
+
+
 def main() -> None:
+    if "--breakdown" in sys.argv:
+        Breakdown(sys.argv[sys.argv.index("--breakdown") + 1])
+        return
     paths = [f"paper_path_{k}" for k in range(1, 5)]
     if "--quick" not in sys.argv:
         paths += [f"random_{k}" for k in range(40 if "--more" in sys.argv else 20)]
