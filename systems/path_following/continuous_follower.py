@@ -41,6 +41,11 @@ from guidedarm.systems.tof.tof_tool_sensor_math import DetectionGrid
 
 # The arm this far (m) from the target means it cannot follow (limits, a singularity).
 MAX_LAG = 0.025
+# An arm whose joints stay within STILL_TOLERANCE (rad) of one another for STALL_TIME (s)
+# makes no progress: a search that cannot move (the hose ends at the arm's reach) is over,
+# and a follower that cannot move has failed, instead of waiting for max_time.
+STILL_TOLERANCE = 1e-3
+STALL_TIME = 2.0
 
 
 @dataclass(frozen=True)
@@ -52,6 +57,8 @@ class _Run:
     estimate: HoseEstimate
     history: JointHistory
     stamp: float = -1.0
+    still_q: np.ndarray | None = None
+    still_since: float = 0.0
     step: int = 0
     record: np.ndarray | None = None
     grid: np.ndarray | None = None
@@ -154,9 +161,10 @@ class ContinuousFollower(LeafSystem):
         if run.stopped:
             return
         t = context.get_time()
+        q = self._position.Eval(context)
         history = JointHistory.Copy(run.history)
-        history.Add(t, self._position.Eval(context))
-        run = replace(run, history=history)
+        history.Add(t, q)
+        run = self._Stall(replace(run, history=history), q, t)
         stamps = self._measured_at.Eval(context)
         stamp = float(stamps.mean())
         if stamps.min() >= 0 and stamp > run.stamp + 1e-9:
@@ -174,6 +182,21 @@ class ContinuousFollower(LeafSystem):
             )
             run = replace(run, reference=reference)
         state.get_mutable_abstract_state(self._run).set_value(run)
+
+    def _Stall(self, run: _Run, q: np.ndarray, t: float) -> _Run:
+        """Tracks how long the joints have stayed still; after STALL_TIME a search ends
+        (DONE: the hose's end as far as the arm can reach) and following fails."""
+        if run.still_q is None or np.abs(q - run.still_q).max() > STILL_TOLERANCE:
+            return replace(run, still_q=q.copy(), still_since=t)
+        if t - run.still_since < STALL_TIME:
+            return run
+        if run.reference.mode == FOLLOW:
+            return replace(
+                run,
+                failure=f"the arm has not moved for {STALL_TIME:.0f} s at t = {t:.2f} s while "
+                "following: joint limits, the workspace or a singularity hold it",
+            )
+        return replace(run, reference=replace(run.reference, mode=DONE, v=0.0))
 
     def _Read(self, context: Context, run: _Run, stamp: float) -> _Run:
         """One new reading: motion compensation, the hose point, the estimate, the mode."""
