@@ -28,8 +28,9 @@ Estimators of the hose centre S in the tool frame T (the paper's S, eq. (8)):
             plane). With the cone angle known, that point then starts a least-squares fit
             to every one of those sensors' ranges: a sensor whose cone holds the centre
             sees the surface at distance - r, one that sees only the hose's flank sees it
-            along the cone's edge ray. Nothing detected by the grid means nothing detected
-            here too.
+            along the cone's edge ray. Given the hose's direction in T, the fit models a
+            cylinder of that axis (a hose crossing the plane obliquely) and needs only two
+            ranges. Nothing detected by the grid means nothing detected here too.
 """
 
 from __future__ import annotations
