@@ -313,3 +313,31 @@ def test_servo_stops_the_arm_at_the_workspace_walls():
     assert "would leave the workspace" in failure and f"z [0.005, {ceiling:g}]" in failure
     assert heights.max() <= ceiling
     assert heights.max() > ceiling - 0.02  # it did rise toward the ceiling
+
+
+def test_axis_in_tool_is_the_hose_direction_from_the_perpendicular_points():
+    """A straight hose at 20 deg to the tool's x axis (the tool lagging it), read every 1 mm
+    of travel: AxisInTool is None until the axis fit holds min_fit_points over a third of
+    fit_length, then the hose's direction in T within 0.1 deg; without the perpendicular
+    model's points it stays None."""
+    config = ContinuousConfig()
+    angle = math.radians(20.0)
+    hose = np.array([math.cos(angle), math.sin(angle), 0.0])
+    X_WT = RigidTransform(RotationMatrix.MakeZRotation(0.1), [0.0, 0.0, 0.0])
+    estimate = plain_only = HoseEstimate.Start(X_WT)
+    axes = []
+    for k in range(40):
+        X_WT = RigidTransform(X_WT.rotation(), X_WT.rotation().matrix()[:, 0] * 0.001 * k)
+        # the hose point in the tool's y-z plane: hose(t) with (hose(t) - O) . x_T = 0
+        x_T = X_WT.rotation().matrix()[:, 0]
+        S_W = hose * float(X_WT.translation() @ x_T) / float(hose @ x_T)
+        axes.append(estimate.AxisInTool(X_WT, config))
+        estimate = estimate.WithReading(X_WT, S_W, config, S_W)
+        plain_only = plain_only.WithReading(X_WT, S_W, config)
+    assert axes[0] is None and axes[config.min_fit_points - 1] is None
+    assert all(a is None for a in axes[:10]) and axes[-1] is not None
+    axis_W = X_WT.rotation() @ estimate.AxisInTool(X_WT, config)
+    assert math.degrees(math.acos(min(float(axis_W @ hose), 1.0))) < 0.1
+    expected_T = X_WT.rotation().inverse() @ hose
+    assert math.degrees(math.acos(float(expected_T[0]))) == pytest.approx(20.0 - 5.73, abs=0.01)
+    assert plain_only.AxisInTool(X_WT, config) is None

@@ -205,12 +205,16 @@ class ContinuousFollower(LeafSystem):
         X_WT = self._ToolPose(run.history.At(stamp))
         p_WO = X_WT.translation()
         S_T, _ = EstimateHose(self._grid, self._estimator, ranges, valid)
-        S_W = None if S_T is None else X_WT @ np.asarray(S_T, float)
+        S_W = S_W_plain = None if S_T is None else X_WT @ np.asarray(S_T, float)
+        axis_T = run.estimate.AxisInTool(X_WT, self._config)
+        if S_T is not None and axis_T is not None:
+            S_T, _ = EstimateHose(self._grid, self._estimator, ranges, valid, axis_T)
+            S_W = None if S_T is None else X_WT @ np.asarray(S_T, float)
         estimate = run.estimate
         # Backing up retraces the estimated trail: readings taken backwards would run the
         # fit's path coordinate backwards and drag the trail's end (the target) with it.
         if run.reference.mode != BACK:
-            estimate = estimate.WithReading(X_WT, S_W, self._config)
+            estimate = estimate.WithReading(X_WT, S_W, self._config, S_W_plain)
         reference = OnReading(run.reference, estimate, X_WT, self._config)
         if not estimate.IsDetected():
             S_W = None

@@ -291,10 +291,13 @@ def _LostHereBefore(O_last: np.ndarray, memory: FollowerMemory, params: Follower
     return bool(np.linalg.norm(O_last - memory.last_loss) <= 2 * params.long_step)
 
 
-def EstimateHose(grid, estimator: str, ranges: np.ndarray, valid: np.ndarray):
-    """(S_T or None, centre_only) from a reading, by the selected estimator."""
+def EstimateHose(
+    grid, estimator: str, ranges: np.ndarray, valid: np.ndarray, axis_T: np.ndarray | None = None
+):
+    """(S_T or None, centre_only) from a reading, by the selected estimator; axis_T: the
+    hose's direction in T when known (the ranging estimator models it; the grid ignores it)."""
     if estimator == "ranging":
-        return grid.RangingEstimate(ranges, valid)
+        return grid.RangingEstimate(ranges, valid, axis_T)
     return grid.GridEstimate(ranges, valid)
 
 

@@ -28,8 +28,9 @@ Estimators of the hose centre S in the tool frame T (the paper's S, eq. (8)):
             plane). With the cone angle known, that point then starts a least-squares fit
             to every one of those sensors' ranges: a sensor whose cone holds the centre
             sees the surface at distance - r, one that sees only the hose's flank sees it
-            along the cone's edge ray. Nothing detected by the grid means nothing detected
-            here too.
+            along the cone's edge ray. Given the hose's direction in T, the fit models a
+            cylinder of that axis (a hose crossing the plane obliquely) and needs only two
+            ranges. Nothing detected by the grid means nothing detected here too.
 """
 
 from __future__ import annotations
@@ -50,6 +51,8 @@ from pydrake.math import RigidTransform
 # diagonal, 15.6 mm, plus noise), while a hose at the next point of the line is a off and
 # stays rejected.
 CONSISTENCY_FRACTION = 0.75
+# Rim rays over the half of a cone's rim that faces an oblique hose (_CylinderRange).
+BOUNDARY_SAMPLES = 19
 
 
 def ConeRays(cone_angle: float, rings: int) -> np.ndarray:
@@ -231,10 +234,13 @@ class DetectionGrid:
         return self.points[good].mean(axis=0), centre_only
 
     def RangingEstimate(
-        self, ranges: np.ndarray, valid: np.ndarray
+        self, ranges: np.ndarray, valid: np.ndarray, axis: np.ndarray | None = None
     ) -> tuple[np.ndarray | None, bool]:
         """The hose centre in T from the ranges (see the module docstring) or None; and
-        whether it lies within half a grid spacing of the centre point."""
+        whether it lies within half a grid spacing of the centre point. `axis`: the hose's
+        unit direction in T when known (the fit then models a cylinder of that axis through
+        the centre, see PredictedRange); None: the hose crosses the detection plane
+        perpendicularly (along x_T)."""
         detected, errors = self.Detect(ranges, valid)
         good = detected & ~errors
         if not good.any():
@@ -262,13 +268,17 @@ class DetectionGrid:
                 candidates.append(self.emitters[k] + self.axes[k] * (ranges[k] + r))
         for c in candidates:
             if c is not None and np.linalg.norm(c - centre) <= self.field_radius:
-                c = self._Refine(c, ranges, np.flatnonzero(trusted & np.asarray(valid, bool)))
+                sensors = np.flatnonzero(trusted & np.asarray(valid, bool))
+                c = self._Refine(c, ranges, sensors, axis)
                 return c, bool(np.linalg.norm(c - centre) < self.spacing / 2)
         return None, False
 
-    def PredictedRange(self, k: int, c: np.ndarray) -> float | None:
+    def PredictedRange(self, k: int, c: np.ndarray, axis: np.ndarray | None = None) -> float | None:
         """Range (m) sensor k reads for a hose centred at c (the detection plane, T), or None
-        when its cone misses the hose: the nearest in-plane ray of the cone."""
+        when its cone misses the hose: the nearest in-plane ray of the cone. With `axis`
+        (unit, T) the hose is the cylinder of that axis through c (_CylinderRange)."""
+        if axis is not None:
+            return self._CylinderRange(k, c, axis)
         half = self.cone_angle / 2
         d = c - self.emitters[k]
         distance = float(np.linalg.norm(d))
@@ -284,10 +294,68 @@ class DetectionGrid:
         r2 = self.hose_radius**2
         return None if h2 > r2 else t - math.sqrt(r2 - h2)
 
-    def _Refine(self, c: np.ndarray, ranges: np.ndarray, sensors: np.ndarray) -> np.ndarray:
-        """Gauss-Newton fit of the hose centre to the sensors' ranges, from c; c itself when
-        the fit has fewer than three ranges to use or leaves the grid cell it started in."""
-        if self.cone_angle is None or len(sensors) < 3:
+    def _CylinderRange(self, k: int, c: np.ndarray, axis: np.ndarray) -> float | None:
+        """Range (m) sensor k reads for the cylinder of radius hose_radius, unit axis `axis`
+        through c (T), or None when its cone misses it.
+
+        A hose crossing the detection plane obliquely is nearer to some cones and farther
+        from others than the perpendicular one PredictedRange assumes (its section in the
+        plane is an ellipse of semi-axis r / cos(tilt)): 3 mm of estimate at 20 deg. The
+        nearest point of the cylinder is at distance - r toward the foot of the emitter's
+        perpendicular on the axis; when that direction leaves the cone the nearest return
+        is on the cone's rim, minimised over BOUNDARY_SAMPLES rim rays on the side facing
+        the axis and a parabola through the least three (smooth in c, which the
+        Gauss-Newton's finite differences need)."""
+        e, z = self.emitters[k], self.axes[k]
+        d = e - c - axis * float((e - c) @ axis)  # from the axis to the emitter, normal to it
+        distance = float(np.linalg.norm(d))
+        r = self.hose_radius
+        if distance <= r:
+            return None
+        n = -d / distance
+        half = self.cone_angle / 2
+        if n @ z >= math.cos(half):
+            return distance - r
+        side = n - (n @ z) * z
+        norm = float(np.linalg.norm(side))
+        if norm < 1e-12 or n @ z <= 0:
+            return None
+        x1 = side / norm
+        y1 = np.cross(z, x1)
+        phi = np.linspace(-math.pi / 2, math.pi / 2, BOUNDARY_SAMPLES)
+        w = math.cos(half) * z + math.sin(half) * (
+            np.cos(phi)[:, None] * x1 + np.sin(phi)[:, None] * y1
+        )
+        w_perp = w - np.outer(w @ axis, axis)
+        a2 = np.einsum("ij,ij->i", w_perp, w_perp)
+        b = w_perp @ d
+        disc = b * b - a2 * (distance * distance - r * r)
+        hit = (disc >= 0) & (b < 0)
+        if not hit.any():
+            return None
+        t = np.where(hit, (-b - np.sqrt(np.maximum(disc, 0.0))) / np.maximum(a2, 1e-12), np.inf)
+        i = int(np.argmin(t))
+        if 0 < i < len(t) - 1 and np.isfinite(t[i - 1]) and np.isfinite(t[i + 1]):
+            curvature = t[i - 1] - 2 * t[i] + t[i + 1]
+            if curvature > 0:
+                slope = (t[i + 1] - t[i - 1]) / 2
+                return float(t[i] - slope * slope / (2 * curvature))
+        return float(t[i])
+
+    def _Refine(
+        self,
+        c: np.ndarray,
+        ranges: np.ndarray,
+        sensors: np.ndarray,
+        axis: np.ndarray | None = None,
+    ) -> np.ndarray:
+        """Gauss-Newton fit of the hose centre to the sensors' ranges, from c (a hose along
+        `axis` when given); c itself when the fit has fewer than three ranges (two with
+        `axis`) to use or leaves the grid cell it started in."""
+        # Two ranges determine the centre exactly; the perpendicular model asks for a third
+        # to average, while an oblique hose moves even the two sensors trilateration uses.
+        needed = 3 if axis is None else 2
+        if self.cone_angle is None or len(sensors) < needed:
             return c
         basis = (self.axes[0], self.axes[3])
         x = c.copy()
@@ -295,13 +363,13 @@ class DetectionGrid:
         for _ in range(8):
             residuals, jacobian = [], []
             for k in sensors:
-                p = self.PredictedRange(k, x)
-                shifted = [self.PredictedRange(k, x + h * b) for b in basis]
+                p = self.PredictedRange(k, x, axis)
+                shifted = [self.PredictedRange(k, x + h * b, axis) for b in basis]
                 if p is None or None in shifted:
                     continue
                 residuals.append(ranges[k] - p)
                 jacobian.append([(q - p) / h for q in shifted])
-            if len(residuals) < 3:
+            if len(residuals) < needed:
                 return c
             step = np.linalg.lstsq(np.array(jacobian), np.array(residuals), rcond=None)[0]
             x = x + step[0] * basis[0] + step[1] * basis[1]
