@@ -341,3 +341,43 @@ def test_axis_in_tool_is_the_hose_direction_from_the_perpendicular_points():
     expected_T = X_WT.rotation().inverse() @ hose
     assert math.degrees(math.acos(float(expected_T[0]))) == pytest.approx(20.0 - 5.73, abs=0.01)
     assert plain_only.AxisInTool(X_WT, config) is None
+
+
+def test_an_arm_that_cannot_move_fails_following_after_the_stall_time():
+    """The follower on the kinematic station with the arm's command held at the start: the
+    joints never move, so after STALL_TIME the run fails naming the stall (not max_time)."""
+    from pydrake.systems.primitives import ConstantVectorSource
+
+    from guidedarm.diagrams.cli.command_run import LoadScenario
+    from guidedarm.diagrams.tasks.path_following_diagram import MakeKinematicStation
+    from guidedarm.diagrams.tasks.path_following_setup import MakeSetup
+    from guidedarm.systems.path_following.continuous_follower import (
+        STALL_TIME,
+        ContinuousFollower,
+    )
+    from guidedarm.systems.plant_frames import GetScopedFrame
+
+    _, scenario, _ = LoadScenario("path_following", ["motion=continuous", "estimator=ranging"])
+    setup = MakeSetup(scenario)
+    plant = setup.solver.plant
+    tool = GetScopedFrame(plant, setup.station.tof_tools["tof"].tool_frame, "tool")
+    builder = DiagramBuilder()
+    station = builder.AddSystem(MakeKinematicStation(setup.station))
+    held = builder.AddSystem(ConstantVectorSource(setup.q_start))
+    builder.Connect(held.get_output_port(), station.GetInputPort("mz04d.position_commanded"))
+    follower = builder.AddSystem(
+        ContinuousFollower(setup.continuous, plant, tool, setup.grid, "ranging", setup.q_start)
+    )
+    for port in ("ranges", "valid", "measured_at"):
+        builder.Connect(station.GetOutputPort(f"tof.{port}"), follower.GetInputPort(port))
+    builder.Connect(
+        station.GetOutputPort("mz04d.position_measured"),
+        follower.GetInputPort("position_measured"),
+    )
+    simulator = Simulator(builder.Build())
+    context = follower.GetMyContextFromRoot(simulator.get_mutable_context())
+    simulator.AdvanceTo(STALL_TIME - 0.1)
+    assert follower.Loop(context).failure == ""
+    simulator.AdvanceTo(STALL_TIME + 0.1)
+    assert "has not moved for 2 s" in follower.Loop(context).failure
+    assert follower.Stopped(context)
