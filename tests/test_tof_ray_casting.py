@@ -83,7 +83,9 @@ def test_the_analytic_caster_equals_sphere_tracing_around_a_hose(path):
 
 
 def _Scene(shape, X_WG: RigidTransform, anchored: bool):
-    """A plant with one shape, on the world body or on a free body posed at X_WG."""
+    """A plant with one shape, on the world body or on a free body posed at X_WG: the
+    QueryObject, and the diagram and context it reads (it holds no reference to them, so
+    the caller keeps them alive while it queries)."""
     builder = DiagramBuilder()
     plant, scene_graph = AddMultibodyPlantSceneGraph(builder, 0.0)
     friction = CoulombFriction(0.5, 0.5)
@@ -97,7 +99,8 @@ def _Scene(shape, X_WG: RigidTransform, anchored: bool):
     context = diagram.CreateDefaultContext()
     if not anchored:
         plant.SetFreeBodyPose(plant.GetMyMutableContextFromRoot(context), body, X_WG)
-    return scene_graph.get_query_output_port().Eval(scene_graph.GetMyContextFromRoot(context))
+    query = scene_graph.get_query_output_port().Eval(scene_graph.GetMyContextFromRoot(context))
+    return query, diagram, context
 
 
 @pytest.mark.parametrize("anchored", [True, False])
@@ -112,7 +115,7 @@ def test_each_shape_kind_equals_sphere_tracing(shape, anchored):
     20 um, hits and misses alike."""
     rng = np.random.default_rng(3)
     X_WG = RigidTransform(RollPitchYaw(*rng.uniform(-np.pi, np.pi, 3)), [0.1, 0.2, 0.3])
-    query = _Scene(shape, X_WG, anchored)
+    query, *_alive = _Scene(shape, X_WG, anchored)
     caster = SceneRayCaster(RAYS, 0.1, frozenset())
     reference = _ReferenceTracer(caster)
     poses = []
