@@ -36,7 +36,8 @@ from guidedarm.systems.path_following.continuous_follower_math import (
     OnReading,
     Reference,
 )
-from guidedarm.systems.path_following.path_follower_math import RECORD_FIELDS, EstimateHose
+from guidedarm.systems.path_following.path_follower import DeclareStepOutputs
+from guidedarm.systems.path_following.path_follower_math import EstimateHose
 from guidedarm.systems.tof.tof_tool_sensor_math import DetectionGrid
 
 # The arm this far (m) from the target means it cannot follow (limits, a singularity).
@@ -126,16 +127,7 @@ class ContinuousFollower(LeafSystem):
             self._CalcTarget,
             prerequisites_of_calc=state_only,
         )
-        self.DeclareVectorOutputPort(
-            "step_record", len(RECORD_FIELDS), self._CalcRecord, prerequisites_of_calc=state_only
-        )
-        for name, start_index in (("detections", 0), ("detection_errors", 9)):
-            self.DeclareVectorOutputPort(
-                name,
-                9,
-                lambda c, o, k=start_index: self._CalcGrid(c, o, k),
-                prerequisites_of_calc=state_only,
-            )
+        DeclareStepOutputs(self, self.Loop)
         self.DeclareVectorOutputPort("mode", 2, self._CalcMode, prerequisites_of_calc=state_only)
         self.DeclareAbstractOutputPort(
             "failure",
@@ -259,14 +251,6 @@ class ContinuousFollower(LeafSystem):
 
     def _CalcTarget(self, context: Context, output: AbstractValue) -> None:
         output.set_value(self.Loop(context).reference.Pose())
-
-    def _CalcRecord(self, context: Context, output: BasicVector) -> None:
-        record = self.Loop(context).record
-        output.SetFromVector(record if record is not None else np.full(len(RECORD_FIELDS), -1.0))
-
-    def _CalcGrid(self, context: Context, output: BasicVector, start: int) -> None:
-        grid = self.Loop(context).grid
-        output.SetFromVector(grid[start : start + 9] if grid is not None else np.zeros(9))
 
     def _CalcMode(self, context: Context, output: BasicVector) -> None:
         run = self.Loop(context)

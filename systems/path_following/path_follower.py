@@ -17,8 +17,9 @@ On a periodic tick it runs a small state machine:
   DONE / FAILED  hold the last goal.
 """
 
+from collections.abc import Callable
 from dataclasses import dataclass, replace
-from typing import NamedTuple
+from typing import Any, NamedTuple
 
 import numpy as np
 from pydrake.common.value import AbstractValue
@@ -143,18 +144,7 @@ class PathFollower(LeafSystem):
             self._CalcCommand,
             prerequisites_of_calc={self.xa_ticket(), self.time_ticket()},
         )
-        self.DeclareVectorOutputPort(
-            "step_record", len(RECORD_FIELDS), self._CalcRecord, prerequisites_of_calc=state_only
-        )
-        self.DeclareVectorOutputPort(
-            "detections", 9, lambda c, o: self._CalcGrid(c, o, 0), prerequisites_of_calc=state_only
-        )
-        self.DeclareVectorOutputPort(
-            "detection_errors",
-            9,
-            lambda c, o: self._CalcGrid(c, o, 9),
-            prerequisites_of_calc=state_only,
-        )
+        DeclareStepOutputs(self, self.Loop)
         self.DeclareVectorOutputPort("mode", 2, self._CalcMode, prerequisites_of_calc=state_only)
         self.DeclareAbstractOutputPort(
             "failure",
@@ -277,17 +267,34 @@ class PathFollower(LeafSystem):
             return
         output.SetFromVector(loop.move.Position(context.get_time() - loop.t0))
 
-    def _CalcRecord(self, context: Context, output: BasicVector) -> None:
-        record = self.Loop(context).record
-        output.SetFromVector(record if record is not None else np.full(len(RECORD_FIELDS), -1.0))
-
-    def _CalcGrid(self, context: Context, output: BasicVector, start: int) -> None:
-        grid = self.Loop(context).grid
-        output.SetFromVector(grid[start : start + 9] if grid is not None else np.zeros(9))
-
     def _CalcMode(self, context: Context, output: BasicVector) -> None:
         loop = self.Loop(context)
         output.SetFromVector([loop.mode, loop.step])
 
     def _CalcFailure(self, context: Context, output: AbstractValue) -> None:
         output.set_value(self.Loop(context).failure)
+
+
+def DeclareStepOutputs(system: LeafSystem, loop: Callable[[Context], Any]) -> None:
+    """Declares a follower's `step_record` (RECORD_FIELDS of the latest step or reading; -1
+    before the first) and `detections`, `detection_errors` (the 3 x 3 grid of the latest
+    reading, row-major; 0 before the first), read from loop(context).record and .grid
+    (a (18,) array, detections then errors) of the system's abstract state."""
+
+    def record(context: Context, output: BasicVector) -> None:
+        value = loop(context).record
+        output.SetFromVector(value if value is not None else np.full(len(RECORD_FIELDS), -1.0))
+
+    def grid(start: int):
+        def calc(context: Context, output: BasicVector) -> None:
+            value = loop(context).grid
+            output.SetFromVector(value[start : start + 9] if value is not None else np.zeros(9))
+
+        return calc
+
+    state_only = {system.xa_ticket()}
+    system.DeclareVectorOutputPort(
+        "step_record", len(RECORD_FIELDS), record, prerequisites_of_calc=state_only
+    )
+    for name, start in (("detections", 0), ("detection_errors", 9)):
+        system.DeclareVectorOutputPort(name, 9, grid(start), prerequisites_of_calc=state_only)
