@@ -5,7 +5,7 @@ PYTHON ?= python3.11
 VENV := .venv
 BIN := $(VENV)/bin
 STAMP := $(VENV)/.installed
-DEMO_SCENARIOS ?= ur10e_waypoints mz04d_waypoints rover_arm_waypoints path_following panel_operation ur10e_joint_tour
+DEMO_SCENARIOS ?= ur10e_waypoints mz04d_waypoints rover_arm_waypoints path_following path_following_continuous panel_operation ur10e_joint_tour
 
 .PHONY: demo test lint bench picture clean
 
