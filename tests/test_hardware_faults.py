@@ -178,20 +178,30 @@ class Run:
         self._stderr.flush()
         return (self.out / "stdout").read_text() + (self.out / "stderr").read_text()
 
+    def Summary(self) -> dict:
+        return json.loads((self.out / "run" / "summary.json").read_text())
+
     def Failure(self) -> str:
-        return json.loads((self.out / "run" / "summary.json").read_text())["failure"]
+        return self.Summary()["failure"]
 
 
 def _CheckEnded(run: Run, fault: str, failure: str, fault_time: float) -> float:
     """The run exited 1 with `failure` (a regex) in summary.json, no traceback; returns
-    the seconds from the fault to the exit."""
-    elapsed = run.Wait() - fault_time
+    the seconds from the fault to the run's line naming it (printed when the fault ends the
+    simulation, before the summary, figures and replay of what was measured are written)."""
+    deadline = time.monotonic() + 60.0
+    while "writing the summary" not in (output := run.Output()):
+        assert run.process.poll() is None, output
+        assert time.monotonic() < deadline, output
+        time.sleep(0.01)
+    elapsed = time.monotonic() - fault_time
+    run.Wait()
     output = run.Output()
     assert run.process.returncode == 1, output
     assert "Traceback" not in output and "Failure at" not in output, output
     assert re.fullmatch(failure, run.Failure()), run.Failure()
     assert f"guidedarm: run failed: {run.Failure()}" in output
-    print(f"\n{fault}: fault to exit {elapsed:.3f} s; failure: {run.Failure()}")
+    print(f"\n{fault}: fault to its line {elapsed:.3f} s; failure: {run.Failure()}")
     return elapsed
 
 
@@ -286,6 +296,10 @@ def test_tof_silent_while_following_continuously_stops_the_arm(cell, tmp_path):
         relay.close()
     joints = [np.array(reply.split()[2:], float) for reply in moving[::2]]
     assert np.max(np.abs(joints[1] - joints[0])) > 0.01  # deg in 50 ms: it was moving
+    # The summary keeps what the run measured before the fault: more than 1 s of following.
+    summary = run.Summary()
+    assert summary["sim_time_s"] > 1.0 and summary["average_speed_mm_s"] > 20.0, summary
+    assert 0.0 < summary["coverage"] < 1.0 and summary["tracking_error_max_mm"] < 15.0, summary
     assert elapsed < WATCHDOG + 1.0
     assert cell.State() == "STOPPED"
 

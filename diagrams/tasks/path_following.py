@@ -149,7 +149,7 @@ def RunPathFollowing(scenario: PathFollowingScenario, context: RunContext) -> di
         "realtime_factor": round(execution.sim_time / max(execution.wall_time, 1e-9), 2),
     }
     context.headline = summary  # the figures below print its headline figures
-    if repeat_seed is not None:
+    if repeat_seed is not None and not execution.aborted:
         second, _ = Run(scenario, context, repeat_seed)
         runs[f"detected (random_seed {repeat_seed})"] = DetectedPath(second.records)
         first_path, second_path = runs.values()

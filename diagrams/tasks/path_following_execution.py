@@ -32,6 +32,7 @@ from guidedarm.diagrams.tasks.path_following_diagram import (
     MakeKinematicStation,
 )
 from guidedarm.diagrams.tasks.path_following_setup import Setup
+from guidedarm.systems.errors import RunFailedError
 
 # Joint samples for the contact check (s): the tool moves 1 mm between two at 50 mm/s.
 SAMPLE_PERIOD = 0.02
@@ -41,8 +42,9 @@ SAMPLE_PERIOD = 0.02
 class Execution:
     """What a run produced: step records (steps x RECORD_FIELDS), joint samples (times,
     q rows) for the contact check, the simulated time (s), a failure line or None, and the
-    number of steps during which the robot touched the hose, and the wall-clock time (s) the
-    simulation took (the follower's loop on its station, without setup and report)."""
+    number of steps during which the robot touched the hose, the wall-clock time (s) the
+    simulation took (the follower's loop on its station, without setup and report), and
+    whether a RunFailedError (e.g. a hardware fault) cut the simulation short."""
 
     records: np.ndarray
     sample_times: np.ndarray
@@ -51,6 +53,7 @@ class Execution:
     failure: str | None
     collisions: int = 0
     wall_time: float = 0.0
+    aborted: bool = False
 
 
 def Execute(setup: Setup, executor: str, context: RunContext) -> Execution:
@@ -103,13 +106,18 @@ def _Simulate(setup: Setup, station: Diagram, context: RunContext, visualized: b
     if visualized:
         context.start_recording()
     start = time.perf_counter()
-    simulator.AdvanceTo(setup.max_time)
+    fault = None
+    try:
+        simulator.AdvanceTo(setup.max_time)
+    except RunFailedError as e:  # a device fault: the summary keeps what was measured so far
+        fault = str(e)
+        context.progress(f"{fault}; writing the summary", force=True)
     wall_time = time.perf_counter() - start
     if visualized:
         context.write_replay()
     loop = follower.Loop(follower_context)
-    failure = loop.failure or None
-    if not follower.Stopped(follower_context):
+    failure = fault or loop.failure or None
+    if failure is None and not follower.Stopped(follower_context):
         failure = f"time limit ({setup.max_time} s) reached at step {loop.step}"
     records = record_log.FindLog(root)
     samples = q_log.FindLog(root)
@@ -120,6 +128,7 @@ def _Simulate(setup: Setup, station: Diagram, context: RunContext, visualized: b
         root.get_time(),
         failure,
         wall_time=wall_time,
+        aborted=fault is not None,
     )
 
 
