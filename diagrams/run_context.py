@@ -234,6 +234,9 @@ def RealtimeRate(realtime: float | None, meshcat: bool) -> float:
 
 
 def _csv_cell(value: Any) -> str:
+    """A CSV cell; empty for a value a run did not produce (None, NaN, infinity)."""
+    if value is None or (isinstance(value, float) and not math.isfinite(value)):
+        return ""
     if isinstance(value, float):
         return f"{value:.9g}"
     return str(value)

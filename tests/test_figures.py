@@ -82,3 +82,13 @@ def test_figures_are_saved_as_png_and_svg_with_title_and_headline(tmp_path):
     svg = (tmp_path / "scaling_coefficient.svg").read_text()
     assert (tmp_path / "scaling_coefficient.png").stat().st_size > 1000
     assert "ur10e_waypoints" in svg and "min c 0.25" in svg
+
+
+def test_csv_cells_of_values_a_run_did_not_produce_are_empty(tmp_path):
+    context = RunContext(out_dir=tmp_path, title="marker_occlusion")
+    path = context.write_csv(
+        "table", ["policy", "pressed", "error_mm", "far"], [["abort", None, float("nan"), 1e300]]
+    )
+    assert path.read_text().splitlines() == ["policy,pressed,error_mm,far", "abort,,,1e+300"]
+    context.write_csv("inf", ["x"], [[float("inf")], [0.1234567891234]])
+    assert (tmp_path / "inf.csv").read_text().splitlines() == ["x", "", "0.123456789"]

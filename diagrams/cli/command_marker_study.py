@@ -238,9 +238,10 @@ def _Values(row: dict[str, Any], *columns: str) -> list[float]:
     return [math.nan if row.get(c) is None else float(row[c]) for c in columns]
 
 
-def _Max(values) -> float:
+def _Max(values) -> float | None:
+    """The largest finite value, or None (null in the summary) when no run gave one."""
     finite = [v for v in values if math.isfinite(v)]
-    return round(max(finite), 3) if finite else math.nan
+    return round(max(finite), 3) if finite else None
 
 
 def _Plot(context, name, rows, x_column, y_column, x_label, y_label) -> None:
