@@ -78,7 +78,6 @@ def Breakdown(path: str) -> None:
     """Prints the loop's and each per-tick system's CPU seconds per simulated second."""
     from guidedarm.diagrams.cli.main import main as guidedarm_main
     from guidedarm.diagrams.tasks import path_following_execution
-    from guidedarm.systems import joint_servo
     from guidedarm.systems.path_following import continuous_follower, differential_ik_servo
     from guidedarm.systems.tof import tof_tool_sensor
 
@@ -106,7 +105,6 @@ def Breakdown(path: str) -> None:
         (follower, "_Update", "ContinuousFollower"),
         (follower, "_Read", "  readings"),
         (continuous_follower, "Advance", "  Advance"),
-        (joint_servo.JointServo, "CalcActuation", "JointServo"),
         (tof_tool_sensor.ToFToolSensor, "_Measure", "ToF sensor"),
     )
     for owner, name, label in timed:
