@@ -49,6 +49,8 @@ class StationScenario:
         `<name>.position_commanded`, `<name>.position_measured`, `<name>.velocity_estimated`
         and `<name>.state_estimated`.
     cameras: Drake CameraConfig per camera; each exports `<name>.rgb_image`.
+    visualization: what the simulated station shows in Meshcat (Drake's
+        VisualizationConfig; Meshcat only, lcm_bus stays "default").
     hardware: drivers used by `MakeStation(..., hardware=True)` (diagrams/hardware_config).
     hose: a hose (centerline, brackets) registered on the world body, or None.
     tof_tools: six-sensor ToF tools; each exports `<name>.ranges`, `.valid`, `.measured_at`
