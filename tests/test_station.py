@@ -71,7 +71,7 @@ def test_servo_settles_on_a_step_command():
 
 
 def test_servo_is_computed_torque_on_the_arm_of_the_whole_plant():
-    """The station's servo (InverseDynamicsController on the controller plant of the arm,
+    """The station's servo (InverseDynamics on the controller plant of the arm,
     its gripper and ToF tool) applies tau = M_aa (kp e + kd e_dot) + c_a - tau_g,a of the
     station's own plant, in the arm's actuator order."""
     from guidedarm.diagrams.cli.command_run import LoadScenario
@@ -88,10 +88,8 @@ def test_servo_is_computed_torque_on_the_arm_of_the_whole_plant():
     v, q_d, v_d = rng.normal(0.0, 0.5, 6), q + rng.normal(0.0, 0.01, 6), rng.normal(0.0, 0.5, 6)
     plant.SetPositions(plant_context, arm, q)
     plant.SetVelocities(plant_context, arm, v)
-    servo = station.GetSubsystemByName("mz04d.servo")
-    servo.get_input_port_desired_state().FixValue(
-        servo.GetMyMutableContextFromRoot(context), np.r_[q_d, v_d]
-    )
+    states = station.GetSubsystemByName("mz04d.servo_states")  # [x_d; x] of the servo
+    states.get_input_port(0).FixValue(states.GetMyMutableContextFromRoot(context), np.r_[q_d, v_d])
     a = [
         plant.get_joint_actuator(i).joint().velocity_start()
         for i in plant.GetJointActuatorIndices(arm)

@@ -8,7 +8,7 @@ velocities a:
 
     tau = M_aa(q) (kp (q_d - q) + kd (v_d - v)) + c_a(q, v) - tau_g,a(q)
 
-Drake's InverseDynamicsController evaluates it (in C++, at every plant step) on the arm's
+Drake's InverseDynamics evaluates it (in C++, at every plant step) on the arm's
 controller plant: MakeMultibodyPlant of the arm and what its joints carry (gripper,
 tools), which has the arm's M_aa, c_a and tau_g,a of the station's plant as long as the
 arm's base does not move; the other models of the scene keep their own dynamics.
@@ -24,11 +24,13 @@ import numpy as np
 from pydrake.geometry import MakeRenderEngineVtk, Meshcat, RenderEngineVtkParams, SceneGraph
 from pydrake.lcm import DrakeLcm
 from pydrake.multibody.plant import AddMultibodyPlant, MultibodyPlant
-from pydrake.systems.controllers import InverseDynamicsController
+from pydrake.systems.controllers import InverseDynamics
 from pydrake.systems.framework import Diagram, DiagramBuilder
 from pydrake.systems.primitives import (
     Demultiplexer,
     MatrixGain,
+    Multiplexer,
+    SharedPointerSystem,
     StateInterpolatorWithDiscreteDerivative,
 )
 from pydrake.systems.sensors import CameraConfig, RgbdSensor
@@ -134,27 +136,35 @@ def _AddArm(
             f"arms.{name}: the models the arm carries must be welded to it (its controller "
             f"plant has {controller_plant.num_velocities()} joints, the arm {n})"
         )
-    servo = builder.AddNamedSystem(
-        f"{name}.servo",
-        InverseDynamicsController(
-            controller_plant, np.full(n, arm.kp), np.zeros(n), np.full(n, kd), False
-        ),
-    )
-    # Generalized forces of the controller plant's joints in the arm's actuator order.
-    B = controller_plant.MakeActuationMatrix()
-    actuation = servo.get_output_port_control()
-    if not np.array_equal(B, np.eye(n)):
-        to_actuators = builder.AddNamedSystem(f"{name}.servo_to_actuators", MatrixGain(B.T))
-        builder.Connect(actuation, to_actuators.get_input_port())
-        actuation = to_actuators.get_output_port()
+    # The law's acceleration a_d = kp (q_d - q) + kd (v_d - v) from [x_d; x], then Drake's
+    # InverseDynamics tau = M a_d + c - tau_g. (InverseDynamicsController is the same law,
+    # but its PidController's integral state, even at ki = 0, makes the simulator
+    # integrate it between every two events.)
+    eye = np.eye(n)
+    states = builder.AddNamedSystem(f"{name}.servo_states", Multiplexer([2 * n, 2 * n]))
+    gains = np.hstack([arm.kp * eye, kd * eye, -arm.kp * eye, -kd * eye])
+    pd = builder.AddNamedSystem(f"{name}.servo_pd", MatrixGain(gains))
+    servo = builder.AddNamedSystem(f"{name}.servo", InverseDynamics(controller_plant))
+    # InverseDynamics refers to the controller plant, which the diagram must keep alive.
+    builder.AddNamedSystem(f"{name}.controller_plant", SharedPointerSystem(controller_plant))
     interpolator = builder.AddNamedSystem(
         f"{name}.command_interpolator",
         StateInterpolatorWithDiscreteDerivative(
             n, arm.control_period, suppress_initial_transient=True
         ),
     )
+    builder.Connect(interpolator.get_output_port(), states.get_input_port(0))
+    builder.Connect(plant.get_state_output_port(instance), states.get_input_port(1))
+    builder.Connect(states.get_output_port(), pd.get_input_port())
+    builder.Connect(pd.get_output_port(), servo.get_input_port_desired_acceleration())
     builder.Connect(plant.get_state_output_port(instance), servo.get_input_port_estimated_state())
-    builder.Connect(interpolator.get_output_port(), servo.get_input_port_desired_state())
+    # Generalized forces of the controller plant's joints in the arm's actuator order.
+    B = controller_plant.MakeActuationMatrix()
+    actuation = servo.get_output_port_generalized_force()
+    if not np.array_equal(B, np.eye(n)):
+        to_actuators = builder.AddNamedSystem(f"{name}.servo_to_actuators", MatrixGain(B.T))
+        builder.Connect(actuation, to_actuators.get_input_port())
+        actuation = to_actuators.get_output_port()
     builder.Connect(actuation, plant.get_actuation_input_port(instance))
     builder.ExportInput(interpolator.get_input_port(), f"{name}.position_commanded")
     demux = builder.AddNamedSystem(f"{name}.state_demux", Demultiplexer([n, n]))
