@@ -33,7 +33,12 @@ class ArmConfig:
 
 
 def _default_plant_config() -> MultibodyPlantConfig:
-    return MultibodyPlantConfig(time_step=0.002, discrete_contact_approximation="sap")
+    # Unsampled output ports: the plant steps by a discrete update (the same states), not
+    # an unrestricted one, after which the simulator re-asks every system for witness
+    # functions; contact results are computed when asked (nothing asks in a run).
+    return MultibodyPlantConfig(
+        time_step=0.002, discrete_contact_approximation="sap", use_sampled_output_ports=False
+    )
 
 
 def _default_visualization() -> VisualizationConfig:
