@@ -13,12 +13,19 @@ max <= 10 mm).
     .venv/bin/python tests/benchmarks/bench_continuous_following.py --breakdown PATH
         [--set KEY=VALUE ...]
 
+    .venv/bin/python tests/benchmarks/bench_continuous_following.py --floor PATH
+        [--set KEY=VALUE ...]
+
 --quick: paper paths only; --more: random_20..39 too; --set: scenario overrides passed
 to every run (e.g. --set station.plant_config.time_step=0.004). --breakdown: one
 continuous ranging run on PATH in this process, printing the CPU time (process time,
 which other processes' load disturbs less than wall time) per simulated second of the
-simulation loop and of each per-tick Python system in it. One run after another (about
-10-30 s each in continuous mode, minutes stop-and-go).
+simulation loop and of each per-tick Python system in it (the rest of the loop is the
+plant and SceneGraph, the servo's C++ systems, Meshcat's C++ visualizer, loggers and the
+framework's event dispatch). --floor: the same figure for the station alone with its arm
+held at PATH's start pose, with and without its ToF sensor: the cost no follower can go
+below. One run after another (about 10-30 s each in continuous mode, minutes
+stop-and-go).
 """
 
 import collections
