@@ -18,6 +18,7 @@ import logging
 import math
 import sys
 import time
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -44,6 +45,8 @@ class RunContext:
 
     realtime_rate: the pace of a simulated run, in simulated seconds per wall-clock second
     (0 = as fast as possible); against hardware the pace is always 1.
+    live: the Meshcat page is served live (--meshcat), so progress is shown on it; a
+    Meshcat that only records the replay gets none (each update waits for its thread).
     title: the run's name on every figure (run_labels.RunTitle); headline: metrics a task
     has computed, printed under the figures they belong to (run_labels.HEADLINES).
     """
@@ -53,6 +56,7 @@ class RunContext:
     hardware: bool = False
     quiet: bool = False
     realtime_rate: float = 0.0
+    live: bool = False
     title: str = ""
     headline: dict[str, Any] = field(default_factory=dict)
     written: list[Path] = field(default_factory=list)
@@ -76,23 +80,26 @@ class RunContext:
             # machine, against watchdogs of 0.5 s). Frozen objects are never walked again.
             gc.freeze()
         self._simulator = simulator
-        if self.meshcat is not None:
+        if self.meshcat is not None and self.live:
             if PROGRESS_SLIDER in self.meshcat.GetSliderNames():
                 self.meshcat.DeleteSlider(PROGRESS_SLIDER)
             self.meshcat.AddSlider(PROGRESS_SLIDER, 0.0, max(t_final, 1e-3), 0.01, 0.0)
 
-    def progress(self, message: str, force: bool = False) -> None:
+    def progress(self, message: str | Callable[[], str], force: bool = False) -> None:
         """Prints a progress line to stderr, at most once a second unless forced; after
-        pace(), also shows the simulated time and realtime rate on the Meshcat page."""
+        pace(), also shows the simulated time and realtime rate on the Meshcat page.
+        message: the line, or a function making it only when it is printed (for a caller
+        at every simulator step)."""
         now = time.monotonic()
         self._ShowOnPage(now)
         if self.quiet or (not force and now - self._last_progress < 1.0):
             return
         self._last_progress = now
-        print(f"  ... {message}", file=sys.stderr, flush=True)
+        line = message if isinstance(message, str) else message()
+        print(f"  ... {line}", file=sys.stderr, flush=True)
 
     def _ShowOnPage(self, now: float) -> None:
-        if self.meshcat is None or self._simulator is None:
+        if self.meshcat is None or not self.live or self._simulator is None:
             return
         if now - self._last_page_progress < _PAGE_PROGRESS_PERIOD:
             return

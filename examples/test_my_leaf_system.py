@@ -9,15 +9,10 @@ Run:  .venv/bin/pytest examples/test_my_leaf_system.py
 """
 
 import numpy as np
-import pytest
 from pydrake.systems.sensors import CameraConfig, ImageRgba8U
 
-from guidedarm.diagrams.station.scenario import ArmConfig, StationScenario
-from guidedarm.diagrams.station.scene_views import SceneDirectives
-from guidedarm.diagrams.station.station_plant import GetArmInstance, MakeMultibodyPlant
 from guidedarm.diagrams.tasks.panel_camera_rig import LookAt, PanelCameraRig
 from guidedarm.diagrams.tasks.panel_files import DEFAULT_PANEL_FILE, LoadPanelSpec
-from guidedarm.systems.joint_servo import ComputedTorqueLaw, JointServo
 from guidedarm.systems.markers.image_degradation import DegradationConfig, ImageDegradation
 from guidedarm.systems.markers.marker_pose_estimator import MarkerPoseEstimator
 from guidedarm.systems.markers.marker_pose_estimator_math import MarkerPoseSolver
@@ -54,33 +49,3 @@ def test_marker_pose_estimator_finds_the_panel_in_a_rendered_image():
     assert np.linalg.norm(X_CP.translation() - X_CP_true.translation()) < 0.001  # m
     angle = (X_CP.rotation().inverse() @ X_CP_true.rotation()).ToAngleAxis().angle()
     assert np.degrees(angle) < 0.3
-
-
-@pytest.fixture(scope="module")
-def ur10e_servo():
-    scenario = StationScenario(directives=SceneDirectives("ur10e"), arms={"ur10e": ArmConfig()})
-    plant = MakeMultibodyPlant(scenario, ["ur10e"])
-    law = ComputedTorqueLaw(plant, GetArmInstance(plant, "ur10e"), kp=1600.0, kd=80.0)
-    return plant, JointServo(law)
-
-
-def test_joint_servo_holds_the_arm_against_gravity_and_corrects_errors(ur10e_servo):
-    plant, system = ur10e_servo
-    q = np.array([-1.2, -1.3, -2.0, -1.2, 1.5708, 0.4])
-    state = np.concatenate([q, np.zeros(6)])
-    context = system.CreateDefaultContext()
-    system.GetInputPort("plant_state").FixValue(context, state)
-    system.GetInputPort("desired_state").FixValue(context, state)
-    plant_context = plant.CreateDefaultContext()
-    plant.SetPositions(plant_context, q)
-    gravity = plant.CalcGravityGeneralizedForces(plant_context)
-    tau = system.GetOutputPort("actuation").Eval(context)
-    np.testing.assert_allclose(tau, -gravity, atol=1e-9)  # N m: holds still
-    # 0.01 rad short on the shoulder: tau = M (kp e) - gravity
-    desired = state.copy()
-    desired[1] += 0.01
-    system.GetInputPort("desired_state").FixValue(context, desired)
-    tau = system.GetOutputPort("actuation").Eval(context)
-    M = plant.CalcMassMatrix(plant_context)
-    np.testing.assert_allclose(tau, M @ (1600.0 * (desired - state)[:6]) - gravity, atol=1e-9)
-    assert abs(tau[1] + gravity[1]) > 10.0  # the correction is tens of N m, not noise

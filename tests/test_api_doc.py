@@ -116,7 +116,6 @@ def test_the_port_reader_matches_built_systems():
     station = MakeStation(task.Station(scenario))
     panel = PanelSpec(markers=[MarkerSpec(id=7)])
     built = [
-        station.GetSubsystemByName("mz04d.servo"),  # JointServo
         station.GetSubsystemByName("tof.sensor"),  # ToFToolSensor
         ImageDegradation(DegradationConfig()),
         MarkerPoseEstimator(MarkerPoseSolver(CameraIntrinsics(), panel)),

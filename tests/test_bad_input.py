@@ -159,6 +159,7 @@ BAD_INPUTS = [
     ("simulator-zero-step", Run(JT, "station.simulator_config.max_step_size=0"), "> 0"),
     ("simulator-nan-rate", Run(JT, "station.simulator_config.target_realtime_rate=.nan"), "rate"),
     ("visualization-period", Run(JT, "station.visualization.publish_period=-1"), "> 0"),
+    ("visualization-lcm", Run(JT, "station.visualization.lcm_bus=x"), "Meshcat only"),
     ("camera-zero-width", Run(JT, "station.cameras.top.width=0"), "cameras.top.width"),
     ("camera-nan-focal", Run(PO, "station.cameras.camera.focal.x=.nan"), "focal.x"),
     ("camera-clipping", Run(JT, "station.cameras.top.clipping_near=-1"), "clipping_near"),

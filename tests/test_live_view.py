@@ -35,7 +35,7 @@ def test_rate_defaults_to_real_time_with_meshcat_only():
 
 def test_the_page_shows_the_simulated_time(tmp_path):
     meshcat = Meshcat()
-    context = RunContext(out_dir=tmp_path, meshcat=meshcat, quiet=True, realtime_rate=0.0)
+    context = RunContext(out_dir=tmp_path, meshcat=meshcat, quiet=True, live=True)
     simulator = Simulator(ConstantVectorSource([0.0]))
     context.pace(simulator, t_final=2.0)
     simulator.AdvanceTo(1.5)
@@ -43,3 +43,14 @@ def test_the_page_shows_the_simulated_time(tmp_path):
     assert meshcat.GetSliderValue(PROGRESS_SLIDER) == pytest.approx(1.5)
     context.pace(simulator, t_final=2.0)  # a second run of the same context
     assert meshcat.GetSliderValue(PROGRESS_SLIDER) == 0.0
+
+
+def test_a_recording_meshcat_gets_no_progress(tmp_path):
+    """Without a live page (the replay recorder of every run) nothing is shown."""
+    meshcat = Meshcat()
+    context = RunContext(out_dir=tmp_path, meshcat=meshcat, quiet=True)
+    simulator = Simulator(ConstantVectorSource([0.0]))
+    context.pace(simulator, t_final=2.0)
+    simulator.AdvanceTo(1.5)
+    context.progress("half way", force=True)
+    assert PROGRESS_SLIDER not in meshcat.GetSliderNames()

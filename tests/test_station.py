@@ -70,6 +70,42 @@ def test_servo_settles_on_a_step_command():
     np.testing.assert_allclose(q, target, atol=1e-4)
 
 
+def test_servo_is_computed_torque_on_the_arm_of_the_whole_plant():
+    """The station's servo (InverseDynamics on the controller plant of the arm,
+    its gripper and ToF tool) applies tau = M_aa (kp e + kd e_dot) + c_a - tau_g,a of the
+    station's own plant, in the arm's actuator order."""
+    from guidedarm.diagrams.cli.command_run import LoadScenario
+
+    task, scenario, _ = LoadScenario("path_following", [])
+    config = task.Station(scenario)
+    station = MakeStation(config)
+    plant = station.GetSubsystemByName("plant")
+    context = station.CreateDefaultContext()
+    plant_context = plant.GetMyMutableContextFromRoot(context)
+    arm = plant.GetModelInstanceByName("mz04d")
+    rng = np.random.default_rng(0)
+    q = plant.GetPositions(plant_context, arm) + rng.normal(0.0, 0.3, 6)
+    v, q_d, v_d = rng.normal(0.0, 0.5, 6), q + rng.normal(0.0, 0.01, 6), rng.normal(0.0, 0.5, 6)
+    plant.SetPositions(plant_context, arm, q)
+    plant.SetVelocities(plant_context, arm, v)
+    states = station.GetSubsystemByName("mz04d.servo_states")  # [x_d; x] of the servo
+    states.get_input_port(0).FixValue(states.GetMyMutableContextFromRoot(context), np.r_[q_d, v_d])
+    a = [
+        plant.get_joint_actuator(i).joint().velocity_start()
+        for i in plant.GetJointActuatorIndices(arm)
+    ]
+    kp = config.arms["mz04d"].kp
+    M = plant.CalcMassMatrix(plant_context)[np.ix_(a, a)]
+    expected = (
+        M @ (kp * (q_d - q) + 2.0 * np.sqrt(kp) * (v_d - v))
+        + plant.CalcBiasTerm(plant_context)[a]
+        - plant.CalcGravityGeneralizedForces(plant_context)[a]
+    )
+    tau = plant.get_actuation_input_port(arm).Eval(plant_context)
+    np.testing.assert_allclose(tau, expected, rtol=1e-9, atol=1e-9)  # N m
+    assert np.max(np.abs(tau)) > 10.0  # a real correction, not a zero output
+
+
 def test_camera_renders_the_arm_from_above():
     camera = CameraConfig(width=80, height=60, name="top")
     camera.X_PB = Transform()

@@ -119,6 +119,7 @@ def run_command(args: argparse.Namespace) -> int:
         out_dir=PrepareOutputDirectory(args.out or Path("runs") / name), hardware=args.hardware
     )
     context.meshcat = MakeMeshcat(args.meshcat, args.meshcat_host or "localhost")
+    context.live = args.meshcat
     if args.meshcat:
         print(f"Meshcat: {context.meshcat.web_url()}", flush=True)
     context.realtime_rate = RealtimeRate(args.realtime, args.meshcat)

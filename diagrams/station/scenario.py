@@ -33,7 +33,12 @@ class ArmConfig:
 
 
 def _default_plant_config() -> MultibodyPlantConfig:
-    return MultibodyPlantConfig(time_step=0.002, discrete_contact_approximation="sap")
+    # Unsampled output ports: the plant steps by a discrete update (the same states), not
+    # an unrestricted one, after which the simulator re-asks every system for witness
+    # functions; contact results are computed when asked (nothing asks in a run).
+    return MultibodyPlantConfig(
+        time_step=0.002, discrete_contact_approximation="sap", use_sampled_output_ports=False
+    )
 
 
 def _default_visualization() -> VisualizationConfig:
@@ -49,6 +54,8 @@ class StationScenario:
         `<name>.position_commanded`, `<name>.position_measured`, `<name>.velocity_estimated`
         and `<name>.state_estimated`.
     cameras: Drake CameraConfig per camera; each exports `<name>.rgb_image`.
+    visualization: what the simulated station shows in Meshcat (Drake's
+        VisualizationConfig; Meshcat only, lcm_bus stays "default").
     hardware: drivers used by `MakeStation(..., hardware=True)` (diagrams/hardware_config).
     hose: a hose (centerline, brackets) registered on the world body, or None.
     tof_tools: six-sensor ToF tools; each exports `<name>.ranges`, `.valid`, `.measured_at`

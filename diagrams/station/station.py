@@ -1,8 +1,19 @@
 """MakeStation: the arms, tools, sensors and scene of a scenario, behind fixed port names.
 
-The simulated branch builds a MultibodyPlant and SceneGraph (with a headless VTK renderer)
-from the scenario's model directives, adds a position servo per arm and a camera per
-CameraConfig. The hardware branch (diagrams/station/hardware_station.py) exports the same ports
+The simulated branch builds a MultibodyPlant and SceneGraph from the scenario's model
+directives, adds a position servo per arm and a camera per CameraConfig (rendered by a
+headless VTK renderer, added only when there is a camera). The servo is the stiff
+model-based loop of an industrial arm controller, computed-torque control on the arm's
+velocities a:
+
+    tau = M_aa(q) (kp (q_d - q) + kd (v_d - v)) + c_a(q, v) - tau_g,a(q)
+
+Drake's InverseDynamics evaluates it (in C++, at every plant step) on the arm's
+controller plant: MakeMultibodyPlant of the arm and what its joints carry (gripper,
+tools), which has the arm's M_aa, c_a and tau_g,a of the station's plant as long as the
+arm's base does not move; the other models of the scene keep their own dynamics.
+
+The hardware branch (diagrams/station/hardware_station.py) exports the same ports
 from drivers. Sim-only ground truth is exported under the `sim.` prefix and is not part of
 the sim/hardware contract.
 """
@@ -11,21 +22,30 @@ from __future__ import annotations
 
 import numpy as np
 from pydrake.geometry import MakeRenderEngineVtk, Meshcat, RenderEngineVtkParams, SceneGraph
+from pydrake.lcm import DrakeLcm
 from pydrake.multibody.plant import AddMultibodyPlant, MultibodyPlant
+from pydrake.systems.controllers import InverseDynamics
 from pydrake.systems.framework import Diagram, DiagramBuilder
-from pydrake.systems.primitives import Demultiplexer, StateInterpolatorWithDiscreteDerivative
+from pydrake.systems.primitives import (
+    Demultiplexer,
+    MatrixGain,
+    Multiplexer,
+    SharedPointerSystem,
+    StateInterpolatorWithDiscreteDerivative,
+)
 from pydrake.systems.sensors import CameraConfig, RgbdSensor
-from pydrake.visualization import ApplyVisualizationConfig
+from pydrake.visualization import ApplyVisualizationConfig, VisualizationConfig
 
 from guidedarm.diagrams.station.hardware_station import MakeHardwareStation
 from guidedarm.diagrams.station.scenario import ArmConfig, StationScenario
 from guidedarm.diagrams.station.station_plant import (
     AddStationModels,
+    ArmAndAttachments,
     GetArmInstance,
+    MakeMultibodyPlant,
     SetInitialPositions,
 )
 from guidedarm.systems.errors import ConfigurationError
-from guidedarm.systems.joint_servo import ComputedTorqueLaw, JointServo
 from guidedarm.systems.tof.tof_tool_sensor import TOF_PORTS, ToFToolSensor
 
 RENDERER_NAME = "vtk"
@@ -53,11 +73,14 @@ def MakeStation(
     builder = DiagramBuilder()
     plant, scene_graph = AddMultibodyPlant(scenario.plant_config, builder)
     AddStationModels(scenario, plant)
-    scene_graph.AddRenderer(RENDERER_NAME, MakeRenderEngineVtk(RenderEngineVtkParams()))
+    if scenario.cameras:
+        # Only cameras render; a renderer poses every perception geometry at every plant
+        # step (SceneGraph's pose update), most of the step's cost without a camera.
+        scene_graph.AddRenderer(RENDERER_NAME, MakeRenderEngineVtk(RenderEngineVtkParams()))
     plant.Finalize()
     SetInitialPositions(scenario, plant)
     for name, arm in scenario.arms.items():
-        _AddArm(builder, plant, name, arm)
+        _AddArm(builder, plant, scenario, name, arm)
     for name, camera in scenario.cameras.items():
         _AddCamera(builder, plant, scene_graph, name, camera)
     for name in scenario.tof_tools:
@@ -66,8 +89,17 @@ def MakeStation(
         builder.Connect(scene_graph.get_query_output_port(), sensor.get_input_port())
         for port in TOF_PORTS:
             builder.ExportOutput(sensor.GetOutputPort(port), f"{name}.{port}")
+    if scenario.visualization.lcm_bus != VisualizationConfig().lcm_bus:
+        raise ConfigurationError(
+            "visualization.lcm_bus: the station visualizes in Meshcat only; lcm_bus cannot be set"
+        )
     if meshcat is not None:
-        ApplyVisualizationConfig(scenario.visualization, builder, meshcat=meshcat)
+        # Meshcat only: on a null LCM bus ApplyVisualizationConfig adds no DrakeVisualizer,
+        # whose LCM messages (for Meldis, which nothing here runs) cost 0.03 CPU s per
+        # simulated second of path following.
+        ApplyVisualizationConfig(
+            scenario.visualization, builder, meshcat=meshcat, lcm=DrakeLcm("memq://null")
+        )
     builder.ExportOutput(scene_graph.get_query_output_port(), "sim.query_object")
     builder.ExportOutput(plant.get_body_poses_output_port(), "sim.body_poses")
     builder.ExportOutput(plant.get_state_output_port(), "sim.plant_state")
@@ -77,7 +109,13 @@ def MakeStation(
     return diagram
 
 
-def _AddArm(builder: DiagramBuilder, plant: MultibodyPlant, name: str, arm: ArmConfig) -> None:
+def _AddArm(
+    builder: DiagramBuilder,
+    plant: MultibodyPlant,
+    scenario: StationScenario,
+    name: str,
+    arm: ArmConfig,
+) -> None:
     instance = GetArmInstance(plant, name)
     n = plant.num_actuated_dofs(instance)
     if n == 0 or n != plant.num_velocities(instance):
@@ -92,18 +130,42 @@ def _AddArm(builder: DiagramBuilder, plant: MultibodyPlant, name: str, arm: ArmC
             f"arms.{name}: gains must be positive (kp) and finite, got kp={arm.kp}, kd={arm.kd}"
         )
     kd = arm.kd if arm.kd > 0 else 2.0 * np.sqrt(arm.kp)
-    servo = builder.AddNamedSystem(
-        f"{name}.servo", JointServo(ComputedTorqueLaw(plant, instance, arm.kp, kd))
-    )
+    controller_plant = MakeMultibodyPlant(scenario, ArmAndAttachments(plant, name))
+    if controller_plant.num_velocities() != n:
+        raise ConfigurationError(
+            f"arms.{name}: the models the arm carries must be welded to it (its controller "
+            f"plant has {controller_plant.num_velocities()} joints, the arm {n})"
+        )
+    # The law's acceleration a_d = kp (q_d - q) + kd (v_d - v) from [x_d; x], then Drake's
+    # InverseDynamics tau = M a_d + c - tau_g. (InverseDynamicsController is the same law,
+    # but its PidController's integral state, even at ki = 0, makes the simulator
+    # integrate it between every two events.)
+    eye = np.eye(n)
+    states = builder.AddNamedSystem(f"{name}.servo_states", Multiplexer([2 * n, 2 * n]))
+    gains = np.hstack([arm.kp * eye, kd * eye, -arm.kp * eye, -kd * eye])
+    pd = builder.AddNamedSystem(f"{name}.servo_pd", MatrixGain(gains))
+    servo = builder.AddNamedSystem(f"{name}.servo", InverseDynamics(controller_plant))
+    # InverseDynamics refers to the controller plant, which the diagram must keep alive.
+    builder.AddNamedSystem(f"{name}.controller_plant", SharedPointerSystem(controller_plant))
     interpolator = builder.AddNamedSystem(
         f"{name}.command_interpolator",
         StateInterpolatorWithDiscreteDerivative(
             n, arm.control_period, suppress_initial_transient=True
         ),
     )
-    builder.Connect(plant.get_state_output_port(), servo.get_input_port(0))
-    builder.Connect(interpolator.get_output_port(), servo.get_input_port(1))
-    builder.Connect(servo.get_output_port(), plant.get_actuation_input_port(instance))
+    builder.Connect(interpolator.get_output_port(), states.get_input_port(0))
+    builder.Connect(plant.get_state_output_port(instance), states.get_input_port(1))
+    builder.Connect(states.get_output_port(), pd.get_input_port())
+    builder.Connect(pd.get_output_port(), servo.get_input_port_desired_acceleration())
+    builder.Connect(plant.get_state_output_port(instance), servo.get_input_port_estimated_state())
+    # Generalized forces of the controller plant's joints in the arm's actuator order.
+    B = controller_plant.MakeActuationMatrix()
+    actuation = servo.get_output_port_generalized_force()
+    if not np.array_equal(B, np.eye(n)):
+        to_actuators = builder.AddNamedSystem(f"{name}.servo_to_actuators", MatrixGain(B.T))
+        builder.Connect(actuation, to_actuators.get_input_port())
+        actuation = to_actuators.get_output_port()
+    builder.Connect(actuation, plant.get_actuation_input_port(instance))
     builder.ExportInput(interpolator.get_input_port(), f"{name}.position_commanded")
     demux = builder.AddNamedSystem(f"{name}.state_demux", Demultiplexer([n, n]))
     builder.Connect(plant.get_state_output_port(instance), demux.get_input_port())

@@ -138,6 +138,15 @@ def CheckJointPositions(plant: MultibodyPlant, name: str, q: list[float], key: s
         )
 
 
+def ArmAndAttachments(plant: MultibodyPlant, arm: str) -> list[str]:
+    """The model instances (names) of the arm `arm` of `plant` and of everything its joints
+    move (gripper, tools): the models of its controller plant (MakeMultibodyPlant)."""
+    instance = GetArmInstance(plant, arm)
+    moved = plant.GetBodiesKinematicallyAffectedBy(plant.GetJointIndices(instance))
+    names = {plant.GetModelInstanceName(plant.get_body(b).model_instance()) for b in moved}
+    return sorted(names | {arm})
+
+
 def GetArmInstance(plant: MultibodyPlant, name: str) -> ModelInstanceIndex:
     """The model instance called `name`, or a ConfigurationError listing the known ones."""
     if not plant.HasModelInstanceNamed(name):

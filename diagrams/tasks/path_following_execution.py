@@ -95,8 +95,9 @@ def _Simulate(setup: Setup, station: Diagram, context: RunContext, visualized: b
     follower_context = follower.GetMyContextFromRoot(root)
 
     def monitor(_):
-        loop = follower.Loop(follower_context)
-        context.progress(f"step {loop.step}, t = {root.get_time():.1f} s")
+        context.progress(
+            lambda: f"step {follower.Loop(follower_context).step}, t = {root.get_time():.1f} s"
+        )
         if follower.Stopped(follower_context):
             return EventStatus.ReachedTermination(follower, "follower stopped")
         return EventStatus.DidNothing()

@@ -24,6 +24,7 @@ from pydrake.multibody.plant import MultibodyPlant
 
 from guidedarm.diagrams.station.scenario import StationScenario
 from guidedarm.diagrams.station.station_plant import (
+    ArmAndAttachments,
     ArmInitialPosition,
     FixedFramePose,
     GetArmInstance,
@@ -297,15 +298,6 @@ def _SameHose(a: str, b: str) -> bool:
     return ResolveCenterlinePath(a).resolve() == ResolveCenterlinePath(b).resolve()
 
 
-def ArmAndAttachments(station: StationScenario, arm: str) -> list[str]:
-    """The model instances of the arm and of everything welded to it (gripper, tools)."""
-    plant = MakeMultibodyPlant(station)
-    instance = GetArmInstance(plant, arm)
-    moved = plant.GetBodiesKinematicallyAffectedBy(plant.GetJointIndices(instance))
-    names = {plant.GetModelInstanceName(plant.get_body(b).model_instance()) for b in moved}
-    return sorted(names | {arm})
-
-
 def MakeSolver(
     station: StationScenario,
     arm: str,
@@ -318,7 +310,7 @@ def MakeSolver(
     """The IK of the gripper frame G holding the ToF tool's centre O on target, on a
     controller plant of the arm and what it carries (MakeMultibodyPlant, no hose), with the
     workspace walls in the base frame B (pose X_WB)."""
-    plant = MakeMultibodyPlant(station, ArmAndAttachments(station, arm))
+    plant = MakeMultibodyPlant(station, ArmAndAttachments(MakeMultibodyPlant(station), arm))
     gripper = GetScopedFrame(plant, gripper_frame, "gripper_frame")
     tof = station.tof_tools[tool_name]
     tool = GetScopedFrame(plant, tof.tool_frame, f"station.tof_tools.{tool_name}.tool_frame")

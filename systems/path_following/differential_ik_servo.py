@@ -20,6 +20,7 @@ from guidedarm.systems.path_following.differential_ik_servo_math import (
     BrakeStep,
     JointLimits,
     PoseError,
+    ReachBound,
     ServoStep,
     StoppingPositions,
 )
@@ -72,6 +73,11 @@ class DifferentialIkServo(LeafSystem):
         )
         self._bodies = [plant.get_body(b) for b in moved]
         self._body_indices = [int(b) for b in moved]
+        # A memo of the wall check, a pure function of q: (q_checked, margin) where every
+        # origin was at least `margin` (m) inside the walls, so no q with
+        # reach * sum |q - q_checked| < margin needs the kinematics.
+        self._reach = ReachBound(plant, self._bodies)
+        self._clear = (np.zeros(n), 0.0)
         self._R_BW = self._X_BW.rotation().matrix()
         self._p_BW = self._X_BW.translation()
         self._world = plant.world_frame()
@@ -83,11 +89,18 @@ class DifferentialIkServo(LeafSystem):
         initial = np.concatenate([np.asarray(q_initial, float), np.zeros(n + 15)])
         self._state = self.DeclareDiscreteState(initial)
         self.DeclarePeriodicDiscreteUpdateEvent(period, 0.0, self._Update)
-        self.DeclareVectorOutputPort("position_commanded", n, lambda c, o: self._Output(c, o, 0, n))
-        self.DeclareVectorOutputPort(
-            "velocity_commanded", n, lambda c, o: self._Output(c, o, n, 2 * n)
-        )
-        self.DeclareVectorOutputPort("status", 1, lambda c, o: self._Output(c, o, 2 * n, 2 * n + 1))
+        # The outputs are parts of the state: cached until it changes.
+        for name, part in (
+            ("position_commanded", slice(0, n)),
+            ("velocity_commanded", slice(n, 2 * n)),
+            ("status", slice(2 * n, 2 * n + 1)),
+        ):
+            self.DeclareVectorOutputPort(
+                name,
+                part.stop - part.start,
+                lambda c, o, part=part: self._Output(c, o, part),
+                prerequisites_of_calc={self.xd_ticket()},
+            )
         self.DeclareAbstractOutputPort(
             "failure",
             lambda: AbstractValue.Make(""),
@@ -147,12 +160,19 @@ class DifferentialIkServo(LeafSystem):
         """1 + the index of the first body whose origin at q lies outside the walls, or 0."""
         if self._workspace is None:
             return 0
+        q_checked, margin = self._clear
+        if self._reach * float(np.abs(q - q_checked).sum()) < margin:
+            return 0
         self._plant.SetPositions(self._plant_context, q)
         # All body poses in one evaluation of the plant's port, then the origins in B.
         poses = self._plant.get_body_poses_output_port().Eval(self._plant_context)
         p_WBo = np.array([poses[i].translation() for i in self._body_indices])
-        k = self._workspace.FirstOutside(p_WBo @ self._R_BW.T + self._p_BW)
-        return 0 if k is None else k + 1
+        p_BBo = p_WBo @ self._R_BW.T + self._p_BW
+        k = self._workspace.FirstOutside(p_BBo)
+        if k is not None:
+            return k + 1
+        self._clear = (q.copy(), self._workspace.Margin(p_BBo))
+        return 0
 
     def _CalcFailure(self, context: Context, output: AbstractValue) -> None:
         k = int(context.get_discrete_state(self._state).get_value()[-1])
@@ -163,5 +183,5 @@ class DifferentialIkServo(LeafSystem):
             f"({self._workspace.Describe()}; m, base frame)"
         )
 
-    def _Output(self, context: Context, output: BasicVector, start: int, end: int) -> None:
-        output.SetFromVector(context.get_discrete_state(self._state).get_value()[start:end])
+    def _Output(self, context: Context, output: BasicVector, part: slice) -> None:
+        output.SetFromVector(context.get_discrete_state(self._state).get_value()[part])

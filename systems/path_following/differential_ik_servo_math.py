@@ -39,10 +39,13 @@ turns faster than the joints may, and the arm stalls. The damped least squares a
 one.
 """
 
-from dataclasses import dataclass
+import math
+from dataclasses import dataclass, field
 
 import numpy as np
 from pydrake.math import RigidTransform
+from pydrake.multibody.plant import MultibodyPlant
+from pydrake.multibody.tree import RigidBody
 
 # Share of the acceleration limits the error feedback may plan with: the rest is kept for
 # the changes of the feed-forward (the target's turns and speed changes).
@@ -55,12 +58,26 @@ MIN_DAMPING = 1e-3
 
 @dataclass(frozen=True)
 class JointLimits:
-    """Per joint: position range (rad), speed (rad/s) and acceleration (rad/s^2) limits."""
+    """Per joint: position range (rad), speed (rad/s) and acceleration (rad/s^2) limits.
+    middle, half_range and feedback_acceleration are derived once (ServoStep runs at the
+    servo rate, where numpy's per-call overhead is the cost)."""
 
     lower: np.ndarray
     upper: np.ndarray
     speed: np.ndarray
     acceleration: np.ndarray
+    middle: np.ndarray = field(init=False, repr=False)
+    half_range: np.ndarray = field(init=False, repr=False)
+    feedback_acceleration: np.ndarray = field(init=False, repr=False)
+
+    def __post_init__(self) -> None:
+        derived = {
+            "middle": 0.5 * (self.lower + self.upper),
+            "half_range": np.maximum(0.5 * (self.upper - self.lower), 1e-9),
+            "feedback_acceleration": FEEDBACK_ACCELERATION_SHARE * self.acceleration,
+        }
+        for name, value in derived.items():
+            object.__setattr__(self, name, value)
 
 
 def PoseError(X_current: RigidTransform, X_desired: RigidTransform) -> np.ndarray:
@@ -74,9 +91,7 @@ def PoseError(X_current: RigidTransform, X_desired: RigidTransform) -> np.ndarra
 def CentringVelocity(q: np.ndarray, limits: JointLimits) -> np.ndarray:
     """Joint velocities (rad/s) toward the middle of each joint's range: 0 there,
     CENTRING_SPEED_SHARE of the speed limit at a limit, cubic in between."""
-    middle = 0.5 * (limits.lower + limits.upper)
-    half = np.maximum(0.5 * (limits.upper - limits.lower), 1e-9)
-    x = np.clip((middle - q) / half, -1.0, 1.0)
+    x = np.minimum(np.maximum((limits.middle - q) / limits.half_range, -1.0), 1.0)
     return CENTRING_SPEED_SHARE * limits.speed * x**3
 
 
@@ -98,42 +113,63 @@ def ServoStep(
     the pose error of T (both [w; v] in W, PoseError's order); R_WT: T's orientation
     (3 x 3); limited: whether a speed or acceleration limit changed v_next."""
     n = J.shape[1]
-    w = np.asarray(weights, float)[:, None]
+    # J and the two right-hand sides (the feed-forward and the error) as one 6 x (n + 2)
+    # matrix, expressed in T and weighted by rows; its normal equations in one product.
+    A = np.empty((6, n + 2))
+    A[:, :n] = J
+    A[:, n] = V_target
+    A[:, n + 1] = error
     R_TW = R_WT.T
-    J_T = np.vstack([R_TW @ J[:3], R_TW @ J[3:]]) * w
-    # The feed-forward and the error as the two columns of one right-hand side.
-    E = np.column_stack([V_target, error])
-    E_T = np.vstack([R_TW @ E[:3], R_TW @ E[3:]]) * w
-    JtJ = J_T.T @ J_T
-    # sigma_min^2 of J_T: the smallest eigenvalue of J_T' J_T.
-    sigma_min2 = max(float(np.linalg.eigvalsh(JtJ)[0]), 0.0)
-    lam2 = max(damping**2 - sigma_min2, MIN_DAMPING**2)
-    rhs = J_T.T @ E_T
+    A[:3] = R_TW @ A[:3]
+    A[3:] = R_TW @ A[3:]
+    A *= np.reshape(weights, (6, 1))
+    normal = A[:, :n].T @ A
+    # J_T' J_T = V diag(e) V': sigma_min^2 of J_T is e[0], and the damped solve is diagonal.
+    e, V = np.linalg.eigh(normal[:, :n])
+    lam2 = max(damping**2 - max(float(e[0]), 0.0), MIN_DAMPING**2)
+    rhs = normal[:, n:]
     rhs[:, 0] += lam2 * CentringVelocity(q, limits)
-    solution = np.linalg.solve(JtJ + lam2 * np.eye(n), rhs)
+    solution = V @ ((V.T @ rhs) / (e + lam2)[:, None])
     v_ff, dq = solution[:, 0], solution[:, 1]
-    a_fb = FEEDBACK_ACCELERATION_SHARE * limits.acceleration
-    reach = float((np.abs(dq) / a_fb).max())
-    v_fb = dq * (min(gain, np.sqrt(2.0 / reach)) if reach > 0 else gain)
-    v_wanted = v_ff + v_fb
-    speed_ratio = float((limits.speed / np.maximum(np.abs(v_wanted), 1e-300)).min())
-    v_wanted = v_wanted * min(1.0, speed_ratio)
+    # Reductions over n joints as Python floats: numpy's are slower at this size.
+    reach = max((np.abs(dq) / limits.feedback_acceleration).tolist())
+    v_wanted = v_ff + dq * (min(gain, math.sqrt(2.0 / reach)) if reach > 0 else gain)
+    speed_ratio = min((limits.speed / np.maximum(np.abs(v_wanted), 1e-300)).tolist())
+    if speed_ratio < 1.0:
+        v_wanted = v_wanted * speed_ratio
     dv = v_wanted - v
-    step = limits.acceleration * period
-    excess = np.abs(dv) / step
-    scale = 1.0 / max(1.0, float(excess.max()))
-    v_next = v + scale * dv
-    # Braking: at most the speed from which the joint stops at its limit, and never past it.
     a = limits.acceleration
-    high = np.minimum(
-        np.sqrt(2 * a * np.maximum(limits.upper - q, 0.0)), (limits.upper - q) / period
-    )
-    low = np.maximum(
-        -np.sqrt(2 * a * np.maximum(q - limits.lower, 0.0)), (limits.lower - q) / period
-    )
+    excess = max((np.abs(dv) / (a * period)).tolist())
+    v_next = v + dv / excess if excess > 1.0 else v + dv
+    # Braking: at most the speed from which the joint stops at its limit, and never past it.
+    to_upper, to_lower = limits.upper - q, q - limits.lower
+    high = np.minimum(np.sqrt(2 * a * np.maximum(to_upper, 0.0)), to_upper / period)
+    low = np.maximum(-np.sqrt(2 * a * np.maximum(to_lower, 0.0)), -to_lower / period)
     v_next = np.minimum(np.maximum(v_next, low), np.maximum(high, low))
-    limited = scale < 1.0 or speed_ratio < 1.0
+    limited = excess > 1.0 or speed_ratio < 1.0
     return q + v_next * period, v_next, limited
+
+
+def ReachBound(plant: MultibodyPlant, bodies: list[RigidBody]) -> float:
+    """R (m) such that no origin of `bodies` moves farther than R sum_j |dq_j| when the
+    plant's joints change by dq: the longest chain of fixed distances from a moving body's
+    origin through the joint origins to a body no joint moves. inf unless every joint
+    is revolute (origin fixed in both bodies) or a weld."""
+    joints = [plant.get_joint(j) for j in plant.GetJointIndices()]
+    if any(j.type_name() not in ("revolute", "weld") for j in joints):
+        return math.inf
+    inboard = {j.child_body().index(): j for j in joints}
+
+    def Chain(body: RigidBody, p_BP: np.ndarray) -> float:
+        """Distance from point P (in body B) to the fixed base through the joints."""
+        joint = inboard.get(body.index())
+        if joint is None:
+            return 0.0
+        p_BJ = joint.frame_on_child().GetFixedPoseInBodyFrame().translation()
+        p_PJ = joint.frame_on_parent().GetFixedPoseInBodyFrame().translation()
+        return float(np.linalg.norm(p_BP - p_BJ)) + Chain(joint.parent_body(), p_PJ)
+
+    return max(Chain(body, np.zeros(3)) for body in bodies)
 
 
 def StoppingPositions(q: np.ndarray, v: np.ndarray, limits: JointLimits) -> np.ndarray:

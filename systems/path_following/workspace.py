@@ -52,6 +52,12 @@ class WorkspaceConfig:
         outside = np.any((points < self.Lower()) | (points > self.Upper()), axis=1)
         return int(np.argmax(outside)) if outside.any() else None
 
+    def Margin(self, p_B: np.ndarray) -> float:
+        """The smallest distance (m) from the points (N, 3; m, frame B), all inside the box,
+        to a wall."""
+        points = np.atleast_2d(p_B)
+        return float(min((points - self.Lower()).min(), (self.Upper() - points).min()))
+
     def Describe(self) -> str:
         """The box as `x [lo, hi], y [lo, hi], z [lo, hi]` (m)."""
         return ", ".join(

@@ -13,12 +13,19 @@ max <= 10 mm).
     .venv/bin/python tests/benchmarks/bench_continuous_following.py --breakdown PATH
         [--set KEY=VALUE ...]
 
+    .venv/bin/python tests/benchmarks/bench_continuous_following.py --floor PATH
+        [--set KEY=VALUE ...]
+
 --quick: paper paths only; --more: random_20..39 too; --set: scenario overrides passed
 to every run (e.g. --set station.plant_config.time_step=0.004). --breakdown: one
 continuous ranging run on PATH in this process, printing the CPU time (process time,
 which other processes' load disturbs less than wall time) per simulated second of the
-simulation loop and of each per-tick Python system in it. One run after another (about
-10-30 s each in continuous mode, minutes stop-and-go).
+simulation loop and of each per-tick Python system in it (the rest of the loop is the
+plant and SceneGraph, the servo's C++ systems, Meshcat's C++ visualizer, loggers and the
+framework's event dispatch). --floor: the same figure for the station alone with its arm
+held at PATH's start pose, with and without its ToF sensor: the cost no follower can go
+below. One run after another (about 10-30 s each in continuous mode, minutes
+stop-and-go).
 """
 
 import collections
@@ -78,7 +85,6 @@ def Breakdown(path: str) -> None:
     """Prints the loop's and each per-tick system's CPU seconds per simulated second."""
     from guidedarm.diagrams.cli.main import main as guidedarm_main
     from guidedarm.diagrams.tasks import path_following_execution
-    from guidedarm.systems import joint_servo
     from guidedarm.systems.path_following import continuous_follower, differential_ik_servo
     from guidedarm.systems.tof import tof_tool_sensor
 
@@ -96,7 +102,14 @@ def Breakdown(path: str) -> None:
 
         setattr(owner, name, g)
 
+    from guidedarm.diagrams.overlays import (
+        detected_path_overlay,
+        frame_trail_overlay,
+        tof_tool_overlay,
+    )
+
     servo = differential_ik_servo.DifferentialIkServo
+    overlay = "Meshcat overlays (Python; the replay's)"
     follower = continuous_follower.ContinuousFollower
     timed = (
         (servo, "_Update", "DifferentialIkServo"),
@@ -106,8 +119,11 @@ def Breakdown(path: str) -> None:
         (follower, "_Update", "ContinuousFollower"),
         (follower, "_Read", "  readings"),
         (continuous_follower, "Advance", "  Advance"),
-        (joint_servo.JointServo, "CalcActuation", "JointServo"),
         (tof_tool_sensor.ToFToolSensor, "_Measure", "ToF sensor"),
+        (tof_tool_overlay.ToFToolOverlay, "_PublishPose", overlay),
+        (tof_tool_overlay.ToFToolOverlay, "_PublishReading", overlay),
+        (detected_path_overlay.DetectedPathOverlay, "_Publish", overlay),
+        (frame_trail_overlay.FrameTrailOverlay, "_Publish", overlay),
     )
     for owner, name, label in timed:
         Timed(owner, name, label)
@@ -134,13 +150,47 @@ def Breakdown(path: str) -> None:
         f"speed {s['average_speed_mm_s']} mm/s, tracking {s['tracking_error_mean_mm']} / "
         f"{s['tracking_error_max_mm']} mm; CPU s per simulated s:"
     )
-    for label in ["simulation loop", *(label for _, _, label in timed)]:
+    for label in dict.fromkeys(["simulation loop", *(label for _, _, label in timed)]):
         print(f"  {label:40s} {cpu[label] / sim:.3f}")
+
+
+def Floor(path: str, seconds: float = 4.0) -> None:
+    """Prints the CPU time per simulated second of the station alone, its arm held at the
+    start pose of PATH: with its ToF tool sensor, and without it (plant, SceneGraph and
+    servo only): what no follower can go below."""
+    import copy
+
+    from pydrake.systems.analysis import Simulator
+    from pydrake.systems.framework import DiagramBuilder
+    from pydrake.systems.primitives import ConstantVectorSource
+
+    from guidedarm.diagrams.cli.command_run import LoadScenario
+    from guidedarm.diagrams.station.station import MakeStation
+    from guidedarm.diagrams.tasks.path_following_setup import MakeSetup
+
+    settings = [f"path={path}", "motion=continuous", *Overrides(sys.argv)[1::2]]
+    setup = MakeSetup(LoadScenario("path_following", settings)[1])
+    for label, tof_tools in (("station", setup.station.tof_tools), ("without ToF sensor", {})):
+        scenario = copy.deepcopy(setup.station)
+        scenario.tof_tools = tof_tools
+        builder = DiagramBuilder()
+        station = builder.AddSystem(MakeStation(scenario))
+        hold = builder.AddSystem(ConstantVectorSource(setup.q_start))
+        command = station.GetInputPort(f"{setup.arm}.position_commanded")
+        builder.Connect(hold.get_output_port(), command)
+        simulator = Simulator(builder.Build())
+        simulator.Initialize()
+        start = time.process_time()
+        simulator.AdvanceTo(seconds)
+        print(f"{label:40s} {(time.process_time() - start) / seconds:.3f} CPU s per simulated s")
 
 
 def main() -> None:
     if "--breakdown" in sys.argv:
         Breakdown(sys.argv[sys.argv.index("--breakdown") + 1])
+        return
+    if "--floor" in sys.argv:
+        Floor(sys.argv[sys.argv.index("--floor") + 1])
         return
     paths = [f"paper_path_{k}" for k in range(1, 5)]
     if "--quick" not in sys.argv:
