@@ -110,7 +110,7 @@ class Cell:
 
     def Request(self, line: str) -> str:
         """One request on a connection of its own (a second client, as a pendant)."""
-        with socket.create_connection(("127.0.0.1", self.port), timeout=2.0) as connection:
+        with socket.create_connection(("127.0.0.1", self.port), timeout=5.0) as connection:
             connection.sendall(f"{line}\n".encode())
             return connection.recv(256).decode().strip()
 

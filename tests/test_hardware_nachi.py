@@ -21,7 +21,7 @@ from pydrake.trajectories import PiecewisePolynomial
 
 from guidedarm.diagrams.station.hardware_config import ArmDriverConfig, HardwareConfig
 from guidedarm.diagrams.station.station import MakeStation
-from guidedarm.systems.errors import HardwareFaultError
+from guidedarm.systems.errors import ConfigurationError, HardwareFaultError
 from guidedarm.systems.hardware import nachi_protocol as nachi
 from guidedarm.systems.hardware.nachi_emulator import NachiControllerLogic, NachiEmulator
 from guidedarm.systems.hardware.nachi_link import NachiLink
@@ -214,6 +214,26 @@ def test_malformed_replies_are_counted_and_the_link_keeps_reading():
     np.testing.assert_allclose(link.latest().q, np.deg2rad([1, 2, 3, 4, 5, 6]))
     assert time.monotonic() - link.latest().host_time < 0.02
     link.close()
+    server.close()
+
+
+@pytest.mark.parametrize("reply", ["NG E05 stopped", None])
+def test_controller_refusing_reset_is_a_one_line_refusal(reply):
+    """A controller that answers RESET with NG, or not at all, is refused before any run."""
+    server = socket.create_server(("127.0.0.1", 0))
+
+    def controller():
+        connection, _ = server.accept()
+        with connection, connection.makefile("rw", newline="\n") as stream:
+            for _ in stream:
+                if reply is not None:
+                    stream.write(reply + "\n")
+                    stream.flush()
+
+    threading.Thread(target=controller, daemon=True).start()
+    port = server.getsockname()[1]
+    with pytest.raises(ConfigurationError, match=rf"mz04d: 127.0.0.1:{port} did not accept RESET"):
+        NachiLink("mz04d", "127.0.0.1", port, connect_timeout=0.3)
     server.close()
 
 

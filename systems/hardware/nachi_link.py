@@ -103,6 +103,7 @@ class NachiLink:
         self._send_lock = threading.Lock()
         self._pending_replies: collections.deque[PendingReply] = collections.deque()
         self._closing = threading.Event()
+        self._wake = threading.Event()  # before RESET: close() sets it when RESET fails
         self._reader = threading.Thread(target=self._Read, name=f"{name}-nachi-read", daemon=True)
         self._reader.start()
         try:
@@ -120,7 +121,6 @@ class NachiLink:
         self._poll_period = poll_period
         self._latest = LatestSample()
         self._previous: tuple[float, np.ndarray] | None = None
-        self._wake = threading.Event()
         self._poller = threading.Thread(target=self._Poll, name=f"{name}-nachi-poll", daemon=True)
         self._poller.start()
         RegisterArmLink(self)
