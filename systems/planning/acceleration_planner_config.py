@@ -66,6 +66,10 @@ class PlannerConfig:
         law of time-optimal braking), r0 far from the target, r_max at it.
     approach_rate: robust mode: r_max of the approach (1/s), the exponential rate of the
         last millimetres.
+    saturation_metric: robust mode: how a joint that would leave its bounds is saturated
+        (SaturatedLeastSquares): "task", the others also make up its part of the TCP's
+        acceleration in least squares; "joint", the others keep exactly their own share
+        (a joint-by-joint clip). Neither scales the task for all joints.
     joint_space_blend: robust mode: [sigma_full, sigma_start]; as the smallest singular
         value of J_g falls from sigma_start to sigma_full the law hands over, smoothly, to
         the same error dynamics in joint space towards the waypoints' IK solutions, which
@@ -95,6 +99,7 @@ class PlannerConfig:
     max_jerk: float = Positive(50.0)
     approach_acceleration: float = InRange(0.0, 1.0, 0.5, high_open=True)
     approach_rate: float = Positive(20.0)
+    saturation_metric: str = "task"
     joint_space_blend: list[float] = field(default_factory=lambda: [0.005, 0.02])
 
     def Validate(self) -> None:
@@ -113,6 +118,11 @@ class PlannerConfig:
                 "planner.approach_acceleration > 0 needs real roots of (9), gain_v^2 >= 4 "
                 f"gain_p, and approach_rate above the slower one, got gain_p {self.gain_p}, "
                 f"gain_v {self.gain_v}, approach_rate {self.approach_rate}"
+            )
+        if self.saturation_metric not in ("task", "joint"):
+            raise ConfigurationError(
+                f'planner.saturation_metric must be "task" or "joint", got '
+                f"{self.saturation_metric!r}"
             )
         if self.velocity_bound_rate * self.time_step > 1:
             raise ConfigurationError(

@@ -303,3 +303,122 @@ def BrakingAcceleration(
             room = -lo if qd_i > 0 else hi
             beta = min(beta, max(room, 0.0) / abs(qd_i))
     return JerkLimited([-beta * qd_i for qd_i in qd], qdd_previous, max_change, lower, upper)
+
+
+def JerkWindow(
+    desired: list[float],
+    qdd_previous: list[float],
+    max_change: float,
+    lower: list[float],
+    upper: list[float],
+) -> tuple[list[float], list[float], bool]:
+    """The bounds on the next q'' (rad/s^2): within max_change of the previous q'' and
+    within [lower, upper]; where the two do not overlap (the step bounds moved past the
+    previous q'') the nearer step bound, as JerkLimited does. Returns (lower, upper, whether
+    `desired` lies within them)."""
+    window_lower, window_upper = [], []
+    inside = True
+    for x, previous, lo, hi in zip(desired, qdd_previous, lower, upper, strict=True):
+        w_lo, w_hi = previous - max_change, previous + max_change
+        w_lo = lo if w_lo < lo else (hi if w_lo > hi else w_lo)
+        w_hi = hi if w_hi > hi else (lo if w_hi < lo else w_hi)
+        window_lower.append(w_lo)
+        window_upper.append(w_hi)
+        if not w_lo <= x <= w_hi:
+            inside = False
+    return window_lower, window_upper, inside
+
+
+def SaturationMetricFactor(
+    J: np.ndarray, damping: float, inverse: np.ndarray | None = None
+) -> np.ndarray:
+    """F with F F^T = M^-1 for the metric M = J^T J + damping I of joint accelerations, in
+    which |x - q''_d|_M^2 = |J (x - q''_d)|^2 + damping |x - q''_d|^2 is how far the TCP's
+    acceleration J x strays from the one the law asks for (damping = lambda^2 of the damped
+    inverse, which keeps M invertible at a singularity). F = J^-1 when undamped (`inverse`
+    if known), else V diag(1 / sqrt(s^2 + damping)) from the SVD J = U diag(s) V^T."""
+    if damping == 0.0:
+        return inverse if inverse is not None else np.linalg.inv(J)
+    _, s, Vt = np.linalg.svd(J)
+    return Vt.T / np.sqrt(s * s + damping)
+
+
+def SaturatedLeastSquares(
+    desired: list[float],
+    lower: list[float],
+    upper: list[float],
+    metric_factor: np.ndarray | None,
+) -> tuple[list[float], list[int]]:
+    """Joint accelerations x within [lower, upper] closest to the law's q''_d = `desired` in
+    the metric M (rad/s^2; `metric_factor` F with F F^T = M^-1, None for M = I): saturation
+    in the manner of SNS (Flacco, De Luca, Khatib), one joint at a time, without scaling
+    the task.
+
+    The joint that exceeds its bound most is held at that bound, and the other joints
+    minimise |x - q''_d|_M given the held ones, x = q''_d + P_:S P_SS^-1 (x_S - q''_d,S)
+    with P = M^-1 and S the held joints; repeated until every joint is within its bounds
+    (at most once per joint: each pass holds one more). Joints that never reach a bound get
+    their full share of the law and, for the metric of SaturationMetricFactor, also make
+    up as much of the held joints' part of the TCP's acceleration as they can; with M = I
+    the compensation is zero and x is q''_d clipped joint by joint. A 6-DoF arm with a 6-D
+    task has no redundancy, so SNS proper (which scales the task once the remaining joints
+    lose rank) would scale the whole task; here the task is met in least squares instead.
+    Returns (x, the held joints in the order held)."""
+    x = list(desired)
+    held: list[int] = []
+    values: list[float] = []
+    rows: list[list[float]] = []  # P's rows (= columns) of the held joints
+    for _ in range(len(x)):
+        worst, joint, value = 0.0, -1, 0.0
+        # a held joint sits exactly on its bound, so it is never found again
+        for i, (x_i, lo, hi) in enumerate(zip(x, lower, upper, strict=True)):
+            if x_i > hi:
+                if x_i - hi > worst:
+                    worst, joint, value = x_i - hi, i, hi
+            elif x_i < lo and lo - x_i > worst:
+                worst, joint, value = lo - x_i, i, lo
+        if joint < 0:
+            return x, held
+        held.append(joint)
+        values.append(value)
+        if metric_factor is None:
+            x[joint] = value
+            continue
+        rows.append((metric_factor @ metric_factor[joint]).tolist())
+        shift = [v - desired[j] for j, v in zip(held, values, strict=True)]
+        if len(held) == 1:  # the common cases in closed form
+            weights = [shift[0] / rows[0][joint]]
+        elif len(held) == 2:
+            j, k = held
+            p_jj, p_jk, p_kk = rows[0][j], rows[0][k], rows[1][k]
+            det = p_jj * p_kk - p_jk * p_jk
+            weights = [
+                (p_kk * shift[0] - p_jk * shift[1]) / det,
+                (p_jj * shift[1] - p_jk * shift[0]) / det,
+            ]
+        else:
+            weights = CholeskySolve([[row[k] for k in held] for row in rows], shift)
+        x = list(desired)
+        for row, w in zip(rows, weights, strict=True):
+            x = [x_i + w * p_i for x_i, p_i in zip(x, row, strict=True)]
+        for j, v in zip(held, values, strict=True):
+            x[j] = v  # exactly at the bound, not at it to rounding
+    return x, held
+
+
+def CholeskySolve(A: list[list[float]], y: list[float]) -> list[float]:
+    """A^-1 y for a small symmetric positive definite A (nested lists): Cholesky
+    factorisation and two triangular solves in scalar arithmetic, several times cheaper
+    than np.linalg.solve's call for the 1-6 unknowns of SaturatedLeastSquares."""
+    n = len(y)
+    L = [[0.0] * n for _ in range(n)]
+    for i in range(n):
+        for j in range(i + 1):
+            s = A[i][j] - sum(L[i][k] * L[j][k] for k in range(j))
+            L[i][j] = math.sqrt(s) if i == j else s / L[j][j]
+    z = [0.0] * n
+    for i in range(n):
+        z[i] = (y[i] - sum(L[i][k] * z[k] for k in range(i))) / L[i][i]
+    for i in reversed(range(n)):
+        z[i] = (z[i] - sum(L[k][i] * z[k] for k in range(i + 1, n))) / L[i][i]
+    return z
