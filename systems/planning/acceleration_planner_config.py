@@ -31,9 +31,10 @@ class PlannerConfig:
         unscaled, it chatters.
     scaling_recovery_rate: rate of the exponential return (18) of c to 1 (1/s), the
         paper's law's.
-    robust_recovery_rate: the same in the robust mode (1/s); faster than the paper's
-        because max_jerk keeps the accelerations continuous when c returns quickly and
-        is clipped again.
+    robust_recovery_rate: the same in the robust mode (1/s), where c returns to 1 only
+        after the smooth start and a braking fallback (the limits saturate joints instead
+        of cutting c); faster than the paper's because max_jerk keeps the accelerations
+        continuous however quickly c returns.
     stop_at_waypoints: stop at every waypoint instead of blending through it; the next
         elementary task starts once the TCP is within the tolerances and slower than
         rest_speed, i.e. practically at rest as boundary condition (3) asks.

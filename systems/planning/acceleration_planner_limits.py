@@ -4,8 +4,9 @@ The paper's (Pająk) two mechanisms: the interior velocity penalty (14)-(15) and
 acceleration scaling q'' = a + c b (17) with the cases (1)-(4), the rules (a)-(c) and the
 exponential return (18). Beyond the paper, for the robust mode: the speed governor, which
 keeps the velocity-driven term a = -J^-1 Jdot qd within a margin of the acceleration limits
-(a grows with qd^2, so slowing early keeps case (c) away), and the braking fallback used
-should no admissible c exist all the same. Units: rad/s, rad/s^2, s.
+(a grows with qd^2, so slowing early keeps case (c) away), the per-joint saturation that
+replaces the scaling of the whole task (SaturatedLeastSquares), and the braking fallback
+used should no admissible c exist all the same. Units: rad/s, rad/s^2, s.
 """
 
 from __future__ import annotations
@@ -367,10 +368,10 @@ def SaturatedLeastSquares(
     x = list(desired)
     held: list[int] = []
     values: list[float] = []
-    rows: list[list[float]] = []  # P's rows (= columns) of the held joints
+    P: list[list[float]] | None = None
     for _ in range(len(x)):
-        worst, joint, value = 0.0, -1, 0.0
         # a held joint sits exactly on its bound, so it is never found again
+        worst, joint, value = 0.0, -1, 0.0
         for i, (x_i, lo, hi) in enumerate(zip(x, lower, upper, strict=True)):
             if x_i > hi:
                 if x_i - hi > worst:
@@ -384,23 +385,27 @@ def SaturatedLeastSquares(
         if metric_factor is None:
             x[joint] = value
             continue
-        rows.append((metric_factor @ metric_factor[joint]).tolist())
+        if P is None:  # M^-1 in scalar form, once: cheaper than a product per held joint
+            P = (metric_factor @ metric_factor.T).tolist()
         shift = [v - desired[j] for j, v in zip(held, values, strict=True)]
         if len(held) == 1:  # the common cases in closed form
-            weights = [shift[0] / rows[0][joint]]
+            w = shift[0] / P[joint][joint]
+            x = [d_i + w * p_i for d_i, p_i in zip(desired, P[joint], strict=True)]
         elif len(held) == 2:
             j, k = held
-            p_jj, p_jk, p_kk = rows[0][j], rows[0][k], rows[1][k]
+            p_jj, p_jk, p_kk = P[j][j], P[j][k], P[k][k]
             det = p_jj * p_kk - p_jk * p_jk
-            weights = [
-                (p_kk * shift[0] - p_jk * shift[1]) / det,
-                (p_jj * shift[1] - p_jk * shift[0]) / det,
+            w_j = (p_kk * shift[0] - p_jk * shift[1]) / det
+            w_k = (p_jj * shift[1] - p_jk * shift[0]) / det
+            x = [
+                d_i + w_j * a_i + w_k * b_i
+                for d_i, a_i, b_i in zip(desired, P[j], P[k], strict=True)
             ]
         else:
-            weights = CholeskySolve([[row[k] for k in held] for row in rows], shift)
-        x = list(desired)
-        for row, w in zip(rows, weights, strict=True):
-            x = [x_i + w * p_i for x_i, p_i in zip(x, row, strict=True)]
+            weights = CholeskySolve([[P[j][k] for k in held] for j in held], shift)
+            x = list(desired)
+            for k, w in zip(held, weights, strict=True):
+                x = [x_i + w * p_i for x_i, p_i in zip(x, P[k], strict=True)]
         for j, v in zip(held, values, strict=True):
             x[j] = v  # exactly at the bound, not at it to rounding
     return x, held

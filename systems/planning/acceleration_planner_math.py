@@ -22,8 +22,10 @@ Two modes (`PlannerConfig.robust`):
   geometric Jacobian (no Euler singularity), a damped inverse J^# whose damping follows the
   smallest singular value, a speed governor that keeps a within `bias_margin` of the
   acceleration limits (so c = 0 stays admissible and case (c) cannot arise), step bounds
-  that keep qd within its limits at every step, and a braking fallback should no admissible
-  c exist all the same; c then restarts from 0 as at the smooth start.
+  that keep qd within its limits at every step, per-joint saturation (a joint that would
+  leave its bounds is held at its bound, the others keep their share of the law instead of
+  c scaling the task for all; SaturatedLeastSquares), and a braking fallback should no
+  admissible c exist all the same; c then restarts from 0 as at the smooth start.
 
 Units: m, rad, s throughout; rows [x, y, z, roll, pitch, yaw] of the TCP T in base frame B.
 systems/planning/acceleration_planner.py wraps the law in a LeafSystem.
