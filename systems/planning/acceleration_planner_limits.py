@@ -330,18 +330,13 @@ def JerkWindow(
     return window_lower, window_upper, inside
 
 
-def SaturationMetricFactor(
-    J: np.ndarray, damping: float, inverse: np.ndarray | None = None
-) -> np.ndarray:
-    """F with F F^T = M^-1 for the metric M = J^T J + damping I of joint accelerations, in
-    which |x - q''_d|_M^2 = |J (x - q''_d)|^2 + damping |x - q''_d|^2 is how far the TCP's
-    acceleration J x strays from the one the law asks for (damping = lambda^2 of the damped
-    inverse, which keeps M invertible at a singularity). F = J^-1 when undamped (`inverse`
-    if known), else V diag(1 / sqrt(s^2 + damping)) from the SVD J = U diag(s) V^T."""
-    if damping == 0.0:
-        return inverse if inverse is not None else np.linalg.inv(J)
-    _, s, Vt = np.linalg.svd(J)
-    return Vt.T / np.sqrt(s * s + damping)
+def SaturationMetricFactor(J: np.ndarray, inverse: np.ndarray | None = None) -> np.ndarray:
+    """F with F F^T = M^-1 for the metric M = J^T J of joint accelerations, in which
+    |x - q''_d|_M = |J (x - q''_d)| is how far the TCP's acceleration J x strays from the one
+    the law asks for: F = J^-1 (`inverse` if known). Only where J is well conditioned: near
+    a singularity M's near-null directions cost nothing, and saturation in it would move
+    the joints along them without bound (the planner takes M = I there)."""
+    return inverse if inverse is not None else np.linalg.inv(J)
 
 
 def SaturatedLeastSquares(

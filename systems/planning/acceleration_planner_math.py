@@ -345,8 +345,9 @@ class AccelerationPlanning:
             )
             return np.array(braking), 0.0, 0.0, state.t, True
         metric = None
-        if params.saturation_metric == "task":
-            metric = SaturationMetricFactor(kin.J, damping, inverse)
+        # the TCP's metric where J is well conditioned, joint by joint where it is damped
+        if params.saturation_metric == "task" and damping == 0.0:
+            metric = SaturationMetricFactor(kin.J, inverse)
         qdd, _ = SaturatedLeastSquares(desired, window[0], window[1], metric)
         return np.array(qdd), c, state.c_hat0, state.t0, False
 
