@@ -55,9 +55,9 @@ class PlannerConfig:
         this rate times its distance to the velocity limit (1/s; at most 1 / time_step).
     max_jerk: robust mode: the largest change of a commanded acceleration per second
         (rad/s^3); every step's q'' is reached from the last one at most this fast (the
-        law, its scaling, the braking fallback and a task given while moving alike), so
-        the accelerations stay continuous where the admissible interval or the step bounds
-        would make them jump.
+        law, its saturation, the braking fallback and a task given while moving alike), so
+        the accelerations stay continuous where the saturation or the step bounds would
+        make them jump.
     approach_acceleration: robust mode: the fraction eta of the acceleration limits the
         approach to a target plans to brake with (0 keeps (9)'s exponential approach).
         (9) factors into (s + r0)(s + k) with r0 the slower root: e' tracks -r0 e at the
