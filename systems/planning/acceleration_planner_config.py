@@ -31,9 +31,10 @@ class PlannerConfig:
         unscaled, it chatters.
     scaling_recovery_rate: rate of the exponential return (18) of c to 1 (1/s), the
         paper's law's.
-    robust_recovery_rate: the same in the robust mode (1/s); faster than the paper's
-        because max_jerk keeps the accelerations continuous when c returns quickly and
-        is clipped again.
+    robust_recovery_rate: the same in the robust mode (1/s), where c returns to 1 only
+        after the smooth start and a braking fallback (the limits saturate joints instead
+        of cutting c); faster than the paper's because max_jerk keeps the accelerations
+        continuous however quickly c returns.
     stop_at_waypoints: stop at every waypoint instead of blending through it; the next
         elementary task starts once the TCP is within the tolerances and slower than
         rest_speed, i.e. practically at rest as boundary condition (3) asks.
@@ -54,9 +55,9 @@ class PlannerConfig:
         this rate times its distance to the velocity limit (1/s; at most 1 / time_step).
     max_jerk: robust mode: the largest change of a commanded acceleration per second
         (rad/s^3); every step's q'' is reached from the last one at most this fast (the
-        law, its scaling, the braking fallback and a task given while moving alike), so
-        the accelerations stay continuous where the admissible interval or the step bounds
-        would make them jump.
+        law, its saturation, the braking fallback and a task given while moving alike), so
+        the accelerations stay continuous where the saturation or the step bounds would
+        make them jump.
     approach_acceleration: robust mode: the fraction eta of the acceleration limits the
         approach to a target plans to brake with (0 keeps (9)'s exponential approach).
         (9) factors into (s + r0)(s + k) with r0 the slower root: e' tracks -r0 e at the
@@ -66,6 +67,10 @@ class PlannerConfig:
         law of time-optimal braking), r0 far from the target, r_max at it.
     approach_rate: robust mode: r_max of the approach (1/s), the exponential rate of the
         last millimetres.
+    saturation_metric: robust mode: how a joint that would leave its bounds is saturated
+        (SaturatedLeastSquares): "task", the others also make up its part of the TCP's
+        acceleration in least squares; "joint", the others keep exactly their own share
+        (a joint-by-joint clip). Neither scales the task for all joints.
     joint_space_blend: robust mode: [sigma_full, sigma_start]; as the smallest singular
         value of J_g falls from sigma_start to sigma_full the law hands over, smoothly, to
         the same error dynamics in joint space towards the waypoints' IK solutions, which
@@ -95,6 +100,7 @@ class PlannerConfig:
     max_jerk: float = Positive(50.0)
     approach_acceleration: float = InRange(0.0, 1.0, 0.5, high_open=True)
     approach_rate: float = Positive(20.0)
+    saturation_metric: str = "task"
     joint_space_blend: list[float] = field(default_factory=lambda: [0.005, 0.02])
 
     def Validate(self) -> None:
@@ -113,6 +119,11 @@ class PlannerConfig:
                 "planner.approach_acceleration > 0 needs real roots of (9), gain_v^2 >= 4 "
                 f"gain_p, and approach_rate above the slower one, got gain_p {self.gain_p}, "
                 f"gain_v {self.gain_v}, approach_rate {self.approach_rate}"
+            )
+        if self.saturation_metric not in ("task", "joint"):
+            raise ConfigurationError(
+                f'planner.saturation_metric must be "task" or "joint", got '
+                f"{self.saturation_metric!r}"
             )
         if self.velocity_bound_rate * self.time_step > 1:
             raise ConfigurationError(

@@ -4,8 +4,9 @@ The paper's (Pająk) two mechanisms: the interior velocity penalty (14)-(15) and
 acceleration scaling q'' = a + c b (17) with the cases (1)-(4), the rules (a)-(c) and the
 exponential return (18). Beyond the paper, for the robust mode: the speed governor, which
 keeps the velocity-driven term a = -J^-1 Jdot qd within a margin of the acceleration limits
-(a grows with qd^2, so slowing early keeps case (c) away), and the braking fallback used
-should no admissible c exist all the same. Units: rad/s, rad/s^2, s.
+(a grows with qd^2, so slowing early keeps case (c) away), the per-joint saturation that
+replaces the scaling of the whole task (SaturatedLeastSquares), and the braking fallback
+used should no admissible c exist all the same. Units: rad/s, rad/s^2, s.
 """
 
 from __future__ import annotations
@@ -303,3 +304,121 @@ def BrakingAcceleration(
             room = -lo if qd_i > 0 else hi
             beta = min(beta, max(room, 0.0) / abs(qd_i))
     return JerkLimited([-beta * qd_i for qd_i in qd], qdd_previous, max_change, lower, upper)
+
+
+def JerkWindow(
+    desired: list[float],
+    qdd_previous: list[float],
+    max_change: float,
+    lower: list[float],
+    upper: list[float],
+) -> tuple[list[float], list[float], bool]:
+    """The bounds on the next q'' (rad/s^2): within max_change of the previous q'' and
+    within [lower, upper]; where the two do not overlap (the step bounds moved past the
+    previous q'') the nearer step bound, as JerkLimited does. Returns (lower, upper, whether
+    `desired` lies within them)."""
+    window_lower, window_upper = [], []
+    inside = True
+    for x, previous, lo, hi in zip(desired, qdd_previous, lower, upper, strict=True):
+        w_lo, w_hi = previous - max_change, previous + max_change
+        w_lo = lo if w_lo < lo else (hi if w_lo > hi else w_lo)
+        w_hi = hi if w_hi > hi else (lo if w_hi < lo else w_hi)
+        window_lower.append(w_lo)
+        window_upper.append(w_hi)
+        if not w_lo <= x <= w_hi:
+            inside = False
+    return window_lower, window_upper, inside
+
+
+def SaturationMetricFactor(J: np.ndarray, inverse: np.ndarray | None = None) -> np.ndarray:
+    """F with F F^T = M^-1 for the metric M = J^T J of joint accelerations, in which
+    |x - q''_d|_M = |J (x - q''_d)| is how far the TCP's acceleration J x strays from the one
+    the law asks for: F = J^-1 (`inverse` if known). Only where J is well conditioned: near
+    a singularity M's near-null directions cost nothing, and saturation in it would move
+    the joints along them without bound (the planner takes M = I there)."""
+    return inverse if inverse is not None else np.linalg.inv(J)
+
+
+def SaturatedLeastSquares(
+    desired: list[float],
+    lower: list[float],
+    upper: list[float],
+    metric_factor: np.ndarray | None,
+) -> tuple[list[float], list[int]]:
+    """Joint accelerations x within [lower, upper] closest to the law's q''_d = `desired` in
+    the metric M (rad/s^2; `metric_factor` F with F F^T = M^-1, None for M = I): saturation
+    in the manner of SNS (Flacco, De Luca, Khatib), one joint at a time, without scaling
+    the task.
+
+    The joint that exceeds its bound most is held at that bound, and the other joints
+    minimise |x - q''_d|_M given the held ones, x = q''_d + P_:S P_SS^-1 (x_S - q''_d,S)
+    with P = M^-1 and S the held joints; repeated until every joint is within its bounds
+    (at most once per joint: each pass holds one more). Joints that never reach a bound get
+    their full share of the law and, for the metric of SaturationMetricFactor, also make
+    up as much of the held joints' part of the TCP's acceleration as they can; with M = I
+    the compensation is zero and x is q''_d clipped joint by joint. A 6-DoF arm with a 6-D
+    task has no redundancy, so SNS proper (which scales the task once the remaining joints
+    lose rank) would scale the whole task; here the task is met in least squares instead.
+    Returns (x, the held joints in the order held)."""
+    x = list(desired)
+    held: list[int] = []
+    values: list[float] = []
+    P: list[list[float]] | None = None
+    for _ in range(len(x)):
+        # a held joint sits exactly on its bound, so it is never found again
+        worst, joint, value = 0.0, -1, 0.0
+        for i, (x_i, lo, hi) in enumerate(zip(x, lower, upper, strict=True)):
+            if x_i > hi:
+                if x_i - hi > worst:
+                    worst, joint, value = x_i - hi, i, hi
+            elif x_i < lo and lo - x_i > worst:
+                worst, joint, value = lo - x_i, i, lo
+        if joint < 0:
+            return x, held
+        held.append(joint)
+        values.append(value)
+        if metric_factor is None:
+            x[joint] = value
+            continue
+        if P is None:  # M^-1 in scalar form, once: cheaper than a product per held joint
+            P = (metric_factor @ metric_factor.T).tolist()
+        shift = [v - desired[j] for j, v in zip(held, values, strict=True)]
+        if len(held) == 1:  # the common cases in closed form
+            w = shift[0] / P[joint][joint]
+            x = [d_i + w * p_i for d_i, p_i in zip(desired, P[joint], strict=True)]
+        elif len(held) == 2:
+            j, k = held
+            p_jj, p_jk, p_kk = P[j][j], P[j][k], P[k][k]
+            det = p_jj * p_kk - p_jk * p_jk
+            w_j = (p_kk * shift[0] - p_jk * shift[1]) / det
+            w_k = (p_jj * shift[1] - p_jk * shift[0]) / det
+            x = [
+                d_i + w_j * a_i + w_k * b_i
+                for d_i, a_i, b_i in zip(desired, P[j], P[k], strict=True)
+            ]
+        else:
+            weights = CholeskySolve([[P[j][k] for k in held] for j in held], shift)
+            x = list(desired)
+            for k, w in zip(held, weights, strict=True):
+                x = [x_i + w * p_i for x_i, p_i in zip(x, P[k], strict=True)]
+        for j, v in zip(held, values, strict=True):
+            x[j] = v  # exactly at the bound, not at it to rounding
+    return x, held
+
+
+def CholeskySolve(A: list[list[float]], y: list[float]) -> list[float]:
+    """A^-1 y for a small symmetric positive definite A (nested lists): Cholesky
+    factorisation and two triangular solves in scalar arithmetic, several times cheaper
+    than np.linalg.solve's call for the 1-6 unknowns of SaturatedLeastSquares."""
+    n = len(y)
+    L = [[0.0] * n for _ in range(n)]
+    for i in range(n):
+        for j in range(i + 1):
+            s = A[i][j] - sum(L[i][k] * L[j][k] for k in range(j))
+            L[i][j] = math.sqrt(s) if i == j else s / L[j][j]
+    z = [0.0] * n
+    for i in range(n):
+        z[i] = (y[i] - sum(L[i][k] * z[k] for k in range(i))) / L[i][i]
+    for i in reversed(range(n)):
+        z[i] = (z[i] - sum(L[k][i] * z[k] for k in range(i + 1, n))) / L[i][i]
+    return z

@@ -22,8 +22,10 @@ Two modes (`PlannerConfig.robust`):
   geometric Jacobian (no Euler singularity), a damped inverse J^# whose damping follows the
   smallest singular value, a speed governor that keeps a within `bias_margin` of the
   acceleration limits (so c = 0 stays admissible and case (c) cannot arise), step bounds
-  that keep qd within its limits at every step, and a braking fallback should no admissible
-  c exist all the same; c then restarts from 0 as at the smooth start.
+  that keep qd within its limits at every step, per-joint saturation (a joint that would
+  leave its bounds is held at its bound, the others keep their share of the law instead of
+  c scaling the task for all; SaturatedLeastSquares), and a braking fallback should no
+  admissible c exist all the same; c then restarts from 0 as at the smooth start.
 
 Units: m, rad, s throughout; rows [x, y, z, roll, pitch, yaw] of the TCP T in base frame B.
 systems/planning/acceleration_planner.py wraps the law in a LeafSystem.
@@ -55,7 +57,9 @@ from guidedarm.systems.planning.acceleration_planner_limits import (
     AdmissibleScaling,
     BrakingAcceleration,
     GovernorDamping,
-    JerkLimited,
+    JerkWindow,
+    SaturatedLeastSquares,
+    SaturationMetricFactor,
     ScalingReturn,
     StepBounds,
     VelocityPenalty,
@@ -279,7 +283,7 @@ class AccelerationPlanning:
         if params.robust and self.joint_waypoints is not None:
             a, b = self._BlendJointSpace(state, sigma, a, b)
         if params.robust:
-            qdd, c, c_hat0, t0, braking = self._LimitRobust(state, a, b)
+            qdd, c, c_hat0, t0, braking = self._LimitRobust(state, a, b, kin, damping, inverse)
         else:
             qdd, c, c_hat0, t0, braking = (*self._LimitSeed(state, a, b), False)
         if not math.isfinite(float(qdd @ qdd)):
@@ -303,35 +307,49 @@ class AccelerationPlanning:
                 c_hat0, t0 = c, state.t
         return a + c * b, c, c_hat0, t0
 
-    def _LimitRobust(self, state: PlannerState, a: np.ndarray, b: np.ndarray):
-        """(17) with the governor, the step bounds and the braking fallback, reached from
-        the last acceleration at most at max_jerk: (q'', c, c_hat0, t0, braking)."""
+    def _LimitRobust(
+        self,
+        state: PlannerState,
+        a: np.ndarray,
+        b: np.ndarray,
+        kin: TcpKinematics,
+        damping: float,
+        inverse: np.ndarray | None,
+    ):
+        """(17) with the governor, the step bounds, per-joint saturation and the braking
+        fallback, reached from the last acceleration at most at max_jerk:
+        (q'', c, c_hat0, t0, braking). c is the smooth start's return (18) and is not cut
+        by the limits: a joint whose a + c b leaves its bounds is held at its bound and the
+        others keep their share of the law (SaturatedLeastSquares)."""
         params = self.parameters
         accel, velocity = self._acceleration_bounds, self._velocity_bounds
         if accel is None and velocity is None:
             return a + b, 1.0, state.c_hat0, state.t0, False
         qd, qdd_previous, a, b = state.qd.tolist(), state.qdd.tolist(), a.tolist(), b.tolist()
         lower, upper = StepBounds(accel, velocity, qd, params.velocity_bound_rate)
-        c_hat0, t0 = state.c_hat0, state.t0
-        c_free = 1.0
+        c = 1.0
         if accel is not None:
             d = GovernorDamping(a, qd, *accel, params.bias_margin, params.governor_gain)
             if d > 0.0:
                 a = [a_i - d * qd_i for a_i, qd_i in zip(a, qd, strict=True)]
-            c_free = ScalingReturn(c_hat0, state.t, t0, params.robust_recovery_rate)
+            c = ScalingReturn(state.c_hat0, state.t, state.t0, params.robust_recovery_rate)
         max_change = params.max_jerk * params.time_step
+        desired = [a_i + c * b_i for a_i, b_i in zip(a, b, strict=True)]
+        window = JerkWindow(desired, qdd_previous, max_change, lower, upper)
+        if window[2]:  # within the bounds at this c: no saturation, no braking
+            return np.array(desired), c, state.c_hat0, state.t0, False
         c_lo, c_hi = AdmissibleScaling(a, b, lower, upper)
-        if c_lo > c_hi:
+        if c_lo > c_hi:  # no scaling of the law meets the bounds: brake
             braking = BrakingAcceleration(
                 qd, qdd_previous, lower, upper, params.time_step, max_change
             )
             return np.array(braking), 0.0, 0.0, state.t, True
-        c = min(max(c_free, c_lo), c_hi)
-        if c != c_free:
-            c_hat0, t0 = c, state.t
-        unlimited = [a_i + c * b_i for a_i, b_i in zip(a, b, strict=True)]
-        qdd = JerkLimited(unlimited, qdd_previous, max_change, lower, upper)
-        return np.array(qdd), c, c_hat0, t0, False
+        metric = None
+        # the TCP's metric where J is well conditioned, joint by joint where it is damped
+        if params.saturation_metric == "task" and damping == 0.0:
+            metric = SaturationMetricFactor(kin.J, inverse)
+        qdd, _ = SaturatedLeastSquares(desired, window[0], window[1], metric)
+        return np.array(qdd), c, state.c_hat0, state.t0, False
 
     def _BlendJointSpace(
         self, state: PlannerState, sigma: float, a: np.ndarray, b: np.ndarray
