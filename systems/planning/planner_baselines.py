@@ -20,6 +20,7 @@ accelerations of both segments add in the blend, as in the paper's experiment 1.
 
 from __future__ import annotations
 
+import logging
 from collections.abc import Callable
 from dataclasses import dataclass
 
@@ -146,7 +147,13 @@ def ToppraThroughWaypoints(
     )
     toppra.AddJointVelocityLimit(-v_max, v_max)
     toppra.AddJointAccelerationLimit(-a_max, a_max)
-    s_trajectory = toppra.SolvePathParameterization()
+    drake_log = logging.getLogger("drake")
+    level = drake_log.level
+    drake_log.setLevel(logging.CRITICAL)  # a failure is reported once, by the error below
+    try:
+        s_trajectory = toppra.SolvePathParameterization()
+    finally:
+        drake_log.setLevel(level)
     if s_trajectory is None:
         raise GuidedArmError("Toppra found no parameterisation under the limits")
     times = np.arange(0.0, s_trajectory.end_time() + period / 2, period)
