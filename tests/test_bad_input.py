@@ -383,6 +383,23 @@ BAD_INPUTS = [
     ("compare-nan-gain", ["compare-planners", "--set", "planner.gain_v=.nan"], "gain_v"),
     ("compare-limits", ["compare-planners", "--set", "limits=none"], "velocity,acceleration"),
     ("compare-out-file", ["compare-planners", "--out", "{f}/afile/x"], "is a file"),
+    (
+        "compare-negative-seed",
+        ["compare-planners", "--random", "1", "--arm", "ur10e", "--seed", "-1"],
+        "--seed must be >= 0, got -1",
+    ),
+    (
+        "compare-random-unknown-key",
+        ["compare-planners", "--random", "1", "--arm", "ur10e", "--set", "bogus=1"],
+        "unknown key 'bogus'",
+    ),
+    (
+        "compare-random-scenario",
+        ["compare-planners", "--random", "1", "--arm", "ur10e", "--scenario", "mz04d_waypoints"],
+        "--scenario is not read with --random",
+    ),
+    ("compare-arm-alone", ["compare-planners", "--arm", "ur10e"], "--arm is read only with"),
+    ("compare-seed-alone", ["compare-planners", "--seed", "3"], "--seed is read only with"),
     ("show-unknown-arm", ["show", "kuka"], "unknown arm or scene 'kuka'"),
     ("show-negative-timeout", ["show", "ur10e", "--timeout", "-1"], "--timeout must be"),
     ("show-nan-timeout", ["show", "ur10e", "--timeout", "nan"], "--timeout must be"),
