@@ -200,6 +200,31 @@ BAD_INPUTS = [
     ("planner-zero-gain", Run(WP, "planner.gain_p=0"), "planner.gain_p': must be > 0"),
     ("planner-nan-singular", Run(WP, "planner.min_singular_value=.nan"), "min_singular"),
     ("planner-threshold-range", Run(WP, "planner.velocity_threshold=0.5"), "(0, 0.5)"),
+    (
+        "paper-mode-ignores-robust-key",
+        Run(WP, "planner.robust=false", "planner.max_jerk=10"),
+        "'planner.max_jerk' has no effect with planner.robust=false",
+    ),
+    (
+        "paper-mode-ignores-joint-blend",
+        Run(WP, "planner.robust=false", "planner.joint_space_blend=[0.001,0.01]"),
+        "'planner.joint_space_blend' has no effect",
+    ),
+    (
+        "robust-mode-ignores-paper-key",
+        Run(WP, "planner.scaling_recovery_rate=2"),
+        "'planner.scaling_recovery_rate' has no effect with planner.robust=true",
+    ),
+    (
+        "no-limits-ignore-velocity",
+        Run(WP, "limits=none", "max_joint_velocity=[2]"),
+        "'max_joint_velocity' has no effect with limits=none",
+    ),
+    (
+        "velocity-limit-ignores-acceleration",
+        Run(WP, "limits=velocity", "max_joint_acceleration=[2]"),
+        "'max_joint_acceleration' has no effect with limits=velocity",
+    ),
     # --- path_following, follower, ik
     ("path-random-negative", Run(PF, "path=random_-1"), "random_<seed>"),
     ("path-unknown", Run(PF, "path=paper_path_9"), "unknown hose path"),
@@ -398,6 +423,7 @@ BAD_INPUTS = [
         ["compare-planners", "--random", "1", "--arm", "ur10e", "--scenario", "mz04d_waypoints"],
         "--scenario is not read with --random",
     ),
+    ("compare-robust", ["compare-planners", "--set", "planner.robust=false"], "runs both modes"),
     ("compare-arm-alone", ["compare-planners", "--arm", "ur10e"], "--arm is read only with"),
     ("compare-seed-alone", ["compare-planners", "--seed", "3"], "--seed is read only with"),
     ("show-unknown-arm", ["show", "kuka"], "unknown arm or scene 'kuka'"),

@@ -229,6 +229,10 @@ def LoadWaypointsScenario(name: str, overrides: list[str]) -> Any:
             f"--scenario {name}: compare-planners needs a waypoints scenario, "
             f"this one runs task {task.name}"
         )
+    if not scenario.planner.robust:
+        raise ConfigurationError(
+            "'planner.robust' is not read by compare-planners (it runs both modes): remove it"
+        )
     return scenario
 
 
