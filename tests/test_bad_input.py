@@ -294,6 +294,21 @@ BAD_INPUTS = [
         "'tool_speed' has no effect",
     ),
     (
+        "continuous-ignores-ik-swing",
+        Run(PF, "motion=continuous", "ik.max_swing=0.05"),
+        "'ik.max_swing' has no effect with motion=continuous",
+    ),
+    (
+        "continuous-ignores-ik-shortfall",
+        Run(PF, "motion=continuous", "ik.shortfall_tolerance_deg=30"),
+        "'ik.shortfall_tolerance_deg' has no effect with motion=continuous",
+    ),
+    (
+        "continuous-ignores-ik-step",
+        Run(PF, "motion=continuous", "ik.max_step_rotation_deg=45"),
+        "'ik.max_step_rotation_deg' has no effect",
+    ),
+    (
         "joint-moves-ignore-continuous",
         Run(PF, "continuous.speed=0.05"),
         "'continuous.speed' has no effect with motion=joint_trajectory",

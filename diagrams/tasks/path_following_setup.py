@@ -179,12 +179,17 @@ def _CheckScenario(scenario: PathFollowingScenario) -> None:
         )
 
 
-# Keys that only one motion reads: set to anything but their default under another motion
-# they would be ignored, so they are refused.
+# Keys that only some motions read: set to anything but their default under another motion
+# they would be ignored, so they are refused. The stop-and-go IK's step limits (ik.*
+# below) are lifted for the start pose, which every motion solves with the other ik keys.
+_STOP_AND_GO = ("joint_trajectory", "planner")
 _MOTION_KEYS = {
-    "tool_speed": ("joint_trajectory", "planner"),
-    "period": ("joint_trajectory", "planner"),
-    "follower": ("joint_trajectory", "planner"),
+    "tool_speed": _STOP_AND_GO,
+    "period": _STOP_AND_GO,
+    "follower": _STOP_AND_GO,
+    "ik.max_swing": _STOP_AND_GO,
+    "ik.max_step_rotation_deg": _STOP_AND_GO,
+    "ik.shortfall_tolerance_deg": _STOP_AND_GO,
     "planner": ("planner",),
     "continuous": ("continuous",),
 }
@@ -196,7 +201,7 @@ def _CheckMotionKeys(scenario: PathFollowingScenario) -> None:
     for key, motions in _MOTION_KEYS.items():
         if scenario.motion in motions:
             continue
-        changed = _ChangedKey(getattr(scenario, key), getattr(defaults, key), key)
+        changed = _ChangedKey(_Dotted(scenario, key), _Dotted(defaults, key), key)
         if key == "follower" and changed == "follower.estimator":
             continue
         if changed:
@@ -204,6 +209,13 @@ def _CheckMotionKeys(scenario: PathFollowingScenario) -> None:
                 f"'{changed}' has no effect with motion={scenario.motion} (it is read only "
                 f"with motion={' or '.join(motions)}): remove it or change motion"
             )
+
+
+def _Dotted(config: object, key: str) -> object:
+    """The value of a dotted key (`ik.max_swing`) of a config tree."""
+    for name in key.split("."):
+        config = getattr(config, name)
+    return config
 
 
 def _ChangedKey(value: object, default: object, key: str) -> str:
