@@ -253,6 +253,16 @@ BAD_INPUTS = [
         "executor=kinematic cannot run with --hardware",
     ),
     (
+        "kinematic-ignores-kp",
+        Run(PF, "executor=kinematic", "station.arms.mz04d.kp=900"),
+        "'station.arms.mz04d.kp' has no effect with executor=kinematic",
+    ),
+    (
+        "kinematic-ignores-plant",
+        Run(PF, "executor=kinematic", "station.plant_config.time_step=0.001"),
+        "'station.plant_config.time_step' has no effect with executor=kinematic",
+    ),
+    (
         "continuous-hardware-move",
         Run(
             PF,

@@ -22,7 +22,7 @@ import numpy as np
 from pydrake.math import RigidTransform
 from pydrake.multibody.plant import MultibodyPlant
 
-from guidedarm.diagrams.station.scenario import StationScenario
+from guidedarm.diagrams.station.scenario import ArmConfig, StationScenario
 from guidedarm.diagrams.station.station_plant import (
     ArmAndAttachments,
     ArmInitialPosition,
@@ -170,6 +170,7 @@ def _CheckScenario(scenario: PathFollowingScenario) -> None:
             f"station must define arms.{scenario.arm} and tof_tools.{scenario.tof}"
         )
     _CheckMotionKeys(scenario)
+    _CheckExecutorKeys(scenario)
     arm = scenario.station.arms[scenario.arm]
     if scenario.motion == "continuous" and scenario.continuous.servo_period < arm.control_period:
         raise ConfigurationError(
@@ -211,6 +212,27 @@ def _CheckMotionKeys(scenario: PathFollowingScenario) -> None:
             )
 
 
+def _CheckExecutorKeys(scenario: PathFollowingScenario) -> None:
+    """Refuses, with executor=kinematic, a servo gain or plant setting set away from its
+    default: the kinematic station poses the arm where it is commanded (no servo, no
+    dynamics) and reads neither."""
+    if scenario.executor != "kinematic":
+        return
+    arm, default_arm = scenario.station.arms[scenario.arm], ArmConfig()
+    prefix = f"station.arms.{scenario.arm}"
+    for key, value, default in (
+        ("station.plant_config", scenario.station.plant_config, StationScenario().plant_config),
+        (f"{prefix}.kp", arm.kp, default_arm.kp),
+        (f"{prefix}.kd", arm.kd, default_arm.kd),
+    ):
+        changed = _ChangedKey(value, default, key)
+        if changed:
+            raise ConfigurationError(
+                f"'{changed}' has no effect with executor=kinematic (it poses the arm where "
+                "it is commanded: no servo, no dynamics): remove it or use executor=station"
+            )
+
+
 def _Dotted(config: object, key: str) -> object:
     """The value of a dotted key (`ik.max_swing`) of a config tree."""
     for name in key.split("."):
@@ -219,16 +241,19 @@ def _Dotted(config: object, key: str) -> object:
 
 
 def _ChangedKey(value: object, default: object, key: str) -> str:
-    """The dotted name of the first field of `value` that differs from `default`, or ''."""
+    """The dotted name of the first field of `value` (a dataclass or a Drake struct) that
+    differs from `default`, or ''."""
     if dataclasses.is_dataclass(value):
-        for f in dataclasses.fields(value):
-            changed = _ChangedKey(
-                getattr(value, f.name), getattr(default, f.name), f"{key}.{f.name}"
-            )
-            if changed:
-                return changed
-        return ""
-    return "" if value == default else key
+        names = [f.name for f in dataclasses.fields(value)]
+    elif hasattr(type(value), "__fields__"):
+        names = [f.name for f in type(value).__fields__]
+    else:
+        return "" if value == default else key
+    for name in names:
+        changed = _ChangedKey(getattr(value, name), getattr(default, name), f"{key}.{name}")
+        if changed:
+            return changed
+    return ""
 
 
 def _ResolveToF(scenario: PathFollowingScenario, station: StationScenario) -> None:
