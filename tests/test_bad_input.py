@@ -231,6 +231,16 @@ BAD_INPUTS = [
     ("path-csv-missing", Run(PF, "path_csv={f}/missing.csv"), "not found"),
     ("path-csv-binary", Run(PF, flags=("--path-csv", "{f}/binary_hose.csv")), "not a text CSV"),
     ("path-csv-nul", Run(PF, "path_csv={f}/nul.csv"), "needs at least 2 points"),
+    (
+        "path-beside-path-csv",
+        Run(PF, "path=paper_path_2", flags=("--path-csv", "{f}/binary_hose.csv")),
+        "'path' has no effect with path_csv (--path-csv) set",
+    ),
+    (
+        "random-path-beside-named-hose",
+        Run(PF, "random_path.length=0.5"),
+        "'random_path.length' has no effect with the hose 'paper_path_1'",
+    ),
     ("path-nan-period", Run(PF, "period=.nan"), "key 'period'"),
     ("path-negative-seed", Run(PF, "random_seed=-1"), "key 'random_seed': must be >= 0"),
     ("path-negative-repeat", Run(PF, "repeat_random_seed=-3"), "key 'repeat_random_seed'"),
@@ -537,6 +547,15 @@ def test_every_number_of_every_scenario_is_checked(name, key, kind):
     if key.endswith("max_swing"):
         _Set(scenario, key, math.inf)
         CheckConfig(scenario)
+
+
+def test_random_path_keys_are_read_with_a_random_path_only():
+    """random_path set on the command line shapes a random_<seed> hose; a scenario file may
+    keep its arm's region beside a named hose (ur10e_path_following)."""
+    _, scenario, _ = LoadScenario("path_following", ["path=random_3", "random_path.length=0.5"])
+    assert scenario.random_path.length == 0.5
+    _, ur10e, _ = LoadScenario("ur10e_path_following", ["estimator=ranging"])
+    assert ur10e.path == "ur10e_far_hose" and ur10e.random_path.radius_range == [0.55, 0.75]
 
 
 def test_exponent_notation_is_accepted(tmp_path):
