@@ -80,6 +80,7 @@ def files(tmp_path_factory) -> Path:
     }
     for name, text in texts.items():
         (root / name).write_text(text)
+    (root / "zyx_hose.csv").write_text("z,y,x\n0.1,0.0,0.3\n0.1,0.1,0.3\n")
     (root / "binary_hose.csv").write_bytes(BINARY)
     (root / "binary.yaml").write_bytes(BINARY)
     (root / "camera_binary.yaml").write_bytes(BINARY)
@@ -230,7 +231,12 @@ BAD_INPUTS = [
     ("path-unknown", Run(PF, "path=paper_path_9"), "unknown hose path"),
     ("path-csv-missing", Run(PF, "path_csv={f}/missing.csv"), "not found"),
     ("path-csv-binary", Run(PF, flags=("--path-csv", "{f}/binary_hose.csv")), "not a text CSV"),
-    ("path-csv-nul", Run(PF, "path_csv={f}/nul.csv"), "needs at least 2 points"),
+    (
+        "path-csv-header-order",
+        Run(PF, flags=("--path-csv", "{f}/zyx_hose.csv")),
+        "the header 'z,y,x' must be x,y,z",
+    ),
+    ("path-csv-nul", Run(PF, "path_csv={f}/nul.csv"), "must be x,y,z"),
     (
         "path-beside-path-csv",
         Run(PF, "path=paper_path_2", flags=("--path-csv", "{f}/binary_hose.csv")),
@@ -584,6 +590,8 @@ def test_headerless_csv_with_a_byte_order_mark_keeps_its_first_point(tmp_path):
         assert points.shape == (3, 3) and points[0].tolist() == [0.30, 0.0, 0.10]
     (tmp_path / "header.csv").write_bytes(b"\xef\xbb\xbfx,y,z\n" + rows.encode())
     assert ReadCenterline(str(tmp_path / "header.csv")).shape == (3, 3)
+    (tmp_path / "spaced.csv").write_text(" X , Y , Z \n" + rows)
+    assert ReadCenterline(str(tmp_path / "spaced.csv"))[0].tolist() == [0.30, 0.0, 0.10]
 
 
 def _Task(run) -> TaskDefinition:
