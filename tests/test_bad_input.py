@@ -176,6 +176,8 @@ BAD_INPUTS = [
     ("tof-cone-range", Run(PF, "station.tof_tools.tof.cone_angle_deg=180"), "(0, 180)"),
     ("tof-nan-range", Run(PF, "station.tof_tools.tof.max_range=.nan"), "max_range"),
     ("tof-negative-rings", Run(PF, "station.tof_tools.tof.rings=-1"), "rings'"),
+    ("tof-many-rings", Run(PF, "station.tof_tools.tof.rings=1000"), "in [0, 20]"),
+    ("hose-tiny-segment", Run(PF, "station.hose.segment_length=1e-6"), ">= 0.001"),
     ("tof-seed-ignored", Run(PF, "station.tof_tools.tof.seed=4"), "the scenario's 'random_seed'"),
     ("tof-negative-ranging", Run(PF, "station.tof_tools.tof.ranging_time=-0.01"), "ranging_time'"),
     ("tof-ranging-period", Run(PF, "station.tof_tools.tof.ranging_time=0.03"), "exceed period"),

@@ -46,14 +46,15 @@ class HoseConfig:
     frame: the scoped frame of the centerline's coordinates, fixed to the world (e.g.
         `ur10e::base`); empty: the world (path following: the arm's base frame).
     diameter: hose diameter (m); the paper's shower hose is 20 mm.
-    segment_length: length of one capsule of the geometry chain (m).
+    segment_length: length of one capsule of the geometry chain (m; at least 1 mm: a
+        finer chain adds capsules, and collision time, without changing the hose's shape).
     brackets: add a bracket at each end.
     """
 
     centerline: str = ""
     frame: str = ""
     diameter: float = Positive(0.020)
-    segment_length: float = Positive(0.010)
+    segment_length: float = InRange(0.001, math.inf, 0.010)
     brackets: bool = True
 
 
