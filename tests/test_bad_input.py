@@ -732,3 +732,32 @@ def test_a_signal_during_a_run_writes_an_interrupted_summary(tmp_path, signum, f
     assert err.strip().splitlines()[-1] == f"guidedarm: run failed: {failure}"
     for text in BAD_OUTPUT:
         assert text not in out + err
+
+
+@pytest.mark.parametrize(
+    "signum, failure",
+    [(signal.SIGINT, "interrupted"), (signal.SIGTERM, "interrupted by SIGTERM")],
+    ids=["ctrl-c", "sigterm"],
+)
+def test_an_interrupted_path_following_keeps_its_partial_metrics(tmp_path, signum, failure):
+    """A signal during the follower's loop ends it as a device fault does: the summary
+    keeps the simulated time and the metrics of the steps made, and no second run."""
+    process = subprocess.Popen(
+        [GUIDEDARM, "run", PF, "--out", str(tmp_path), "--set", "executor=kinematic"],
+        stdin=subprocess.DEVNULL,
+        stdout=subprocess.DEVNULL,
+        stderr=subprocess.PIPE,
+        text=True,
+    )
+    for line in process.stderr:
+        if line.startswith("  ... step ") and int(line.split()[2].rstrip(",")) >= 3:
+            break
+    process.send_signal(signum)
+    _, err = process.communicate(timeout=120)
+    assert process.returncode == 1, err
+    summary = json.loads((tmp_path / "summary.json").read_text())
+    assert summary["failure"] == failure
+    assert summary["sim_time_s"] > 0 and summary["steps"] >= 3
+    assert 0 < summary["coverage"] <= 1
+    for text in BAD_OUTPUT:
+        assert text not in err
