@@ -761,3 +761,23 @@ def test_an_interrupted_path_following_keeps_its_partial_metrics(tmp_path, signu
     assert 0 < summary["coverage"] <= 1
     for text in BAD_OUTPUT:
         assert text not in err
+
+
+def test_public_builders_refuse_bad_arguments_in_one_line():
+    """The Python API: a negative time step (Drake's `Failure at` exit), one name instead of
+    a list (read as its characters) and a truthy string for a bool are refused by name."""
+    from guidedarm.diagrams.station.station_plant import MakeMultibodyPlant
+    from guidedarm.systems.planning.acceleration_planner_config import PlannerConfig
+
+    station = LoadScenario(WP, [])[1].station
+    for call, key in (
+        (lambda: MakeMultibodyPlant(station, ["ur10e"], time_step=-1.0), "time_step"),
+        (lambda: MakeMultibodyPlant(station, ["ur10e"], time_step=math.nan), "time_step"),
+        (lambda: MakeMultibodyPlant(station, "ur10e"), "model_instance_names"),
+        (lambda: MakeMultibodyPlant(station, [0]), "model_instance_names[0]"),
+        (lambda: PlannerConfig(robust="false").Validate(), "robust"),
+    ):
+        with pytest.raises(FieldError) as error:
+            call()
+        assert error.value.key == key and "\n" not in str(error.value)
+    assert MakeMultibodyPlant(station, ["ur10e"], time_step=0.001).time_step() == 0.001
