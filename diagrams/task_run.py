@@ -32,8 +32,7 @@ def RunTask(task: TaskDefinition, scenario: Any, context: RunContext) -> dict[st
     except RunFailedError as e:
         metrics = {"success": False, "failure": str(e)}
     except KeyboardInterrupt as e:
-        cause = f" by {e.args[0]}" if e.args else ""
-        metrics = {"success": False, "failure": f"{INTERRUPTED}{cause}"}
+        metrics = {"success": False, "failure": InterruptedFailure(e)}
     except GuidedArmError:
         raise
     except Exception as e:  # a bug: keep its traceback beside the summary, not on screen
@@ -48,6 +47,12 @@ def RunTask(task: TaskDefinition, scenario: Any, context: RunContext) -> dict[st
         metrics["success"] = False
     metrics["wall_time_s"] = round(time.perf_counter() - wall_start, 3)
     return metrics
+
+
+def InterruptedFailure(interrupt: KeyboardInterrupt) -> str:
+    """The `failure` of a run stopped by Ctrl-C (`interrupted`) or by a signal the CLI
+    turns into a KeyboardInterrupt naming it (`interrupted by SIGTERM`)."""
+    return f"{INTERRUPTED} by {interrupt.args[0]}" if interrupt.args else INTERRUPTED
 
 
 def _WithoutNonFinite(value: Any) -> Any:

@@ -123,12 +123,42 @@ def CheckConfig(config: Any, key: str = "") -> None:
 
 def CheckFields(config: Any) -> None:
     """Checks the fields of one dataclass or Drake struct: declared bounds, finiteness,
-    and every nested config (through its own Validate() when it has one)."""
+    a bool field holding a bool (a config made in Python may hold "false", which is
+    truthy), and every nested config (through its own Validate() when it has one)."""
     for name, value, bound in _Fields(config):
+        if name in _BoolFields(config) and not isinstance(value, bool | np.bool_):
+            raise FieldError(name, f"expected true or false, got {value!r}")
         try:
             _CheckValue(value, bound)
         except ConfigurationError as e:
             raise _Under(name, e) from None
+
+
+def CheckArgument(name: str, value: Any, bound: Bound) -> None:
+    """Checks a number argument of a public builder against `bound`; raises FieldError
+    naming the argument (a bool or a non-number is refused too)."""
+    if isinstance(value, bool) or not isinstance(value, numbers.Real):
+        raise FieldError(name, f"expected a number, got {value!r}")
+    try:
+        _CheckNumber(float(value), bound)
+    except ConfigurationError as e:
+        raise _Under(name, e) from None
+
+
+def CheckNames(name: str, value: Any) -> None:
+    """Checks that an argument is a list (or tuple) of strings, not one string, whose
+    characters would be taken for names."""
+    if isinstance(value, str) or not isinstance(value, list | tuple):
+        raise FieldError(name, f"expected a list of names, got {value!r}")
+    for i, item in enumerate(value):
+        if not isinstance(item, str):
+            raise FieldError(f"{name}[{i}]", f"expected a name, got {item!r}")
+
+
+def _BoolFields(config: Any) -> set[str]:
+    if not dataclasses.is_dataclass(config):
+        return set()
+    return {f.name for f in dataclasses.fields(config) if f.type in (bool, "bool")}
 
 
 def _Fields(config: Any) -> list[tuple[str, Any, Bound | None]]:

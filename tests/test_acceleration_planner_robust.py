@@ -311,3 +311,14 @@ def test_compare_planners_random_table(capsys):
     ]  # fmt: skip
     assert rows["acceleration planner"][0] == "100%" and rows["acceleration planner"][-1] == "0"
     assert float(rows["ruckig"][2]) == pytest.approx(1.0)  # T/ruckig of ruckig itself
+
+
+def test_compare_planners_random_applies_set(capsys):
+    """--set changes the arm's scenario of every random task: a max jerk of 10 rad/s^3
+    bounds the robust planner's and Ruckig's jerk columns."""
+    args = ["compare-planners", "--random", "1", "--arm", "rover_arm", "--seed", "3"]
+    assert main([*args, "--set", "planner.max_jerk=10"]) == 0
+    lines = capsys.readouterr().out.strip().splitlines()
+    rows = {line[:22].strip(): line[22:].split() for line in lines[2:]}
+    assert float(rows["acceleration planner"][6]) <= 10.0 + 1e-6
+    assert float(rows["ruckig"][6]) <= 10.0 + 1e-6

@@ -80,6 +80,7 @@ def files(tmp_path_factory) -> Path:
     }
     for name, text in texts.items():
         (root / name).write_text(text)
+    (root / "zyx_hose.csv").write_text("z,y,x\n0.1,0.0,0.3\n0.1,0.1,0.3\n")
     (root / "binary_hose.csv").write_bytes(BINARY)
     (root / "binary.yaml").write_bytes(BINARY)
     (root / "camera_binary.yaml").write_bytes(BINARY)
@@ -175,6 +176,8 @@ BAD_INPUTS = [
     ("tof-cone-range", Run(PF, "station.tof_tools.tof.cone_angle_deg=180"), "(0, 180)"),
     ("tof-nan-range", Run(PF, "station.tof_tools.tof.max_range=.nan"), "max_range"),
     ("tof-negative-rings", Run(PF, "station.tof_tools.tof.rings=-1"), "rings'"),
+    ("tof-many-rings", Run(PF, "station.tof_tools.tof.rings=1000"), "in [0, 20]"),
+    ("hose-tiny-segment", Run(PF, "station.hose.segment_length=1e-6"), ">= 0.001"),
     ("tof-seed-ignored", Run(PF, "station.tof_tools.tof.seed=4"), "the scenario's 'random_seed'"),
     ("tof-negative-ranging", Run(PF, "station.tof_tools.tof.ranging_time=-0.01"), "ranging_time'"),
     ("tof-ranging-period", Run(PF, "station.tof_tools.tof.ranging_time=0.03"), "exceed period"),
@@ -200,12 +203,52 @@ BAD_INPUTS = [
     ("planner-zero-gain", Run(WP, "planner.gain_p=0"), "planner.gain_p': must be > 0"),
     ("planner-nan-singular", Run(WP, "planner.min_singular_value=.nan"), "min_singular"),
     ("planner-threshold-range", Run(WP, "planner.velocity_threshold=0.5"), "(0, 0.5)"),
+    (
+        "paper-mode-ignores-robust-key",
+        Run(WP, "planner.robust=false", "planner.max_jerk=10"),
+        "'planner.max_jerk' has no effect with planner.robust=false",
+    ),
+    (
+        "paper-mode-ignores-joint-blend",
+        Run(WP, "planner.robust=false", "planner.joint_space_blend=[0.001,0.01]"),
+        "'planner.joint_space_blend' has no effect",
+    ),
+    (
+        "robust-mode-ignores-paper-key",
+        Run(WP, "planner.scaling_recovery_rate=2"),
+        "'planner.scaling_recovery_rate' has no effect with planner.robust=true",
+    ),
+    (
+        "no-limits-ignore-velocity",
+        Run(WP, "limits=none", "max_joint_velocity=[2]"),
+        "'max_joint_velocity' has no effect with limits=none",
+    ),
+    (
+        "velocity-limit-ignores-acceleration",
+        Run(WP, "limits=velocity", "max_joint_acceleration=[2]"),
+        "'max_joint_acceleration' has no effect with limits=velocity",
+    ),
     # --- path_following, follower, ik
     ("path-random-negative", Run(PF, "path=random_-1"), "random_<seed>"),
     ("path-unknown", Run(PF, "path=paper_path_9"), "unknown hose path"),
     ("path-csv-missing", Run(PF, "path_csv={f}/missing.csv"), "not found"),
     ("path-csv-binary", Run(PF, flags=("--path-csv", "{f}/binary_hose.csv")), "not a text CSV"),
-    ("path-csv-nul", Run(PF, "path_csv={f}/nul.csv"), "needs at least 2 points"),
+    (
+        "path-csv-header-order",
+        Run(PF, flags=("--path-csv", "{f}/zyx_hose.csv")),
+        "the header 'z,y,x' must be x,y,z",
+    ),
+    ("path-csv-nul", Run(PF, "path_csv={f}/nul.csv"), "must be x,y,z"),
+    (
+        "path-beside-path-csv",
+        Run(PF, "path=paper_path_2", flags=("--path-csv", "{f}/binary_hose.csv")),
+        "'path' has no effect with path_csv (--path-csv) set",
+    ),
+    (
+        "random-path-beside-named-hose",
+        Run(PF, "random_path.length=0.5"),
+        "'random_path.length' has no effect with the hose 'paper_path_1'",
+    ),
     ("path-nan-period", Run(PF, "period=.nan"), "key 'period'"),
     ("path-negative-seed", Run(PF, "random_seed=-1"), "key 'random_seed': must be >= 0"),
     ("path-negative-repeat", Run(PF, "repeat_random_seed=-3"), "key 'repeat_random_seed'"),
@@ -218,6 +261,9 @@ BAD_INPUTS = [
     ("continuous-speed", Run(PF, "continuous.speed=0"), "continuous.speed': must be > 0"),
     ("continuous-nan-gain", Run(PF, "continuous.servo_gain=.nan"), "continuous.servo_gain"),
     ("continuous-roll-weight", Run(PF, "continuous.roll_weight=2"), "continuous.roll_weight"),
+    ("continuous-huge-damping", Run(PF, "continuous.servo_damping=1e300"), "in [0.001, 1]"),
+    ("continuous-tiny-spread", Run(PF, "continuous.spread_limit=1e-300"), "spread_limit'"),
+    ("continuous-huge-rotation", Run(PF, "continuous.rotation_weight=1e100"), "rotation_weight'"),
     ("continuous-min-points", Run(PF, "continuous.min_fit_points=1"), "min_fit_points"),
     ("continuous-turns", Run(PF, "continuous.search_turns_deg=[120]"), "search_turns_deg"),
     ("continuous-speeds", Run(PF, "continuous.min_speed=0.5"), "min_speed <= speed"),
@@ -226,6 +272,16 @@ BAD_INPUTS = [
         "kinematic-hardware",
         Run(PF, "executor=kinematic", flags=("--hardware",)),
         "executor=kinematic cannot run with --hardware",
+    ),
+    (
+        "kinematic-ignores-kp",
+        Run(PF, "executor=kinematic", "station.arms.mz04d.kp=900"),
+        "'station.arms.mz04d.kp' has no effect with executor=kinematic",
+    ),
+    (
+        "kinematic-ignores-plant",
+        Run(PF, "executor=kinematic", "station.plant_config.time_step=0.001"),
+        "'station.plant_config.time_step' has no effect with executor=kinematic",
     ),
     (
         "continuous-hardware-move",
@@ -267,6 +323,21 @@ BAD_INPUTS = [
         "continuous-ignores-tool-speed",
         Run(PF, "motion=continuous", "tool_speed=0.02"),
         "'tool_speed' has no effect",
+    ),
+    (
+        "continuous-ignores-ik-swing",
+        Run(PF, "motion=continuous", "ik.max_swing=0.05"),
+        "'ik.max_swing' has no effect with motion=continuous",
+    ),
+    (
+        "continuous-ignores-ik-shortfall",
+        Run(PF, "motion=continuous", "ik.shortfall_tolerance_deg=30"),
+        "'ik.shortfall_tolerance_deg' has no effect with motion=continuous",
+    ),
+    (
+        "continuous-ignores-ik-step",
+        Run(PF, "motion=continuous", "ik.max_step_rotation_deg=45"),
+        "'ik.max_step_rotation_deg' has no effect",
     ),
     (
         "joint-moves-ignore-continuous",
@@ -383,6 +454,27 @@ BAD_INPUTS = [
     ("compare-nan-gain", ["compare-planners", "--set", "planner.gain_v=.nan"], "gain_v"),
     ("compare-limits", ["compare-planners", "--set", "limits=none"], "velocity,acceleration"),
     ("compare-out-file", ["compare-planners", "--out", "{f}/afile/x"], "is a file"),
+    (
+        "compare-negative-seed",
+        ["compare-planners", "--random", "1", "--arm", "ur10e", "--seed", "-1"],
+        "--seed must be >= 0, got -1",
+    ),
+    (
+        "compare-random-unknown-key",
+        ["compare-planners", "--random", "1", "--arm", "ur10e", "--set", "bogus=1"],
+        "unknown key 'bogus'",
+    ),
+    (
+        "compare-random-scenario",
+        ["compare-planners", "--random", "1", "--arm", "ur10e", "--scenario", "mz04d_waypoints"],
+        "--scenario is not read with --random",
+    ),
+    ("compare-robust", ["compare-planners", "--set", "planner.robust=false"], "runs both modes"),
+    ("compare-arm-alone", ["compare-planners", "--arm", "ur10e"], "--arm is read only with"),
+    ("compare-seed-alone", ["compare-planners", "--seed", "3"], "--seed is read only with"),
+    ("emulate-set-alone", ["emulate", "nachi", "--set", "arm=ur10e"], "--set needs --scenario"),
+    ("emulate-tof-arm", ["emulate", "tof", "--arm", "ur10e"], "--arm applies to `emulate nachi`"),
+    ("emulate-tof-host", ["emulate", "tof", "--host", "0.0.0.0"], "--host applies to"),
     ("show-unknown-arm", ["show", "kuka"], "unknown arm or scene 'kuka'"),
     ("show-negative-timeout", ["show", "ur10e", "--timeout", "-1"], "--timeout must be"),
     ("show-nan-timeout", ["show", "ur10e", "--timeout", "nan"], "--timeout must be"),
@@ -471,6 +563,15 @@ def test_every_number_of_every_scenario_is_checked(name, key, kind):
         CheckConfig(scenario)
 
 
+def test_random_path_keys_are_read_with_a_random_path_only():
+    """random_path set on the command line shapes a random_<seed> hose; a scenario file may
+    keep its arm's region beside a named hose (ur10e_path_following)."""
+    _, scenario, _ = LoadScenario("path_following", ["path=random_3", "random_path.length=0.5"])
+    assert scenario.random_path.length == 0.5
+    _, ur10e, _ = LoadScenario("ur10e_path_following", ["estimator=ranging"])
+    assert ur10e.path == "ur10e_far_hose" and ur10e.random_path.radius_range == [0.55, 0.75]
+
+
 def test_exponent_notation_is_accepted(tmp_path):
     _, scenario, _ = LoadScenario(
         "ur10e_waypoints", ["planner.min_singular_value=1e-3", "max_time=1.5e1"]
@@ -494,6 +595,8 @@ def test_headerless_csv_with_a_byte_order_mark_keeps_its_first_point(tmp_path):
         assert points.shape == (3, 3) and points[0].tolist() == [0.30, 0.0, 0.10]
     (tmp_path / "header.csv").write_bytes(b"\xef\xbb\xbfx,y,z\n" + rows.encode())
     assert ReadCenterline(str(tmp_path / "header.csv")).shape == (3, 3)
+    (tmp_path / "spaced.csv").write_text(" X , Y , Z \n" + rows)
+    assert ReadCenterline(str(tmp_path / "spaced.csv"))[0].tolist() == [0.30, 0.0, 0.10]
 
 
 def _Task(run) -> TaskDefinition:
@@ -629,3 +732,52 @@ def test_a_signal_during_a_run_writes_an_interrupted_summary(tmp_path, signum, f
     assert err.strip().splitlines()[-1] == f"guidedarm: run failed: {failure}"
     for text in BAD_OUTPUT:
         assert text not in out + err
+
+
+@pytest.mark.parametrize(
+    "signum, failure",
+    [(signal.SIGINT, "interrupted"), (signal.SIGTERM, "interrupted by SIGTERM")],
+    ids=["ctrl-c", "sigterm"],
+)
+def test_an_interrupted_path_following_keeps_its_partial_metrics(tmp_path, signum, failure):
+    """A signal during the follower's loop ends it as a device fault does: the summary
+    keeps the simulated time and the metrics of the steps made, and no second run."""
+    process = subprocess.Popen(
+        [GUIDEDARM, "run", PF, "--out", str(tmp_path), "--set", "executor=kinematic"],
+        stdin=subprocess.DEVNULL,
+        stdout=subprocess.DEVNULL,
+        stderr=subprocess.PIPE,
+        text=True,
+    )
+    for line in process.stderr:
+        if line.startswith("  ... step ") and int(line.split()[2].rstrip(",")) >= 3:
+            break
+    process.send_signal(signum)
+    _, err = process.communicate(timeout=120)
+    assert process.returncode == 1, err
+    summary = json.loads((tmp_path / "summary.json").read_text())
+    assert summary["failure"] == failure
+    assert summary["sim_time_s"] > 0 and summary["steps"] >= 3
+    assert 0 < summary["coverage"] <= 1
+    for text in BAD_OUTPUT:
+        assert text not in err
+
+
+def test_public_builders_refuse_bad_arguments_in_one_line():
+    """The Python API: a negative time step (Drake's `Failure at` exit), one name instead of
+    a list (read as its characters) and a truthy string for a bool are refused by name."""
+    from guidedarm.diagrams.station.station_plant import MakeMultibodyPlant
+    from guidedarm.systems.planning.acceleration_planner_config import PlannerConfig
+
+    station = LoadScenario(WP, [])[1].station
+    for call, key in (
+        (lambda: MakeMultibodyPlant(station, ["ur10e"], time_step=-1.0), "time_step"),
+        (lambda: MakeMultibodyPlant(station, ["ur10e"], time_step=math.nan), "time_step"),
+        (lambda: MakeMultibodyPlant(station, "ur10e"), "model_instance_names"),
+        (lambda: MakeMultibodyPlant(station, [0]), "model_instance_names[0]"),
+        (lambda: PlannerConfig(robust="false").Validate(), "robust"),
+    ):
+        with pytest.raises(FieldError) as error:
+            call()
+        assert error.value.key == key and "\n" not in str(error.value)
+    assert MakeMultibodyPlant(station, ["ur10e"], time_step=0.001).time_step() == 0.001

@@ -11,8 +11,9 @@ Figures are computed on the commanded trajectories sampled at the planner period
 max |qd| (rad/s), max |qdd| (rad/s^2), max |jerk| (rad/s^3, finite differences of qdd), and
 the closest TCP approach to each waypoint (mm).
 
-With --random N --arm ARM: N seeded random reachable tasks (systems/planning/
-random_waypoint_tasks.py) on the arm's waypoints scenario, every planner on each, one table:
+With --random N --arm ARM [--seed S] [--set KEY=VALUE]: N seeded random reachable tasks
+(systems/planning/random_waypoint_tasks.py) on the arm's waypoints scenario (with the
+overrides), every planner on each, one table:
 success rate (the planner ended within 1 mm and 1 mrad and kept every limit; a baseline
 found a trajectory), T median, median ratios of T to Ruckig's and Toppra's on the same task,
 max |qd|, |qdd|, |jerk| over all tasks, and the number of tasks with a limit breach.
@@ -21,6 +22,7 @@ max |qd|, |qdd|, |jerk| over all tasks, and the number of tasks with a limit bre
 from __future__ import annotations
 
 import argparse
+from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
@@ -28,6 +30,7 @@ import numpy as np
 
 from guidedarm.diagrams.cli.command_run import LoadScenario
 from guidedarm.diagrams.run_context import RunContext
+from guidedarm.diagrams.scenario_loading import AddOverridesArgument
 from guidedarm.diagrams.tasks.waypoints import MakePlannerSetup, PlannerSetup, PlotTcpPathsOfJoints
 from guidedarm.systems.errors import ConfigurationError, GuidedArmError
 from guidedarm.systems.planning.acceleration_planner_math import (
@@ -58,12 +61,16 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         "compare-planners",
         help="the acceleration-level planner vs the paper's law, movej, Toppra and Ruckig",
     )
-    parser.add_argument("--scenario", default="ur10e_waypoints", help="a waypoints scenario")
+    parser.add_argument(
+        "--scenario", help="a waypoints scenario (default ur10e_waypoints; not with --random)"
+    )
     parser.add_argument("--out", type=Path, help="also write compare_planners.csv and a plot")
-    parser.add_argument("--set", dest="overrides", action="append", default=[], metavar="KEY=VALUE")
+    AddOverridesArgument(
+        parser, "override a key of the scenario (with --random: of the arm's scenario)"
+    )
     parser.add_argument("--random", type=int, metavar="N", help="N seeded random reachable tasks")
     parser.add_argument("--arm", choices=sorted(ARM_SCENARIOS), help="the arm of --random")
-    parser.add_argument("--seed", type=int, default=0, help="random seed of --random")
+    parser.add_argument("--seed", type=int, help="random seed of --random (>= 0, default 0)")
     parser.set_defaults(func=compare_command)
 
 
@@ -156,9 +163,12 @@ def Breaches(setup: PlannerSetup, trajectory: JointTrajectory) -> bool:
     )
 
 
-def RandomComparison(arm: str, count: int, seed: int = 0) -> dict[str, dict[str, Any]]:
-    """Every planner on `count` random reachable tasks of `arm`: one summary per planner."""
-    _, scenario, _ = LoadScenario(ARM_SCENARIOS[arm], [])
+def RandomComparison(
+    arm: str, count: int, seed: int = 0, overrides: Sequence[str] = ()
+) -> dict[str, dict[str, Any]]:
+    """Every planner on `count` random reachable tasks of `arm`: one summary per planner;
+    `overrides` (`key=value`) change the arm's waypoints scenario (its planner, limits)."""
+    scenario = LoadWaypointsScenario(ARM_SCENARIOS[arm], list(overrides))
     setup = MakePlannerSetup(scenario)
     tasks = MakeRandomWaypointTasks(setup.planning.kinematics, count, seed)
     runs = [ComparePlanners(setup, task.waypoints, task.q0, scenario.max_time) for task in tasks]
@@ -211,11 +221,42 @@ def PrintRandomTable(arm: str, count: int, summaries: dict[str, dict[str, Any]])
         print("".join(cells))
 
 
-def compare_command(args: argparse.Namespace) -> int:
+def LoadWaypointsScenario(name: str, overrides: list[str]) -> Any:
+    """The typed waypoints scenario `name` with `overrides`; refuses another task."""
+    task, scenario, _ = LoadScenario(name, overrides)
+    if task.name != "waypoints":
+        raise ConfigurationError(
+            f"--scenario {name}: compare-planners needs a waypoints scenario, "
+            f"this one runs task {task.name}"
+        )
+    if not scenario.planner.robust:
+        raise ConfigurationError(
+            "'planner.robust' is not read by compare-planners (it runs both modes): remove it"
+        )
+    return scenario
+
+
+def _CheckModeOptions(args: argparse.Namespace) -> None:
+    """Refuses an option the chosen mode (--random or one scenario) does not read."""
     if args.random is not None:
         if args.arm is None or args.random < 1:
             raise ConfigurationError("--random N needs N >= 1 and --arm ARM")
-        summaries = RandomComparison(args.arm, args.random, args.seed)
+        if args.scenario is not None:
+            raise ConfigurationError(
+                "--scenario is not read with --random (the tasks run on the scenario of --arm)"
+            )
+        if args.seed is not None and args.seed < 0:
+            raise ConfigurationError(f"--seed must be >= 0, got {args.seed}")
+        return
+    for option in ("arm", "seed"):
+        if getattr(args, option) is not None:
+            raise ConfigurationError(f"--{option} is read only with --random N")
+
+
+def compare_command(args: argparse.Namespace) -> int:
+    _CheckModeOptions(args)
+    if args.random is not None:
+        summaries = RandomComparison(args.arm, args.random, args.seed or 0, args.overrides)
         PrintRandomTable(args.arm, args.random, summaries)
         if args.out:
             context = RunContext(out_dir=args.out)
@@ -228,12 +269,7 @@ def compare_command(args: argparse.Namespace) -> int:
             for path in context.written:
                 print(f"wrote {path}")
         return 0
-    task, scenario, _ = LoadScenario(args.scenario, args.overrides)
-    if task.name != "waypoints":
-        raise ConfigurationError(
-            f"--scenario {args.scenario}: compare-planners needs a waypoints scenario, "
-            f"this one runs task {task.name}"
-        )
+    scenario = LoadWaypointsScenario(args.scenario or "ur10e_waypoints", args.overrides)
     context = RunContext(out_dir=args.out) if args.out else None
     setup = MakePlannerSetup(scenario)
     found = ComparePlanners(setup, setup.planning.waypoints, setup.q0, scenario.max_time)

@@ -39,8 +39,8 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     parser.add_argument("device", choices=["nachi", "tof"])
     parser.add_argument("--scenario", help="scenario name or YAML whose `station` to simulate")
     parser.add_argument("--set", dest="overrides", action="append", default=[], metavar="K=V")
-    parser.add_argument("--arm", default="mz04d", help="the arm served over TCP (nachi)")
-    parser.add_argument("--host", default="127.0.0.1")
+    parser.add_argument("--arm", help="the arm served over TCP (nachi; default mz04d)")
+    parser.add_argument("--host", help="the address nachi listens on (default 127.0.0.1)")
     parser.add_argument(
         "--port", type=int, help=f"TCP port of `nachi` (default {DEFAULT_PORT}; 0 = any free)"
     )
@@ -146,9 +146,14 @@ def CheckArguments(args: argparse.Namespace) -> None:
     """Refuses, before the station is built, a port outside 0..65535, a host that does not
     resolve, a duration, servo acceleration or servo timeout that is not positive and
     finite (the duration may be infinite), a ToF latency that is negative or infinite, and
-    --port and the SERVO options for `tof` (which serves no arm); fills in their defaults."""
-    if args.port is not None and args.device != "nachi":
-        raise ConfigurationError("--port applies to `emulate nachi` only")
+    --port, --host, --arm and the SERVO options for `tof` (which serves no arm), and --set
+    without --scenario (the default cell has no scenario keys); fills in their defaults."""
+    if args.overrides and not args.scenario:
+        raise ConfigurationError("--set needs --scenario (the default cell has no scenario)")
+    for option in ("port", "host", "arm"):
+        if getattr(args, option) is not None and args.device != "nachi":
+            raise ConfigurationError(f"--{option} applies to `emulate nachi` only")
+    args.host = args.host or "127.0.0.1"
     CheckPort("--port", DEFAULT_PORT if args.port is None else args.port)
     try:
         socket.getaddrinfo(args.host, None, type=socket.SOCK_STREAM)
@@ -181,10 +186,12 @@ def emulate_command(args: argparse.Namespace) -> int:
     if args.tof_latency is not None and not station_scenario.tof_tools:
         raise ConfigurationError("--tof-latency: the station has no tof_tools to emulate")
     latency = DEFAULT_TOF_LATENCY if args.tof_latency is None else args.tof_latency
+    # `tof` serves no arm: the station's first holds its initial position
+    arm = args.arm or ("mz04d" if args.device == "nachi" else next(iter(station_scenario.arms), ""))
     port = 0 if args.device != "nachi" else DEFAULT_PORT if args.port is None else args.port
     emulator, tofs = StartEmulators(
         station_scenario,
-        args.arm,
+        arm,
         args.host,
         port,
         args.servo_acceleration,
@@ -192,7 +199,7 @@ def emulate_command(args: argparse.Namespace) -> int:
         latency,
     )
     if args.device == "nachi":
-        print(f"nachi: {args.arm} listening on {args.host}:{emulator.port}", flush=True)
+        print(f"nachi: {arm} listening on {args.host}:{emulator.port}", flush=True)
     elif not tofs:
         raise ConfigurationError("the station has no tof_tools to emulate")
     for name, tof in tofs.items():

@@ -102,12 +102,16 @@ def CheckMeshcatArguments(args: argparse.Namespace) -> None:
 def LoadScenario(name_or_path: str, overrides: list[str]) -> tuple[Any, Any, str]:
     """Returns (task, typed scenario, scenario name) for a scenario and `--set` overrides."""
     path = resolve_scenario_path(name_or_path)
-    raw = apply_overrides(read_raw_scenario(path), parse_overrides(overrides))
+    parsed = parse_overrides(overrides)
+    raw = apply_overrides(read_raw_scenario(path), parsed)
     task_name = raw.get("task")
     if not isinstance(task_name, str):
         raise ScenarioError(f"{path}: missing key 'task' (the task this scenario runs)")
     task = GetTask(task_name)
-    return task, load_typed(task.scenario_type, raw, str(path)), path.stem
+    scenario = load_typed(task.scenario_type, raw, str(path))
+    if task.check_overrides is not None:
+        task.check_overrides(scenario, parsed.keys())
+    return task, scenario, path.stem
 
 
 def run_command(args: argparse.Namespace) -> int:

@@ -10,6 +10,7 @@ summary compares what the follower saw and did with the true centerline.
 """
 
 import dataclasses
+from collections.abc import Collection
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -177,10 +178,30 @@ def RunPathFollowing(scenario: PathFollowingScenario, context: RunContext) -> di
     return summary
 
 
+def CheckOverrides(scenario: PathFollowingScenario, keys: Collection[str]) -> None:
+    """Refuses `--set path` beside a path_csv (which overrides it), and `--set random_path.*`
+    when the hose is not random_<seed> (a scenario file may keep its arm's random_path
+    region beside a named hose)."""
+    if scenario.path_csv and "path" in keys:
+        raise ConfigurationError(
+            f"'path' has no effect with path_csv (--path-csv) set ('{scenario.path_csv}', "
+            "which overrides it): give one of them"
+        )
+    if scenario.path_csv or not scenario.path.startswith("random_"):
+        for key in keys:
+            if key.split(".")[0] == "random_path":
+                raise ConfigurationError(
+                    f"'{key}' has no effect with the hose "
+                    f"'{scenario.path_csv or scenario.path}' (it shapes path=random_<seed> "
+                    "only): remove it or set a random path"
+                )
+
+
 TASK = TaskDefinition(
     name="path_following",
     scenario_type=PathFollowingScenario,
     run=RunPathFollowing,
     description="follow a hose with the six-sensor ToF tool (Wawrzyniak et al.) on any arm",
     station=lambda scenario: MakeSetup(scenario).station,
+    check_overrides=CheckOverrides,
 )

@@ -27,6 +27,7 @@ from pydrake.systems.primitives import LogVectorOutput
 from guidedarm.diagrams.overlays.path_following_overlays import AddPathFollowingOverlays
 from guidedarm.diagrams.run_context import RunContext
 from guidedarm.diagrams.station.station import MakeStation
+from guidedarm.diagrams.task_run import InterruptedFailure
 from guidedarm.diagrams.tasks.path_following_diagram import (
     AddPathFollowing,
     MakeKinematicStation,
@@ -44,7 +45,8 @@ class Execution:
     q rows) for the contact check, the simulated time (s), a failure line or None, and the
     number of steps during which the robot touched the hose, the wall-clock time (s) the
     simulation took (the follower's loop on its station, without setup and report), and
-    whether a RunFailedError (e.g. a hardware fault) cut the simulation short."""
+    whether a RunFailedError (e.g. a hardware fault), Ctrl-C or SIGTERM cut the simulation
+    short."""
 
     records: np.ndarray
     sample_times: np.ndarray
@@ -112,6 +114,9 @@ def _Simulate(setup: Setup, station: Diagram, context: RunContext, visualized: b
         simulator.AdvanceTo(setup.max_time)
     except RunFailedError as e:  # a device fault: the summary keeps what was measured so far
         fault = str(e)
+        context.progress(f"{fault}; writing the summary", force=True)
+    except KeyboardInterrupt as e:  # Ctrl-C or SIGTERM: the same
+        fault = InterruptedFailure(e)
         context.progress(f"{fault}; writing the summary", force=True)
     wall_time = time.perf_counter() - start
     if visualized:

@@ -22,7 +22,7 @@ import numpy as np
 from pydrake.math import RigidTransform
 from pydrake.multibody.plant import MultibodyPlant
 
-from guidedarm.diagrams.station.scenario import StationScenario
+from guidedarm.diagrams.station.scenario import ArmConfig, StationScenario
 from guidedarm.diagrams.station.station_plant import (
     ArmAndAttachments,
     ArmInitialPosition,
@@ -170,6 +170,7 @@ def _CheckScenario(scenario: PathFollowingScenario) -> None:
             f"station must define arms.{scenario.arm} and tof_tools.{scenario.tof}"
         )
     _CheckMotionKeys(scenario)
+    _CheckExecutorKeys(scenario)
     arm = scenario.station.arms[scenario.arm]
     if scenario.motion == "continuous" and scenario.continuous.servo_period < arm.control_period:
         raise ConfigurationError(
@@ -179,12 +180,17 @@ def _CheckScenario(scenario: PathFollowingScenario) -> None:
         )
 
 
-# Keys that only one motion reads: set to anything but their default under another motion
-# they would be ignored, so they are refused.
+# Keys that only some motions read: set to anything but their default under another motion
+# they would be ignored, so they are refused. The stop-and-go IK's step limits (ik.*
+# below) are lifted for the start pose, which every motion solves with the other ik keys.
+_STOP_AND_GO = ("joint_trajectory", "planner")
 _MOTION_KEYS = {
-    "tool_speed": ("joint_trajectory", "planner"),
-    "period": ("joint_trajectory", "planner"),
-    "follower": ("joint_trajectory", "planner"),
+    "tool_speed": _STOP_AND_GO,
+    "period": _STOP_AND_GO,
+    "follower": _STOP_AND_GO,
+    "ik.max_swing": _STOP_AND_GO,
+    "ik.max_step_rotation_deg": _STOP_AND_GO,
+    "ik.shortfall_tolerance_deg": _STOP_AND_GO,
     "planner": ("planner",),
     "continuous": ("continuous",),
 }
@@ -196,7 +202,7 @@ def _CheckMotionKeys(scenario: PathFollowingScenario) -> None:
     for key, motions in _MOTION_KEYS.items():
         if scenario.motion in motions:
             continue
-        changed = _ChangedKey(getattr(scenario, key), getattr(defaults, key), key)
+        changed = _ChangedKey(_Dotted(scenario, key), _Dotted(defaults, key), key)
         if key == "follower" and changed == "follower.estimator":
             continue
         if changed:
@@ -206,17 +212,48 @@ def _CheckMotionKeys(scenario: PathFollowingScenario) -> None:
             )
 
 
-def _ChangedKey(value: object, default: object, key: str) -> str:
-    """The dotted name of the first field of `value` that differs from `default`, or ''."""
-    if dataclasses.is_dataclass(value):
-        for f in dataclasses.fields(value):
-            changed = _ChangedKey(
-                getattr(value, f.name), getattr(default, f.name), f"{key}.{f.name}"
+def _CheckExecutorKeys(scenario: PathFollowingScenario) -> None:
+    """Refuses, with executor=kinematic, a servo gain or plant setting set away from its
+    default: the kinematic station poses the arm where it is commanded (no servo, no
+    dynamics) and reads neither."""
+    if scenario.executor != "kinematic":
+        return
+    arm, default_arm = scenario.station.arms[scenario.arm], ArmConfig()
+    prefix = f"station.arms.{scenario.arm}"
+    for key, value, default in (
+        ("station.plant_config", scenario.station.plant_config, StationScenario().plant_config),
+        (f"{prefix}.kp", arm.kp, default_arm.kp),
+        (f"{prefix}.kd", arm.kd, default_arm.kd),
+    ):
+        changed = _ChangedKey(value, default, key)
+        if changed:
+            raise ConfigurationError(
+                f"'{changed}' has no effect with executor=kinematic (it poses the arm where "
+                "it is commanded: no servo, no dynamics): remove it or use executor=station"
             )
-            if changed:
-                return changed
-        return ""
-    return "" if value == default else key
+
+
+def _Dotted(config: object, key: str) -> object:
+    """The value of a dotted key (`ik.max_swing`) of a config tree."""
+    for name in key.split("."):
+        config = getattr(config, name)
+    return config
+
+
+def _ChangedKey(value: object, default: object, key: str) -> str:
+    """The dotted name of the first field of `value` (a dataclass or a Drake struct) that
+    differs from `default`, or ''."""
+    if dataclasses.is_dataclass(value):
+        names = [f.name for f in dataclasses.fields(value)]
+    elif hasattr(type(value), "__fields__"):
+        names = [f.name for f in type(value).__fields__]
+    else:
+        return "" if value == default else key
+    for name in names:
+        changed = _ChangedKey(getattr(value, name), getattr(default, name), f"{key}.{name}")
+        if changed:
+            return changed
+    return ""
 
 
 def _ResolveToF(scenario: PathFollowingScenario, station: StationScenario) -> None:

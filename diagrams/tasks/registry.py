@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import importlib
 import pkgutil
-from collections.abc import Callable
+from collections.abc import Callable, Collection
 from dataclasses import dataclass
 from typing import Any
 
@@ -22,6 +22,10 @@ class TaskDefinition:
     station(scenario), when given, is the station scenario a run builds, with the values
     the task derives filled in (e.g. the hose and start pose of path following); without
     it, scenario.station.
+    check_overrides(scenario, keys), when given, refuses (ConfigurationError) a dotted key
+    given on the command line (`--set`) that the scenario it made would not read, where the
+    scenario file may hold the same key for another choice (e.g. `random_path` beside a
+    named hose).
     """
 
     name: str
@@ -29,6 +33,7 @@ class TaskDefinition:
     run: Callable[[Any, RunContext], dict[str, Any]]
     description: str
     station: Callable[[Any], Any] | None = None
+    check_overrides: Callable[[Any, Collection[str]], None] | None = None
 
     def Station(self, scenario: Any) -> Any:
         """The station scenario a run of `scenario` builds (see the class docstring)."""

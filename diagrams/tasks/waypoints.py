@@ -26,6 +26,10 @@ from guidedarm.diagrams.tasks.registry import TaskDefinition
 from guidedarm.systems.config_checks import NonNegative, Positive
 from guidedarm.systems.errors import ConfigurationError
 from guidedarm.systems.planning.acceleration_planner import AccelerationPlanner
+from guidedarm.systems.planning.acceleration_planner_config import (
+    PAPER_ONLY_FIELDS,
+    ROBUST_ONLY_FIELDS,
+)
 from guidedarm.systems.planning.acceleration_planner_math import (
     AccelerationPlanning,
     ClosestApproach,
@@ -111,8 +115,32 @@ def MakePlannerSetup(scenario: WaypointsScenario) -> PlannerSetup:
     )
 
 
+def CheckReadKeys(scenario: WaypointsScenario) -> None:
+    """Refuses a key set away from its default that the run would not read: a planner
+    field of the other mode (ROBUST_ONLY_FIELDS, PAPER_ONLY_FIELDS), or a joint limit that
+    `limits` switches off."""
+    defaults, planner = PlannerConfig(), scenario.planner
+    mode, other = ("robust", "false") if planner.robust else ("paper's", "true")
+    unread = PAPER_ONLY_FIELDS if planner.robust else ROBUST_ONLY_FIELDS
+    for name in unread:
+        if getattr(planner, name) != getattr(defaults, name):
+            raise ConfigurationError(
+                f"'planner.{name}' has no effect with planner.robust={str(planner.robust).lower()}"
+                f" (the {mode} mode does not read it): remove it or set planner.robust={other}"
+            )
+    scenario_defaults = WaypointsScenario()
+    for key, needs in (("max_joint_velocity", "velocity"), ("max_joint_acceleration", "accel")):
+        changed = getattr(scenario, key) != getattr(scenario_defaults, key)
+        if changed and needs not in scenario.limits:
+            raise ConfigurationError(
+                f"'{key}' has no effect with limits={scenario.limits}: remove it or switch "
+                "the limit on (limits=velocity or velocity,acceleration)"
+            )
+
+
 def RunWaypoints(scenario: WaypointsScenario, context: RunContext) -> dict[str, Any]:
     """Simulates the planner driving the station's arm; returns the Table-2 metrics."""
+    CheckReadKeys(scenario)
     setup = MakePlannerSetup(scenario)
     arm = scenario.arm
     builder = DiagramBuilder()

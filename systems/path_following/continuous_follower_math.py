@@ -64,7 +64,7 @@ class ContinuousConfig:
     spread_limit: the standard error of the estimated hose point at the tool (m) at which
         the confidence reaches 0; the speed falls from `speed` toward min_speed with the
         confidence (the fraction of readings in the fit window that saw the hose, times
-        1 - (spread / spread_limit)^2).
+        1 - (spread / spread_limit)^2); 0.1 mm to 50 mm (a hose's width).
     gate: a hose point farther than this from the fit's extrapolation (once the fit has
         min_fit_points) is an outlier, counted as a reading without the hose (m): past the
         hose's end the cones still see its end cap behind the detection plane, each
@@ -79,10 +79,12 @@ class ContinuousConfig:
     servo_period: the target and the differential IK's tick (s); servo_gain: the
         differential IK's gain on the tool's pose error (1/s), beside the target's own
         velocity; rotation_weight: the length (m) a rotation of 1 rad of the tool counts
-        as against its position (the position, which the tracking needs, comes first);
+        as against its position (the position, which the tracking needs, comes first;
+        1 mm to 1 m, the arm's reach);
         roll_weight: the share of that weight of the roll about x_T (the hose's axis, which
         the detection does not need); servo_damping: the largest damping of the least
-        squares, reached at a singularity (differential_ik_servo_math).
+        squares, reached at a singularity (differential_ik_servo_math; a singular value
+        of the weighted Jacobian, m/rad, from its floor MIN_DAMPING 1e-3 to 1).
     history: the measured joints kept for motion compensation (s).
     loss_distance: travel past the latest estimate without the hose before a search (m).
     search_distance: how far past the latest estimate a search goes (m).
@@ -100,7 +102,7 @@ class ContinuousConfig:
     look_ahead: float = Positive(0.015)
     fit_length: float = Positive(0.03)
     min_fit_points: int = InRange(3, 10000, 8)
-    spread_limit: float = Positive(0.006)
+    spread_limit: float = InRange(1e-4, 0.05, 0.006)
     gate: float = Positive(0.008)
     correction_gain: float = Positive(8.0)
     max_correction_speed: float = Positive(0.03)
@@ -108,9 +110,9 @@ class ContinuousConfig:
     heading_tolerance_deg: float = InRange(0.5, 90.0, 10.0)
     servo_period: float = Positive(0.004)
     servo_gain: float = Positive(20.0)
-    rotation_weight: float = Positive(0.05)
+    rotation_weight: float = InRange(1e-3, 1.0, 0.05)
     roll_weight: float = InRange(0.0, 1.0, 0.1)
-    servo_damping: float = Positive(0.01)
+    servo_damping: float = InRange(1e-3, 1.0, 0.01)
     history: float = Positive(0.3)
     loss_distance: float = Positive(0.008)
     search_distance: float = Positive(0.025)

@@ -46,14 +46,15 @@ class HoseConfig:
     frame: the scoped frame of the centerline's coordinates, fixed to the world (e.g.
         `ur10e::base`); empty: the world (path following: the arm's base frame).
     diameter: hose diameter (m); the paper's shower hose is 20 mm.
-    segment_length: length of one capsule of the geometry chain (m).
+    segment_length: length of one capsule of the geometry chain (m; at least 1 mm: a
+        finer chain adds capsules, and collision time, without changing the hose's shape).
     brackets: add a bracket at each end.
     """
 
     centerline: str = ""
     frame: str = ""
     diameter: float = Positive(0.020)
-    segment_length: float = Positive(0.010)
+    segment_length: float = InRange(0.001, math.inf, 0.010)
     brackets: bool = True
 
 
@@ -88,8 +89,9 @@ def LoadHoseWorkspace(name_or_file: str) -> WorkspaceConfig | None:
 
 
 def ReadCenterline(name_or_file: str) -> np.ndarray:
-    """Reads and validates a centerline CSV (x, y, z in m per row, header optional; UTF-8,
-    with or without a byte-order mark)."""
+    """Reads and validates a centerline CSV (x, y, z in m per row; UTF-8, with or without
+    a byte-order mark). An optional header row must name the columns x,y,z in that order
+    (any case, spaces allowed): another order would be read as x,y,z all the same."""
     path = ResolveCenterlinePath(name_or_file)
     try:
         lines = path.read_bytes().decode("utf-8-sig").splitlines()
@@ -108,7 +110,12 @@ def ReadCenterline(name_or_file: str) -> np.ndarray:
             values = [float(c) for c in cells]
         except ValueError:
             if not rows and number == content[0]:
-                continue  # a header row
+                if [c.lower() for c in cells] != ["x", "y", "z"]:
+                    raise ConfigurationError(
+                        f"{path}:{number}: the header {text[:60]!r} must be x,y,z (the columns "
+                        "are read in that order)"
+                    ) from None
+                continue
             raise ConfigurationError(f"{path}:{number}: not three numbers: {text[:60]!r}") from None
         if len(values) != 3:
             raise ConfigurationError(f"{path}:{number}: expected x,y,z, got {len(values)} values")

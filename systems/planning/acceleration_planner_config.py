@@ -10,6 +10,22 @@ from dataclasses import dataclass, field
 from guidedarm.systems.config_checks import CheckFields, InRange, Positive
 from guidedarm.systems.errors import ConfigurationError
 
+# The fields only one mode reads (the rest both): a task refuses them set away from their
+# defaults under the other mode (diagrams/tasks/waypoints.py).
+ROBUST_ONLY_FIELDS = (
+    "robust_recovery_rate",
+    "damping_threshold",
+    "max_damping",
+    "bias_margin",
+    "governor_gain",
+    "velocity_bound_rate",
+    "max_jerk",
+    "approach_acceleration",
+    "approach_rate",
+    "joint_space_blend",
+)
+PAPER_ONLY_FIELDS = ("scaling_recovery_rate", "min_singular_value")
+
 
 @dataclass
 class PlannerConfig:

@@ -58,7 +58,8 @@ class ToFToolConfig:
         has this standard deviation (m); 0: no drift.
     drift_max: the drift stays within +-drift_max (m; the datasheet's temperature drift
         reaches 9 mm).
-    rings: rings of rays sampling each cone (1 + 3 rings (rings + 1) rays).
+    rings: rings of rays sampling each cone (1 + 3 rings (rings + 1) rays; at most 20,
+        1261 rays a sensor: each reading casts every ray).
     """
 
     sensor_frames: list[str] = field(default_factory=_default_frames)
@@ -74,7 +75,7 @@ class ToFToolConfig:
     offset: list[float] = InRange(-0.1, 0.1, factory=lambda: [0.0] * NUM_SENSORS)
     drift_rate: float = NonNegative(0.0)
     drift_max: float = NonNegative(0.009)
-    rings: int = 2
+    rings: int = InRange(0, 20, 2)
 
     def Validate(self) -> None:
         """Raises ConfigurationError naming the first bad field."""
