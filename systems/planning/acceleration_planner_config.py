@@ -23,6 +23,7 @@ ROBUST_ONLY_FIELDS = (
     "approach_acceleration",
     "approach_rate",
     "joint_space_blend",
+    "saturation_metric",
 )
 PAPER_ONLY_FIELDS = ("scaling_recovery_rate", "min_singular_value")
 
