@@ -74,7 +74,8 @@ class PlannerConfig:
         (rad/s^3); every step's q'' is reached from the last one at most this fast (the
         law, its saturation, the braking fallback and a task given while moving alike), so
         the accelerations stay continuous where the saturation or the step bounds would
-        make them jump.
+        make them jump. At least velocity_bound_rate x the largest acceleration limit
+        (checked where the planner is built).
     approach_acceleration: robust mode: the fraction eta of the acceleration limits the
         approach to a target plans to brake with (0 keeps (9)'s exponential approach).
         (9) factors into (s + r0)(s + k) with r0 the slower root: e' tracks -r0 e at the
