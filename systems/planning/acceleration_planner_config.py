@@ -69,13 +69,13 @@ class PlannerConfig:
         a = -J^-1 Jdot qd may use before the speed governor brakes (below 1).
     governor_gain: robust mode: the governor's joint damping per unit of excess load (1/s).
     velocity_bound_rate: robust mode: near its limit a joint's acceleration is bounded by
-        this rate times its distance to the velocity limit (1/s; at most 1 / time_step).
+        this rate times its distance to the velocity limit (1/s; at most 1 / time_step),
+        capped at max_jerk / the largest acceleration limit so the jerk limit holds there.
     max_jerk: robust mode: the largest change of a commanded acceleration per second
         (rad/s^3); every step's q'' is reached from the last one at most this fast (the
         law, its saturation, the braking fallback and a task given while moving alike), so
         the accelerations stay continuous where the saturation or the step bounds would
-        make them jump. At least velocity_bound_rate x the largest acceleration limit
-        (checked where the planner is built).
+        make them jump.
     approach_acceleration: robust mode: the fraction eta of the acceleration limits the
         approach to a target plans to brake with (0 keeps (9)'s exponential approach).
         (9) factors into (s + r0)(s + k) with r0 the slower root: e' tracks -r0 e at the

@@ -191,8 +191,13 @@ class AccelerationPlanning:
         self._velocity_bounds = (
             (self.penalty.lower.tolist(), self.penalty.upper.tolist()) if self.penalty else None
         )
-        if parameters.robust and self.scaling and self.penalty:
-            _CheckJerkCoversVelocityBound(parameters, self.scaling.upper, -self.scaling.lower)
+        # The step bound near a velocity limit falls at rate x q'' (StepBounds): capped so
+        # that the jerk limit can follow it.
+        self._velocity_bound_rate = parameters.velocity_bound_rate
+        if self.scaling:
+            largest = float(max(self.scaling.upper.max(), -self.scaling.lower.min()))
+            jerk_rate = parameters.max_jerk / largest
+            self._velocity_bound_rate = min(self._velocity_bound_rate, jerk_rate)
         self.inverse_braking = None
         if parameters.robust and parameters.approach_acceleration > 0 and self.scaling:
             braking = np.minimum(self.scaling.upper, -self.scaling.lower)
@@ -328,7 +333,7 @@ class AccelerationPlanning:
         if accel is None and velocity is None:
             return a + b, 1.0, state.c_hat0, state.t0, False
         qd, qdd_previous, a, b = state.qd.tolist(), state.qdd.tolist(), a.tolist(), b.tolist()
-        lower, upper = StepBounds(accel, velocity, qd, params.velocity_bound_rate)
+        lower, upper = StepBounds(accel, velocity, qd, self._velocity_bound_rate)
         c = 1.0
         if accel is not None:
             d = GovernorDamping(a, qd, *accel, params.bias_margin, params.governor_gain)
@@ -457,21 +462,3 @@ def ClosestApproach(tcp_positions: np.ndarray, waypoints: np.ndarray) -> np.ndar
     """Smallest distance (m) of a TCP path (samples x 3) to each waypoint's position."""
     positions = np.atleast_2d(waypoints)[:, :3]
     return np.array([np.min(np.linalg.norm(tcp_positions - p, axis=1)) for p in positions])
-
-
-def _CheckJerkCoversVelocityBound(
-    parameters: PlannerConfig, upper: np.ndarray, lower_magnitude: np.ndarray
-) -> None:
-    """Refuses a max_jerk below what the velocity bound of StepBounds asks: a joint
-    approaching its velocity limit at acceleration a has its bound fall at
-    velocity_bound_rate x a (rad/s^3), which the jerk limit must be able to follow, or
-    the bound wins and the jerk exceeds max_jerk."""
-    needed = parameters.velocity_bound_rate * float(max(upper.max(), lower_magnitude.max()))
-    if parameters.max_jerk < needed:
-        raise ConfigurationError(
-            f"planner.max_jerk ({parameters.max_jerk:g} rad/s^3) must be at least "
-            f"planner.velocity_bound_rate x the largest acceleration limit "
-            f"({parameters.velocity_bound_rate:g} x {needed / parameters.velocity_bound_rate:g}"
-            f" = {needed:g}): the approach to a velocity limit would exceed it; lower "
-            "planner.velocity_bound_rate or raise planner.max_jerk"
-        )
