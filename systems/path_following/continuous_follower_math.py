@@ -95,7 +95,7 @@ class ContinuousConfig:
         centre, which swings the wrist fast (20 deg: 55 mm) and the arm fell behind.
     """
 
-    speed: float = Positive(0.08)
+    speed: float = Positive(0.05)
     min_speed: float = Positive(0.02)
     acceleration: float = Positive(0.4)
     lateral_acceleration: float = Positive(0.1)
