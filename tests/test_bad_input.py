@@ -214,6 +214,17 @@ BAD_INPUTS = [
         "'planner.joint_space_blend' has no effect",
     ),
     (
+        "path-planner-paper-mode-ignores-robust-key",
+        Run(PF, "motion=planner", "planner.robust=false", "planner.max_jerk=10"),
+        "'planner.max_jerk' has no effect with planner.robust=false",
+    ),
+    (
+        "panel-planner-robust-mode-ignores-paper-key",
+        Run(PO, "planner.parameters.scaling_recovery_rate=2"),
+        "'planner.parameters.scaling_recovery_rate' has no effect with "
+        "planner.parameters.robust=true",
+    ),
+    (
         "robust-mode-ignores-paper-key",
         Run(WP, "planner.scaling_recovery_rate=2"),
         "'planner.scaling_recovery_rate' has no effect with planner.robust=true",

@@ -66,6 +66,7 @@ from guidedarm.systems.markers.panel_operation_math import (
     PlannerFrames,
 )
 from guidedarm.systems.planning.acceleration_planner import AccelerationPlanner
+from guidedarm.systems.planning.acceleration_planner_config import CheckModeFields
 from guidedarm.systems.planning.acceleration_planner_math import PlannerConfig, PlanningError
 
 
@@ -304,6 +305,7 @@ def _replace_camera(station: StationScenario, name: str, camera, k: int) -> Stat
 def _MakePlanner(scenario: PanelOperationScenario) -> tuple[AccelerationPlanner, PlannerFrames]:
     """The task-driven AccelerationPlanner (MakeAccelerationPlanner) and its frames."""
     config = scenario.planner
+    CheckModeFields(config.parameters, "planner.parameters")
     planner = MakeAccelerationPlanner(
         scenario.station,
         scenario.arm,

@@ -49,6 +49,7 @@ from guidedarm.systems.path_following.path_follower_math import (
 )
 from guidedarm.systems.path_following.tool_pose_ik_math import ToolPoseIkConfig, ToolPoseSolver
 from guidedarm.systems.path_following.workspace import WorkspaceConfig
+from guidedarm.systems.planning.acceleration_planner_config import CheckModeFields
 from guidedarm.systems.planning.acceleration_planner_math import PlannerConfig
 from guidedarm.systems.plant_frames import GetScopedFrame
 from guidedarm.systems.tof.tof_tool_sensor import MakeDetectionGrid
@@ -171,6 +172,8 @@ def _CheckScenario(scenario: PathFollowingScenario) -> None:
         )
     _CheckMotionKeys(scenario)
     _CheckExecutorKeys(scenario)
+    if scenario.motion == "planner":
+        CheckModeFields(scenario.planner)
     arm = scenario.station.arms[scenario.arm]
     if scenario.motion == "continuous" and scenario.continuous.servo_period < arm.control_period:
         raise ConfigurationError(

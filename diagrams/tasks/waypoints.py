@@ -27,8 +27,7 @@ from guidedarm.systems.config_checks import NonNegative, Positive
 from guidedarm.systems.errors import ConfigurationError
 from guidedarm.systems.planning.acceleration_planner import AccelerationPlanner
 from guidedarm.systems.planning.acceleration_planner_config import (
-    PAPER_ONLY_FIELDS,
-    ROBUST_ONLY_FIELDS,
+    CheckModeFields,
 )
 from guidedarm.systems.planning.acceleration_planner_math import (
     AccelerationPlanning,
@@ -117,17 +116,9 @@ def MakePlannerSetup(scenario: WaypointsScenario) -> PlannerSetup:
 
 def CheckReadKeys(scenario: WaypointsScenario) -> None:
     """Refuses a key set away from its default that the run would not read: a planner
-    field of the other mode (ROBUST_ONLY_FIELDS, PAPER_ONLY_FIELDS), or a joint limit that
+    field of the other mode (CheckModeFields), or a joint limit that
     `limits` switches off."""
-    defaults, planner = PlannerConfig(), scenario.planner
-    mode, other = ("robust", "false") if planner.robust else ("paper's", "true")
-    unread = PAPER_ONLY_FIELDS if planner.robust else ROBUST_ONLY_FIELDS
-    for name in unread:
-        if getattr(planner, name) != getattr(defaults, name):
-            raise ConfigurationError(
-                f"'planner.{name}' has no effect with planner.robust={str(planner.robust).lower()}"
-                f" (the {mode} mode does not read it): remove it or set planner.robust={other}"
-            )
+    CheckModeFields(scenario.planner)
     scenario_defaults = WaypointsScenario()
     for key, needs in (("max_joint_velocity", "velocity"), ("max_joint_acceleration", "accel")):
         changed = getattr(scenario, key) != getattr(scenario_defaults, key)
