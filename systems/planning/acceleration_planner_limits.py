@@ -363,7 +363,7 @@ def SaturatedLeastSquares(
     x = list(desired)
     held: list[int] = []
     values: list[float] = []
-    P: list[list[float]] | None = None
+    P: dict[int, list[float]] = {}  # the rows of M^-1 = F F^T of the held joints
     for _ in range(len(x)):
         # a held joint sits exactly on its bound, so it is never found again
         worst, joint, value = 0.0, -1, 0.0
@@ -380,8 +380,9 @@ def SaturatedLeastSquares(
         if metric_factor is None:
             x[joint] = value
             continue
-        if P is None:  # M^-1 in scalar form, once: cheaper than a product per held joint
-            P = (metric_factor @ metric_factor.T).tolist()
+        # row j of F F^T is F F[j] (M^-1 is symmetric): one product per held joint, as
+        # floats, instead of all six rows
+        P[joint] = (metric_factor @ metric_factor[joint]).tolist()
         shift = [v - desired[j] for j, v in zip(held, values, strict=True)]
         if len(held) == 1:  # the common cases in closed form
             w = shift[0] / P[joint][joint]
