@@ -132,7 +132,8 @@ def InverseAndConditioning(kin: TcpKinematics, floor: float) -> tuple[np.ndarray
     # which cost three times the 6 x 6 inverse; a singular J gives NaNs (and NumPy's
     # "invalid value" warning), which fail the bound test below.
     inverse = _umath_linalg.inv(kin.J, signature="d->d")
-    norm2 = float(np.vdot(inverse, inverse))
+    flat = inverse.reshape(-1)
+    norm2 = float(flat @ flat)
     if norm2 <= 1.0 / (floor * floor):  # False for NaN as well
         return inverse, 1.0 / math.sqrt(norm2)
     return None, kin.min_singular_value

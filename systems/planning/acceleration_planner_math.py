@@ -410,11 +410,10 @@ class AccelerationPlanning:
     def _Reached(self, kin: TcpKinematics, index: int, e: np.ndarray) -> bool:
         """The TCP within the tolerances of waypoint `index`, e the error to it."""
         params = self.parameters
+        if _Norm(e[:3]) > params.position_tolerance:
+            return False
         orientation = _Norm(e[3:]) if params.robust else float(np.max(np.abs(e[3:])))
-        return bool(
-            _Norm(e[:3]) <= params.position_tolerance
-            and orientation <= params.orientation_tolerance
-        )
+        return orientation <= params.orientation_tolerance
 
     def _AdvanceWaypoints(
         self, state: PlannerState, kin: TcpKinematics
