@@ -134,8 +134,8 @@ def ApproachTerms(
     r0, k0, r_max = rates
     # d and its rate in scalar arithmetic (six joints cost less than NumPy's calls)
     x4_sum, rate_sum = 0.0, 0.0
-    u_list = u.tolist()
-    for u_i, w_i, qd_i in zip(u_list, inverse_braking, qd.tolist(), strict=True):
+    u_list, qd_list = u.tolist(), qd.tolist()
+    for u_i, w_i, qd_i in zip(u_list, inverse_braking, qd_list, strict=True):
         x = u_i * w_i  # |x| the joint's term of d (w_i > 0)
         x2 = x * x
         x4_sum += x2 * x2
@@ -149,7 +149,8 @@ def ApproachTerms(
         r_dot = -0.25 * h * h / r * rate_sum / (d * d * d)
     k = k0 * r / r0
     gain_v, gain_p = k + r, k * r + r_dot
-    b = [-gain_v * v_i - gain_p * u_i for v_i, u_i in zip(v.tolist(), u_list, strict=True)]
+    v_list = qd_list if v is qd else v.tolist()
+    b = [-gain_v * v_i - gain_p * u_i for v_i, u_i in zip(v_list, u_list, strict=True)]
     return [-m for m in minus_a.tolist()], b
 
 
@@ -296,18 +297,14 @@ class AccelerationPlanning:
             qdd, c, c_hat0, t0, braking = self._LimitRobust(state, a, b, kin, damping, inverse)
         else:
             qdd, c, c_hat0, t0, braking = (*self._LimitSeed(state, a, b), False)
-        qdd = _Floats(qdd)
-        if not math.isfinite(sum(qdd)):
+        qdd = np.asarray(qdd, float)
+        if not math.isfinite(float(qdd @ qdd)):
             raise PlanningError(f"non-finite joint acceleration at t = {state.t:.3f} s")
-        # q'' held over the step; in scalar arithmetic, as the robust step's limits
-        dt, half_dt = params.time_step, 0.5 * params.time_step
-        qd = state.qd.tolist()
-        qd_next = [qd_i + dt * qdd_i for qd_i, qdd_i in zip(qd, qdd, strict=True)]
-        q = [
-            q_i + half_dt * (qd_i + next_i)
-            for q_i, qd_i, next_i in zip(state.q.tolist(), qd, qd_next, strict=True)
-        ]
-        state.q, state.qd, state.qdd = np.array(q), np.array(qd_next), np.array(qdd)
+        dt = params.time_step
+        qd_next = state.qd + dt * qdd
+        state.q = state.q + (0.5 * dt) * (state.qd + qd_next)  # q'' held over the step
+        state.qd = qd_next
+        state.qdd = qdd
         state.c, state.c_hat0, state.t0, state.braking = c, c_hat0, t0, braking
         state.t = state.t + dt
         return state
