@@ -363,7 +363,7 @@ def SaturatedLeastSquares(
     x = list(desired)
     held: list[int] = []
     values: list[float] = []
-    P: dict[int, list[float]] = {}  # the rows of M^-1 = F F^T of the held joints
+    P: list[list[float]] = []  # M^-1 = F F^T as floats, once a joint is held
     for _ in range(len(x)):
         joint = MostViolated(x, lower, upper)
         if joint < 0:
@@ -374,13 +374,15 @@ def SaturatedLeastSquares(
         if metric_factor is None:
             x[joint] = value
             continue
-        # row j of F F^T is F F[j] (M^-1 is symmetric): one product per held joint, as
-        # floats, instead of all six rows
-        P[joint] = (metric_factor @ metric_factor[joint]).tolist()
-        if len(held) == 1:  # the common cases in closed form
+        if not P:  # one product for all rows: cheaper than one per held joint
+            P = (metric_factor @ metric_factor.T).tolist()
+        # the common cases in closed form; the held joints set exactly on their bounds
+        if len(held) == 1:
             w = (value - desired[joint]) / P[joint][joint]
             x = [d_i + w * p_i for d_i, p_i in zip(desired, P[joint], strict=True)]
-        elif len(held) == 2:
+            x[joint] = value
+            continue
+        if len(held) == 2:
             j, k = held
             shift_j, shift_k = values[0] - desired[j], value - desired[k]
             p_jj, p_jk, p_kk = P[j][j], P[j][k], P[k][k]
@@ -391,14 +393,15 @@ def SaturatedLeastSquares(
                 d_i + w_j * a_i + w_k * b_i
                 for d_i, a_i, b_i in zip(desired, P[j], P[k], strict=True)
             ]
-        else:
-            shift = [v - desired[j] for j, v in zip(held, values, strict=True)]
-            weights = CholeskySolve([[P[j][k] for k in held] for j in held], shift)
-            x = list(desired)
-            for k, w in zip(held, weights, strict=True):
-                x = [x_i + w * p_i for x_i, p_i in zip(x, P[k], strict=True)]
+            x[j], x[k] = values
+            continue
+        shift = [v - desired[j] for j, v in zip(held, values, strict=True)]
+        weights = CholeskySolve([[P[j][k] for k in held] for j in held], shift)
+        x = list(desired)
+        for k, w in zip(held, weights, strict=True):
+            x = [x_i + w * p_i for x_i, p_i in zip(x, P[k], strict=True)]
         for j, v in zip(held, values, strict=True):
-            x[j] = v  # exactly at the bound, not at it to rounding
+            x[j] = v
     return x, held
 
 
