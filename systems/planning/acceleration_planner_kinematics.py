@@ -99,8 +99,12 @@ def RotationFromVector(v: np.ndarray) -> np.ndarray:
     theta = math.sqrt(v @ v)
     K = np.array([[0.0, -v[2], v[1]], [v[2], 0.0, -v[0]], [-v[1], v[0], 0.0]])
     if theta < 1e-8:
-        return np.eye(3) + K
-    return np.eye(3) + (math.sin(theta) / theta) * K + ((1 - math.cos(theta)) / theta**2) * K @ K
+        return _IDENTITY + K
+    return _IDENTITY + (math.sin(theta) / theta) * K + ((1 - math.cos(theta)) / theta**2) * K @ K
+
+
+_IDENTITY = np.eye(3)
+_IDENTITY.flags.writeable = False
 
 
 def RotationError(R: np.ndarray, R_target: np.ndarray) -> np.ndarray:
@@ -128,7 +132,8 @@ def InverseAndConditioning(kin: TcpKinematics, floor: float) -> tuple[np.ndarray
     # which cost three times the 6 x 6 inverse; a singular J gives NaNs (and NumPy's
     # "invalid value" warning), which fail the bound test below.
     inverse = _umath_linalg.inv(kin.J, signature="d->d")
-    norm2 = float(np.vdot(inverse, inverse))
+    flat = inverse.reshape(-1)
+    norm2 = float(flat @ flat)
     if norm2 <= 1.0 / (floor * floor):  # False for NaN as well
         return inverse, 1.0 / math.sqrt(norm2)
     return None, kin.min_singular_value
@@ -206,6 +211,8 @@ class ArmKinematics:
         self.tool_frame = tool_frame
         self.min_singular_value = min_singular_value
         self._context = plant.CreateDefaultContext()
+        # the arm is the plant's whole state: set it without the model-instance mapping
+        self._whole_state = plant.num_multibody_states() == 12
         velocity_start = np.arange(plant.num_velocities())
         columns = plant.GetVelocitiesFromArray(instance, velocity_start).astype(int)
         # the arm's columns of J_g (None: all of them, in order)
@@ -218,7 +225,10 @@ class ArmKinematics:
         """Kinematics at joint positions q (rad) and velocities qd (rad/s): one update of
         the plant's context, then the pose, J_g and the bias acceleration from its caches."""
         plant, context = self.plant, self._context
-        plant.SetPositionsAndVelocities(context, self.instance, np.concatenate((q, qd)))
+        if self._whole_state:
+            plant.SetPositionsAndVelocities(context, np.concatenate((q, qd)))
+        else:
+            plant.SetPositionsAndVelocities(context, self.instance, np.concatenate((q, qd)))
         X_BT = plant.CalcRelativeTransform(context, self.base_frame, self.tool_frame)
         pose = X_BT.GetAsMatrix34()
         # T's origin, measured and expressed in B, with respect to v; rows [x; rotation].
@@ -295,10 +305,15 @@ def BlendedTarget(p_i: np.ndarray, p_next: np.ndarray, sigma: float) -> np.ndarr
 
 
 def BlendedPose(
-    pose_i: tuple[np.ndarray, np.ndarray], pose_next: tuple[np.ndarray, np.ndarray], sigma: float
+    pose_i: tuple[np.ndarray, np.ndarray],
+    pose_next: tuple[np.ndarray, np.ndarray],
+    sigma: float,
+    rotation: np.ndarray | None = None,
 ) -> tuple[np.ndarray, np.ndarray]:
     """Eq. (19) for (x, R) poses: the position interpolated linearly, the rotation along
-    the geodesic R_i exp(sigma log(R_i^T R_{i+1})) (robust mode)."""
+    the geodesic R_i exp(sigma log(R_i^T R_{i+1})) (robust mode; `rotation`: log(R_i^T
+    R_{i+1}) if already known, a constant of the waypoint pair)."""
     (x_i, R_i), (x_next, R_next) = pose_i, pose_next
-    step = RotationFromVector(sigma * RotationVector(R_i.T @ R_next))
-    return x_i + sigma * (x_next - x_i), R_i @ step
+    if rotation is None:
+        rotation = RotationVector(R_i.T @ R_next)
+    return x_i + sigma * (x_next - x_i), R_i @ RotationFromVector(sigma * rotation)

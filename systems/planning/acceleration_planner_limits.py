@@ -363,47 +363,61 @@ def SaturatedLeastSquares(
     x = list(desired)
     held: list[int] = []
     values: list[float] = []
-    P: list[list[float]] | None = None
+    P: list[list[float]] = []  # M^-1 = F F^T as floats, once a joint is held
     for _ in range(len(x)):
-        # a held joint sits exactly on its bound, so it is never found again
-        worst, joint, value = 0.0, -1, 0.0
-        for i, (x_i, lo, hi) in enumerate(zip(x, lower, upper, strict=True)):
-            if x_i > hi:
-                if x_i - hi > worst:
-                    worst, joint, value = x_i - hi, i, hi
-            elif x_i < lo and lo - x_i > worst:
-                worst, joint, value = lo - x_i, i, lo
+        joint = MostViolated(x, lower, upper)
         if joint < 0:
             return x, held
+        value = upper[joint] if x[joint] > upper[joint] else lower[joint]
         held.append(joint)
         values.append(value)
         if metric_factor is None:
             x[joint] = value
             continue
-        if P is None:  # M^-1 in scalar form, once: cheaper than a product per held joint
+        if not P:  # one product for all rows: cheaper than one per held joint
             P = (metric_factor @ metric_factor.T).tolist()
-        shift = [v - desired[j] for j, v in zip(held, values, strict=True)]
-        if len(held) == 1:  # the common cases in closed form
-            w = shift[0] / P[joint][joint]
+        # the common cases in closed form; the held joints set exactly on their bounds
+        if len(held) == 1:
+            w = (value - desired[joint]) / P[joint][joint]
             x = [d_i + w * p_i for d_i, p_i in zip(desired, P[joint], strict=True)]
-        elif len(held) == 2:
+            x[joint] = value
+            continue
+        if len(held) == 2:
             j, k = held
+            shift_j, shift_k = values[0] - desired[j], value - desired[k]
             p_jj, p_jk, p_kk = P[j][j], P[j][k], P[k][k]
             det = p_jj * p_kk - p_jk * p_jk
-            w_j = (p_kk * shift[0] - p_jk * shift[1]) / det
-            w_k = (p_jj * shift[1] - p_jk * shift[0]) / det
+            w_j = (p_kk * shift_j - p_jk * shift_k) / det
+            w_k = (p_jj * shift_k - p_jk * shift_j) / det
             x = [
                 d_i + w_j * a_i + w_k * b_i
                 for d_i, a_i, b_i in zip(desired, P[j], P[k], strict=True)
             ]
-        else:
-            weights = CholeskySolve([[P[j][k] for k in held] for j in held], shift)
-            x = list(desired)
-            for k, w in zip(held, weights, strict=True):
-                x = [x_i + w * p_i for x_i, p_i in zip(x, P[k], strict=True)]
+            x[j], x[k] = values
+            continue
+        shift = [v - desired[j] for j, v in zip(held, values, strict=True)]
+        weights = CholeskySolve([[P[j][k] for k in held] for j in held], shift)
+        x = list(desired)
+        for k, w in zip(held, weights, strict=True):
+            x = [x_i + w * p_i for x_i, p_i in zip(x, P[k], strict=True)]
         for j, v in zip(held, values, strict=True):
-            x[j] = v  # exactly at the bound, not at it to rounding
+            x[j] = v
     return x, held
+
+
+def MostViolated(x: list[float], lower: list[float], upper: list[float]) -> int:
+    """The joint whose x lies furthest outside [lower, upper] (the first of equals), -1
+    if none is outside."""
+    worst, joint = 0.0, -1
+    for i, x_i in enumerate(x):
+        excess = x_i - upper[i]
+        if excess > worst:
+            worst, joint = excess, i
+            continue
+        excess = lower[i] - x_i
+        if excess > worst:
+            worst, joint = excess, i
+    return joint
 
 
 def CholeskySolve(A: list[list[float]], y: list[float]) -> list[float]:

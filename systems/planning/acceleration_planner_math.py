@@ -49,6 +49,7 @@ from guidedarm.systems.planning.acceleration_planner_kinematics import (
     InverseAndConditioning,
     PlanningError,
     PoseError,
+    RotationVector,
     TcpKinematics,
     TrackingError,
 )
@@ -108,8 +109,9 @@ def ApproachTerms(
     inverse_braking: list[float],
     damping: float = 0.0,
     inverse: np.ndarray | None = None,
-) -> tuple[np.ndarray, np.ndarray]:
-    """The robust mode's (a, b) with the braking approach: the error dynamics
+) -> tuple[list[float], list[float]]:
+    """The robust mode's (a, b) (rad/s^2, as floats for the robust step's limits) with the
+    braking approach: the error dynamics
     e'' = -(k + r) e' - (k r + r') e, i.e. e' tracks -r e at the rate k. (9) is this with
     constants r = r0 and k = k0, its roots (rates = (r0, k0, r_max), 1/s). Here
     r = sqrt(r0^2 + h), h = 2 / (d + 2 / (r_max^2 - r0^2)), grows as the joint
@@ -132,7 +134,8 @@ def ApproachTerms(
     r0, k0, r_max = rates
     # d and its rate in scalar arithmetic (six joints cost less than NumPy's calls)
     x4_sum, rate_sum = 0.0, 0.0
-    for u_i, w_i, qd_i in zip(u.tolist(), inverse_braking, qd.tolist(), strict=True):
+    u_list, qd_list = u.tolist(), qd.tolist()
+    for u_i, w_i, qd_i in zip(u_list, inverse_braking, qd_list, strict=True):
         x = u_i * w_i  # |x| the joint's term of d (w_i > 0)
         x2 = x * x
         x4_sum += x2 * x2
@@ -145,7 +148,10 @@ def ApproachTerms(
         r = math.sqrt(r0 * r0 + h)
         r_dot = -0.25 * h * h / r * rate_sum / (d * d * d)
     k = k0 * r / r0
-    return -minus_a, -(k + r) * v - (k * r + r_dot) * u
+    gain_v, gain_p = k + r, k * r + r_dot
+    v_list = qd_list if v is qd else v.tolist()
+    b = [-gain_v * v_i - gain_p * u_i for v_i, u_i in zip(v_list, u_list, strict=True)]
+    return [-m for m in minus_a.tolist()], b
 
 
 class AccelerationPlanning:
@@ -234,6 +240,11 @@ class AccelerationPlanning:
         self._poses = [
             (row[:3].copy(), RotationMatrix(RollPitchYaw(row[3:])).matrix()) for row in waypoints
         ]
+        # log(R_i^T R_i+1) of each pair, the geodesic of the blend (19), once per task
+        self._pair_rotations = [
+            RotationVector(R_i.T @ R_next)
+            for (_, R_i), (_, R_next) in zip(self._poses[:-1], self._poses[1:], strict=True)
+        ]
 
     def WithWaypoints(
         self, waypoints: np.ndarray, joint_waypoints: np.ndarray | None = None
@@ -293,6 +304,7 @@ class AccelerationPlanning:
             qdd, c, c_hat0, t0, braking = self._LimitRobust(state, a, b, kin, damping, inverse)
         else:
             qdd, c, c_hat0, t0, braking = (*self._LimitSeed(state, a, b), False)
+        qdd = np.asarray(qdd, float)
         if not math.isfinite(float(qdd @ qdd)):
             raise PlanningError(f"non-finite joint acceleration at t = {state.t:.3f} s")
         dt = params.time_step
@@ -331,8 +343,9 @@ class AccelerationPlanning:
         params = self.parameters
         accel, velocity = self._acceleration_bounds, self._velocity_bounds
         if accel is None and velocity is None:
-            return a + b, 1.0, state.c_hat0, state.t0, False
-        qd, qdd_previous, a, b = state.qd.tolist(), state.qdd.tolist(), a.tolist(), b.tolist()
+            qdd = [a_i + b_i for a_i, b_i in zip(_Floats(a), _Floats(b), strict=True)]
+            return qdd, 1.0, state.c_hat0, state.t0, False
+        qd, qdd_previous, a, b = state.qd.tolist(), state.qdd.tolist(), _Floats(a), _Floats(b)
         lower, upper = StepBounds(accel, velocity, qd, self._velocity_bound_rate)
         c = 1.0
         if accel is not None:
@@ -344,19 +357,19 @@ class AccelerationPlanning:
         desired = [a_i + c * b_i for a_i, b_i in zip(a, b, strict=True)]
         window = JerkWindow(desired, qdd_previous, max_change, lower, upper)
         if window[2]:  # within the bounds at this c: no saturation, no braking
-            return np.array(desired), c, state.c_hat0, state.t0, False
+            return desired, c, state.c_hat0, state.t0, False
         c_lo, c_hi = AdmissibleScaling(a, b, lower, upper)
         if c_lo > c_hi:  # no scaling of the law meets the bounds: brake
             braking = BrakingAcceleration(
                 qd, qdd_previous, lower, upper, params.time_step, max_change
             )
-            return np.array(braking), 0.0, 0.0, state.t, True
+            return braking, 0.0, 0.0, state.t, True
         metric = None
         # the TCP's metric where J is well conditioned, joint by joint where it is damped
         if params.saturation_metric == "task" and damping == 0.0:
             metric = SaturationMetricFactor(kin.J, inverse)
         qdd, _ = SaturatedLeastSquares(desired, window[0], window[1], metric)
-        return np.array(qdd), c, state.c_hat0, state.t0, False
+        return qdd, c, state.c_hat0, state.t0, False
 
     def _BlendJointSpace(
         self, state: PlannerState, sigma: float, a: np.ndarray, b: np.ndarray
@@ -377,7 +390,7 @@ class AccelerationPlanning:
         b_joint = -params.gain_v * state.qd - params.gain_p * (state.q - q_target)
         if self.penalty is not None:
             b_joint = b_joint + self.penalty.Perturbation(state.qd)
-        return (1.0 - w) * a, (1.0 - w) * b + w * b_joint
+        return (1.0 - w) * np.asarray(a), (1.0 - w) * np.asarray(b) + w * b_joint
 
     def _Target(self, state: PlannerState):
         """The location the error is measured to: p_i, or the blend (19) towards p_i+1 (a
@@ -386,7 +399,9 @@ class AccelerationPlanning:
         if self.parameters.robust:
             if not state.inside:
                 return self._poses[i]
-            return BlendedPose(self._poses[i], self._poses[i + 1], state.sigma)
+            return BlendedPose(
+                self._poses[i], self._poses[i + 1], state.sigma, self._pair_rotations[i]
+            )
         if not state.inside:
             return self.waypoints[i]
         return BlendedTarget(self.waypoints[i], self.waypoints[i + 1], state.sigma)
@@ -399,11 +414,10 @@ class AccelerationPlanning:
     def _Reached(self, kin: TcpKinematics, index: int, e: np.ndarray) -> bool:
         """The TCP within the tolerances of waypoint `index`, e the error to it."""
         params = self.parameters
+        if _Norm(e[:3]) > params.position_tolerance:
+            return False
         orientation = _Norm(e[3:]) if params.robust else float(np.max(np.abs(e[3:])))
-        return bool(
-            _Norm(e[:3]) <= params.position_tolerance
-            and orientation <= params.orientation_tolerance
-        )
+        return orientation <= params.orientation_tolerance
 
     def _AdvanceWaypoints(
         self, state: PlannerState, kin: TcpKinematics
@@ -438,9 +452,15 @@ class AccelerationPlanning:
         return state, None
 
 
+def _Floats(v: np.ndarray | list[float]) -> list[float]:
+    """v as a list of floats (the robust step's limits work on floats, see StepBounds)."""
+    return v.tolist() if isinstance(v, np.ndarray) else v
+
+
 def _Norm(v: np.ndarray) -> float:
-    """|v| of a short vector (np.linalg.norm's dispatch costs more than the sum)."""
-    return math.sqrt(float(v @ v))
+    """|v| of a 3-vector (scalar arithmetic: NumPy's dispatch costs more than the sum)."""
+    x, y, z = v.tolist()
+    return math.sqrt(x * x + y * y + z * z)
 
 
 def RunPlanning(
