@@ -165,9 +165,7 @@ class ContinuousFollower(LeafSystem):
             self._servo_failure.Eval(context) if self._servo_failure.HasValue(context) else ""
         )
         if servo_failure:
-            run = replace(
-                run, failure=f"the servo stopped the arm at t = {t:.2f} s: {servo_failure}"
-            )
+            run = _CannotFollow(run, f"the servo stopped the arm at t = {t:.2f} s: {servo_failure}")
         if not run.failure:
             reference = Advance(
                 run.reference, run.estimate, self._config.servo_period, self._config
@@ -182,13 +180,11 @@ class ContinuousFollower(LeafSystem):
             return replace(run, still_q=q.copy(), still_since=t)
         if t - run.still_since < STALL_TIME:
             return run
-        if run.reference.mode == FOLLOW:
-            return replace(
-                run,
-                failure=f"the arm has not moved for {STALL_TIME:.0f} s at t = {t:.2f} s while "
-                "following: joint limits, the workspace or a singularity hold it",
-            )
-        return replace(run, reference=replace(run.reference, mode=DONE, v=0.0))
+        return _CannotFollow(
+            run,
+            f"the arm has not moved for {STALL_TIME:.0f} s at t = {t:.2f} s while following: "
+            "joint limits, the workspace or a singularity hold it",
+        )
 
     def _Read(self, context: Context, run: _Run, stamp: float) -> _Run:
         """One new reading: motion compensation, the hose point, the estimate, the mode."""
@@ -229,16 +225,10 @@ class ContinuousFollower(LeafSystem):
                 valid.astype(float),
             ]
         )
-        failure = ""
         lag = np.linalg.norm(
             self._ToolPose(run.history.At(context.get_time())).translation() - run.reference.r
         )
-        if lag > MAX_LAG:
-            failure = (
-                f"the arm fell {1000 * lag:.0f} mm behind the target at reading {run.step} "
-                f"(t = {context.get_time():.2f} s): joint limits or a singularity"
-            )
-        return replace(
+        run = replace(
             run,
             reference=reference,
             estimate=estimate,
@@ -246,8 +236,14 @@ class ContinuousFollower(LeafSystem):
             step=run.step + 1,
             record=record,
             grid=np.concatenate([detected.ravel(), errors.ravel()]).astype(float),
-            failure=failure,
         )
+        if lag > MAX_LAG:
+            run = _CannotFollow(
+                run,
+                f"the arm fell {1000 * lag:.0f} mm behind the target at reading {run.step - 1} "
+                f"(t = {context.get_time():.2f} s): joint limits or a singularity",
+            )
+        return run
 
     def _CalcTarget(self, context: Context, output: AbstractValue) -> None:
         output.set_value(self.Loop(context).reference.Pose())
@@ -255,3 +251,13 @@ class ContinuousFollower(LeafSystem):
     def _CalcMode(self, context: Context, output: BasicVector) -> None:
         run = self.Loop(context)
         output.SetFromVector([run.reference.mode, run.step])
+
+
+def _CannotFollow(run: _Run, why: str) -> _Run:
+    """The arm cannot go where the target is (it stalls, lags MAX_LAG behind, or the servo
+    stops it at the workspace): while following, the run fails with `why`; during a search
+    or back-up past the latest estimate, the hose ends there as far as the arm can reach
+    (DONE; a search mid-hose then fails on its coverage)."""
+    if run.reference.mode == FOLLOW:
+        return replace(run, failure=why)
+    return replace(run, reference=replace(run.reference, mode=DONE, v=0.0))
