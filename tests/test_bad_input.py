@@ -352,7 +352,7 @@ BAD_INPUTS = [
     ),
     (
         "joint-moves-ignore-continuous",
-        Run(PF, "continuous.speed=0.05"),
+        Run(PF, "continuous.speed=0.07"),
         "'continuous.speed' has no effect with motion=joint_trajectory",
     ),
     (
