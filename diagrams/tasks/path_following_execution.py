@@ -112,11 +112,9 @@ def _Simulate(setup: Setup, station: Diagram, context: RunContext, visualized: b
     fault = None
     try:
         simulator.AdvanceTo(setup.max_time)
-    except RunFailedError as e:  # a device fault: the summary keeps what was measured so far
-        fault = str(e)
-        context.progress(f"{fault}; writing the summary", force=True)
-    except KeyboardInterrupt as e:  # Ctrl-C or SIGTERM: the same
-        fault = InterruptedFailure(e)
+    except (RunFailedError, KeyboardInterrupt) as e:
+        # a device fault, Ctrl-C or SIGTERM: the summary keeps what was measured so far
+        fault = InterruptedFailure(e) if isinstance(e, KeyboardInterrupt) else str(e)
         context.progress(f"{fault}; writing the summary", force=True)
     wall_time = time.perf_counter() - start
     if visualized:

@@ -28,20 +28,6 @@ ROBUST_ONLY_FIELDS = (
 PAPER_ONLY_FIELDS = ("scaling_recovery_rate", "min_singular_value")
 
 
-def CheckModeFields(config: "PlannerConfig", key: str = "planner") -> None:
-    """Refuses (ConfigurationError, one line) a field of `config` set away from its default
-    that config's mode does not read (ROBUST_ONLY_FIELDS, PAPER_ONLY_FIELDS); `key` is the
-    config's place in the scenario, for the message."""
-    defaults = PlannerConfig()
-    mode, other = ("robust", "false") if config.robust else ("paper's", "true")
-    for name in PAPER_ONLY_FIELDS if config.robust else ROBUST_ONLY_FIELDS:
-        if getattr(config, name) != getattr(defaults, name):
-            raise ConfigurationError(
-                f"'{key}.{name}' has no effect with {key}.robust={str(config.robust).lower()}"
-                f" (the {mode} mode does not read it): remove it or set {key}.robust={other}"
-            )
-
-
 @dataclass
 class PlannerConfig:
     """Gains and settings of the planner (defaults: the paper's values where it gives them).
@@ -168,3 +154,17 @@ class PlannerConfig:
         approaches a target (nan for complex roots)."""
         discriminant = self.gain_v**2 - 4 * self.gain_p
         return 0.5 * (self.gain_v - math.sqrt(discriminant)) if discriminant >= 0 else math.nan
+
+
+def CheckModeFields(config: PlannerConfig, key: str = "planner") -> None:
+    """Refuses (ConfigurationError, one line) a field of `config` set away from its default
+    that config's mode does not read (ROBUST_ONLY_FIELDS, PAPER_ONLY_FIELDS); `key` is the
+    config's place in the scenario, for the message."""
+    defaults = PlannerConfig()
+    mode, other = ("robust", "false") if config.robust else ("paper's", "true")
+    for name in PAPER_ONLY_FIELDS if config.robust else ROBUST_ONLY_FIELDS:
+        if getattr(config, name) != getattr(defaults, name):
+            raise ConfigurationError(
+                f"'{key}.{name}' has no effect with {key}.robust={str(config.robust).lower()}"
+                f" (the {mode} mode does not read it): remove it or set {key}.robust={other}"
+            )
