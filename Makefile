@@ -22,11 +22,14 @@ demo: $(STAMP)
 	$(BIN)/guidedarm demo-index runs; \
 	echo "make demo: wrote summary.json, plots and replay.html for each scenario under runs/, and runs/index.html"
 
+# --no-loadscope-reorder keeps the order of tests/conftest.py (slow modules first).
+# --max-worker-restart=0: after replacing a crashed worker, pytest-xdist 3.8's loadfile
+# scheduler can wait forever (pytest-xdist#1313); a crash ends the session instead.
 test: $(STAMP)
 	sh tests/setup_browser.sh
 	$(BIN)/ruff check .
 	$(BIN)/ruff format --check .
-	$(BIN)/pytest -n 2 --dist loadfile
+	$(BIN)/pytest -n 2 --dist loadfile --no-loadscope-reorder --max-worker-restart=0
 
 lint: $(STAMP)
 	$(BIN)/ruff check . && $(BIN)/ruff format --check .

@@ -110,6 +110,8 @@ class FreezingNachiController:
                 self.last_reply = time.monotonic()
 
     def close(self) -> None:
+        with contextlib.suppress(OSError):  # wakes an accept() that no client reached
+            self._server.shutdown(socket.SHUT_RDWR)
         self._server.close()
 
 

@@ -60,6 +60,7 @@ def Camera(replay: Replay) -> tuple[np.ndarray, np.ndarray]:
     return to_world @ position, to_world @ target
 
 
+@pytest.mark.slow
 def test_every_demo_replay_holds_its_overlays(runs):
     for name in DemoScenarios():
         replay = Replay(runs / name / "replay.html")

@@ -147,6 +147,7 @@ def test_example_files_load_and_assets_regenerate(tmp_path):
         assert committed.read_bytes() == path.read_bytes(), f"{path.name} is stale"
 
 
+@pytest.mark.slow
 def test_tilt_study_reproduces_table_3(run_cli, tmp_path):
     code, _, err = run_cli("marker-study", "tilt", "--out", tmp_path)
     assert code == 0, err

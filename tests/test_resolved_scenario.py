@@ -30,6 +30,7 @@ def _Summary(out) -> dict:
         ("panel_operation", ["random_seed=4", "switch=3", "operation.motion=joint_trajectory"]),
     ],
 )
+@pytest.mark.slow
 def test_resolved_scenario_repeats_the_run(tmp_path, run_cli, name, overrides):
     first, second = tmp_path / "first", tmp_path / "second"
     settings = [item for o in overrides for item in ("--set", o)]

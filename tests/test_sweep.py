@@ -126,6 +126,7 @@ def test_every_shipped_campaign_resolves_against_its_scenario():
         assert f"task: {job.task}" in job.scenario_yaml
 
 
+@pytest.mark.slow
 def test_sweep_records_rows_failures_and_resumes(tmp_path, run_cli):
     # The middle job passes every check at load but fails its run (final error bound).
     zipped = "zip: {max_speed: [2.5, 2.0, 1.5], max_final_error: [0.01, 1.0e-15, 0.01]}\n"
@@ -171,6 +172,7 @@ def test_sweep_records_rows_failures_and_resumes(tmp_path, run_cli):
     assert code == 2 and "not in this campaign" in err
 
 
+@pytest.mark.slow
 def test_ctrl_c_leaves_a_consistent_table_and_the_rerun_finishes(tmp_path):
     campaign = _Write(tmp_path, TOUR + "grid: {max_speed: [2.0, 2.2, 2.4, 2.6, 2.8, 3.0]}\n")
     out = tmp_path / "out"

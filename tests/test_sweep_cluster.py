@@ -67,6 +67,7 @@ def _Comparable(rows: list[dict]) -> list[dict]:
     return [{k: v for k, v in r.items() if k not in PLACE_AND_TIME} for r in rows]
 
 
+@pytest.mark.slow
 def test_an_existing_cluster_gives_the_results_of_the_local_run(tmp_path, cluster, run_cli):
     address, _ = cluster
     campaign = tmp_path / "campaign.yaml"

@@ -9,6 +9,7 @@ included); 130 interrupted (Ctrl-C or SIGTERM) outside a run; 141 stdout closed 
 from __future__ import annotations
 
 import argparse
+import gc
 import importlib
 import os
 import pkgutil
@@ -18,6 +19,7 @@ import threading
 
 import guidedarm.diagrams.cli as cli_package
 from guidedarm.systems.errors import ConfigurationError, GuidedArmError
+from guidedarm.systems.hardware.arm_link import CloseAllArmLinks, ReportStopErrors
 
 EXIT_RUN_FAILED = 1
 EXIT_BAD_INPUT = 2
@@ -67,6 +69,11 @@ def main(argv: list[str] | None = None) -> int:
         # The reader left; send what Python still has to flush into the void, silently.
         os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
         return EXIT_BROKEN_PIPE
+    finally:
+        ReportStopErrors(CloseAllArmLinks(), "at the end of the command")
+        # Drake objects such as Meshcat must be destroyed on the thread that made them; a
+        # reference cycle left to the collector could be freed on any thread of the caller.
+        gc.collect()
 
 
 def _Terminate(signum: int, frame: object) -> None:

@@ -69,17 +69,31 @@ class ArmLink(Protocol):
     def close(self) -> None: ...
 
 
-_open_links: weakref.WeakSet = weakref.WeakSet()
+_open_links: weakref.WeakSet = weakref.WeakSet()  # not yet stopped
+_unclosed_links: weakref.WeakSet = weakref.WeakSet()
 
 
 def RegisterArmLink(link: ArmLink) -> None:
-    """Remembers `link` so that StopAllArms reaches it (until `UnregisterArmLink`)."""
+    """Remembers `link` so that StopAllArms and CloseAllArmLinks reach it (until
+    `UnregisterArmLink`)."""
     _open_links.add(link)
+    _unclosed_links.add(link)
 
 
 def UnregisterArmLink(link: ArmLink) -> None:
     """Forgets a closed link."""
     _open_links.discard(link)
+    _unclosed_links.discard(link)
+
+
+def CloseAllArmLinks() -> list[str]:
+    """The end of a run in a process that goes on (`guidedarm.diagrams.cli.main.main`
+    called from Python, a test): stops every arm not yet stopped, then closes every link,
+    which ends its I/O threads. Returns the stop errors as StopAllArms does."""
+    errors = StopAllArms()
+    for link in list(_unclosed_links):
+        link.close()
+    return errors
 
 
 def DescribeError(error: BaseException) -> str:
@@ -92,7 +106,7 @@ def StopArm(link: ArmLink) -> str | None:
     once; the exit handler stops the links nobody stopped). Returns the error of the stop
     (None when it was confirmed) instead of raising, so that it can be reported beside the
     fault that caused it."""
-    UnregisterArmLink(link)
+    _open_links.discard(link)
     try:
         link.stop()
     except Exception as e:  # a dead link, a vendor RuntimeError: recorded, never raised
@@ -107,6 +121,12 @@ def StopAllArms() -> list[str]:
     return [f"{name}: {error}" for name, error in errors if error is not None]
 
 
+def ReportStopErrors(errors: list[str], when: str) -> None:
+    """Prints each error of stopping an arm, one line each, on stdout."""
+    for error in errors:
+        print(f"guidedarm: stopping an arm {when} failed: {error}", flush=True)
+
+
 def FailStoppingAllArms(device: str, what: str, t: float) -> NoReturn:
     """A fault of a sensor (`device`) at diagram time t (s): stops every arm, then raises
     HardwareFaultError with the errors of the stops beside the cause."""
@@ -116,8 +136,7 @@ def FailStoppingAllArms(device: str, what: str, t: float) -> NoReturn:
 
 
 def _StopAllArmsAtExit() -> None:
-    for error in StopAllArms():
-        print(f"guidedarm: stopping an arm at exit failed: {error}", flush=True)
+    ReportStopErrors(StopAllArms(), "at exit")
     # The process is ending: keep the interpreter's final garbage collection away from the
     # many Drake objects it would walk (0.3 s, up to 1.3 s on a loaded 2-core machine), so
     # that a run ends promptly after a hardware fault. Nothing is left to finalize: the

@@ -307,7 +307,11 @@ class NachiEmulator:
                 observer(self.context)
 
     def Close(self) -> None:
+        """Ends Run and the accept thread. On Linux, closing a listening socket does not
+        wake a thread blocked in accept(); shutting it down does."""
         self._closing.set()
+        with contextlib.suppress(OSError):
+            self._server.shutdown(socket.SHUT_RDWR)
         self._server.close()
 
     def _Accept(self) -> None:
