@@ -16,14 +16,13 @@ def _run(tmp_path, overrides):
 
 
 @pytest.mark.slow
-def test_ten_runs_from_different_starts_press_the_chosen_switch(tmp_path):
-    """The estimator and the sequence from ten starts, moves as exact IK joint segments."""
+def test_joint_trajectory_runs_from_different_starts_press_the_chosen_switch(tmp_path):
+    """The estimator and the sequence, moves as exact IK joint segments, on every switch from
+    four of the press study's starts (the next test runs all ten through the planner)."""
     results = []
-    for switch in (1, 2, 3):
+    for seed, switch in zip((0, 3, 6, 9), (1, 2, 3, 1), strict=True):
         run = _run(tmp_path, [f"switch={switch}", "operation.motion=joint_trajectory"])
-        for seed in range(switch - 1, 10, 3):
-            results.append(run.Run(run.SampleStart(seed)))
-    assert len(results) == 10
+        results.append(run.Run(run.SampleStart(seed)))
     start_distances = [r["measurements"][0]["distance_mm"] for r in results]
     assert max(start_distances) - min(start_distances) > 40  # really different starts
     for r in results:
