@@ -21,9 +21,9 @@ TRACEBACK_FILE = "traceback.txt"
 
 def RunTask(task: TaskDefinition, scenario: Any, context: RunContext) -> dict[str, Any]:
     """Writes DIR/scenario.yaml (the fully resolved scenario), runs the task and returns its
-    metrics plus `wall_time_s` (s), with `success` false and `failure` set when the run
-    failed in any way once started: a RunFailedError, Ctrl-C, a non-finite metric (written
-    as null), or a bug (its traceback in DIR/traceback.txt). Any other GuidedArmError (a
+    metrics plus `success` and `wall_time_s` (s), with `success` false and `failure` set
+    when the run failed in any way once started: a RunFailedError, Ctrl-C, a non-finite
+    metric (written as null), or a bug (its traceback in DIR/traceback.txt). Any other GuidedArmError (a
     refusal before any motion, e.g. a ConfigurationError) passes through."""
     context.write_text(RESOLVED_SCENARIO_FILE, yaml_dump_typed(scenario))
     wall_start = time.perf_counter()
@@ -45,6 +45,8 @@ def RunTask(task: TaskDefinition, scenario: Any, context: RunContext) -> dict[st
         metrics = _WithoutNonFinite(metrics)
         metrics["failure"] = metrics.get("failure") or f"non-finite values of {', '.join(bad)}"
         metrics["success"] = False
+    if "success" not in metrics:  # a task whose metrics say only `failure`
+        metrics = {"success": metrics.get("failure") is None, **metrics}
     metrics["wall_time_s"] = round(time.perf_counter() - wall_start, 3)
     return metrics
 
