@@ -23,8 +23,9 @@ def RunTask(task: TaskDefinition, scenario: Any, context: RunContext) -> dict[st
     """Writes DIR/scenario.yaml (the fully resolved scenario), runs the task and returns its
     metrics plus `success` and `wall_time_s` (s), with `success` false and `failure` set
     when the run failed in any way once started: a RunFailedError, Ctrl-C, a non-finite
-    metric (written as null), or a bug (its traceback in DIR/traceback.txt). Any other GuidedArmError (a
-    refusal before any motion, e.g. a ConfigurationError) passes through."""
+    metric (written as null), or a bug (its traceback in DIR/traceback.txt). Any other
+    GuidedArmError (a refusal before any motion, e.g. a ConfigurationError) passes
+    through."""
     context.write_text(RESOLVED_SCENARIO_FILE, yaml_dump_typed(scenario))
     wall_start = time.perf_counter()
     try:

@@ -290,6 +290,16 @@ BAD_INPUTS = [
         "'station.arms.mz04d.kp' has no effect with executor=kinematic",
     ),
     (
+        "kinematic-meshcat",
+        Run(PF, "executor=kinematic", flags=("--meshcat",)),
+        "executor=kinematic cannot be watched with --meshcat",
+    ),
+    (
+        "kinematic-ignores-visualization",
+        Run(PF, "executor=kinematic", "station.visualization.publish_period=0.1"),
+        "'station.visualization.publish_period' has no effect with executor=kinematic",
+    ),
+    (
         "kinematic-ignores-plant",
         Run(PF, "executor=kinematic", "station.plant_config.time_step=0.001"),
         "'station.plant_config.time_step' has no effect with executor=kinematic",

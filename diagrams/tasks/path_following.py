@@ -101,6 +101,11 @@ def RunPathFollowing(scenario: PathFollowingScenario, context: RunContext) -> di
             "executor=kinematic cannot run with --hardware: it poses a model and drives no "
             "arm (use executor=station)"
         )
+    if scenario.executor == "kinematic" and context.live:
+        raise ConfigurationError(
+            "executor=kinematic cannot be watched with --meshcat: it draws nothing in Meshcat "
+            "(use executor=station)"
+        )
     link = scenario.station.hardware.arms.get(scenario.arm)
     if (
         scenario.motion == "continuous"

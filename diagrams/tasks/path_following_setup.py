@@ -216,15 +216,16 @@ def _CheckMotionKeys(scenario: PathFollowingScenario) -> None:
 
 
 def _CheckExecutorKeys(scenario: PathFollowingScenario) -> None:
-    """Refuses, with executor=kinematic, a servo gain or plant setting set away from its
-    default: the kinematic station poses the arm where it is commanded (no servo, no
-    dynamics) and reads neither."""
+    """Refuses, with executor=kinematic, a servo gain, plant or visualization setting set
+    away from its default: the kinematic station poses the arm where it is commanded (no
+    servo, no dynamics, nothing drawn in Meshcat) and reads none of them."""
     if scenario.executor != "kinematic":
         return
     arm, default_arm = scenario.station.arms[scenario.arm], ArmConfig()
     prefix = f"station.arms.{scenario.arm}"
     for key, value, default in (
         ("station.plant_config", scenario.station.plant_config, StationScenario().plant_config),
+        ("station.visualization", scenario.station.visualization, StationScenario().visualization),
         (f"{prefix}.kp", arm.kp, default_arm.kp),
         (f"{prefix}.kd", arm.kd, default_arm.kd),
     ):
@@ -232,7 +233,8 @@ def _CheckExecutorKeys(scenario: PathFollowingScenario) -> None:
         if changed:
             raise ConfigurationError(
                 f"'{changed}' has no effect with executor=kinematic (it poses the arm where "
-                "it is commanded: no servo, no dynamics): remove it or use executor=station"
+                "it is commanded: no servo, no dynamics, no Meshcat): remove it or use "
+                "executor=station"
             )
 
 
@@ -251,7 +253,7 @@ def _ChangedKey(value: object, default: object, key: str) -> str:
     elif hasattr(type(value), "__fields__"):
         names = [f.name for f in type(value).__fields__]
     else:
-        return "" if value == default else key
+        return "" if np.array_equal(value, default) else key
     for name in names:
         changed = _ChangedKey(getattr(value, name), getattr(default, name), f"{key}.{name}")
         if changed:
