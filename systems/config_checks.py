@@ -145,6 +145,16 @@ def CheckArgument(name: str, value: Any, bound: Bound) -> None:
         raise _Under(name, e) from None
 
 
+def CheckInstance(name: str, value: Any, expected: type | tuple[type, ...]) -> None:
+    """Checks the type of an argument of a public builder (a scenario, a plant, a frame);
+    raises FieldError naming the argument and the type expected (None passes where
+    `expected` includes type(None))."""
+    if not isinstance(value, expected):
+        types = expected if isinstance(expected, tuple) else (expected,)
+        names = " or ".join("None" if t is type(None) else t.__name__ for t in types)
+        raise FieldError(name, f"expected {names}, got {value!r}")
+
+
 def CheckNames(name: str, value: Any) -> None:
     """Checks that an argument is a list (or tuple) of strings, not one string, whose
     characters would be taken for names."""

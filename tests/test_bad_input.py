@@ -786,12 +786,30 @@ def test_an_interrupted_path_following_keeps_its_partial_metrics(tmp_path, signu
 
 def test_public_builders_refuse_bad_arguments_in_one_line():
     """The Python API: a negative time step (Drake's `Failure at` exit), one name instead of
-    a list (read as its characters) and a truthy string for a bool are refused by name."""
+    a list (read as its characters), a truthy string for a bool and an argument of the
+    wrong type (an AttributeError deep inside) are refused by name."""
+    from guidedarm.diagrams.station.station import MakeStation
     from guidedarm.diagrams.station.station_plant import MakeMultibodyPlant
+    from guidedarm.diagrams.tasks.planner_builder import MakeAccelerationPlanner
+    from guidedarm.systems.path_following.tool_pose_ik_math import (
+        ToolPoseIkConfig,
+        ToolPoseSolver,
+    )
     from guidedarm.systems.planning.acceleration_planner_config import PlannerConfig
 
     station = LoadScenario(WP, [])[1].station
+    plant = MakeMultibodyPlant(station, ["ur10e"])
+    instance = plant.GetModelInstanceByName("ur10e")
+    frames = ("ur10e::base", "ur10e::flange")
     for call, key in (
+        (lambda: MakeStation("ur10e"), "scenario"),
+        (lambda: MakeStation(station, hardware="false"), "hardware"),
+        (lambda: MakeStation(station, meshcat="localhost"), "meshcat"),
+        (lambda: MakeAccelerationPlanner(station, 0, *frames), "arm"),
+        (lambda: MakeAccelerationPlanner(station, "ur10e", *frames, config={}), "config"),
+        (lambda: MakeAccelerationPlanner(station, "ur10e", *frames, [[0.1, "a"]]), "waypoints"),
+        (lambda: ToolPoseSolver(plant, "ur10e", None, ToolPoseIkConfig()), "instance"),
+        (lambda: ToolPoseSolver(plant, instance, "flange", ToolPoseIkConfig()), "frame"),
         (lambda: MakeMultibodyPlant(station, ["ur10e"], time_step=-1.0), "time_step"),
         (lambda: MakeMultibodyPlant(station, ["ur10e"], time_step=math.nan), "time_step"),
         (lambda: MakeMultibodyPlant(station, "ur10e"), "model_instance_names"),

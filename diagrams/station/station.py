@@ -45,6 +45,7 @@ from guidedarm.diagrams.station.station_plant import (
     MakeMultibodyPlant,
     SetInitialPositions,
 )
+from guidedarm.systems.config_checks import CheckInstance
 from guidedarm.systems.errors import ConfigurationError
 from guidedarm.systems.tof.tof_tool_sensor import TOF_PORTS, ToFToolSensor
 
@@ -68,6 +69,9 @@ def MakeStation(
     scenario: StationScenario, meshcat: Meshcat | None = None, hardware: bool = False
 ) -> Diagram:
     """Builds the station Diagram of `scenario` (simulated, or hardware drivers)."""
+    CheckInstance("scenario", scenario, StationScenario)
+    CheckInstance("meshcat", meshcat, (Meshcat, type(None)))
+    CheckInstance("hardware", hardware, bool)
     if hardware:
         return MakeHardwareStation(scenario, meshcat)
     builder = DiagramBuilder()

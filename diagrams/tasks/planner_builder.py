@@ -24,6 +24,7 @@ from pydrake.multibody.tree import BodyIndex, JointIndex
 
 from guidedarm.diagrams.station.scenario import StationScenario
 from guidedarm.diagrams.station.station_plant import GetArmInstance, MakeMultibodyPlant
+from guidedarm.systems.config_checks import CheckInstance, FieldError
 from guidedarm.systems.errors import ConfigurationError
 from guidedarm.systems.planning.acceleration_planner import AccelerationPlanner
 from guidedarm.systems.planning.acceleration_planner_kinematics import (
@@ -114,6 +115,10 @@ def MakeAccelerationPlanner(
     Its `planning` holds the law (kinematics on the controller plant, limits, waypoints and
     their joint solutions `planning.joint_waypoints`, rad).
     """
+    CheckInstance("scenario", scenario, StationScenario)
+    for name, value in (("arm", arm), ("base_frame", base_frame), ("tool_frame", tool_frame)):
+        CheckInstance(name, value, str)
+    CheckInstance("config", config, (PlannerConfig, type(None)))
     config = config if config is not None else PlannerConfig()
     plant = MakeControllerPlant(scenario, arm, [base_frame, tool_frame])
     kinematics = ArmKinematics(
@@ -131,7 +136,7 @@ def MakeAccelerationPlanner(
         limit = SymmetricLimit(max_joint_acceleration, "max_joint_acceleration")
         acceleration = (-limit, limit)
     q_start = plant.GetPositions(plant.CreateDefaultContext(), kinematics.instance)
-    rows = np.atleast_2d(np.asarray(waypoints, float)) if waypoints is not None else None
+    rows = _WaypointRows(waypoints) if waypoints is not None else None
     planning = AccelerationPlanning(
         kinematics,
         rows if rows is not None else kinematics.Position(q_start)[np.newaxis],
@@ -147,3 +152,12 @@ def MakeAccelerationPlanner(
                 f"{arm} initial position refused by the paper's law (planner.robust: false): {e}"
             ) from None
     return AccelerationPlanner(planning, accept_tasks=rows is None, q_guess=q_start)
+
+
+def _WaypointRows(waypoints: np.ndarray | Sequence[Sequence[float]]) -> np.ndarray:
+    """The waypoints as a 2-D float array, or a ConfigurationError naming them."""
+    try:
+        return np.atleast_2d(np.asarray(waypoints, float))
+    except (TypeError, ValueError):
+        why = f"expected rows [x, y, z, roll, pitch, yaw] of numbers, got {waypoints!r}"
+        raise FieldError("waypoints", why) from None

@@ -38,7 +38,13 @@ from pydrake.multibody.plant import MultibodyPlant
 from pydrake.multibody.tree import Frame, ModelInstanceIndex
 from pydrake.solvers import SnoptSolver, Solve
 
-from guidedarm.systems.config_checks import CheckFields, InRange, NonNegative, Positive
+from guidedarm.systems.config_checks import (
+    CheckFields,
+    CheckInstance,
+    InRange,
+    NonNegative,
+    Positive,
+)
 from guidedarm.systems.errors import ConfigurationError
 from guidedarm.systems.path_following.workspace import WorkspaceConfig
 
@@ -109,6 +115,12 @@ class ToolPoseSolver:
         sideways by the tool's length times the shortfall. workspace: the walls (default the
         paper's cell) in the arm's base frame B, whose pose in the world is X_WB (default the
         identity)."""
+        CheckInstance("plant", plant, MultibodyPlant)
+        CheckInstance("instance", instance, ModelInstanceIndex)
+        CheckInstance("frame", frame, Frame)
+        CheckInstance("limits", limits, ToolPoseIkConfig)
+        CheckInstance("workspace", workspace, (WorkspaceConfig, type(None)))
+        CheckInstance("X_WB", X_WB, (RigidTransform, type(None)))
         limits.Validate()
         self.plant = plant
         self.frame = frame
