@@ -96,11 +96,11 @@ def _RotationVector(R: list[list[float]]) -> list[float]:
 
 def RotationFromVector(v: np.ndarray) -> np.ndarray:
     """exp([v]x) by Rodrigues' formula: the rotation of angle |v| (rad) about v."""
-    theta = math.sqrt(v @ v)
+    theta = math.sqrt(v.dot(v))
     K = np.array([[0.0, -v[2], v[1]], [v[2], 0.0, -v[0]], [-v[1], v[0], 0.0]])
     if theta < 1e-8:
         return _IDENTITY + K
-    return _IDENTITY + (math.sin(theta) / theta) * K + ((1 - math.cos(theta)) / theta**2) * K @ K
+    return _IDENTITY + (math.sin(theta) / theta) * K + ((1 - math.cos(theta)) / theta**2) * K.dot(K)
 
 
 _IDENTITY = np.eye(3)
@@ -133,7 +133,7 @@ def InverseAndConditioning(kin: TcpKinematics, floor: float) -> tuple[np.ndarray
     # "invalid value" warning), which fail the bound test below.
     inverse = _umath_linalg.inv(kin.J, signature="d->d")
     flat = inverse.reshape(-1)
-    norm2 = float(flat @ flat)
+    norm2 = float(flat.dot(flat))
     if norm2 <= 1.0 / (floor * floor):  # False for NaN as well
         return inverse, 1.0 / math.sqrt(norm2)
     return None, kin.min_singular_value
@@ -145,7 +145,7 @@ def DampedSolve(
     """J^# rhs with J^# = J^T (J J^T + damping I)^-1, the singularity-robust inverse;
     exactly J^-1 rhs for damping = 0 (with J^-1 = `inverse` when given)."""
     if damping == 0.0:
-        return inverse @ rhs if inverse is not None else np.linalg.solve(J, rhs)
+        return inverse.dot(rhs) if inverse is not None else np.linalg.solve(J, rhs)
     return J.T @ np.linalg.solve(J @ J.T + damping * np.eye(J.shape[0]), rhs)
 
 
@@ -220,15 +220,19 @@ class ArmKinematics:
         # Drake's spatial rows are [rotational; translational]; the planner's [x; rotation]
         self._rows = np.array([3, 4, 5, 0, 1, 2])
         self._origin = np.zeros(3)
+        self._state = np.empty(12)
 
     def Evaluate(self, q: np.ndarray, qd: np.ndarray, analytic: bool = True) -> TcpKinematics:
         """Kinematics at joint positions q (rad) and velocities qd (rad/s): one update of
         the plant's context, then the pose, J_g and the bias acceleration from its caches."""
-        plant, context = self.plant, self._context
+        plant, context, x = self.plant, self._context, self._state
+        # two slice copies into a preallocated [q; qd] cost less than np.concatenate
+        x[:6] = q
+        x[6:] = qd
         if self._whole_state:
-            plant.SetPositionsAndVelocities(context, np.concatenate((q, qd)))
+            plant.SetPositionsAndVelocities(context, x)
         else:
-            plant.SetPositionsAndVelocities(context, self.instance, np.concatenate((q, qd)))
+            plant.SetPositionsAndVelocities(context, self.instance, x)
         X_BT = plant.CalcRelativeTransform(context, self.base_frame, self.tool_frame)
         pose = X_BT.GetAsMatrix34()
         # T's origin, measured and expressed in B, with respect to v; rows [x; rotation].
@@ -294,7 +298,7 @@ def TrackingError(p: np.ndarray, target: np.ndarray) -> np.ndarray:
 
 def PoseError(kin: TcpKinematics, x_target: np.ndarray, R_target: np.ndarray) -> np.ndarray:
     """The robust mode's e: [x - x_target; rotation vector of R R_target^T] (m, rad, in B)."""
-    return np.array((kin.x - x_target).tolist() + _RotationVector((kin.R @ R_target.T).tolist()))
+    return np.array((kin.x - x_target).tolist() + _RotationVector(kin.R.dot(R_target.T).tolist()))
 
 
 def BlendedTarget(p_i: np.ndarray, p_next: np.ndarray, sigma: float) -> np.ndarray:
@@ -316,4 +320,4 @@ def BlendedPose(
     (x_i, R_i), (x_next, R_next) = pose_i, pose_next
     if rotation is None:
         rotation = RotationVector(R_i.T @ R_next)
-    return x_i + sigma * (x_next - x_i), R_i @ RotationFromVector(sigma * rotation)
+    return x_i + sigma * (x_next - x_i), R_i.dot(RotationFromVector(sigma * rotation))

@@ -375,7 +375,7 @@ def SaturatedLeastSquares(
             x[joint] = value
             continue
         if not P:  # one product for all rows: cheaper than one per held joint
-            P = (metric_factor @ metric_factor.T).tolist()
+            P = metric_factor.dot(metric_factor.T).tolist()
         # the common cases in closed form; the held joints set exactly on their bounds
         if len(held) == 1:
             w = (value - desired[joint]) / P[joint][joint]

@@ -123,7 +123,7 @@ def ApproachTerms(
     d' = grad d . qd (u' = qd to first order), so q'' stays continuous in the state."""
     if damping == 0.0 and inverse is not None:
         # J^-1 J qd = qd: two products instead of three
-        minus_a, v, u = inverse @ kin.Jdot_qdot, qd, inverse @ e
+        minus_a, v, u = inverse.dot(kin.Jdot_qdot), qd, inverse.dot(e)
     else:
         rhs = np.empty((6, 3))
         rhs[:, 0] = kin.Jdot_qdot
@@ -305,7 +305,7 @@ class AccelerationPlanning:
         else:
             qdd, c, c_hat0, t0, braking = (*self._LimitSeed(state, a, b), False)
         qdd = np.asarray(qdd, float)
-        if not math.isfinite(float(qdd @ qdd)):
+        if not math.isfinite(float(qdd.dot(qdd))):
             raise PlanningError(f"non-finite joint acceleration at t = {state.t:.3f} s")
         dt = params.time_step
         qd_next = state.qd + dt * qdd
@@ -431,7 +431,7 @@ class AccelerationPlanning:
                 state.done_time = state.t
             return state, e
         if self.parameters.stop_at_waypoints:
-            resting = _Norm(kin.J[:3] @ state.qd) <= self.parameters.rest_speed
+            resting = _Norm(kin.J[:3].dot(state.qd)) <= self.parameters.rest_speed
             if resting and self._Reached(kin, state.index, self._Error(kin, self._Target(state))):
                 state.index += 1
                 if self.scaling is not None:  # a new elementary task starts smoothly
@@ -444,7 +444,7 @@ class AccelerationPlanning:
             # sigma grows with the TCP path length travelled since entering the sphere and
             # reaches 1 after blend_length: continuous in time, 0 at entry, and it keeps
             # growing whenever the TCP moves, so the TCP cannot settle at p_i.
-            path = _Norm(kin.J[:3] @ state.qd) * self.parameters.time_step
+            path = _Norm(kin.J[:3].dot(state.qd)) * self.parameters.time_step
             state.sigma = min(1.0, state.sigma + path / self.parameters.blend_length)
             if state.sigma >= 1.0:
                 state.index += 1
