@@ -135,7 +135,7 @@ def ApproachTerms(
     # d and its rate in scalar arithmetic (six joints cost less than NumPy's calls)
     x4_sum, rate_sum = 0.0, 0.0
     u_list, qd_list = u.tolist(), qd.tolist()
-    for u_i, w_i, qd_i in zip(u_list, inverse_braking, qd_list, strict=True):
+    for u_i, w_i, qd_i in zip(u_list, inverse_braking, qd_list):
         x = u_i * w_i  # |x| the joint's term of d (w_i > 0)
         x2 = x * x
         x4_sum += x2 * x2
@@ -150,7 +150,7 @@ def ApproachTerms(
     k = k0 * r / r0
     gain_v, gain_p = k + r, k * r + r_dot
     v_list = qd_list if v is qd else v.tolist()
-    b = [-gain_v * v_i - gain_p * u_i for v_i, u_i in zip(v_list, u_list, strict=True)]
+    b = [-gain_v * v_i - gain_p * u_i for v_i, u_i in zip(v_list, u_list)]
     return [-m for m in minus_a.tolist()], b
 
 
@@ -304,9 +304,9 @@ class AccelerationPlanning:
             qdd, c, c_hat0, t0, braking = self._LimitRobust(state, a, b, kin, damping, inverse)
         else:
             qdd, c, c_hat0, t0, braking = (*self._LimitSeed(state, a, b), False)
-        qdd = np.asarray(qdd, float)
-        if not math.isfinite(float(qdd.dot(qdd))):
+        if not math.isfinite(sum(_Floats(qdd))):  # NaN or inf in a joint
             raise PlanningError(f"non-finite joint acceleration at t = {state.t:.3f} s")
+        qdd = np.asarray(qdd, float)
         dt = params.time_step
         qd_next = state.qd + dt * qdd
         state.q = state.q + (0.5 * dt) * (state.qd + qd_next)  # q'' held over the step
@@ -343,7 +343,7 @@ class AccelerationPlanning:
         params = self.parameters
         accel, velocity = self._acceleration_bounds, self._velocity_bounds
         if accel is None and velocity is None:
-            qdd = [a_i + b_i for a_i, b_i in zip(_Floats(a), _Floats(b), strict=True)]
+            qdd = [a_i + b_i for a_i, b_i in zip(_Floats(a), _Floats(b))]
             return qdd, 1.0, state.c_hat0, state.t0, False
         qd, qdd_previous, a, b = state.qd.tolist(), state.qdd.tolist(), _Floats(a), _Floats(b)
         lower, upper = StepBounds(accel, velocity, qd, self._velocity_bound_rate)
@@ -351,10 +351,10 @@ class AccelerationPlanning:
         if accel is not None:
             d = GovernorDamping(a, qd, *accel, params.bias_margin, params.governor_gain)
             if d > 0.0:
-                a = [a_i - d * qd_i for a_i, qd_i in zip(a, qd, strict=True)]
+                a = [a_i - d * qd_i for a_i, qd_i in zip(a, qd)]
             c = ScalingReturn(state.c_hat0, state.t, state.t0, params.robust_recovery_rate)
         max_change = params.max_jerk * params.time_step
-        desired = [a_i + c * b_i for a_i, b_i in zip(a, b, strict=True)]
+        desired = [a_i + c * b_i for a_i, b_i in zip(a, b)]
         window = JerkWindow(desired, qdd_previous, max_change, lower, upper)
         if window[2]:  # within the bounds at this c: no saturation, no braking
             return desired, c, state.c_hat0, state.t0, False
