@@ -15,6 +15,7 @@ MultibodyPlant (any 6-DoF arm). Units: m, rad, s.
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -156,9 +157,10 @@ class TcpKinematics:
     the paper's mode, geometric with omega in the robust mode), Jdot qd (m/s^2, rad/s^2) in
     the same rows, and sigma, the smallest singular value of J_g (in the robust mode
     computed from J, J_g's rows swapped, on first use). rpy is only evaluated for the
-    paper's mode (p computes it otherwise)."""
+    paper's mode (p computes it otherwise). x is a list of floats: the robust step's
+    position arithmetic on three floats costs less than NumPy's calls."""
 
-    x: np.ndarray
+    x: list[float]
     R: np.ndarray
     rpy: np.ndarray | None
     J: np.ndarray
@@ -250,7 +252,7 @@ class ArmKinematics:
         )  # fmt: skip
         Jdot_qdot = bias.get_coeffs().take(self._rows)
         if not analytic:
-            return TcpKinematics(pose[:, 3], pose[:, :3], None, J, Jdot_qdot)
+            return TcpKinematics(pose[:, 3].tolist(), pose[:, :3], None, J, Jdot_qdot)
         rpy = RollPitchYaw(X_BT.rotation()).vector()
         sigma = float(np.linalg.svd(J, compute_uv=False)[-1])
         self._CheckSingularity(sigma, rpy, q)
@@ -258,7 +260,7 @@ class ArmKinematics:
         J[3:] = B_inv @ J[3:]
         rpy_dot = J[3:] @ qd
         Jdot_qdot[3:] = B_inv @ (Jdot_qdot[3:] - EulerRateMatrixDotTimesRate(rpy, rpy_dot))
-        return TcpKinematics(pose[:, 3], pose[:, :3], rpy, J, Jdot_qdot, sigma)
+        return TcpKinematics(pose[:, 3].tolist(), pose[:, :3], rpy, J, Jdot_qdot, sigma)
 
     def Position(self, q: np.ndarray) -> np.ndarray:
         """p = k(q): TCP position (m) and Z-Y-X Euler angles (rad) in the base frame."""
@@ -296,9 +298,13 @@ def TrackingError(p: np.ndarray, target: np.ndarray) -> np.ndarray:
     return e
 
 
-def PoseError(kin: TcpKinematics, x_target: np.ndarray, R_target: np.ndarray) -> np.ndarray:
+def PoseError(kin: TcpKinematics, x_target: Sequence[float], R_target: np.ndarray) -> np.ndarray:
     """The robust mode's e: [x - x_target; rotation vector of R R_target^T] (m, rad, in B)."""
-    return np.array((kin.x - x_target).tolist() + _RotationVector(kin.R.dot(R_target.T).tolist()))
+    x = kin.x
+    return np.array(
+        [x[0] - x_target[0], x[1] - x_target[1], x[2] - x_target[2]]
+        + _RotationVector(kin.R.dot(R_target.T).tolist())
+    )
 
 
 def BlendedTarget(p_i: np.ndarray, p_next: np.ndarray, sigma: float) -> np.ndarray:
@@ -309,15 +315,17 @@ def BlendedTarget(p_i: np.ndarray, p_next: np.ndarray, sigma: float) -> np.ndarr
 
 
 def BlendedPose(
-    pose_i: tuple[np.ndarray, np.ndarray],
-    pose_next: tuple[np.ndarray, np.ndarray],
+    pose_i: tuple[Sequence[float], np.ndarray],
+    pose_next: tuple[Sequence[float], np.ndarray],
     sigma: float,
     rotation: np.ndarray | None = None,
-) -> tuple[np.ndarray, np.ndarray]:
-    """Eq. (19) for (x, R) poses: the position interpolated linearly, the rotation along
+) -> tuple[list[float], np.ndarray]:
+    """Eq. (19) for (x, R) poses (x: three floats, m): the position interpolated
+    linearly, the rotation along
     the geodesic R_i exp(sigma log(R_i^T R_{i+1})) (robust mode; `rotation`: log(R_i^T
     R_{i+1}) if already known, a constant of the waypoint pair)."""
     (x_i, R_i), (x_next, R_next) = pose_i, pose_next
     if rotation is None:
         rotation = RotationVector(R_i.T @ R_next)
-    return x_i + sigma * (x_next - x_i), R_i.dot(RotationFromVector(sigma * rotation))
+    x = [a + sigma * (b - a) for a, b in zip(x_i, x_next, strict=True)]
+    return x, R_i.dot(RotationFromVector(sigma * rotation))

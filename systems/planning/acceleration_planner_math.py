@@ -238,7 +238,7 @@ class AccelerationPlanning:
         self.waypoints = waypoints
         self.joint_waypoints = joint_waypoints
         self._poses = [
-            (row[:3].copy(), RotationMatrix(RollPitchYaw(row[3:])).matrix()) for row in waypoints
+            (row[:3].tolist(), RotationMatrix(RollPitchYaw(row[3:])).matrix()) for row in waypoints
         ]
         # log(R_i^T R_i+1) of each pair, the geodesic of the blend (19), once per task
         self._pair_rotations = [
@@ -438,7 +438,7 @@ class AccelerationPlanning:
                     state.c_hat0, state.t0 = 0.0, state.t
             return state, None
         radius = self.parameters.neighbourhood_radius
-        if not state.inside and _Norm(kin.x - self._poses[state.index][0]) < radius:
+        if not state.inside and _Distance(kin.x, self._poses[state.index][0]) < radius:
             state.inside, state.sigma = True, 0.0
         if state.inside:
             # sigma grows with the TCP path length travelled since entering the sphere and
@@ -455,6 +455,12 @@ class AccelerationPlanning:
 def _Floats(v: np.ndarray | list[float]) -> list[float]:
     """v as a list of floats (the robust step's limits work on floats, see StepBounds)."""
     return v.tolist() if isinstance(v, np.ndarray) else v
+
+
+def _Distance(x: list[float], y: list[float]) -> float:
+    """|x - y| of two points given as three floats each (m)."""
+    dx, dy, dz = x[0] - y[0], x[1] - y[1], x[2] - y[2]
+    return math.sqrt(dx * dx + dy * dy + dz * dz)
 
 
 def _Norm(v: np.ndarray) -> float:
