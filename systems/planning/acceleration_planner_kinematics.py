@@ -223,6 +223,7 @@ class ArmKinematics:
         self._rows = np.array([3, 4, 5, 0, 1, 2])
         self._origin = np.zeros(3)
         self._state = np.empty(12)
+        self._wrt = JacobianWrtVariable.kV  # a pybind enum's attribute lookup costs a call
 
     def Evaluate(self, q: np.ndarray, qd: np.ndarray, analytic: bool = True) -> TcpKinematics:
         """Kinematics at joint positions q (rad) and velocities qd (rad/s): one update of
@@ -239,16 +240,14 @@ class ArmKinematics:
         pose = X_BT.GetAsMatrix34()
         # T's origin, measured and expressed in B, with respect to v; rows [x; rotation].
         Jg = plant.CalcJacobianSpatialVelocity(
-            context, JacobianWrtVariable.kV, self.tool_frame, self._origin, self.base_frame,
-            self.base_frame,
+            context, self._wrt, self.tool_frame, self._origin, self.base_frame, self.base_frame,
         )  # fmt: skip
         if self._columns is not None:
             Jg = Jg.take(self._columns, axis=1)
         # take: a copy in the planner's row order, several times cheaper than fancy indexing
         J = Jg.take(self._rows, axis=0)
         bias = plant.CalcBiasSpatialAcceleration(
-            context, JacobianWrtVariable.kV, self.tool_frame, self._origin, self.base_frame,
-            self.base_frame,
+            context, self._wrt, self.tool_frame, self._origin, self.base_frame, self.base_frame,
         )  # fmt: skip
         Jdot_qdot = bias.get_coeffs().take(self._rows)
         if not analytic:

@@ -186,6 +186,10 @@ class AccelerationPlanning:
         self.scaling = (
             AccelerationScaling(*acceleration_limits) if acceleration_limits is not None else None
         )
+        self._time_steps = (
+            np.full(6, parameters.time_step),
+            np.full(6, 0.5 * parameters.time_step),
+        )
         # below it the robust step needs the smallest singular value itself
         self._conditioning_floor = max(
             parameters.damping_threshold, parameters.joint_space_blend[1]
@@ -307,13 +311,15 @@ class AccelerationPlanning:
         if not math.isfinite(sum(_Floats(qdd))):  # NaN or inf in a joint
             raise PlanningError(f"non-finite joint acceleration at t = {state.t:.3f} s")
         qdd = np.asarray(qdd, float)
-        dt = params.time_step
-        qd_next = state.qd + dt * qdd
-        state.q = state.q + (0.5 * dt) * (state.qd + qd_next)  # q'' held over the step
+        # q'' held over the step; times arrays of dt, which cost less than a float's
+        # conversion in each product
+        dt, half_dt = self._time_steps  # arrays
+        qd_next = state.qd + qdd * dt
+        state.q = state.q + (state.qd + qd_next) * half_dt
         state.qd = qd_next
         state.qdd = qdd
         state.c, state.c_hat0, state.t0, state.braking = c, c_hat0, t0, braking
-        state.t = state.t + dt
+        state.t = state.t + params.time_step
         return state
 
     def _LimitSeed(self, state: PlannerState, a: np.ndarray, b: np.ndarray):
