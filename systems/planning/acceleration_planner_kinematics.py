@@ -131,8 +131,9 @@ def InverseAndConditioning(kin: TcpKinematics, floor: float) -> tuple[np.ndarray
     where the arm is well conditioned, i.e. wherever no damping or blending depends on s."""
     # The LAPACK gufunc behind np.linalg.inv, without its checks and error-state context,
     # which cost three times the 6 x 6 inverse; a singular J gives NaNs (and NumPy's
-    # "invalid value" warning), which fail the bound test below.
-    inverse = _umath_linalg.inv(kin.J, signature="d->d")
+    # "invalid value" warning), which fail the bound test below. J is float64, the
+    # gufunc's default loop: no signature keyword to parse.
+    inverse = _umath_linalg.inv(kin.J)
     flat = inverse.reshape(-1)
     norm2 = float(flat.dot(flat))
     if norm2 <= 1.0 / (floor * floor):  # False for NaN as well

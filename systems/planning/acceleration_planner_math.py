@@ -289,7 +289,8 @@ class AccelerationPlanning:
         damping, inverse, sigma = 0.0, None, math.inf
         if params.robust:
             inverse, sigma = InverseAndConditioning(kin, self._conditioning_floor)
-            damping = DampingFactor(sigma, params.damping_threshold, params.max_damping)
+            if inverse is None:  # else sigma >= the floor >= damping_threshold: no damping
+                damping = DampingFactor(sigma, params.damping_threshold, params.max_damping)
         if self.inverse_braking is not None:
             a, b = ApproachTerms(
                 kin, state.qd, e, self.approach_rates, self.inverse_braking, damping, inverse
