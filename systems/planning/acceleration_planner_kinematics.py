@@ -78,7 +78,9 @@ def _RotationVector(R: list[list[float]]) -> list[float]:
     than NumPy's per-call overhead)."""
     (r00, r01, r02), (r10, r11, r12), (r20, r21, r22) = R
     w0, w1, w2 = r21 - r12, r02 - r20, r10 - r01
-    cos_theta = min(1.0, max(-1.0, 0.5 * (r00 + r11 + r22 - 1.0)))
+    cos_theta = 0.5 * (r00 + r11 + r22 - 1.0)
+    # clipped to [-1, 1] by comparisons (cheaper than builtin min / max calls)
+    cos_theta = 1.0 if cos_theta > 1.0 else (-1.0 if cos_theta < -1.0 else cos_theta)
     sin_theta = 0.5 * math.sqrt(w0 * w0 + w1 * w1 + w2 * w2)
     theta = math.atan2(sin_theta, cos_theta)
     if theta < 1e-8:
