@@ -104,7 +104,9 @@ def test_geometric_jacobian_and_bias_match_finite_differences(name):
         kin = kinematics.Evaluate(q, qd, analytic=False)
         later = kinematics.Evaluate(q + h * qd, qd, analytic=False)
         earlier = kinematics.Evaluate(q - h * qd, qd, analytic=False)
-        np.testing.assert_allclose(kin.J[:3] @ qd, (later.x - earlier.x) / (2 * h), atol=1e-7)
+        np.testing.assert_allclose(
+            kin.J[:3] @ qd, np.subtract(later.x, earlier.x) / (2 * h), atol=1e-7
+        )
         skew = (later.R - earlier.R) / (2 * h) @ kin.R.T
         omega = [skew[2, 1], skew[0, 2], skew[1, 0]]
         np.testing.assert_allclose(kin.J[3:] @ qd, omega, atol=1e-7)

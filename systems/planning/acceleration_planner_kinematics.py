@@ -15,6 +15,7 @@ MultibodyPlant (any 6-DoF arm). Units: m, rad, s.
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -77,7 +78,9 @@ def _RotationVector(R: list[list[float]]) -> list[float]:
     than NumPy's per-call overhead)."""
     (r00, r01, r02), (r10, r11, r12), (r20, r21, r22) = R
     w0, w1, w2 = r21 - r12, r02 - r20, r10 - r01
-    cos_theta = min(1.0, max(-1.0, 0.5 * (r00 + r11 + r22 - 1.0)))
+    cos_theta = 0.5 * (r00 + r11 + r22 - 1.0)
+    # clipped to [-1, 1] by comparisons (cheaper than builtin min / max calls)
+    cos_theta = 1.0 if cos_theta > 1.0 else (-1.0 if cos_theta < -1.0 else cos_theta)
     sin_theta = 0.5 * math.sqrt(w0 * w0 + w1 * w1 + w2 * w2)
     theta = math.atan2(sin_theta, cos_theta)
     if theta < 1e-8:
@@ -96,11 +99,11 @@ def _RotationVector(R: list[list[float]]) -> list[float]:
 
 def RotationFromVector(v: np.ndarray) -> np.ndarray:
     """exp([v]x) by Rodrigues' formula: the rotation of angle |v| (rad) about v."""
-    theta = math.sqrt(v @ v)
+    theta = math.sqrt(v.dot(v))
     K = np.array([[0.0, -v[2], v[1]], [v[2], 0.0, -v[0]], [-v[1], v[0], 0.0]])
     if theta < 1e-8:
         return _IDENTITY + K
-    return _IDENTITY + (math.sin(theta) / theta) * K + ((1 - math.cos(theta)) / theta**2) * K @ K
+    return _IDENTITY + (math.sin(theta) / theta) * K + ((1 - math.cos(theta)) / theta**2) * K.dot(K)
 
 
 _IDENTITY = np.eye(3)
@@ -130,10 +133,11 @@ def InverseAndConditioning(kin: TcpKinematics, floor: float) -> tuple[np.ndarray
     where the arm is well conditioned, i.e. wherever no damping or blending depends on s."""
     # The LAPACK gufunc behind np.linalg.inv, without its checks and error-state context,
     # which cost three times the 6 x 6 inverse; a singular J gives NaNs (and NumPy's
-    # "invalid value" warning), which fail the bound test below.
-    inverse = _umath_linalg.inv(kin.J, signature="d->d")
+    # "invalid value" warning), which fail the bound test below. J is float64, the
+    # gufunc's default loop: no signature keyword to parse.
+    inverse = _umath_linalg.inv(kin.J)
     flat = inverse.reshape(-1)
-    norm2 = float(flat @ flat)
+    norm2 = float(flat.dot(flat))
     if norm2 <= 1.0 / (floor * floor):  # False for NaN as well
         return inverse, 1.0 / math.sqrt(norm2)
     return None, kin.min_singular_value
@@ -145,7 +149,7 @@ def DampedSolve(
     """J^# rhs with J^# = J^T (J J^T + damping I)^-1, the singularity-robust inverse;
     exactly J^-1 rhs for damping = 0 (with J^-1 = `inverse` when given)."""
     if damping == 0.0:
-        return inverse @ rhs if inverse is not None else np.linalg.solve(J, rhs)
+        return inverse.dot(rhs) if inverse is not None else np.linalg.solve(J, rhs)
     return J.T @ np.linalg.solve(J @ J.T + damping * np.eye(J.shape[0]), rhs)
 
 
@@ -156,9 +160,10 @@ class TcpKinematics:
     the paper's mode, geometric with omega in the robust mode), Jdot qd (m/s^2, rad/s^2) in
     the same rows, and sigma, the smallest singular value of J_g (in the robust mode
     computed from J, J_g's rows swapped, on first use). rpy is only evaluated for the
-    paper's mode (p computes it otherwise)."""
+    paper's mode (p computes it otherwise). x is a list of floats: the robust step's
+    position arithmetic on three floats costs less than NumPy's calls."""
 
-    x: np.ndarray
+    x: list[float]
     R: np.ndarray
     rpy: np.ndarray | None
     J: np.ndarray
@@ -220,33 +225,36 @@ class ArmKinematics:
         # Drake's spatial rows are [rotational; translational]; the planner's [x; rotation]
         self._rows = np.array([3, 4, 5, 0, 1, 2])
         self._origin = np.zeros(3)
+        self._state = np.empty(12)
+        self._wrt = JacobianWrtVariable.kV  # a pybind enum's attribute lookup costs a call
 
     def Evaluate(self, q: np.ndarray, qd: np.ndarray, analytic: bool = True) -> TcpKinematics:
         """Kinematics at joint positions q (rad) and velocities qd (rad/s): one update of
         the plant's context, then the pose, J_g and the bias acceleration from its caches."""
-        plant, context = self.plant, self._context
+        plant, context, x = self.plant, self._context, self._state
+        # two slice copies into a preallocated [q; qd] cost less than np.concatenate
+        x[:6] = q
+        x[6:] = qd
         if self._whole_state:
-            plant.SetPositionsAndVelocities(context, np.concatenate((q, qd)))
+            plant.SetPositionsAndVelocities(context, x)
         else:
-            plant.SetPositionsAndVelocities(context, self.instance, np.concatenate((q, qd)))
+            plant.SetPositionsAndVelocities(context, self.instance, x)
         X_BT = plant.CalcRelativeTransform(context, self.base_frame, self.tool_frame)
         pose = X_BT.GetAsMatrix34()
         # T's origin, measured and expressed in B, with respect to v; rows [x; rotation].
         Jg = plant.CalcJacobianSpatialVelocity(
-            context, JacobianWrtVariable.kV, self.tool_frame, self._origin, self.base_frame,
-            self.base_frame,
+            context, self._wrt, self.tool_frame, self._origin, self.base_frame, self.base_frame,
         )  # fmt: skip
         if self._columns is not None:
             Jg = Jg.take(self._columns, axis=1)
         # take: a copy in the planner's row order, several times cheaper than fancy indexing
         J = Jg.take(self._rows, axis=0)
         bias = plant.CalcBiasSpatialAcceleration(
-            context, JacobianWrtVariable.kV, self.tool_frame, self._origin, self.base_frame,
-            self.base_frame,
+            context, self._wrt, self.tool_frame, self._origin, self.base_frame, self.base_frame,
         )  # fmt: skip
         Jdot_qdot = bias.get_coeffs().take(self._rows)
         if not analytic:
-            return TcpKinematics(pose[:, 3], pose[:, :3], None, J, Jdot_qdot)
+            return TcpKinematics(pose[:, 3].tolist(), pose[:, :3], None, J, Jdot_qdot)
         rpy = RollPitchYaw(X_BT.rotation()).vector()
         sigma = float(np.linalg.svd(J, compute_uv=False)[-1])
         self._CheckSingularity(sigma, rpy, q)
@@ -254,7 +262,7 @@ class ArmKinematics:
         J[3:] = B_inv @ J[3:]
         rpy_dot = J[3:] @ qd
         Jdot_qdot[3:] = B_inv @ (Jdot_qdot[3:] - EulerRateMatrixDotTimesRate(rpy, rpy_dot))
-        return TcpKinematics(pose[:, 3], pose[:, :3], rpy, J, Jdot_qdot, sigma)
+        return TcpKinematics(pose[:, 3].tolist(), pose[:, :3], rpy, J, Jdot_qdot, sigma)
 
     def Position(self, q: np.ndarray) -> np.ndarray:
         """p = k(q): TCP position (m) and Z-Y-X Euler angles (rad) in the base frame."""
@@ -292,9 +300,13 @@ def TrackingError(p: np.ndarray, target: np.ndarray) -> np.ndarray:
     return e
 
 
-def PoseError(kin: TcpKinematics, x_target: np.ndarray, R_target: np.ndarray) -> np.ndarray:
+def PoseError(kin: TcpKinematics, x_target: Sequence[float], R_target: np.ndarray) -> np.ndarray:
     """The robust mode's e: [x - x_target; rotation vector of R R_target^T] (m, rad, in B)."""
-    return np.array((kin.x - x_target).tolist() + _RotationVector((kin.R @ R_target.T).tolist()))
+    x = kin.x
+    return np.array(
+        [x[0] - x_target[0], x[1] - x_target[1], x[2] - x_target[2]]
+        + _RotationVector(kin.R.dot(R_target.T).tolist())
+    )
 
 
 def BlendedTarget(p_i: np.ndarray, p_next: np.ndarray, sigma: float) -> np.ndarray:
@@ -305,15 +317,17 @@ def BlendedTarget(p_i: np.ndarray, p_next: np.ndarray, sigma: float) -> np.ndarr
 
 
 def BlendedPose(
-    pose_i: tuple[np.ndarray, np.ndarray],
-    pose_next: tuple[np.ndarray, np.ndarray],
+    pose_i: tuple[Sequence[float], np.ndarray],
+    pose_next: tuple[Sequence[float], np.ndarray],
     sigma: float,
     rotation: np.ndarray | None = None,
-) -> tuple[np.ndarray, np.ndarray]:
-    """Eq. (19) for (x, R) poses: the position interpolated linearly, the rotation along
+) -> tuple[list[float], np.ndarray]:
+    """Eq. (19) for (x, R) poses (x: three floats, m): the position interpolated
+    linearly, the rotation along
     the geodesic R_i exp(sigma log(R_i^T R_{i+1})) (robust mode; `rotation`: log(R_i^T
     R_{i+1}) if already known, a constant of the waypoint pair)."""
     (x_i, R_i), (x_next, R_next) = pose_i, pose_next
     if rotation is None:
         rotation = RotationVector(R_i.T @ R_next)
-    return x_i + sigma * (x_next - x_i), R_i @ RotationFromVector(sigma * rotation)
+    x = [a + sigma * (b - a) for a, b in zip(x_i, x_next, strict=True)]
+    return x, R_i.dot(RotationFromVector(sigma * rotation))

@@ -69,7 +69,7 @@ class VelocityPenalty:
     def Perturbation(self, qd: np.ndarray) -> np.ndarray:
         """dq'' (rad/s^2) of eq. (15) for the penalty (14); `zero` (this object's read-only
         zeros) where every d_i >= theta, found in scalar arithmetic (the common case)."""
-        for qd_i, lo, hi in zip(qd.tolist(), *self._inside, strict=True):
+        for qd_i, lo, hi in zip(qd.tolist(), *self._inside):
             if not lo < qd_i < hi:
                 break
         else:
@@ -197,7 +197,7 @@ def StepBounds(
         return lower, upper
     tightened_lower, tightened_upper = [], []
     # conditional expressions: builtin min / max calls cost more than the comparison
-    for qd_i, lo, hi, v_lo, v_hi in zip(qd, lower, upper, *velocity, strict=True):
+    for qd_i, lo, hi, v_lo, v_hi in zip(qd, lower, upper, *velocity):
         bound = rate * (v_lo - qd_i)
         tightened_lower.append(bound if bound > lo else lo)
         bound = rate * (v_hi - qd_i)
@@ -214,7 +214,7 @@ def AdmissibleScaling(
     (a) or (b) whenever those are admissible, and an empty interval is detected instead of
     leaving a joint unchecked."""
     c_lo, c_hi = 0.0, math.inf
-    for a_i, b_i, lo, hi in zip(a, b, lower, upper, strict=True):
+    for a_i, b_i, lo, hi in zip(a, b, lower, upper):
         if abs(b_i) < 1e-12:
             if a_i > hi or a_i < lo:
                 return 1.0, 0.0
@@ -247,14 +247,14 @@ def GovernorDamping(
     that a - d qd stays within [lower, upper], which keeps c = 0 admissible.
     """
     load = 0.0
-    for a_i, lo, hi in zip(a, lower, upper, strict=True):
+    for a_i, lo, hi in zip(a, lower, upper):
         share = a_i / hi if a_i >= 0 else a_i / lo
         if share > load:
             load = share
     if load <= margin:
         return 0.0
     d = gain * (load / margin - 1.0)
-    for a_i, qd_i, lo, hi in zip(a, qd, lower, upper, strict=True):
+    for a_i, qd_i, lo, hi in zip(a, qd, lower, upper):
         # the room of the joint in the direction the braking pushes it
         if abs(qd_i) > 1e-12:
             room = hi - a_i if qd_i < 0 else a_i - lo
@@ -273,7 +273,7 @@ def JerkLimited(
     in one step), then kept within [lower, upper]: the bounds move continuously with qd,
     so the result stays continuous, and no limit is exceeded."""
     limited = []
-    for value, previous, lo, hi in zip(qdd, qdd_previous, lower, upper, strict=True):
+    for value, previous, lo, hi in zip(qdd, qdd_previous, lower, upper):
         change = value - previous
         if change > max_change:
             value = previous + max_change
@@ -299,7 +299,7 @@ def BrakingAcceleration(
     changes of at most max_change per step (rad/s^2) and kept within [lower, upper].
     Slowing shrinks a with qd^2 until the scaling is admissible again."""
     beta = 1.0 / dt
-    for qd_i, lo, hi in zip(qd, lower, upper, strict=True):
+    for qd_i, lo, hi in zip(qd, lower, upper):
         if abs(qd_i) > 1e-12:
             room = -lo if qd_i > 0 else hi
             beta = min(beta, max(room, 0.0) / abs(qd_i))
@@ -319,7 +319,7 @@ def JerkWindow(
     `desired` lies within them)."""
     window_lower, window_upper = [], []
     inside = True
-    for x, previous, lo, hi in zip(desired, qdd_previous, lower, upper, strict=True):
+    for x, previous, lo, hi in zip(desired, qdd_previous, lower, upper):
         w_lo, w_hi = previous - max_change, previous + max_change
         w_lo = lo if w_lo < lo else (hi if w_lo > hi else w_lo)
         w_hi = hi if w_hi > hi else (lo if w_hi < lo else w_hi)
@@ -375,11 +375,11 @@ def SaturatedLeastSquares(
             x[joint] = value
             continue
         if not P:  # one product for all rows: cheaper than one per held joint
-            P = (metric_factor @ metric_factor.T).tolist()
+            P = metric_factor.dot(metric_factor.T).tolist()
         # the common cases in closed form; the held joints set exactly on their bounds
         if len(held) == 1:
             w = (value - desired[joint]) / P[joint][joint]
-            x = [d_i + w * p_i for d_i, p_i in zip(desired, P[joint], strict=True)]
+            x = [d_i + w * p_i for d_i, p_i in zip(desired, P[joint])]
             x[joint] = value
             continue
         if len(held) == 2:
@@ -389,18 +389,15 @@ def SaturatedLeastSquares(
             det = p_jj * p_kk - p_jk * p_jk
             w_j = (p_kk * shift_j - p_jk * shift_k) / det
             w_k = (p_jj * shift_k - p_jk * shift_j) / det
-            x = [
-                d_i + w_j * a_i + w_k * b_i
-                for d_i, a_i, b_i in zip(desired, P[j], P[k], strict=True)
-            ]
+            x = [d_i + w_j * a_i + w_k * b_i for d_i, a_i, b_i in zip(desired, P[j], P[k])]
             x[j], x[k] = values
             continue
-        shift = [v - desired[j] for j, v in zip(held, values, strict=True)]
+        shift = [v - desired[j] for j, v in zip(held, values)]
         weights = CholeskySolve([[P[j][k] for k in held] for j in held], shift)
         x = list(desired)
-        for k, w in zip(held, weights, strict=True):
-            x = [x_i + w * p_i for x_i, p_i in zip(x, P[k], strict=True)]
-        for j, v in zip(held, values, strict=True):
+        for k, w in zip(held, weights):
+            x = [x_i + w * p_i for x_i, p_i in zip(x, P[k])]
+        for j, v in zip(held, values):
             x[j] = v
     return x, held
 

@@ -123,7 +123,7 @@ def ApproachTerms(
     d' = grad d . qd (u' = qd to first order), so q'' stays continuous in the state."""
     if damping == 0.0 and inverse is not None:
         # J^-1 J qd = qd: two products instead of three
-        minus_a, v, u = inverse @ kin.Jdot_qdot, qd, inverse @ e
+        minus_a, v, u = inverse.dot(kin.Jdot_qdot), qd, inverse.dot(e)
     else:
         rhs = np.empty((6, 3))
         rhs[:, 0] = kin.Jdot_qdot
@@ -135,7 +135,7 @@ def ApproachTerms(
     # d and its rate in scalar arithmetic (six joints cost less than NumPy's calls)
     x4_sum, rate_sum = 0.0, 0.0
     u_list, qd_list = u.tolist(), qd.tolist()
-    for u_i, w_i, qd_i in zip(u_list, inverse_braking, qd_list, strict=True):
+    for u_i, w_i, qd_i in zip(u_list, inverse_braking, qd_list):
         x = u_i * w_i  # |x| the joint's term of d (w_i > 0)
         x2 = x * x
         x4_sum += x2 * x2
@@ -150,7 +150,7 @@ def ApproachTerms(
     k = k0 * r / r0
     gain_v, gain_p = k + r, k * r + r_dot
     v_list = qd_list if v is qd else v.tolist()
-    b = [-gain_v * v_i - gain_p * u_i for v_i, u_i in zip(v_list, u_list, strict=True)]
+    b = [-gain_v * v_i - gain_p * u_i for v_i, u_i in zip(v_list, u_list)]
     return [-m for m in minus_a.tolist()], b
 
 
@@ -185,6 +185,10 @@ class AccelerationPlanning:
         )
         self.scaling = (
             AccelerationScaling(*acceleration_limits) if acceleration_limits is not None else None
+        )
+        self._time_steps = (
+            np.full(6, parameters.time_step),
+            np.full(6, 0.5 * parameters.time_step),
         )
         # below it the robust step needs the smallest singular value itself
         self._conditioning_floor = max(
@@ -238,7 +242,7 @@ class AccelerationPlanning:
         self.waypoints = waypoints
         self.joint_waypoints = joint_waypoints
         self._poses = [
-            (row[:3].copy(), RotationMatrix(RollPitchYaw(row[3:])).matrix()) for row in waypoints
+            (row[:3].tolist(), RotationMatrix(RollPitchYaw(row[3:])).matrix()) for row in waypoints
         ]
         # log(R_i^T R_i+1) of each pair, the geodesic of the blend (19), once per task
         self._pair_rotations = [
@@ -285,7 +289,8 @@ class AccelerationPlanning:
         damping, inverse, sigma = 0.0, None, math.inf
         if params.robust:
             inverse, sigma = InverseAndConditioning(kin, self._conditioning_floor)
-            damping = DampingFactor(sigma, params.damping_threshold, params.max_damping)
+            if inverse is None:  # else sigma >= the floor >= damping_threshold: no damping
+                damping = DampingFactor(sigma, params.damping_threshold, params.max_damping)
         if self.inverse_braking is not None:
             a, b = ApproachTerms(
                 kin, state.qd, e, self.approach_rates, self.inverse_braking, damping, inverse
@@ -304,16 +309,18 @@ class AccelerationPlanning:
             qdd, c, c_hat0, t0, braking = self._LimitRobust(state, a, b, kin, damping, inverse)
         else:
             qdd, c, c_hat0, t0, braking = (*self._LimitSeed(state, a, b), False)
-        qdd = np.asarray(qdd, float)
-        if not math.isfinite(float(qdd @ qdd)):
+        if not math.isfinite(sum(_Floats(qdd))):  # NaN or inf in a joint
             raise PlanningError(f"non-finite joint acceleration at t = {state.t:.3f} s")
-        dt = params.time_step
-        qd_next = state.qd + dt * qdd
-        state.q = state.q + (0.5 * dt) * (state.qd + qd_next)  # q'' held over the step
+        qdd = np.asarray(qdd, float)
+        # q'' held over the step; times arrays of dt, which cost less than a float's
+        # conversion in each product
+        dt, half_dt = self._time_steps  # arrays
+        qd_next = state.qd + qdd * dt
+        state.q = state.q + (state.qd + qd_next) * half_dt
         state.qd = qd_next
         state.qdd = qdd
         state.c, state.c_hat0, state.t0, state.braking = c, c_hat0, t0, braking
-        state.t = state.t + dt
+        state.t = state.t + params.time_step
         return state
 
     def _LimitSeed(self, state: PlannerState, a: np.ndarray, b: np.ndarray):
@@ -343,7 +350,7 @@ class AccelerationPlanning:
         params = self.parameters
         accel, velocity = self._acceleration_bounds, self._velocity_bounds
         if accel is None and velocity is None:
-            qdd = [a_i + b_i for a_i, b_i in zip(_Floats(a), _Floats(b), strict=True)]
+            qdd = [a_i + b_i for a_i, b_i in zip(_Floats(a), _Floats(b))]
             return qdd, 1.0, state.c_hat0, state.t0, False
         qd, qdd_previous, a, b = state.qd.tolist(), state.qdd.tolist(), _Floats(a), _Floats(b)
         lower, upper = StepBounds(accel, velocity, qd, self._velocity_bound_rate)
@@ -351,10 +358,10 @@ class AccelerationPlanning:
         if accel is not None:
             d = GovernorDamping(a, qd, *accel, params.bias_margin, params.governor_gain)
             if d > 0.0:
-                a = [a_i - d * qd_i for a_i, qd_i in zip(a, qd, strict=True)]
+                a = [a_i - d * qd_i for a_i, qd_i in zip(a, qd)]
             c = ScalingReturn(state.c_hat0, state.t, state.t0, params.robust_recovery_rate)
         max_change = params.max_jerk * params.time_step
-        desired = [a_i + c * b_i for a_i, b_i in zip(a, b, strict=True)]
+        desired = [a_i + c * b_i for a_i, b_i in zip(a, b)]
         window = JerkWindow(desired, qdd_previous, max_change, lower, upper)
         if window[2]:  # within the bounds at this c: no saturation, no braking
             return desired, c, state.c_hat0, state.t0, False
@@ -431,20 +438,20 @@ class AccelerationPlanning:
                 state.done_time = state.t
             return state, e
         if self.parameters.stop_at_waypoints:
-            resting = _Norm(kin.J[:3] @ state.qd) <= self.parameters.rest_speed
+            resting = _Norm(kin.J[:3].dot(state.qd)) <= self.parameters.rest_speed
             if resting and self._Reached(kin, state.index, self._Error(kin, self._Target(state))):
                 state.index += 1
                 if self.scaling is not None:  # a new elementary task starts smoothly
                     state.c_hat0, state.t0 = 0.0, state.t
             return state, None
         radius = self.parameters.neighbourhood_radius
-        if not state.inside and _Norm(kin.x - self._poses[state.index][0]) < radius:
+        if not state.inside and _Distance(kin.x, self._poses[state.index][0]) < radius:
             state.inside, state.sigma = True, 0.0
         if state.inside:
             # sigma grows with the TCP path length travelled since entering the sphere and
             # reaches 1 after blend_length: continuous in time, 0 at entry, and it keeps
             # growing whenever the TCP moves, so the TCP cannot settle at p_i.
-            path = _Norm(kin.J[:3] @ state.qd) * self.parameters.time_step
+            path = _Norm(kin.J[:3].dot(state.qd)) * self.parameters.time_step
             state.sigma = min(1.0, state.sigma + path / self.parameters.blend_length)
             if state.sigma >= 1.0:
                 state.index += 1
@@ -455,6 +462,12 @@ class AccelerationPlanning:
 def _Floats(v: np.ndarray | list[float]) -> list[float]:
     """v as a list of floats (the robust step's limits work on floats, see StepBounds)."""
     return v.tolist() if isinstance(v, np.ndarray) else v
+
+
+def _Distance(x: list[float], y: list[float]) -> float:
+    """|x - y| of two points given as three floats each (m)."""
+    dx, dy, dz = x[0] - y[0], x[1] - y[1], x[2] - y[2]
+    return math.sqrt(dx * dx + dy * dy + dz * dz)
 
 
 def _Norm(v: np.ndarray) -> float:
