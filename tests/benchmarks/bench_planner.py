@@ -2,6 +2,7 @@
 in both modes, and the seeded random reachable tasks against Toppra and Ruckig.
 
 Run: .venv/bin/python tests/benchmarks/bench_planner.py [--arm ARM ...] [--count N]
+  [--passes P] [--skip-seed-task]
   (default: the paper's task, then 51 random tasks on each of mz04d, ur10e, rover_arm; one
   arm takes a few minutes on a shared core).
 Goals (issue 12): planner step median <= 100 us; on the paper's task the robust mode's T
@@ -28,27 +29,36 @@ from guidedarm.diagrams.tasks.waypoints import MakePlannerSetup
 from guidedarm.systems.planning.acceleration_planner_math import RunPlanning
 
 
-def SeedTask() -> None:
-    """Step cost and the paper's task in both modes."""
+def StepTimes(planning, q0: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Wall and CPU time (us) of every step of one pass through the task."""
+    state = planning.InitialState(q0)
+    wall, cpu = [], []
+    while not state.done:
+        start, start_cpu = time.perf_counter(), time.thread_time()
+        state = planning.Step(state)
+        wall.append(time.perf_counter() - start)
+        cpu.append(time.thread_time() - start_cpu)
+    return np.array(wall) * 1e6, np.array(cpu) * 1e6
+
+
+def SeedTask(passes: int) -> None:
+    """Step cost and the paper's task in both modes. The step is timed over `passes` passes
+    through the task; other jobs on the shared cores only ever add time, so the pass with
+    the lowest median is the step's cost (as timeit's best of repeats), all are printed."""
     runs = {}
     for robust in (False, True):
         _, scenario, _ = LoadScenario("ur10e_waypoints", [f"planner.robust={robust}"])
         setup = MakePlannerSetup(scenario)
         planning = setup.planning
-        state = planning.InitialState(setup.q0)
-        wall, cpu = [], []
-        while not state.done:
-            start, start_cpu = time.perf_counter(), time.thread_time()
-            state = planning.Step(state)
-            wall.append(time.perf_counter() - start)
-            cpu.append(time.thread_time() - start_cpu)
-        wall_us, cpu_us = np.array(wall) * 1e6, np.array(cpu) * 1e6
+        times = [StepTimes(planning, setup.q0) for _ in range(passes)]
+        medians = [float(np.median(cpu)) for _, cpu in times]
+        wall_us, cpu_us = times[int(np.argmin(medians))]
         mode = "robust" if robust else "paper's law"
         print(
-            f"{mode}: planner step median {np.median(wall_us):.1f} us wall "
-            f"(p95 {np.percentile(wall_us, 95):.1f}), {np.median(cpu_us):.1f} us CPU "
-            f"(p95 {np.percentile(cpu_us, 95):.1f}; CPU time does not count other jobs on "
-            "shared cores) (goal: median <= 100 us)"
+            f"{mode}: planner step median {np.median(cpu_us):.1f} us CPU (p95 "
+            f"{np.percentile(cpu_us, 95):.1f}), {np.median(wall_us):.1f} us wall, the best of "
+            f"{passes} passes (medians {', '.join(f'{m:.1f}' for m in medians)} us CPU) "
+            "(goal: median <= 100 us)"
         )
         start = time.perf_counter()
         runs[mode] = RunPlanning(planning, setup.q0, max_time=scenario.max_time)
@@ -82,9 +92,10 @@ def main() -> None:
     parser.add_argument("--arm", action="append", choices=sorted(ARM_SCENARIOS))
     parser.add_argument("--count", type=int, default=51)
     parser.add_argument("--skip-seed-task", action="store_true")
+    parser.add_argument("--passes", type=int, default=5, help="timed passes of the step")
     args = parser.parse_args()
     if not args.skip_seed_task:
-        SeedTask()
+        SeedTask(args.passes)
     for arm in args.arm or ["mz04d", "ur10e", "rover_arm"]:
         start = time.perf_counter()
         summaries = RandomComparison(arm, args.count)
