@@ -158,8 +158,10 @@ class ContinuousFollower(LeafSystem):
         history.Add(t, q)
         run = self._Stall(replace(run, history=history), q, t)
         stamps = self._measured_at.Eval(context)
-        stamp = float(stamps.mean())
-        if stamps.min() >= 0 and stamp > run.stamp + 1e-9:
+        # The mean as sum / 6 (numpy's mean's value) and the min over floats: numpy's
+        # per-call overhead counts at the servo rate.
+        stamp = float(stamps.sum()) / len(stamps)
+        if min(stamps.tolist()) >= 0 and stamp > run.stamp + 1e-9:
             run = self._Read(context, run, stamp)
         servo_failure = (
             self._servo_failure.Eval(context) if self._servo_failure.HasValue(context) else ""
