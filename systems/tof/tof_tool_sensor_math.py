@@ -213,19 +213,30 @@ class DetectionGrid:
         row = np.linalg.norm(points - emitters[:3, None, :], axis=2)
         col = np.linalg.norm(points - emitters[None, 3:, :], axis=2)
         object.__setattr__(self, "_expected", (row - self.hose_radius, col - self.hose_radius))
+        object.__setattr__(self, "_detect_memo", [None])
 
     def ExpectedRanges(self) -> tuple[np.ndarray, np.ndarray]:
         """Ranges (3, 3) of the row and the column sensor for a hose centred at each point."""
         return self._expected
 
     def Detect(self, ranges: np.ndarray, valid: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """(detected, errors), each a (3, 3) bool array (row sensor i, column sensor j)."""
-        valid = np.asarray(valid, bool)
+        """(detected, errors), each a (3, 3) bool array (row sensor i, column sensor j),
+        read-only: the latest reading's are kept, since a follower, its estimator and the
+        sensor's outputs each ask for the same reading's."""
+        ranges, valid = np.asarray(ranges, float), np.asarray(valid, bool)
+        key = (ranges.tobytes(), valid.tobytes())
+        latest = self._detect_memo[0]  # one read and one write: safe across threads
+        if latest is not None and latest[0] == key:
+            return latest[1]
         detected = valid[:3, None] & valid[None, 3:]
         row, col = self.ExpectedRanges()
         misfit = np.maximum(np.abs(ranges[:3, None] - row), np.abs(ranges[None, 3:] - col))
         consistent = detected & (misfit <= self.spacing * CONSISTENCY_FRACTION)
-        return detected, detected & ~_PatchOfBestFit(consistent, misfit)
+        result = (detected, detected & ~_PatchOfBestFit(consistent, misfit))
+        for array in result:
+            array.flags.writeable = False
+        self._detect_memo[0] = (key, result)
+        return result
 
     def GridEstimate(self, ranges: np.ndarray, valid: np.ndarray) -> tuple[np.ndarray | None, bool]:
         """The paper's S in T (mean of the error-free detected points) or None; and whether
