@@ -58,7 +58,7 @@ class _Run:
     estimate: HoseEstimate
     history: JointHistory
     stamp: float = -1.0
-    still_q: np.ndarray | None = None
+    still_q: list[float] | None = None
     still_since: float = 0.0
     step: int = 0
     record: np.ndarray | None = None
@@ -156,10 +156,12 @@ class ContinuousFollower(LeafSystem):
         q = self._position.Eval(context)
         history = JointHistory.Copy(run.history)
         history.Add(t, q)
-        run = self._Stall(replace(run, history=history), q, t)
+        run = self._Stall(run, history, q, t)
         stamps = self._measured_at.Eval(context)
-        stamp = float(stamps.mean())
-        if stamps.min() >= 0 and stamp > run.stamp + 1e-9:
+        # The mean as sum / 6 (numpy's mean's value) and the min over floats: numpy's
+        # per-call overhead counts at the servo rate.
+        stamp = float(stamps.sum()) / len(stamps)
+        if min(stamps.tolist()) >= 0 and stamp > run.stamp + 1e-9:
             run = self._Read(context, run, stamp)
         servo_failure = (
             self._servo_failure.Eval(context) if self._servo_failure.HasValue(context) else ""
@@ -173,11 +175,17 @@ class ContinuousFollower(LeafSystem):
             run = replace(run, reference=reference)
         state.get_mutable_abstract_state(self._run).set_value(run)
 
-    def _Stall(self, run: _Run, q: np.ndarray, t: float) -> _Run:
-        """Tracks how long the joints have stayed still; after STALL_TIME a search ends
-        (DONE: the hose's end as far as the arm can reach) and following fails."""
-        if run.still_q is None or np.abs(q - run.still_q).max() > STILL_TOLERANCE:
-            return replace(run, still_q=q.copy(), still_since=t)
+    def _Stall(self, run: _Run, history: JointHistory, q: np.ndarray, t: float) -> _Run:
+        """run with `history`, tracking how long the joints have stayed still; after
+        STALL_TIME a search ends (DONE: the hose's end as far as the arm can reach) and
+        following fails."""
+        # Compared as floats: numpy's per-call overhead counts at the servo rate.
+        q_list = q.tolist()
+        if run.still_q is None or any(
+            abs(a - b) > STILL_TOLERANCE for a, b in zip(q_list, run.still_q, strict=True)
+        ):
+            return replace(run, history=history, still_q=q_list, still_since=t)
+        run = replace(run, history=history)
         if t - run.still_since < STALL_TIME:
             return run
         return _CannotFollow(

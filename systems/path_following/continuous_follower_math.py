@@ -33,7 +33,7 @@ and is DONE.
 """
 
 import math
-from dataclasses import dataclass, replace
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 from pydrake.math import RigidTransform, RotationMatrix
@@ -200,6 +200,19 @@ class LocalFit:
     spread: float = 0.0
     curvature_error: float = 0.0
     span: float = 0.0
+    # Derived once (Advance reads them every servo period): |c| (1/m); the curvature the
+    # readings support, |c| less two standard errors, >= 0 (1/m); the curvature vector
+    # of the extrapolation ahead of p (c scaled to the significant curvature).
+    curvature: float = field(init=False, repr=False)
+    significant_curvature: float = field(init=False, repr=False)
+    c_ahead: np.ndarray = field(init=False, repr=False)
+
+    def __post_init__(self) -> None:
+        k = _Norm(self.c)
+        significant = max(k - 2 * self.curvature_error, 0.0)
+        object.__setattr__(self, "curvature", k)
+        object.__setattr__(self, "significant_curvature", significant)
+        object.__setattr__(self, "c_ahead", self.c * (significant / k) if k > 0 else self.c)
 
     def Point(self, s: float) -> np.ndarray:
         """The hose at path coordinate s (m, W): the quadratic within the window; ahead
@@ -208,18 +221,7 @@ class LocalFit:
         d = s - self.s
         if d <= 0:
             return self.p + self.u * d + 0.5 * self.c * d * d
-        k = self.curvature
-        c = self.c * (self.significant_curvature / k) if k > 0 else self.c
-        return self.p + self.heading * d + 0.5 * c * d * d
-
-    @property
-    def curvature(self) -> float:
-        return float(np.linalg.norm(self.c))
-
-    @property
-    def significant_curvature(self) -> float:
-        """The curvature the readings support (1/m): |c| less two standard errors, >= 0."""
-        return max(self.curvature - 2 * self.curvature_error, 0.0)
+        return self.p + self.heading * d + 0.5 * self.c_ahead * d * d
 
 
 @dataclass(frozen=True)
@@ -413,7 +415,7 @@ def Confidence(fit: LocalFit, config: ContinuousConfig) -> float:
     seen = fit.detections / fit.readings
     filled = min(fit.span / config.fit_length, 1.0)
     known = 1 - (fit.spread / config.spread_limit) ** 2
-    return float(np.clip(seen * filled * known, 0.0, 1.0))
+    return min(max(float(seen * filled * known), 0.0), 1.0)
 
 
 def TargetSpeed(fit: LocalFit, config: ContinuousConfig) -> float:
@@ -570,9 +572,15 @@ def _BackPoint(estimate: HoseEstimate, ref: Reference, s: float) -> tuple[np.nda
     return fit.p + direction * (s - fit.s), direction
 
 
+def _Norm(v: np.ndarray) -> float:
+    """|v| of a small vector: np.linalg.norm's value (sqrt of the dot product) without its
+    per-call overhead, which the servo-rate functions here would pay several times."""
+    return math.sqrt(float(v.dot(v)))
+
+
 def _Toward(a: np.ndarray, b: np.ndarray, step: float) -> np.ndarray:
     d = b - a
-    n = float(np.linalg.norm(d))
+    n = _Norm(d)
     return b.copy() if n <= step else a + d * (step / n)
 
 

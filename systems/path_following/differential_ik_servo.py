@@ -26,6 +26,8 @@ from guidedarm.systems.path_following.differential_ik_servo_math import (
 )
 from guidedarm.systems.path_following.workspace import WorkspaceConfig
 
+_ORIGIN = np.zeros(3)  # the controlled frame's origin, in that frame
+
 
 class DifferentialIkServo(LeafSystem):
     """Input `X_WT_desired` (RigidTransform of `frame` in world W). Outputs
@@ -121,12 +123,7 @@ class DifferentialIkServo(LeafSystem):
         plant.SetPositions(plant_context, q)
         X_WT = self._frame.CalcPoseInWorld(plant_context)
         J = plant.CalcJacobianSpatialVelocity(
-            plant_context,
-            JacobianWrtVariable.kV,
-            self._frame,
-            np.zeros(3),
-            self._world,
-            self._world,
+            plant_context, JacobianWrtVariable.kV, self._frame, _ORIGIN, self._world, self._world
         )
         X_WD = self._target.Eval(context)
         V_target = np.zeros(6)
@@ -148,13 +145,15 @@ class DifferentialIkServo(LeafSystem):
             self._damping,
             self._gain,
         )
-        target = np.concatenate([X_WD.rotation().matrix().ravel(), X_WD.translation(), [1.0]])
         wall = self._BodyAtWall(StoppingPositions(q_next, v_next, self._limits))
         if wall:
             q_next, v_next = BrakeStep(q, v, self._period, self._limits)
-        discrete.set_value(
-            self._state, np.concatenate([q_next, v_next, [float(limited)], target, [wall]])
-        )
+        state = np.empty(len(x))
+        state[:n], state[n : 2 * n], state[2 * n] = q_next, v_next, float(limited)
+        state[2 * n + 1 : 2 * n + 10] = X_WD.rotation().matrix().ravel()
+        state[2 * n + 10 : 2 * n + 13] = X_WD.translation()
+        state[2 * n + 13], state[2 * n + 14] = 1.0, wall
+        discrete.set_value(self._state, state)
 
     def _BodyAtWall(self, q: np.ndarray) -> int:
         """1 + the index of the first body whose origin at q lies outside the walls, or 0."""

@@ -59,8 +59,8 @@ MIN_DAMPING = 1e-3
 @dataclass(frozen=True)
 class JointLimits:
     """Per joint: position range (rad), speed (rad/s) and acceleration (rad/s^2) limits.
-    middle, half_range and feedback_acceleration are derived once (ServoStep runs at the
-    servo rate, where numpy's per-call overhead is the cost)."""
+    middle, half_range, feedback_acceleration and the limits as lists are derived once
+    (ServoStep runs at the servo rate, where numpy's per-call overhead is the cost)."""
 
     lower: np.ndarray
     upper: np.ndarray
@@ -69,12 +69,24 @@ class JointLimits:
     middle: np.ndarray = field(init=False, repr=False)
     half_range: np.ndarray = field(init=False, repr=False)
     feedback_acceleration: np.ndarray = field(init=False, repr=False)
+    # The same as lists of floats, for ServoStep's joint-by-joint part.
+    lower_list: list[float] = field(init=False, repr=False)
+    upper_list: list[float] = field(init=False, repr=False)
+    speed_list: list[float] = field(init=False, repr=False)
+    acceleration_list: list[float] = field(init=False, repr=False)
+    feedback_acceleration_list: list[float] = field(init=False, repr=False)
 
     def __post_init__(self) -> None:
+        feedback = FEEDBACK_ACCELERATION_SHARE * self.acceleration
         derived = {
             "middle": 0.5 * (self.lower + self.upper),
             "half_range": np.maximum(0.5 * (self.upper - self.lower), 1e-9),
-            "feedback_acceleration": FEEDBACK_ACCELERATION_SHARE * self.acceleration,
+            "feedback_acceleration": feedback,
+            "lower_list": np.asarray(self.lower, float).tolist(),
+            "upper_list": np.asarray(self.upper, float).tolist(),
+            "speed_list": np.asarray(self.speed, float).tolist(),
+            "acceleration_list": np.asarray(self.acceleration, float).tolist(),
+            "feedback_acceleration_list": np.asarray(feedback, float).tolist(),
         }
         for name, value in derived.items():
             object.__setattr__(self, name, value)
@@ -130,24 +142,36 @@ def ServoStep(
     rhs = normal[:, n:]
     rhs[:, 0] += lam2 * CentringVelocity(q, limits)
     solution = V @ ((V.T @ rhs) / (e + lam2)[:, None])
-    v_ff, dq = solution[:, 0], solution[:, 1]
-    # Reductions over n joints as Python floats: numpy's are slower at this size.
-    reach = max((np.abs(dq) / limits.feedback_acceleration).tolist())
-    v_wanted = v_ff + dq * (min(gain, math.sqrt(2.0 / reach)) if reach > 0 else gain)
-    speed_ratio = min((limits.speed / np.maximum(np.abs(v_wanted), 1e-300)).tolist())
+    # The rest joint by joint in Python floats: numpy's per-call overhead exceeds its work
+    # on n joints (the same IEEE operations, so the same values).
+    v_ff, dq = solution[:, 0].tolist(), solution[:, 1].tolist()
+    q_, v_ = q.tolist(), v.tolist()
+    reach = max(abs(d) / a for d, a in zip(dq, limits.feedback_acceleration_list, strict=True))
+    scale = min(gain, math.sqrt(2.0 / reach)) if reach > 0 else gain
+    v_wanted = [f + d * scale for f, d in zip(v_ff, dq, strict=True)]
+    speed_ratio = min(
+        s / max(abs(w), 1e-300) for s, w in zip(limits.speed_list, v_wanted, strict=True)
+    )
     if speed_ratio < 1.0:
-        v_wanted = v_wanted * speed_ratio
-    dv = v_wanted - v
-    a = limits.acceleration
-    excess = max((np.abs(dv) / (a * period)).tolist())
-    v_next = v + dv / excess if excess > 1.0 else v + dv
+        v_wanted = [w * speed_ratio for w in v_wanted]
+    dv = [w - x for w, x in zip(v_wanted, v_, strict=True)]
+    excess = max(abs(d) / (a * period) for d, a in zip(dv, limits.acceleration_list, strict=True))
+    if excess > 1.0:
+        v_next = [x + d / excess for x, d in zip(v_, dv, strict=True)]
+    else:
+        v_next = [x + d for x, d in zip(v_, dv, strict=True)]
     # Braking: at most the speed from which the joint stops at its limit, and never past it.
-    to_upper, to_lower = limits.upper - q, q - limits.lower
-    high = np.minimum(np.sqrt(2 * a * np.maximum(to_upper, 0.0)), to_upper / period)
-    low = np.maximum(-np.sqrt(2 * a * np.maximum(to_lower, 0.0)), -to_lower / period)
-    v_next = np.minimum(np.maximum(v_next, low), np.maximum(high, low))
+    q_next = []
+    for i, (qi, a, lower, upper) in enumerate(
+        zip(q_, limits.acceleration_list, limits.lower_list, limits.upper_list, strict=True)
+    ):
+        to_upper, to_lower = upper - qi, qi - lower
+        high = min(math.sqrt(2 * a * max(to_upper, 0.0)), to_upper / period)
+        low = max(-math.sqrt(2 * a * max(to_lower, 0.0)), -to_lower / period)
+        v_next[i] = min(max(v_next[i], low), max(high, low))
+        q_next.append(qi + v_next[i] * period)
     limited = excess > 1.0 or speed_ratio < 1.0
-    return q + v_next * period, v_next, limited
+    return np.array(q_next), np.array(v_next), limited
 
 
 def ReachBound(plant: MultibodyPlant, bodies: list[RigidBody]) -> float:

@@ -143,10 +143,15 @@ class ToolMount:
 
 
 def OrientationFromVector(w_a: np.ndarray) -> RotationMatrix:
-    """Tool orientation with x along w_a and roll 0, equations (20)-(22)."""
-    yaw = math.atan2(w_a[1], w_a[0])
-    pitch = math.atan2(-w_a[2], math.hypot(w_a[0], w_a[1]))
-    return RotationMatrix(Rotation(0.0, pitch, yaw))
+    """Tool orientation with x along w_a and roll 0, equations (20)-(22): Rotation(0,
+    pitch, yaw) written out (the continuous follower needs it every servo period)."""
+    x, y, z = float(w_a[0]), float(w_a[1]), float(w_a[2])
+    yaw = math.atan2(y, x)
+    pitch = math.atan2(-z, math.hypot(x, y))
+    cp, sp, cy, sy = math.cos(pitch), math.sin(pitch), math.cos(yaw), math.sin(yaw)
+    return RotationMatrix(
+        np.array([[cy * cp, -sy, cy * sp], [sy * cp, cy, sy * sp], [-sp, 0.0, cp]])
+    )
 
 
 @dataclass(frozen=True)

@@ -53,6 +53,8 @@ from pydrake.math import RigidTransform
 CONSISTENCY_FRACTION = 0.75
 # Rim rays over the half of a cone's rim that faces an oblique hose (_CylinderRange).
 BOUNDARY_SAMPLES = 19
+_RIM_PHI = np.linspace(-math.pi / 2, math.pi / 2, BOUNDARY_SAMPLES)
+_RIM_COS, _RIM_SIN = np.cos(_RIM_PHI)[:, None], np.sin(_RIM_PHI)[:, None]
 
 
 def ConeRays(cone_angle: float, rings: int) -> np.ndarray:
@@ -207,21 +209,34 @@ class DetectionGrid:
         object.__setattr__(self, "spacing", float(spacing))
         extent = np.max(np.linalg.norm(points - points[1, 1], axis=2))
         object.__setattr__(self, "field_radius", float(extent + spacing / 2))
+        # Detect compares every reading with these (fixed by the geometry).
+        row = np.linalg.norm(points - emitters[:3, None, :], axis=2)
+        col = np.linalg.norm(points - emitters[None, 3:, :], axis=2)
+        object.__setattr__(self, "_expected", (row - self.hose_radius, col - self.hose_radius))
+        object.__setattr__(self, "_detect_memo", [None])
 
     def ExpectedRanges(self) -> tuple[np.ndarray, np.ndarray]:
         """Ranges (3, 3) of the row and the column sensor for a hose centred at each point."""
-        row = np.linalg.norm(self.points - self.emitters[:3, None, :], axis=2)
-        col = np.linalg.norm(self.points - self.emitters[None, 3:, :], axis=2)
-        return row - self.hose_radius, col - self.hose_radius
+        return self._expected
 
     def Detect(self, ranges: np.ndarray, valid: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """(detected, errors), each a (3, 3) bool array (row sensor i, column sensor j)."""
-        valid = np.asarray(valid, bool)
+        """(detected, errors), each a (3, 3) bool array (row sensor i, column sensor j),
+        read-only: the latest reading's are kept, since a follower, its estimator and the
+        sensor's outputs each ask for the same reading's."""
+        ranges, valid = np.asarray(ranges, float), np.asarray(valid, bool)
+        key = (ranges.tobytes(), valid.tobytes())
+        latest = self._detect_memo[0]  # one read and one write: safe across threads
+        if latest is not None and latest[0] == key:
+            return latest[1]
         detected = valid[:3, None] & valid[None, 3:]
         row, col = self.ExpectedRanges()
         misfit = np.maximum(np.abs(ranges[:3, None] - row), np.abs(ranges[None, 3:] - col))
         consistent = detected & (misfit <= self.spacing * CONSISTENCY_FRACTION)
-        return detected, detected & ~_PatchOfBestFit(consistent, misfit)
+        result = (detected, detected & ~_PatchOfBestFit(consistent, misfit))
+        for array in result:
+            array.flags.writeable = False
+        self._detect_memo[0] = (key, result)
+        return result
 
     def GridEstimate(self, ranges: np.ndarray, valid: np.ndarray) -> tuple[np.ndarray | None, bool]:
         """The paper's S in T (mean of the error-free detected points) or None; and whether
@@ -267,10 +282,10 @@ class DetectionGrid:
             if k is not None:
                 candidates.append(self.emitters[k] + self.axes[k] * (ranges[k] + r))
         for c in candidates:
-            if c is not None and np.linalg.norm(c - centre) <= self.field_radius:
+            if c is not None and _Norm(c - centre) <= self.field_radius:
                 sensors = np.flatnonzero(trusted & np.asarray(valid, bool))
                 c = self._Refine(c, ranges, sensors, axis)
-                return c, bool(np.linalg.norm(c - centre) < self.spacing / 2)
+                return c, bool(_Norm(c - centre) < self.spacing / 2)
         return None, False
 
     def PredictedRange(self, k: int, c: np.ndarray, axis: np.ndarray | None = None) -> float | None:
@@ -281,7 +296,7 @@ class DetectionGrid:
             return self._CylinderRange(k, c, axis)
         half = self.cone_angle / 2
         d = c - self.emitters[k]
-        distance = float(np.linalg.norm(d))
+        distance = _Norm(d)
         along = float(d @ self.axes[k])
         if along <= 0:
             return None
@@ -308,7 +323,7 @@ class DetectionGrid:
         Gauss-Newton's finite differences need)."""
         e, z = self.emitters[k], self.axes[k]
         d = e - c - axis * float((e - c) @ axis)  # from the axis to the emitter, normal to it
-        distance = float(np.linalg.norm(d))
+        distance = _Norm(d)
         r = self.hose_radius
         if distance <= r:
             return None
@@ -317,15 +332,12 @@ class DetectionGrid:
         if n @ z >= math.cos(half):
             return distance - r
         side = n - (n @ z) * z
-        norm = float(np.linalg.norm(side))
+        norm = _Norm(side)
         if norm < 1e-12 or n @ z <= 0:
             return None
         x1 = side / norm
-        y1 = np.cross(z, x1)
-        phi = np.linspace(-math.pi / 2, math.pi / 2, BOUNDARY_SAMPLES)
-        w = math.cos(half) * z + math.sin(half) * (
-            np.cos(phi)[:, None] * x1 + np.sin(phi)[:, None] * y1
-        )
+        y1 = _Cross(z, x1)
+        w = math.cos(half) * z + math.sin(half) * (_RIM_COS * x1 + _RIM_SIN * y1)
         w_perp = w - np.outer(w @ axis, axis)
         a2 = np.einsum("ij,ij->i", w_perp, w_perp)
         b = w_perp @ d
@@ -362,9 +374,10 @@ class DetectionGrid:
         h = 1e-5
         for _ in range(8):
             residuals, jacobian = [], []
+            moved = [x + h * b for b in basis]
             for k in sensors:
                 p = self.PredictedRange(k, x, axis)
-                shifted = [self.PredictedRange(k, x + h * b, axis) for b in basis]
+                shifted = [self.PredictedRange(k, m, axis) for m in moved]
                 if p is None or None in shifted:
                     continue
                 residuals.append(ranges[k] - p)
@@ -373,9 +386,9 @@ class DetectionGrid:
                 return c
             step = np.linalg.lstsq(np.array(jacobian), np.array(residuals), rcond=None)[0]
             x = x + step[0] * basis[0] + step[1] * basis[1]
-            if np.linalg.norm(step) < 1e-6:
+            if _Norm(step) < 1e-6:
                 break
-        return x if np.linalg.norm(x - c) <= self.spacing / 2 else c
+        return x if _Norm(x - c) <= self.spacing / 2 else c
 
 
 def _PatchOfBestFit(consistent: np.ndarray, misfit: np.ndarray) -> np.ndarray:
@@ -424,16 +437,30 @@ def _CircleIntersection(c1, r1, c2, r2, u1, centre) -> np.ndarray | None:
     """The intersection of spheres (c1, r1), (c2, r2) in the plane of c1, c2 and u1 that is
     nearest to `centre` (closest point when they do not meet)."""
     d_vec = c2 - c1
-    d = np.linalg.norm(d_vec)
+    d = _Norm(d_vec)
     if d < 1e-9:
         return None
     ex = d_vec / d
-    normal = np.cross(ex, u1)
-    if np.linalg.norm(normal) < 1e-9:
+    normal = _Cross(ex, u1)
+    length = _Norm(normal)
+    if length < 1e-9:
         return None
-    ey = np.cross(normal / np.linalg.norm(normal), ex)
+    ey = _Cross(normal / length, ex)
     x = (r1 * r1 - r2 * r2 + d * d) / (2 * d)
     h2 = r1 * r1 - x * x
     h = math.sqrt(h2) if h2 > 0 else 0.0
     options = [c1 + x * ex + h * ey, c1 + x * ex - h * ey]
-    return min(options, key=lambda p: np.linalg.norm(p - centre))
+    return min(options, key=lambda p: _Norm(p - centre))
+
+
+def _Norm(v: np.ndarray) -> float:
+    """|v| (np.linalg.norm's value, the square root of the dot product) without its
+    per-call overhead: the ranging estimator calls it hundreds of times a reading."""
+    return math.sqrt(float(v.dot(v)))
+
+
+def _Cross(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """a x b of two 3-vectors, as np.cross computes it, without its per-call overhead."""
+    a0, a1, a2 = a.tolist()
+    b0, b1, b2 = b.tolist()
+    return np.array([a1 * b2 - a2 * b1, a2 * b0 - a0 * b2, a0 * b1 - a1 * b0])
