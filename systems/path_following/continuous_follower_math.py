@@ -108,7 +108,7 @@ class ContinuousConfig:
     max_correction_speed: float = Positive(0.03)
     max_turn_rate_deg: float = Positive(30.0)
     heading_tolerance_deg: float = InRange(0.5, 90.0, 10.0)
-    servo_period: float = Positive(0.004)
+    servo_period: float = Positive(0.008)
     servo_gain: float = Positive(20.0)
     rotation_weight: float = InRange(1e-3, 1.0, 0.05)
     roll_weight: float = InRange(0.0, 1.0, 0.1)
