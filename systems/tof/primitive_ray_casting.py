@@ -17,6 +17,7 @@ so each step handles all shapes of a kind at once.
 from __future__ import annotations
 
 import copy
+import math
 from collections.abc import Callable
 from typing import NamedTuple
 
@@ -42,27 +43,28 @@ SUPPORTED = (Box, Capsule, Cylinder, HalfSpace, Sphere)
 _KINDS = ("box", "capsule", "cylinder", "halfspace", "sphere")
 
 
-def ShapeSizes(shape) -> tuple[str, list[float], list[float]]:
-    """(kind, sizes, half extents in G) of a SUPPORTED shape. Sizes: box half sizes;
-    capsule or cylinder (radius, half length, 0) along G's z; sphere (radius, 0, 0);
-    half-space (G's z <= 0) none. Half extents: of a box in G holding the shape (m)."""
+def ShapeSizes(shape) -> tuple[str, list[float], float]:
+    """(kind, sizes, radius) of a SUPPORTED shape. Sizes: box half sizes; capsule or
+    cylinder (radius, half length, 0) along G's z; sphere (radius, 0, 0); half-space (G's
+    z <= 0) none. Radius: of the smallest ball about G's origin holding the shape (m)."""
     if isinstance(shape, Box):
         half = [shape.width() / 2, shape.depth() / 2, shape.height() / 2]
-        return "box", half, half
+        return "box", half, float(np.linalg.norm(half))
     if isinstance(shape, Capsule | Cylinder):
-        kind = "capsule" if isinstance(shape, Capsule) else "cylinder"
         r, h = shape.radius(), shape.length() / 2
-        return kind, [r, h, 0.0], [r, r, h + r if kind == "capsule" else h]
+        if isinstance(shape, Capsule):
+            return "capsule", [r, h, 0.0], h + r
+        return "cylinder", [r, h, 0.0], float(np.hypot(r, h))
     if isinstance(shape, Sphere):
-        return "sphere", [shape.radius(), 0.0, 0.0], [shape.radius()] * 3
-    return "halfspace", [0.0, 0.0, 0.0], [np.inf] * 3
+        return "sphere", [shape.radius(), 0.0, 0.0], shape.radius()
+    return "halfspace", [0.0, 0.0, 0.0], np.inf
 
 
 class ShapeTable:
-    """Shapes sorted by kind: frames G in W (R (N, 3, 3), p (N, 3)), sizes (N, 3) and
-    bounds (N, 2, 3), axis-aligned boxes in W; the kinds present in that order, shapes
-    starts[i]:starts[i + 1] of kinds[i]. Shapes on moving frames F keep X_FG and take X_WF
-    at each Pose()."""
+    """Shapes sorted by kind: frames G in W (R (M, 3, 3), p (M, 3), and p2 = |p|^2 (M,)),
+    sizes (M, 3) and radii (M,) of balls about G's origins holding them; the kinds present
+    in that order, shapes starts[i]:starts[i + 1] of kinds[i]. Shapes on moving frames F
+    keep X_FG and take X_WF at each Pose()."""
 
     def __init__(self, shapes: list[tuple[object, RigidTransform, int]]) -> None:
         """shapes: (shape, X_FG, frame index), frame index -1 for the world."""
@@ -76,16 +78,12 @@ class ShapeTable:
         self.R = np.array([row[3].rotation().matrix() for row in rows]).reshape(-1, 3, 3)
         self.p = np.array([row[3].translation() for row in rows]).reshape(-1, 3)
         self.sizes = np.array([row[1] for row in rows], float).reshape(-1, 3)
-        extent_G = np.array([row[2] for row in rows], float).reshape(-1, 3)
+        self.radii = np.array([row[2] for row in rows], float)
         frame = np.array([row[4] for row in rows], int)
         self._moving = np.flatnonzero(frame >= 0)
         self._frame = frame[self._moving]
         self._R_FG, self._p_FG = self.R[self._moving], self.p[self._moving, :, None]
-        self._extent_G = extent_G[self._moving, :, None]
-        self.bounds = np.stack([np.full_like(self.p, -np.inf), np.full_like(self.p, np.inf)], 1)
-        bounded = np.isfinite(extent_G[:, 0])
-        self._Bound(np.flatnonzero(bounded), extent_G[bounded, :, None])
-        self._moving_bounded = bounded[self._moving]
+        self.p2 = np.sum(self.p * self.p, axis=1)
 
     def Pose(self, R_WF: np.ndarray, p_WF: np.ndarray) -> None:
         """Poses the shapes on moving frames from their frames' poses in W."""
@@ -93,23 +91,20 @@ class ShapeTable:
             return
         R = R_WF[self._frame]
         self.R[self._moving] = R @ self._R_FG
-        self.p[self._moving] = p_WF[self._frame] + (R @ self._p_FG)[:, :, 0]
-        index = self._moving[self._moving_bounded]
-        self._Bound(index, self._extent_G[self._moving_bounded])
-
-    def _Bound(self, index: np.ndarray, extent_G: np.ndarray) -> None:
-        """Boxes of shapes `index` with half extents extent_G (n, 3, 1) in their frames."""
-        extent = (np.abs(self.R[index]) @ extent_G)[:, :, 0]
-        self.bounds[index, 0] = self.p[index] - extent
-        self.bounds[index, 1] = self.p[index] + extent
+        p = p_WF[self._frame] + (R @ self._p_FG)[:, :, 0]
+        self.p[self._moving] = p
+        self.p2[self._moving] = np.sum(p * p, axis=1)
 
 
-def FirstHits(o: np.ndarray, u: np.ndarray, kind: str, sizes: np.ndarray) -> np.ndarray:
+def FirstHits(
+    o: np.ndarray, u: np.ndarray, ou: np.ndarray, kind: str, sizes: np.ndarray
+) -> np.ndarray:
     """Distance (C, N, K) along K unit rays from each of N origins to each of C shapes'
     surfaces (m; 0 from inside, inf on a miss or behind the origin): o (3, C, N, 1) and
-    u (3, C, N, K), coordinates first, in each shape's frame G; sizes (C, 3) as ShapeSizes
-    gives them. Call within np.errstate(all="ignore"): a miss is a NaN square root or a
-    division by zero, and a NaN compares false."""
+    u (3, C, N, K), coordinates first, in each shape's frame G, and their dot products
+    ou (C, N, K); sizes (C, 3) as ShapeSizes gives them. Call within
+    np.errstate(all="ignore"): a miss is a NaN square root or a division by zero, and a
+    NaN compares false."""
     if kind == "box":
         return _Box(o, u, sizes.T[:, :, None, None])
     ox, oy, oz = o
@@ -117,7 +112,6 @@ def FirstHits(o: np.ndarray, u: np.ndarray, kind: str, sizes: np.ndarray) -> np.
     if kind == "halfspace":
         return _HalfSpace(oz, uz)
     radius2 = sizes[:, 0, None, None] ** 2
-    ou = ox * ux + oy * uy + oz * uz
     rho2 = ox * ox + oy * oy
     if kind == "sphere":
         c = rho2 + oz * oz - radius2
@@ -168,32 +162,50 @@ def _HalfSpace(oz: np.ndarray, uz: np.ndarray) -> np.ndarray:
     return np.where(oz <= 0, 0.0, np.where(uz < 0, -oz / uz, np.inf))
 
 
-def CastCones(p_WS: np.ndarray, u_W: np.ndarray, table: ShapeTable, reach: float) -> np.ndarray:
+def CastCones(
+    p_WS: np.ndarray,
+    u_W: np.ndarray,
+    z_WS: np.ndarray,
+    half_angle: float,
+    table: ShapeTable,
+    reach: float,
+) -> np.ndarray:
     """Nearest hit (m, inf for none) of each sensor's rays against the table's shapes.
-    p_WS (N, 3): the origins of N sensors; u_W (N, K, 3): K unit rays of each, in W; reach:
-    the rays' length (m). Only shapes whose box meets the box of all N K ray segments are
-    intersected, all of them with every ray, one numpy pass per kind of shape."""
+    p_WS (N, 3): the origins of N sensors; u_W (N, K, 3): K unit rays of each, in W, all
+    within half_angle (< pi / 2) of the sensor's axis z_WS (N, 3); reach: the rays' length
+    (m). Only the shapes whose ball meets a sensor's cone (of half_angle, truncated at
+    reach) are intersected, all of them with every ray, one numpy pass per kind of shape."""
     n, k = u_W.shape[:2]
-    ends = p_WS[:, None, :] + reach * u_W
-    lower = np.minimum(ends.min(axis=(0, 1)), p_WS.min(axis=0))
-    upper = np.maximum(ends.max(axis=(0, 1)), p_WS.max(axis=0))
-    bounds = table.bounds
-    near = np.flatnonzero(((bounds[:, 0] <= upper) & (lower <= bounds[:, 1])).all(axis=1))
+    # A ball of radius rho centred at (x along the axis, y off it) from the apex meets the
+    # cone only if its centre is within rho of the half-plane bounding the cone's side,
+    # y cos - x sin <= rho, and of the slab 0 <= x <= reach. Squared distances from dot
+    # products lose up to ~1e-16 m^2: rho gets 1 um to spare.
+    dots = table.p @ np.concatenate([p_WS, z_WS]).T
+    x = dots[:, n:] - np.sum(p_WS * z_WS, axis=1)
+    distance2 = table.p2[:, None] - 2 * dots[:, :n] + np.sum(p_WS * p_WS, axis=1)
+    y = np.sqrt(np.maximum(distance2 - x * x, 0.0))
+    rho = table.radii[:, None] + 1e-6
+    side = y * math.cos(half_angle) - x * math.sin(half_angle)
+    near = np.flatnonzero(((side <= rho) & (x >= -rho) & (x <= reach + rho)).any(axis=1))
     best = np.full(n, np.inf)
     if len(near) == 0:
         return best
     # The origins and rays in each near shape's frame G, coordinate i of all of them from
     # G's axis i in W: o (3, C, N, 1), u (3, C, N, K).
     axes = table.R[near].transpose(2, 0, 1)
-    o = (axes @ p_WS.T - np.sum(axes * table.p[near], axis=2)[:, :, None])[..., None]
-    u = (axes @ u_W.reshape(-1, 3).T).reshape(3, len(near), n, k)
+    p_WG = table.p[near]
+    o = (axes @ p_WS.T - np.sum(axes * p_WG, axis=2)[:, :, None])[..., None]
+    u_W = u_W.reshape(-1, 3)
+    u = (axes @ u_W.T).reshape(3, len(near), n, k)
+    # o . u, a rotation invariant: (p_WS - p_WG) . u_W.
+    ou = (np.sum(p_WS.repeat(k, axis=0) * u_W, axis=1) - p_WG @ u_W.T).reshape(-1, n, k)
     sizes = table.sizes[near]
     # near is sorted, as the table is by kind: each kind is one run of it.
     runs = np.searchsorted(near, table.starts)
     with np.errstate(all="ignore"):
         for kind, lo, hi in zip(table.kinds, runs[:-1], runs[1:], strict=True):
             if lo < hi:
-                hits = FirstHits(o[:, lo:hi], u[:, lo:hi], kind, sizes[lo:hi])
+                hits = FirstHits(o[:, lo:hi], u[:, lo:hi], ou[lo:hi], kind, sizes[lo:hi])
                 best = np.minimum(best, hits.min(axis=(0, 2)))
     return best
 
@@ -235,10 +247,12 @@ class SceneRayCaster:
         self.max_range = max_range
         self.ignored = ignored
         self.mount = mount
+        self._half_angle = math.acos(min(1.0, rays_S[:, 2].min()))
         if mount is not None:
             X_FS = np.array([X.GetAsMatrix34() for X in mount.X_FS])
             self._p_FS = X_FS[:, :, 3]
             self._u_F = rays_S @ X_FS[:, :, :3].transpose(0, 2, 1)  # (N, K, 3)
+            self._z_F = X_FS[:, :, 2]
         self._version = None
         self._table = ShapeTable([])
         self._frames: list = []
@@ -249,7 +263,7 @@ class SceneRayCaster:
         X_WS = np.array([X.GetAsMatrix34() for X in poses])
         R_WS = X_WS[:, :, :3]
         u_W = self.rays_S @ R_WS.transpose(0, 2, 1)
-        return self._Cast(query, X_WS[:, :, 3], u_W, lambda: poses)
+        return self._Cast(query, X_WS[:, :, 3], u_W, R_WS[:, :, 2], lambda: poses)
 
     def MountedPoses(self, query: QueryObject) -> list[RigidTransform]:
         """X_WS of the mount's sensors."""
@@ -261,22 +275,24 @@ class SceneRayCaster:
         X_WF = query.GetPoseInWorld(self.mount.frame).GetAsMatrix34()
         R_WF = X_WF[:, :3]
         p_WS = self._p_FS @ R_WF.T + X_WF[:, 3]
-        return self._Cast(query, p_WS, self._u_F @ R_WF.T, lambda: self.MountedPoses(query))
+        u_W, z_WS = self._u_F @ R_WF.T, self._z_F @ R_WF.T
+        return self._Cast(query, p_WS, u_W, z_WS, lambda: self.MountedPoses(query))
 
     def _Cast(
         self,
         query: QueryObject,
         p_WS: np.ndarray,
         u_W: np.ndarray,
+        z_WS: np.ndarray,
         poses: Callable[[], list[RigidTransform]],
     ) -> np.ndarray:
-        """Ranges of sensors at p_WS (N, 3) with rays u_W (N, K, 3); poses() gives their
-        X_WS for sphere tracing."""
+        """Ranges of sensors at p_WS (N, 3) with axes z_WS (N, 3) and rays u_W (N, K, 3);
+        poses() gives their X_WS for sphere tracing."""
         self._Refresh(query.inspector())
         if self._frames:
             X_WF = np.array([query.GetPoseInWorld(f).GetAsMatrix34() for f in self._frames])
             self._table.Pose(X_WF[:, :, :3], X_WF[:, :, 3])
-        ranges = CastCones(p_WS, u_W, self._table, self.max_range)
+        ranges = CastCones(p_WS, u_W, z_WS, self._half_angle, self._table, self.max_range)
         ranges[ranges > self.max_range] = np.inf
         if self._tracer is not None:
             traced = [self._tracer.Range(query, X_WS) for X_WS in poses()]
