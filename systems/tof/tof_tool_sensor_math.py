@@ -54,7 +54,8 @@ CONSISTENCY_FRACTION = 0.75
 # Rim rays over the half of a cone's rim that faces an oblique hose (_CylinderRange).
 BOUNDARY_SAMPLES = 19
 _RIM_PHI = np.linspace(-math.pi / 2, math.pi / 2, BOUNDARY_SAMPLES)
-_RIM_COS, _RIM_SIN = np.cos(_RIM_PHI)[:, None], np.sin(_RIM_PHI)[:, None]
+# A 3-vector as floats (x, y, z).
+Vector = tuple[float, float, float]
 
 
 def ConeRays(cone_angle: float, rings: int) -> np.ndarray:
@@ -214,6 +215,17 @@ class DetectionGrid:
         col = np.linalg.norm(points - emitters[None, 3:, :], axis=2)
         object.__setattr__(self, "_expected", (row - self.hose_radius, col - self.hose_radius))
         object.__setattr__(self, "_detect_memo", [None])
+        # Floats for the ranging model (_CylinderRange, _Refine).
+        object.__setattr__(self, "_emitter_list", [tuple(e) for e in emitters.tolist()])
+        object.__setattr__(self, "_axis_list", [tuple(a) for a in axes.tolist()])
+        if self.cone_angle is not None:
+            half = self.cone_angle / 2
+            object.__setattr__(self, "_cone_cos", math.cos(half))
+            rim = [
+                (math.sin(half) * math.cos(phi), math.sin(half) * math.sin(phi))
+                for phi in _RIM_PHI.tolist()
+            ]
+            object.__setattr__(self, "_rim", rim)
 
     def ExpectedRanges(self) -> tuple[np.ndarray, np.ndarray]:
         """Ranges (3, 3) of the row and the column sensor for a hose centred at each point."""
@@ -293,7 +305,7 @@ class DetectionGrid:
         when its cone misses the hose: the nearest in-plane ray of the cone. With `axis`
         (unit, T) the hose is the cylinder of that axis through c (_CylinderRange)."""
         if axis is not None:
-            return self._CylinderRange(k, c, axis)
+            return self._CylinderRange(k, tuple(c.tolist()), tuple(axis.tolist()))
         half = self.cone_angle / 2
         d = c - self.emitters[k]
         distance = _Norm(d)
@@ -309,7 +321,7 @@ class DetectionGrid:
         r2 = self.hose_radius**2
         return None if h2 > r2 else t - math.sqrt(r2 - h2)
 
-    def _CylinderRange(self, k: int, c: np.ndarray, axis: np.ndarray) -> float | None:
+    def _CylinderRange(self, k: int, c: Vector, axis: Vector) -> float | None:
         """Range (m) sensor k reads for the cylinder of radius hose_radius, unit axis `axis`
         through c (T), or None when its cone misses it.
 
@@ -320,39 +332,65 @@ class DetectionGrid:
         perpendicular on the axis; when that direction leaves the cone the nearest return
         is on the cone's rim, minimised over BOUNDARY_SAMPLES rim rays on the side facing
         the axis and a parabola through the least three (smooth in c, which the
-        Gauss-Newton's finite differences need)."""
-        e, z = self.emitters[k], self.axes[k]
-        d = e - c - axis * float((e - c) @ axis)  # from the axis to the emitter, normal to it
-        distance = _Norm(d)
+        Gauss-Newton's finite differences need).
+
+        In floats, not arrays: _Refine calls it a dozen times a reading, and numpy's
+        per-call overhead on 3-vectors costs more than the arithmetic."""
+        (e0, e1, e2), (z0, z1, z2) = self._emitter_list[k], self._axis_list[k]
+        a0, a1, a2 = axis
+        f0, f1, f2 = e0 - c[0], e1 - c[1], e2 - c[2]
+        along = f0 * a0 + f1 * a1 + f2 * a2
+        # From the axis to the emitter, normal to the axis.
+        d0, d1, d2 = f0 - a0 * along, f1 - a1 * along, f2 - a2 * along
+        distance = math.sqrt(d0 * d0 + d1 * d1 + d2 * d2)
         r = self.hose_radius
         if distance <= r:
             return None
-        n = -d / distance
-        half = self.cone_angle / 2
-        if n @ z >= math.cos(half):
+        n0, n1, n2 = -d0 / distance, -d1 / distance, -d2 / distance
+        nz = n0 * z0 + n1 * z1 + n2 * z2
+        cos_half = self._cone_cos
+        if nz >= cos_half:
             return distance - r
-        side = n - (n @ z) * z
-        norm = _Norm(side)
-        if norm < 1e-12 or n @ z <= 0:
+        s0, s1, s2 = n0 - nz * z0, n1 - nz * z1, n2 - nz * z2
+        norm = math.sqrt(s0 * s0 + s1 * s1 + s2 * s2)
+        if norm < 1e-12 or nz <= 0:
             return None
-        x1 = side / norm
-        y1 = _Cross(z, x1)
-        w = math.cos(half) * z + math.sin(half) * (_RIM_COS * x1 + _RIM_SIN * y1)
-        w_perp = w - np.outer(w @ axis, axis)
-        a2 = np.einsum("ij,ij->i", w_perp, w_perp)
-        b = w_perp @ d
-        disc = b * b - a2 * (distance * distance - r * r)
-        hit = (disc >= 0) & (b < 0)
-        if not hit.any():
+        x0, x1, x2 = s0 / norm, s1 / norm, s2 / norm
+        y0, y1, y2 = z1 * x2 - z2 * x1, z2 * x0 - z0 * x2, z0 * x1 - z1 * x0
+        # A rim ray w = cos_half z + sin_half (cos(phi) x + sin(phi) y) (unit) meets the
+        # cylinder where |d + t w_perp| = r, w_perp its part normal to the axis:
+        # a t^2 + 2 b t + distance^2 - r^2 = 0 with a = |w_perp|^2 = 1 - (w . axis)^2 and
+        # b = w_perp . d = w . d - (w . axis)(axis . d); the nearer root when b < 0.
+        za, xa, ya = (
+            z0 * a0 + z1 * a1 + z2 * a2,
+            x0 * a0 + x1 * a1 + x2 * a2,
+            y0 * a0 + y1 * a1 + y2 * a2,
+        )
+        zd, xd, yd = (
+            z0 * d0 + z1 * d1 + z2 * d2,
+            x0 * d0 + x1 * d1 + x2 * d2,
+            y0 * d0 + y1 * d1 + y2 * d2,
+        )
+        ad = a0 * d0 + a1 * d1 + a2 * d2
+        wa0, wd0 = cos_half * za, cos_half * zd
+        gap = distance * distance - r * r
+        t = []
+        for cos_phi, sin_phi in self._rim:
+            wa = wa0 + cos_phi * xa + sin_phi * ya
+            b = wd0 + cos_phi * xd + sin_phi * yd - wa * ad
+            a = 1.0 - wa * wa
+            disc = b * b - a * gap
+            t.append((-b - math.sqrt(disc)) / max(a, 1e-12) if disc >= 0 and b < 0 else math.inf)
+        best = min(t)
+        if best == math.inf:
             return None
-        t = np.where(hit, (-b - np.sqrt(np.maximum(disc, 0.0))) / np.maximum(a2, 1e-12), np.inf)
-        i = int(np.argmin(t))
-        if 0 < i < len(t) - 1 and np.isfinite(t[i - 1]) and np.isfinite(t[i + 1]):
-            curvature = t[i - 1] - 2 * t[i] + t[i + 1]
+        i = t.index(best)
+        if 0 < i < len(t) - 1 and t[i - 1] < math.inf and t[i + 1] < math.inf:
+            curvature = t[i - 1] - 2 * best + t[i + 1]
             if curvature > 0:
                 slope = (t[i + 1] - t[i - 1]) / 2
-                return float(t[i] - slope * slope / (2 * curvature))
-        return float(t[i])
+                return best - slope * slope / (2 * curvature)
+        return best
 
     def _Refine(
         self,
@@ -363,32 +401,64 @@ class DetectionGrid:
     ) -> np.ndarray:
         """Gauss-Newton fit of the hose centre to the sensors' ranges, from c (a hose along
         `axis` when given); c itself when the fit has fewer than three ranges (two with
-        `axis`) to use or leaves the grid cell it started in."""
+        `axis`) to use or leaves the grid cell it started in. The Jacobian is by finite
+        differences, the 2 x 2 normal equations solved directly (lstsq when they are
+        ill-conditioned), all in floats (a reading's dozen model evaluations cost more in
+        numpy's per-call overhead than in arithmetic)."""
         # Two ranges determine the centre exactly; the perpendicular model asks for a third
         # to average, while an oblique hose moves even the two sensors trilateration uses.
         needed = 3 if axis is None else 2
         if self.cone_angle is None or len(sensors) < needed:
             return c
-        basis = (self.axes[0], self.axes[3])
-        x = c.copy()
+        if axis is None:
+            model = lambda k, p: self.PredictedRange(k, np.array(p))  # noqa: E731
+        else:
+            axis_floats = tuple(axis.tolist())
+            model = lambda k, p: self._CylinderRange(k, p, axis_floats)  # noqa: E731
+        (u0, u1, u2), (v0, v1, v2) = self._axis_list[0], self._axis_list[3]
+        measured = [float(ranges[k]) for k in sensors]
+        sensors = sensors.tolist()
+        x0, x1, x2 = c.tolist()
         h = 1e-5
         for _ in range(8):
-            residuals, jacobian = [], []
-            moved = [x + h * b for b in basis]
-            for k in sensors:
-                p = self.PredictedRange(k, x, axis)
-                shifted = [self.PredictedRange(k, m, axis) for m in moved]
-                if p is None or None in shifted:
+            moved_u = (x0 + h * u0, x1 + h * u1, x2 + h * u2)
+            moved_v = (x0 + h * v0, x1 + h * v1, x2 + h * v2)
+            rows, residuals = [], []
+            for k, measured_k in zip(sensors, measured, strict=True):
+                p = model(k, (x0, x1, x2))
+                q_u = model(k, moved_u)
+                q_v = model(k, moved_v)
+                if p is None or q_u is None or q_v is None:
                     continue
-                residuals.append(ranges[k] - p)
-                jacobian.append([(q - p) / h for q in shifted])
-            if len(residuals) < needed:
+                rows.append(((q_u - p) / h, (q_v - p) / h))
+                residuals.append(measured_k - p)
+            if len(rows) < needed:
                 return c
-            step = np.linalg.lstsq(np.array(jacobian), np.array(residuals), rcond=None)[0]
-            x = x + step[0] * basis[0] + step[1] * basis[1]
-            if _Norm(step) < 1e-6:
+            step_u, step_v = _LeastSquares2(rows, residuals)
+            x0 += step_u * u0 + step_v * v0
+            x1 += step_u * u1 + step_v * v1
+            x2 += step_u * u2 + step_v * v2
+            if math.sqrt(step_u * step_u + step_v * step_v) < 1e-6:
                 break
+        x = np.array([x0, x1, x2])
         return x if _Norm(x - c) <= self.spacing / 2 else c
+
+
+def _LeastSquares2(rows: list[tuple[float, float]], residuals: list[float]) -> tuple[float, float]:
+    """The least-squares solution of J s = r for J with two columns (rows), by the normal
+    equations; np.linalg.lstsq's (the minimum-norm one) when J is nearly rank-deficient."""
+    s00 = s01 = s11 = g0 = g1 = 0.0
+    for (j0, j1), r in zip(rows, residuals, strict=True):
+        s00 += j0 * j0
+        s01 += j0 * j1
+        s11 += j1 * j1
+        g0 += j0 * r
+        g1 += j1 * r
+    det = s00 * s11 - s01 * s01
+    if det <= 1e-10 * s00 * s11:
+        step = np.linalg.lstsq(np.array(rows), np.array(residuals), rcond=None)[0]
+        return float(step[0]), float(step[1])
+    return (s11 * g0 - s01 * g1) / det, (s00 * g1 - s01 * g0) / det
 
 
 def _PatchOfBestFit(consistent: np.ndarray, misfit: np.ndarray) -> np.ndarray:
