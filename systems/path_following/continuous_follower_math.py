@@ -320,7 +320,7 @@ class HoseEstimate:
         """Whether S_W, read at path coordinate s, is off the established fit by > gate."""
         if self.fit.detections < config.min_fit_points:
             return False
-        return bool(np.linalg.norm(S_W - self.fit.Point(s)) > config.gate)
+        return _Norm(S_W - self.fit.Point(s)) > config.gate
 
     def TrailPoint(self, s: float) -> tuple[np.ndarray, np.ndarray]:
         """(point, unit tangent) of the trail at path coordinate s (clamped to its ends)."""
@@ -358,28 +358,36 @@ def FitHose(
             span=span,
         )
     degree = 2 if span >= 2 * config.fit_length / 3 else 1
-    A = np.vander(d, degree + 1, increasing=True)
-    coef, *_ = np.linalg.lstsq(A, points, rcond=None)
+    # The normal equations in tau = d / fit_length (in [-1, 0]: well conditioned, unlike
+    # those in d, whose powers span four orders of magnitude), solved by the inverse the
+    # covariance needs anyway: lstsq and inv cost tens of microseconds in overhead alone.
+    length = config.fit_length
+    A = np.vander(d / length, degree + 1, increasing=True)
+    inverse = _InverseOfSymmetric((A.T @ A).tolist())
+    coef = np.array(inverse) @ (A.T @ points)
     squares = float(np.sum((points - A @ coef) ** 2))
     residual = math.sqrt(squares / len(d))
     # The noise lies across the hose (the detection plane holds S): two axes of variance
-    # sigma^2 each; the fit's covariance is sigma^2 (A^T A)^-1 per axis.
+    # sigma^2 each; the fit's covariance is sigma^2 (A^T A)^-1 per axis (in d: tau's
+    # scaled by fit_length^-(i + j)).
     sigma2 = squares / (2 * max(len(d) - degree - 1, 1))
-    covariance = np.linalg.inv(A.T @ A)
-    spread = math.sqrt(2 * sigma2 * covariance[0, 0])
-    slope = np.linalg.lstsq(A[:, :2], points, rcond=None)[0][1]
-    u = _Direction(coef[1], previous.u)
+    spread = math.sqrt(2 * sigma2 * inverse[0][0])
+    # The line's slope through the points (the least-squares line, in centred d).
+    centred = d - d.mean()
+    slope = (centred @ points) / float(centred @ centred)
+    derivative = coef[1] / length
+    u = _Direction(derivative, previous.u)
     c = np.zeros(3)
     curvature_error = 0.0
     if degree == 2:
-        scale = 2 / max(float(np.linalg.norm(coef[1])), 1e-6) ** 2
-        a = scale * coef[2]
+        scale = 2 / max(_Norm(derivative), 1e-6) ** 2
+        a = scale * coef[2] / (length * length)
         c = a - (a @ u) * u
-        curvature_error = scale * math.sqrt(sigma2 * covariance[2, 2])
-        k = float(np.linalg.norm(c))
+        curvature_error = scale * math.sqrt(sigma2 * inverse[2][2]) / (length * length)
+        k = _Norm(c)
         if k > 0:  # the line's direction is the path's at the window's centroid
             shrunk = c * (max(k - 2 * curvature_error, 0.0) / k)
-            slope = slope / max(float(np.linalg.norm(slope)), 1e-9) - shrunk * float(np.mean(d))
+            slope = slope / max(_Norm(slope), 1e-9) - shrunk * float(d.mean())
     heading = _Direction(slope, previous.heading)
     return LocalFit(
         s_end,
@@ -396,10 +404,24 @@ def FitHose(
     )
 
 
+def _InverseOfSymmetric(m: list[list[float]]) -> list[list[float]]:
+    """The inverse of a symmetric positive definite 2 x 2 or 3 x 3 matrix (its adjugate
+    over its determinant)."""
+    if len(m) == 2:
+        (a, b), (_, d) = m
+        det = a * d - b * b
+        return [[d / det, -b / det], [-b / det, a / det]]
+    (a, b, c), (_, d, e), (_, _, f) = m
+    A, B, C = d * f - e * e, c * e - b * f, b * e - c * d
+    det = a * A + b * B + c * C
+    D, E, F = a * f - c * c, b * c - a * e, a * d - b * b
+    return [[A / det, B / det, C / det], [B / det, D / det, E / det], [C / det, E / det, F / det]]
+
+
 def _Direction(derivative: np.ndarray, previous: np.ndarray) -> np.ndarray:
     """The unit direction of a fitted derivative; `previous` when it is ~0 or reverses the
     path (a fit cannot turn the direction of travel around)."""
-    norm = float(np.linalg.norm(derivative))
+    norm = _Norm(derivative)
     if norm < 1e-6 or derivative @ previous < 0:
         return previous
     return derivative / norm

@@ -218,6 +218,7 @@ class DetectionGrid:
         # Floats for the ranging model (_CylinderRange, _Refine).
         object.__setattr__(self, "_emitter_list", [tuple(e) for e in emitters.tolist()])
         object.__setattr__(self, "_axis_list", [tuple(a) for a in axes.tolist()])
+        object.__setattr__(self, "_centre", tuple(points[1, 1].tolist()))
         if self.cone_angle is not None:
             half = self.cone_angle / 2
             object.__setattr__(self, "_cone_cos", math.cos(half))
@@ -269,35 +270,39 @@ class DetectionGrid:
         the centre, see PredictedRange); None: the hose crosses the detection plane
         perpendicularly (along x_T)."""
         detected, errors = self.Detect(ranges, valid)
-        good = detected & ~errors
-        if not good.any():
-            return None, False
+        good = (detected & ~errors).tolist()
         # Only sensors that take part in an error-free grid detection are trusted.
-        trusted = np.concatenate([good.any(axis=1), good.any(axis=0)])
-        centre = self.points[1, 1]
+        trusted = [any(line) for line in good] + [any(column) for column in zip(*good, strict=True)]
+        if not any(trusted):
+            return None, False
+        # Floats from here on (numpy's per-call overhead on 3-vectors outweighs the work).
+        ranges, valid = np.asarray(ranges, float).tolist(), np.asarray(valid, bool).tolist()
+        centre = self._centre
         row = _Nearest(ranges, trusted, range(3))
         col = _Nearest(ranges, trusted, range(3, 6))
         r = self.hose_radius
+        emitters, axes = self._emitter_list, self._axis_list
         candidates = []
         if row is not None and col is not None:
             candidates.append(
                 _CircleIntersection(
-                    self.emitters[row],
+                    emitters[row],
                     ranges[row] + r,
-                    self.emitters[col],
+                    emitters[col],
                     ranges[col] + r,
-                    self.axes[row],
+                    axes[row],
                     centre,
                 )
             )
         for k in (row, col):
             if k is not None:
-                candidates.append(self.emitters[k] + self.axes[k] * (ranges[k] + r))
+                e, z, t = emitters[k], axes[k], ranges[k] + r
+                candidates.append((e[0] + z[0] * t, e[1] + z[1] * t, e[2] + z[2] * t))
         for c in candidates:
-            if c is not None and _Norm(c - centre) <= self.field_radius:
-                sensors = np.flatnonzero(trusted & np.asarray(valid, bool))
+            if c is not None and _Distance(c, centre) <= self.field_radius:
+                sensors = [k for k in range(6) if trusted[k] and valid[k]]
                 c = self._Refine(c, ranges, sensors, axis)
-                return c, bool(_Norm(c - centre) < self.spacing / 2)
+                return np.array(c), _Distance(c, centre) < self.spacing / 2
         return None, False
 
     def PredictedRange(self, k: int, c: np.ndarray, axis: np.ndarray | None = None) -> float | None:
@@ -393,12 +398,8 @@ class DetectionGrid:
         return best
 
     def _Refine(
-        self,
-        c: np.ndarray,
-        ranges: np.ndarray,
-        sensors: np.ndarray,
-        axis: np.ndarray | None = None,
-    ) -> np.ndarray:
+        self, c: Vector, ranges: list[float], sensors: list[int], axis: np.ndarray | None
+    ) -> Vector:
         """Gauss-Newton fit of the hose centre to the sensors' ranges, from c (a hose along
         `axis` when given); c itself when the fit has fewer than three ranges (two with
         `axis`) to use or leaves the grid cell it started in. The Jacobian is by finite
@@ -416,9 +417,8 @@ class DetectionGrid:
             axis_floats = tuple(axis.tolist())
             model = lambda k, p: self._CylinderRange(k, p, axis_floats)  # noqa: E731
         (u0, u1, u2), (v0, v1, v2) = self._axis_list[0], self._axis_list[3]
-        measured = [float(ranges[k]) for k in sensors]
-        sensors = sensors.tolist()
-        x0, x1, x2 = c.tolist()
+        measured = [ranges[k] for k in sensors]
+        x0, x1, x2 = c
         h = 1e-5
         for _ in range(8):
             moved_u = (x0 + h * u0, x1 + h * u1, x2 + h * u2)
@@ -440,8 +440,8 @@ class DetectionGrid:
             x2 += step_u * u2 + step_v * v2
             if math.sqrt(step_u * step_u + step_v * step_v) < 1e-6:
                 break
-        x = np.array([x0, x1, x2])
-        return x if _Norm(x - c) <= self.spacing / 2 else c
+        x = (x0, x1, x2)
+        return x if _Distance(x, c) <= self.spacing / 2 else c
 
 
 def _LeastSquares2(rows: list[tuple[float, float]], residuals: list[float]) -> tuple[float, float]:
@@ -484,7 +484,7 @@ def _PatchOfBestFit(consistent: np.ndarray, misfit: np.ndarray) -> np.ndarray:
     return patch
 
 
-def _Nearest(ranges: np.ndarray, valid: np.ndarray, indices: range) -> int | None:
+def _Nearest(ranges: list[float], valid: list[bool], indices: range) -> int | None:
     best = None
     for k in indices:
         if valid[k] and (best is None or ranges[k] < ranges[best]):
@@ -503,34 +503,44 @@ def _ClosestPointOfLines(p1, u1, p2, u2) -> np.ndarray:
     return (p1 + s * u1 + p2 + t * u2) / 2
 
 
-def _CircleIntersection(c1, r1, c2, r2, u1, centre) -> np.ndarray | None:
+def _CircleIntersection(
+    c1: Vector, r1: float, c2: Vector, r2: float, u1: Vector, centre: Vector
+) -> Vector | None:
     """The intersection of spheres (c1, r1), (c2, r2) in the plane of c1, c2 and u1 that is
     nearest to `centre` (closest point when they do not meet)."""
-    d_vec = c2 - c1
-    d = _Norm(d_vec)
+    d = _Distance(c2, c1)
     if d < 1e-9:
         return None
-    ex = d_vec / d
+    ex = tuple((b - a) / d for a, b in zip(c1, c2, strict=True))
     normal = _Cross(ex, u1)
-    length = _Norm(normal)
+    length = math.sqrt(_Dot(normal, normal))
     if length < 1e-9:
         return None
-    ey = _Cross(normal / length, ex)
+    ey = _Cross(tuple(v / length for v in normal), ex)
     x = (r1 * r1 - r2 * r2 + d * d) / (2 * d)
     h2 = r1 * r1 - x * x
     h = math.sqrt(h2) if h2 > 0 else 0.0
-    options = [c1 + x * ex + h * ey, c1 + x * ex - h * ey]
-    return min(options, key=lambda p: _Norm(p - centre))
+    options = [
+        tuple(c + x * a + sign * h * b for c, a, b in zip(c1, ex, ey, strict=True))
+        for sign in (1.0, -1.0)
+    ]
+    return min(options, key=lambda p: _Distance(p, centre))
 
 
 def _Norm(v: np.ndarray) -> float:
     """|v| (np.linalg.norm's value, the square root of the dot product) without its
-    per-call overhead: the ranging estimator calls it hundreds of times a reading."""
+    per-call overhead."""
     return math.sqrt(float(v.dot(v)))
 
 
-def _Cross(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """a x b of two 3-vectors, as np.cross computes it, without its per-call overhead."""
-    a0, a1, a2 = a.tolist()
-    b0, b1, b2 = b.tolist()
-    return np.array([a1 * b2 - a2 * b1, a2 * b0 - a0 * b2, a0 * b1 - a1 * b0])
+def _Dot(a: Vector, b: Vector) -> float:
+    return a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
+
+
+def _Distance(a: Vector, b: Vector) -> float:
+    d0, d1, d2 = a[0] - b[0], a[1] - b[1], a[2] - b[2]
+    return math.sqrt(d0 * d0 + d1 * d1 + d2 * d2)
+
+
+def _Cross(a: Vector, b: Vector) -> Vector:
+    return (a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0])
