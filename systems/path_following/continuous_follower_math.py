@@ -360,43 +360,54 @@ def FitHose(
     degree = 2 if span >= 2 * config.fit_length / 3 else 1
     # The normal equations in tau = d / fit_length (in [-1, 0]: well conditioned, unlike
     # those in d, whose powers span four orders of magnitude), solved by the inverse the
-    # covariance needs anyway: lstsq and inv cost tens of microseconds in overhead alone.
+    # covariance needs anyway; the sums over the readings in numpy, the 3 x 3 algebra in
+    # floats (lstsq, inv and numpy's calls on 3-vectors cost more in overhead than work).
     length = config.fit_length
+    count = len(d)
     A = np.vander(d / length, degree + 1, increasing=True)
-    inverse = _InverseOfSymmetric((A.T @ A).tolist())
-    coef = np.array(inverse) @ (A.T @ points)
-    squares = float(np.sum((points - A @ coef) ** 2))
-    residual = math.sqrt(squares / len(d))
+    gram = (A.T @ A).tolist()
+    inverse = _InverseOfSymmetric(gram)
+    moments = A.T @ points
+    coef = np.array(inverse) @ moments
+    misfit = points - A @ coef
+    squares = float(np.vdot(misfit, misfit))
+    residual = math.sqrt(squares / count)
     # The noise lies across the hose (the detection plane holds S): two axes of variance
     # sigma^2 each; the fit's covariance is sigma^2 (A^T A)^-1 per axis (in d: tau's
     # scaled by fit_length^-(i + j)).
-    sigma2 = squares / (2 * max(len(d) - degree - 1, 1))
+    sigma2 = squares / (2 * max(count - degree - 1, 1))
     spread = math.sqrt(2 * sigma2 * inverse[0][0])
-    # The line's slope through the points (the least-squares line, in centred d).
-    centred = d - d.mean()
-    slope = (centred @ points) / float(centred @ centred)
-    derivative = coef[1] / length
+    coef, moments = coef.tolist(), moments.tolist()
+    # The least-squares line's slope (per m of d), from the centred sums.
+    mean_tau = gram[0][1] / count
+    slope = [
+        (m1 - mean_tau * m0) / ((gram[1][1] - mean_tau * gram[0][1]) * length)
+        for m0, m1 in zip(moments[0], moments[1], strict=True)
+    ]
+    derivative = [v / length for v in coef[1]]
     u = _Direction(derivative, previous.u)
-    c = np.zeros(3)
+    c = [0.0, 0.0, 0.0]
     curvature_error = 0.0
     if degree == 2:
-        scale = 2 / max(_Norm(derivative), 1e-6) ** 2
-        a = scale * coef[2] / (length * length)
-        c = a - (a @ u) * u
-        curvature_error = scale * math.sqrt(sigma2 * inverse[2][2]) / (length * length)
-        k = _Norm(c)
+        scale = 2 / max(math.sqrt(_Dot(derivative, derivative)), 1e-6) ** 2 / (length * length)
+        a = [scale * v for v in coef[2]]
+        along = _Dot(a, u)
+        c = [v - along * w for v, w in zip(a, u, strict=True)]
+        curvature_error = scale * math.sqrt(sigma2 * inverse[2][2])
+        k = math.sqrt(_Dot(c, c))
         if k > 0:  # the line's direction is the path's at the window's centroid
-            shrunk = c * (max(k - 2 * curvature_error, 0.0) / k)
-            slope = slope / max(_Norm(slope), 1e-9) - shrunk * float(d.mean())
+            shrink = max(k - 2 * curvature_error, 0.0) / k * mean_tau * length
+            norm = max(math.sqrt(_Dot(slope, slope)), 1e-9)
+            slope = [v / norm - shrink * w for v, w in zip(slope, c, strict=True)]
     heading = _Direction(slope, previous.heading)
     return LocalFit(
         s_end,
-        coef[0],
+        np.array(coef[0]),
         u,
-        c,
+        np.array(c),
         residual,
         len(rows),
-        len(detected),
+        count,
         heading,
         spread,
         curvature_error,
@@ -418,13 +429,17 @@ def _InverseOfSymmetric(m: list[list[float]]) -> list[list[float]]:
     return [[A / det, B / det, C / det], [B / det, D / det, E / det], [C / det, E / det, F / det]]
 
 
-def _Direction(derivative: np.ndarray, previous: np.ndarray) -> np.ndarray:
-    """The unit direction of a fitted derivative; `previous` when it is ~0 or reverses the
-    path (a fit cannot turn the direction of travel around)."""
-    norm = _Norm(derivative)
-    if norm < 1e-6 or derivative @ previous < 0:
+def _Direction(derivative: list[float], previous: np.ndarray) -> np.ndarray:
+    """The unit direction of a fitted derivative (floats); `previous` when it is ~0 or
+    reverses the path (a fit cannot turn the direction of travel around)."""
+    norm = math.sqrt(_Dot(derivative, derivative))
+    if norm < 1e-6 or _Dot(derivative, previous.tolist()) < 0:
         return previous
-    return derivative / norm
+    return np.array([v / norm for v in derivative])
+
+
+def _Dot(a: list[float], b: list[float]) -> float:
+    return a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
 
 
 def Confidence(fit: LocalFit, config: ContinuousConfig) -> float:
