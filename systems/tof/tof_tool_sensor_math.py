@@ -215,6 +215,7 @@ class DetectionGrid:
         col = np.linalg.norm(points - emitters[None, 3:, :], axis=2)
         object.__setattr__(self, "_expected", (row - self.hose_radius, col - self.hose_radius))
         object.__setattr__(self, "_detect_memo", [None])
+        object.__setattr__(self, "_expected_lists", tuple(e.tolist() for e in self._expected))
         # Floats for the ranging model (_CylinderRange, _Refine).
         object.__setattr__(self, "_emitter_list", [tuple(e) for e in emitters.tolist()])
         object.__setattr__(self, "_axis_list", [tuple(a) for a in axes.tolist()])
@@ -236,17 +237,38 @@ class DetectionGrid:
         """(detected, errors), each a (3, 3) bool array (row sensor i, column sensor j),
         read-only: the latest reading's are kept, since a follower, its estimator and the
         sensor's outputs each ask for the same reading's."""
+        return self._Detection(ranges, valid)[:2]
+
+    def _Detection(
+        self, ranges: np.ndarray, valid: np.ndarray
+    ) -> tuple[np.ndarray, np.ndarray, list[list[bool]]]:
+        """Detect's (detected, errors) and the error-free detections as lists (RangingEstimate's),
+        of the latest reading (kept). In floats: nine points cost numpy more in per-call
+        overhead than in arithmetic."""
         ranges, valid = np.asarray(ranges, float), np.asarray(valid, bool)
         key = (ranges.tobytes(), valid.tobytes())
         latest = self._detect_memo[0]  # one read and one write: safe across threads
         if latest is not None and latest[0] == key:
             return latest[1]
-        detected = valid[:3, None] & valid[None, 3:]
-        row, col = self.ExpectedRanges()
-        misfit = np.maximum(np.abs(ranges[:3, None] - row), np.abs(ranges[None, 3:] - col))
-        consistent = detected & (misfit <= self.spacing * CONSISTENCY_FRACTION)
-        result = (detected, detected & ~_PatchOfBestFit(consistent, misfit))
-        for array in result:
+        r, v = ranges.tolist(), valid.tolist()
+        expected_row, expected_col = self._expected_lists
+        tolerance = self.spacing * CONSISTENCY_FRACTION
+        detected = [[v[i] and v[3 + j] for j in range(3)] for i in range(3)]
+        misfit = [
+            [
+                max(abs(r[i] - expected_row[i][j]), abs(r[3 + j] - expected_col[i][j]))
+                for j in range(3)
+            ]
+            for i in range(3)
+        ]
+        consistent = [
+            [detected[i][j] and misfit[i][j] <= tolerance for j in range(3)] for i in range(3)
+        ]
+        patch = _PatchOfBestFit(consistent, misfit)
+        good = [[detected[i][j] and patch[i][j] for j in range(3)] for i in range(3)]
+        errors = [[detected[i][j] and not patch[i][j] for j in range(3)] for i in range(3)]
+        result = (np.array(detected), np.array(errors), good)
+        for array in result[:2]:
             array.flags.writeable = False
         self._detect_memo[0] = (key, result)
         return result
@@ -269,8 +291,7 @@ class DetectionGrid:
         unit direction in T when known (the fit then models a cylinder of that axis through
         the centre, see PredictedRange); None: the hose crosses the detection plane
         perpendicularly (along x_T)."""
-        detected, errors = self.Detect(ranges, valid)
-        good = (detected & ~errors).tolist()
+        good = self._Detection(ranges, valid)[2]
         # Only sensors that take part in an error-free grid detection are trusted.
         trusted = [any(line) for line in good] + [any(column) for column in zip(*good, strict=True)]
         if not any(trusted):
@@ -461,8 +482,8 @@ def _LeastSquares2(rows: list[tuple[float, float]], residuals: list[float]) -> t
     return (s11 * g0 - s01 * g1) / det, (s00 * g1 - s01 * g0) / det
 
 
-def _PatchOfBestFit(consistent: np.ndarray, misfit: np.ndarray) -> np.ndarray:
-    """The 4-connected patch of consistent points that holds the best-fitting one.
+def _PatchOfBestFit(consistent: list[list[bool]], misfit: list[list[float]]) -> list[list[bool]]:
+    """The 4-connected patch of consistent points (3 x 3) that holds the best-fitting one.
 
     The hose crosses the detection plane once, and a hose between two points is consistent
     with both, so the points that see it are edge neighbours. A consistent point off that
@@ -470,16 +491,18 @@ def _PatchOfBestFit(consistent: np.ndarray, misfit: np.ndarray) -> np.ndarray:
     centre the two outer sensors facing a far corner read the hose's flanks at ranges that
     fit the corner too, and the mean of centre and corner put S half a grid diagonal
     (15.6 mm) off the hose."""
-    if not consistent.any():
-        return consistent
-    start = np.unravel_index(np.argmin(np.where(consistent, misfit, np.inf)), misfit.shape)
-    patch = np.zeros_like(consistent)
-    frontier = [start]
+    patch = [[False] * 3 for _ in range(3)]
+    start = None
+    for i in range(3):
+        for j in range(3):
+            if consistent[i][j] and (start is None or misfit[i][j] < misfit[start[0]][start[1]]):
+                start = (i, j)
+    frontier = [start] if start is not None else []
     while frontier:
         i, j = frontier.pop()
-        if not (0 <= i < 3 and 0 <= j < 3) or patch[i, j] or not consistent[i, j]:
+        if not (0 <= i < 3 and 0 <= j < 3) or patch[i][j] or not consistent[i][j]:
             continue
-        patch[i, j] = True
+        patch[i][j] = True
         frontier += [(i + 1, j), (i - 1, j), (i, j + 1), (i, j - 1)]
     return patch
 
