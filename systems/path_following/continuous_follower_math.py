@@ -297,8 +297,7 @@ class HoseEstimate:
             self = self._WithAxisPoint(s, S_W_plain, config)
         row = np.concatenate([[s, float(S_W is not None)], S_W if S_W is not None else p_WO])
         rows = np.vstack([self.rows, row])
-        detected = rows[rows[:, 1] > 0.5]
-        if S_W is None or len(detected) == 0:
+        if S_W is None:
             keep = rows[:, 0] >= self.fit.s - config.fit_length
             rows = rows[keep] if keep.sum() >= 2 else rows[-2:]
             return replace(self, rows=rows, p_WO=p_WO.copy(), s_tool=s)
@@ -332,6 +331,10 @@ class HoseEstimate:
         return p, u / np.linalg.norm(u)
 
 
+# The powers of the fit's polynomial (np.vander's columns, without its overhead).
+_POWERS = np.arange(3)
+
+
 def FitHose(
     rows: np.ndarray, s_end: float, previous: LocalFit, config: ContinuousConfig
 ) -> LocalFit:
@@ -342,7 +345,8 @@ def FitHose(
     detected = rows[rows[:, 1] > 0.5]
     d = detected[:, 0] - s_end
     points = detected[:, 2:5]
-    span = float(d.max() - d.min()) if len(d) else 0.0
+    d_list = d.tolist()
+    span = max(d_list) - min(d_list) if d_list else 0.0
     if len(d) < config.min_fit_points or span < config.fit_length / 3:
         p = points[-min(len(d), 4) :].mean(axis=0) if len(d) else previous.p
         # A handful of points says nothing about the noise: residual 0.
@@ -364,7 +368,7 @@ def FitHose(
     # floats (lstsq, inv and numpy's calls on 3-vectors cost more in overhead than work).
     length = config.fit_length
     count = len(d)
-    A = np.vander(d / length, degree + 1, increasing=True)
+    A = (d / length)[:, None] ** _POWERS[: degree + 1]
     gram = (A.T @ A).tolist()
     inverse = _InverseOfSymmetric(gram)
     moments = A.T @ points
@@ -386,13 +390,14 @@ def FitHose(
     ]
     derivative = [v / length for v in coef[1]]
     u = _Direction(derivative, previous.u)
+    u_list = u.tolist()
     c = [0.0, 0.0, 0.0]
     curvature_error = 0.0
     if degree == 2:
         scale = 2 / max(math.sqrt(_Dot(derivative, derivative)), 1e-6) ** 2 / (length * length)
         a = [scale * v for v in coef[2]]
-        along = _Dot(a, u)
-        c = [v - along * w for v, w in zip(a, u, strict=True)]
+        along = _Dot(a, u_list)
+        c = [v - along * w for v, w in zip(a, u_list, strict=True)]
         curvature_error = scale * math.sqrt(sigma2 * inverse[2][2])
         k = math.sqrt(_Dot(c, c))
         if k > 0:  # the line's direction is the path's at the window's centroid

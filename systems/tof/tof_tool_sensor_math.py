@@ -215,6 +215,7 @@ class DetectionGrid:
         col = np.linalg.norm(points - emitters[None, 3:, :], axis=2)
         object.__setattr__(self, "_expected", (row - self.hose_radius, col - self.hose_radius))
         object.__setattr__(self, "_detect_memo", [None])
+        object.__setattr__(self, "_start_memo", [None])
         object.__setattr__(self, "_expected_lists", tuple(e.tolist() for e in self._expected))
         # Floats for the ranging model (_CylinderRange, _Refine).
         object.__setattr__(self, "_emitter_list", [tuple(e) for e in emitters.tolist()])
@@ -291,13 +292,30 @@ class DetectionGrid:
         unit direction in T when known (the fit then models a cylinder of that axis through
         the centre, see PredictedRange); None: the hose crosses the detection plane
         perpendicularly (along x_T)."""
+        start = self._Start(ranges, valid)
+        if start is None:
+            return None, False
+        c, ranges, sensors = start
+        c = self._Refine(c, ranges, sensors, axis)
+        return np.array(c), _Distance(c, self._centre) < self.spacing / 2
+
+    def _Start(
+        self, ranges: np.ndarray, valid: np.ndarray
+    ) -> tuple[Vector, list[float], list[int]] | None:
+        """The ranging estimator's start (module docstring): the trilaterated centre (T),
+        the ranges and the trusted sensors with a return; None when the grid detects
+        nothing or the start lies off the field. The latest reading's is kept: a follower
+        estimates each reading twice (without and with the hose's axis)."""
+        ranges, valid = np.asarray(ranges, float), np.asarray(valid, bool)
+        key = (ranges.tobytes(), valid.tobytes())
+        latest = self._start_memo[0]  # one read and one write: safe across threads
+        if latest is not None and latest[0] == key:
+            return latest[1]
         good = self._Detection(ranges, valid)[2]
         # Only sensors that take part in an error-free grid detection are trusted.
         trusted = [any(line) for line in good] + [any(column) for column in zip(*good, strict=True)]
-        if not any(trusted):
-            return None, False
         # Floats from here on (numpy's per-call overhead on 3-vectors outweighs the work).
-        ranges, valid = np.asarray(ranges, float).tolist(), np.asarray(valid, bool).tolist()
+        ranges, valid = ranges.tolist(), valid.tolist()
         centre = self._centre
         row = _Nearest(ranges, trusted, range(3))
         col = _Nearest(ranges, trusted, range(3, 6))
@@ -319,12 +337,14 @@ class DetectionGrid:
             if k is not None:
                 e, z, t = emitters[k], axes[k], ranges[k] + r
                 candidates.append((e[0] + z[0] * t, e[1] + z[1] * t, e[2] + z[2] * t))
-        for c in candidates:
-            if c is not None and _Distance(c, centre) <= self.field_radius:
-                sensors = [k for k in range(6) if trusted[k] and valid[k]]
-                c = self._Refine(c, ranges, sensors, axis)
-                return np.array(c), _Distance(c, centre) < self.spacing / 2
-        return None, False
+        start = next(
+            (c for c in candidates if c is not None and _Distance(c, centre) <= self.field_radius),
+            None,
+        )
+        if start is not None:
+            start = (start, ranges, [k for k in range(6) if trusted[k] and valid[k]])
+        self._start_memo[0] = (key, start)
+        return start
 
     def PredictedRange(self, k: int, c: np.ndarray, axis: np.ndarray | None = None) -> float | None:
         """Range (m) sensor k reads for a hose centred at c (the detection plane, T), or None
