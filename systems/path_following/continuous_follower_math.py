@@ -32,6 +32,7 @@ every retry is lost too, the hose has ended: the follower backs up to the last e
 and is DONE.
 """
 
+import bisect
 import math
 from dataclasses import dataclass, field, replace
 
@@ -169,7 +170,7 @@ class JointHistory:
             return self._q[0]
         if t >= times[-1]:
             return self._q[-1]
-        k = int(np.searchsorted(times, t))
+        k = bisect.bisect_left(times, t)  # np.searchsorted's index, without a list -> array
         w = (t - times[k - 1]) / (times[k] - times[k - 1])
         return (1 - w) * self._q[k - 1] + w * self._q[k]
 
