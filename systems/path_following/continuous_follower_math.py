@@ -291,30 +291,31 @@ class HoseEstimate:
         perpendicular to the detection plane, which feeds axis_fit (AxisInTool); None
         leaves axis_fit as it is."""
         s = self.ToolCoordinate(X_WT)
-        p_WO = X_WT.translation()
+        p_WO = X_WT.translation().copy()
         if S_W is not None and self.IsOutlier(s, S_W, config):
             S_W = None
+        axis_fit, axis_rows = self.axis_fit, self.axis_rows
         if S_W is not None and S_W_plain is not None:
-            self = self._WithAxisPoint(s, S_W_plain, config)
-        row = np.concatenate([[s, float(S_W is not None)], S_W if S_W is not None else p_WO])
-        rows = np.vstack([self.rows, row])
+            axis_fit, axis_rows = self._AxisFit(s, S_W_plain, config)
+        point = S_W if S_W is not None else p_WO
+        rows = np.concatenate((self.rows, [[s, float(S_W is not None), *point.tolist()]]))
         if S_W is None:
             keep = rows[:, 0] >= self.fit.s - config.fit_length
-            rows = rows[keep] if keep.sum() >= 2 else rows[-2:]
-            return replace(self, rows=rows, p_WO=p_WO.copy(), s_tool=s)
-        keep = rows[:, 0] >= s - config.fit_length
-        rows = rows[keep]
-        fit = FitHose(rows, s, self.fit, config)
-        trail = np.vstack([self.trail, np.concatenate([[fit.s], fit.p, fit.u])])
-        return HoseEstimate(fit, rows, trail, p_WO.copy(), s, self.axis_fit, self.axis_rows)
-
-    def _WithAxisPoint(self, s: float, S_W: np.ndarray, config: ContinuousConfig) -> "HoseEstimate":
-        """axis_fit refitted with the hose point S_W (perpendicular model) at s."""
-        row = np.concatenate([[s, 1.0], S_W])[None]
-        rows = row if self.axis_rows is None else np.vstack([self.axis_rows, row])
+            rows = rows[keep] if np.count_nonzero(keep) >= 2 else rows[-2:]
+            return HoseEstimate(self.fit, rows, self.trail, p_WO, s, axis_fit, axis_rows)
         rows = rows[rows[:, 0] >= s - config.fit_length]
-        axis_fit = FitHose(rows, s, self.axis_fit or self.fit, config)
-        return replace(self, axis_fit=axis_fit, axis_rows=rows)
+        fit = FitHose(rows, s, self.fit, config)
+        trail = np.concatenate((self.trail, [[fit.s, *fit.p.tolist(), *fit.u.tolist()]]))
+        return HoseEstimate(fit, rows, trail, p_WO, s, axis_fit, axis_rows)
+
+    def _AxisFit(
+        self, s: float, S_W: np.ndarray, config: ContinuousConfig
+    ) -> tuple[LocalFit, np.ndarray]:
+        """(axis_fit, axis_rows) refitted with the hose point S_W (perpendicular model) at s."""
+        row = [[s, 1.0, *S_W.tolist()]]
+        rows = np.array(row) if self.axis_rows is None else np.concatenate((self.axis_rows, row))
+        rows = rows[rows[:, 0] >= s - config.fit_length]
+        return FitHose(rows, s, self.axis_fit or self.fit, config), rows
 
     def IsOutlier(self, s: float, S_W: np.ndarray, config: ContinuousConfig) -> bool:
         """Whether S_W, read at path coordinate s, is off the established fit by > gate."""
