@@ -351,7 +351,8 @@ class DetectionGrid:
         when its cone misses the hose: the nearest in-plane ray of the cone. With `axis`
         (unit, T) the hose is the cylinder of that axis through c (_CylinderRange)."""
         if axis is not None:
-            return self._CylinderRange(k, tuple(c.tolist()), tuple(axis.tolist()))
+            c, axis = np.asarray(c, float).tolist(), np.asarray(axis, float).tolist()
+            return self._CylinderRange(k, tuple(c), tuple(axis))
         half = self.cone_angle / 2
         d = c - self.emitters[k]
         distance = _Norm(d)
