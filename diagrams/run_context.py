@@ -26,6 +26,7 @@ from typing import Any
 from pydrake.geometry import Meshcat, MeshcatParams
 from pydrake.systems.analysis import Simulator
 
+from guidedarm.diagrams.station.hardware_config import ListenHostProblem
 from guidedarm.systems.errors import ConfigurationError, GuidedArmError
 
 REPLAY_FILE = "replay.html"
@@ -186,6 +187,10 @@ def PrepareOutputDirectory(out_dir: Path, name: str = "--out") -> Path:
 def MakeMeshcat(serve: bool = False, host: str = "localhost") -> Meshcat:
     """A Meshcat that serves a live page on `host` (first free port from 7000) when `serve`,
     else a recorder on 127.0.0.1 at an ephemeral port (see the module docstring)."""
+    # "*" is Meshcat's own word for every interface.
+    problem = ListenHostProblem(host) if serve and host != "*" else None
+    if problem is not None:
+        raise ConfigurationError(f"Meshcat cannot listen on host '{host}': {problem}")
     params = MeshcatParams(host=host) if serve else MeshcatParams(host="127.0.0.1", port=0)
     drake_log = logging.getLogger("drake")
     level = drake_log.level

@@ -420,7 +420,12 @@ BAD_INPUTS = [
     (
         "meshcat-host-unbindable",
         Run(JT, flags=("--meshcat", "--meshcat-host", "192.0.2.1")),
-        "Meshcat cannot listen on host '192.0.2.1'",
+        "Meshcat cannot listen on host '192.0.2.1': no address of this machine",
+    ),
+    (
+        "meshcat-host-unresolvable",
+        Run(JT, flags=("--meshcat", "--meshcat-host", "999.1.1.1")),
+        "Meshcat cannot listen on host '999.1.1.1': it does not resolve",
     ),
     # --- estimate-marker-pose: camera and panel files, images
     ("camera-missing", Estimate("{f}/missing.yaml"), "file not found"),

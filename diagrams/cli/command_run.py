@@ -119,10 +119,11 @@ def run_command(args: argparse.Namespace) -> int:
     if getattr(args, "path_csv", None) is not None:
         args.overrides.append(f"path_csv={json.dumps(str(args.path_csv.resolve()))}")
     task, scenario, name = LoadScenario(args.scenario, args.overrides)
+    meshcat = MakeMeshcat(args.meshcat, args.meshcat_host or "localhost")
     context = RunContext(
         out_dir=PrepareOutputDirectory(args.out or Path("runs") / name), hardware=args.hardware
     )
-    context.meshcat = MakeMeshcat(args.meshcat, args.meshcat_host or "localhost")
+    context.meshcat = meshcat
     context.live = args.meshcat
     if args.meshcat:
         print(f"Meshcat: {context.meshcat.web_url()}", flush=True)
