@@ -278,6 +278,17 @@ BAD_INPUTS = [
     ("continuous-min-points", Run(PF, "continuous.min_fit_points=1"), "min_fit_points"),
     ("continuous-turns", Run(PF, "continuous.search_turns_deg=[120]"), "search_turns_deg"),
     ("continuous-speeds", Run(PF, "continuous.min_speed=0.5"), "min_speed <= speed"),
+    (
+        "continuous-speed-beyond-readings",
+        Run(PF, "motion=continuous", "continuous.speed=1e3"),
+        "continuous.speed (1000 m/s) is faster than the hose fit can follow",
+    ),
+    (
+        "continuous-fit-too-short",
+        Run(PF, "motion=continuous", "continuous.fit_length=1e-9"),
+        "at most 6.25e-09 m/s",
+    ),
+    ("continuous-gate-tiny", Run(PF, "continuous.gate=1e-7"), "'continuous.gate'"),
     ("continuous-search", Run(PF, "continuous.loss_distance=0.05"), "loss_distance <"),
     (
         "kinematic-hardware",

@@ -174,12 +174,29 @@ def _CheckScenario(scenario: PathFollowingScenario) -> None:
     _CheckExecutorKeys(scenario)
     if scenario.motion == "planner":
         CheckModeFields(scenario.planner)
+    if scenario.motion == "continuous":
+        _CheckContinuousReadings(scenario)
     arm = scenario.station.arms[scenario.arm]
     if scenario.motion == "continuous" and scenario.continuous.servo_period < arm.control_period:
         raise ConfigurationError(
             f"continuous.servo_period ({scenario.continuous.servo_period} s) is shorter than "
             f"station.arms.{scenario.arm}.control_period ({arm.control_period} s), the period "
             "at which the arm takes commands"
+        )
+
+
+def _CheckContinuousReadings(scenario: PathFollowingScenario) -> None:
+    """The hose fit needs min_fit_points readings within fit_length of hose: at the cruise
+    speed the ToF tool reads one every speed x period (m), so a faster cruise would leave
+    the fit without its tangent, and the speed setting would only mislead."""
+    c, period = scenario.continuous, scenario.station.tof_tools[scenario.tof].period
+    fastest = c.fit_length / (c.min_fit_points * period)
+    if not c.speed <= fastest:
+        raise ConfigurationError(
+            f"continuous.speed ({c.speed:g} m/s) is faster than the hose fit can follow: "
+            f"continuous.fit_length ({c.fit_length:g} m) must hold continuous.min_fit_points "
+            f"({c.min_fit_points}) readings, one every {period:g} s from the ToF tool, so "
+            f"at most {fastest:.3g} m/s"
         )
 
 

@@ -69,7 +69,8 @@ class ContinuousConfig:
     gate: a hose point farther than this from the fit's extrapolation (once the fit has
         min_fit_points) is an outlier, counted as a reading without the hose (m): past the
         hose's end the cones still see its end cap behind the detection plane, each
-        reading a little farther off.
+        reading a little farther off. 0.5 mm (below the estimates' own scatter, every
+        reading would be an outlier) to 0.1 m.
     correction_gain: the target moves toward the estimated path at this rate times the
         distance, and its x axis turns toward the path's heading at this rate times the
         angle (1/s; a first-order filter of the fit's noise).
@@ -104,7 +105,7 @@ class ContinuousConfig:
     fit_length: float = Positive(0.03)
     min_fit_points: int = InRange(3, 10000, 8)
     spread_limit: float = InRange(1e-4, 0.05, 0.006)
-    gate: float = Positive(0.008)
+    gate: float = InRange(5e-4, 0.1, 0.008)
     correction_gain: float = Positive(8.0)
     max_correction_speed: float = Positive(0.03)
     max_turn_rate_deg: float = Positive(30.0)
