@@ -81,6 +81,8 @@ def files(tmp_path_factory) -> Path:
     for name, text in texts.items():
         (root / name).write_text(text)
     (root / "zyx_hose.csv").write_text("z,y,x\n0.1,0.0,0.3\n0.1,0.1,0.3\n")
+    hairpin = [(x, -0.005, 0.1) for x in (0.3, 0.4, 0.5)] + [(x, 0.005, 0.1) for x in (0.5, 0.3)]
+    (root / "folded_hose.csv").write_text("".join(f"{x},{y},{z}\n" for x, y, z in hairpin))
     (root / "binary_hose.csv").write_bytes(BINARY)
     (root / "binary.yaml").write_bytes(BINARY)
     (root / "camera_binary.yaml").write_bytes(BINARY)
@@ -250,6 +252,11 @@ BAD_INPUTS = [
         "the header 'z,y,x' must be x,y,z",
     ),
     ("path-csv-nul", Run(PF, "path_csv={f}/nul.csv"), "must be x,y,z"),
+    (
+        "path-csv-folded",
+        Run(PF, flags=("--path-csv", "{f}/folded_hose.csv")),
+        "the hose passes through itself",
+    ),
     (
         "path-beside-path-csv",
         Run(PF, "path=paper_path_2", flags=("--path-csv", "{f}/binary_hose.csv")),

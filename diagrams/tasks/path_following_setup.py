@@ -34,6 +34,7 @@ from guidedarm.systems.config_checks import CheckConfig
 from guidedarm.systems.errors import ConfigurationError, GuidedArmError
 from guidedarm.systems.path_following.continuous_follower_math import ContinuousConfig
 from guidedarm.systems.path_following.hose_geometry import (
+    CheckSelfClearance,
     HoseConfig,
     LoadHoseWorkspace,
     RandomSmoothPath,
@@ -309,8 +310,8 @@ def _Workspace(scenario: PathFollowingScenario) -> WorkspaceConfig:
 
 
 def _LoadHose(scenario, workspace, solver, mount, q_home, out_dir) -> tuple[np.ndarray, str]:
-    """(centerline in B, the CSV or named path it came from); refuses a hose outside the
-    workspace."""
+    """(centerline in B, the CSV or named path it came from); refuses a hose that passes
+    through itself or leaves the workspace."""
     if scenario.path_csv or not scenario.path.startswith("random_"):
         source = scenario.path_csv or scenario.path
         centerline_B = ReadCenterline(source)
@@ -327,6 +328,7 @@ def _LoadHose(scenario, workspace, solver, mount, q_home, out_dir) -> tuple[np.n
         directory = Path(out_dir or tempfile.mkdtemp(prefix="guidedarm_hose_"))
         WriteCenterline(centerline_B, directory / "hose.csv")
         source = str((directory / "hose.csv").resolve())
+    CheckSelfClearance(centerline_B, scenario.station.hose.diameter, source)
     row = workspace.FirstOutside(centerline_B)
     if row is not None:
         raise ConfigurationError(
