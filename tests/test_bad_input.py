@@ -252,6 +252,7 @@ BAD_INPUTS = [
         "the header 'z,y,x' must be x,y,z",
     ),
     ("path-csv-nul", Run(PF, "path_csv={f}/nul.csv"), "must be x,y,z"),
+    ("path-csv-directory", Run(PF, flags=("--path-csv", "{f}")), "is a directory, not a CSV"),
     (
         "path-csv-folded",
         Run(PF, flags=("--path-csv", "{f}/folded_hose.csv")),
