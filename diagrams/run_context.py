@@ -26,6 +26,7 @@ from typing import Any
 from pydrake.geometry import Meshcat, MeshcatParams
 from pydrake.systems.analysis import Simulator
 
+from guidedarm.diagrams.interrupts import RaiseIfInterrupted, TakeInterrupt
 from guidedarm.diagrams.station.hardware_config import ListenHostProblem
 from guidedarm.systems.errors import ConfigurationError, GuidedArmError
 
@@ -91,6 +92,7 @@ class RunContext:
         pace(), also shows the simulated time and realtime rate on the Meshcat page.
         message: the line, or a function making it only when it is printed (for a caller
         at every simulator step)."""
+        RaiseIfInterrupted()
         now = time.monotonic()
         self._ShowOnPage(now)
         if self.quiet or (not force and now - self._last_progress < 1.0):
@@ -212,7 +214,7 @@ def ServeMeshcat(meshcat: Meshcat, wait_s: float | None = None) -> None:
         while (left := deadline - time.monotonic()) > 0:
             time.sleep(min(left, 0.5))
     except KeyboardInterrupt:
-        pass
+        TakeInterrupt()
 
 
 def AdvanceWithProgress(

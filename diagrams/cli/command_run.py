@@ -108,7 +108,7 @@ def LoadScenario(name_or_path: str, overrides: list[str]) -> tuple[Any, Any, str
     if not isinstance(task_name, str):
         raise ScenarioError(f"{path}: missing key 'task' (the task this scenario runs)")
     task = GetTask(task_name)
-    scenario = load_typed(task.scenario_type, raw, str(path))
+    scenario = load_typed(task.scenario_type, raw, str(path), parsed.keys())
     if task.check_overrides is not None:
         task.check_overrides(scenario, parsed.keys())
     return task, scenario, path.stem
