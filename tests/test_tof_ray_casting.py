@@ -52,16 +52,22 @@ def _PosesAlong(centerline: np.ndarray, grid_X_TS, rng, count: int):
 @pytest.mark.parametrize(
     "path", ["paper_path_1", "paper_path_2", "paper_path_3", "paper_path_4", "random_0"]
 )
-def test_the_analytic_caster_equals_sphere_tracing_around_a_hose(path):
-    """40 random tool poses around each hose (the arm at its start, the cell, brackets):
-    the analytic ranges equal sphere tracing to 1 um, hits and misses alike; the tracer is
-    never beyond them and short by its stopping error only."""
+def _KinematicStationAtStart(path: str):
+    """(setup, kinematic station, its context, its QueryObject) with the arm at the start
+    pose of path following on `path`."""
     _, scenario, _ = LoadScenario("path_following", [f"path={path}"])
     setup = MakeSetup(scenario)
     station = MakeKinematicStation(setup.station)
     context = station.CreateDefaultContext()
     station.GetInputPort(f"{setup.arm}.position_commanded").FixValue(context, setup.q_start)
-    query = station.GetOutputPort("sim.query_object").Eval(context)
+    return setup, station, context, station.GetOutputPort("sim.query_object").Eval(context)
+
+
+def test_the_analytic_caster_equals_sphere_tracing_around_a_hose(path):
+    """40 random tool poses around each hose (the arm at its start, the cell, brackets):
+    the analytic ranges equal sphere tracing to 1 um, hits and misses alike; the tracer is
+    never beyond them and short by its stopping error only."""
+    setup, station, _, query = _KinematicStationAtStart(path)
     caster = station.GetSubsystemByName(f"{setup.tool_name}.sensor").Caster()
     reference = _ReferenceTracer(caster)
     coarse = RayCaster(caster.rays_S, caster.max_range, caster.ignored)
@@ -113,12 +119,7 @@ def test_the_batched_caster_equals_brute_force_and_the_mount_the_sensor_bodies(p
     intersection give the ranges of every shape intersected alone, to 1e-12 m, hits and
     misses alike. At the arm's start pose the sensor's poses from the tool body alone
     (its mount) equal those of the sensors' own bodies, and so do its ranges."""
-    _, scenario, _ = LoadScenario("path_following", [f"path={path}"])
-    setup = MakeSetup(scenario)
-    station = MakeKinematicStation(setup.station)
-    context = station.CreateDefaultContext()
-    station.GetInputPort(f"{setup.arm}.position_commanded").FixValue(context, setup.q_start)
-    query = station.GetOutputPort("sim.query_object").Eval(context)
+    setup, station, context, query = _KinematicStationAtStart(path)
     sensor = station.GetSubsystemByName(f"{setup.tool_name}.sensor")
     caster = sensor.Caster()
     rng = np.random.default_rng(5)
