@@ -49,9 +49,6 @@ def _PosesAlong(centerline: np.ndarray, grid_X_TS, rng, count: int):
         yield [X_WT @ X_TS for X_TS in grid_X_TS]
 
 
-@pytest.mark.parametrize(
-    "path", ["paper_path_1", "paper_path_2", "paper_path_3", "paper_path_4", "random_0"]
-)
 def _KinematicStationAtStart(path: str):
     """(setup, kinematic station, its context, its QueryObject) with the arm at the start
     pose of path following on `path`."""
@@ -63,6 +60,9 @@ def _KinematicStationAtStart(path: str):
     return setup, station, context, station.GetOutputPort("sim.query_object").Eval(context)
 
 
+@pytest.mark.parametrize(
+    "path", ["paper_path_1", "paper_path_2", "paper_path_3", "paper_path_4", "random_0"]
+)
 def test_the_analytic_caster_equals_sphere_tracing_around_a_hose(path):
     """40 random tool poses around each hose (the arm at its start, the cell, brackets):
     the analytic ranges equal sphere tracing to 1 um, hits and misses alike; the tracer is
