@@ -26,6 +26,8 @@ from typing import Any
 from pydrake.geometry import Meshcat, MeshcatParams
 from pydrake.systems.analysis import Simulator
 
+from guidedarm.diagrams.interrupts import RaiseIfInterrupted, TakeInterrupt
+from guidedarm.diagrams.station.hardware_config import ListenHostProblem
 from guidedarm.systems.errors import ConfigurationError, GuidedArmError
 
 REPLAY_FILE = "replay.html"
@@ -90,6 +92,7 @@ class RunContext:
         pace(), also shows the simulated time and realtime rate on the Meshcat page.
         message: the line, or a function making it only when it is printed (for a caller
         at every simulator step)."""
+        RaiseIfInterrupted()
         now = time.monotonic()
         self._ShowOnPage(now)
         if self.quiet or (not force and now - self._last_progress < 1.0):
@@ -186,6 +189,10 @@ def PrepareOutputDirectory(out_dir: Path, name: str = "--out") -> Path:
 def MakeMeshcat(serve: bool = False, host: str = "localhost") -> Meshcat:
     """A Meshcat that serves a live page on `host` (first free port from 7000) when `serve`,
     else a recorder on 127.0.0.1 at an ephemeral port (see the module docstring)."""
+    # "*" is Meshcat's own word for every interface.
+    problem = ListenHostProblem(host) if serve and host != "*" else None
+    if problem is not None:
+        raise ConfigurationError(f"Meshcat cannot listen on host '{host}': {problem}")
     params = MeshcatParams(host=host) if serve else MeshcatParams(host="127.0.0.1", port=0)
     drake_log = logging.getLogger("drake")
     level = drake_log.level
@@ -207,7 +214,7 @@ def ServeMeshcat(meshcat: Meshcat, wait_s: float | None = None) -> None:
         while (left := deadline - time.monotonic()) > 0:
             time.sleep(min(left, 0.5))
     except KeyboardInterrupt:
-        pass
+        TakeInterrupt()
 
 
 def AdvanceWithProgress(

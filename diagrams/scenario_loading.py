@@ -19,6 +19,7 @@ import dataclasses
 import re
 import types
 import typing
+from collections.abc import Iterable
 from pathlib import Path
 from typing import Any, TypeVar
 
@@ -125,20 +126,38 @@ REPLACED_KEYS = {
 }
 
 
-def load_typed(schema: type[T], raw: dict[str, Any], source: str) -> T:
+def load_typed(
+    schema: type[T], raw: dict[str, Any], source: str, overridden: Iterable[str] = ()
+) -> T:
     """Loads `raw` into the dataclass `schema` and checks it (CheckConfig), naming the
-    offending key on failure."""
-    _refuse_replaced_keys(schema, raw, source)
-    _check_node(schema, raw, "", source)
+    offending key on failure, and `--set` instead of `source` for a key in (or under) one
+    of the `overridden` dotted keys."""
     try:
-        typed = yaml_load_typed(schema=schema, data=yaml_dump(raw))
-    except Exception as e:
-        raise ScenarioError(f"{source}: {_first_line(e)}") from None
-    try:
-        CheckConfig(typed)
-    except ConfigurationError as e:
-        raise ScenarioError(f"{source}: {e}") from None
+        _refuse_replaced_keys(schema, raw, source)
+        _check_node(schema, raw, "", source)
+        try:
+            typed = yaml_load_typed(schema=schema, data=yaml_dump(raw))
+        except Exception as e:
+            raise ScenarioError(f"{source}: {_first_line(e)}") from None
+        try:
+            CheckConfig(typed)
+        except ConfigurationError as e:
+            raise ScenarioError(f"{source}: {e}") from None
+    except ScenarioError as e:
+        raise _NamingTheOverride(e, source, list(overridden)) from None
     return typed
+
+
+def _NamingTheOverride(error: ScenarioError, source: str, overridden: list[str]) -> ScenarioError:
+    """`error` ("SOURCE: key 'K': ...") as "--set key 'K': ..." when K came from --set."""
+    text = str(error)
+    named = re.match(re.escape(source) + r": (?:unknown )?key '([^']*)'", text)
+    if named is None:
+        return error
+    key = named.group(1)
+    if not any(key == k or key.startswith((f"{k}.", f"{k}[")) for k in overridden):
+        return error
+    return ScenarioError("--set " + text[len(source) + 2 :])
 
 
 def _refuse_replaced_keys(schema: Any, raw: dict[str, Any], source: str) -> None:

@@ -9,6 +9,7 @@ from typing import Any
 
 from pydrake.common.yaml import yaml_dump_typed
 
+from guidedarm.diagrams.interrupts import RaiseIfInterrupted, TakeInterrupt
 from guidedarm.diagrams.run_context import RESOLVED_SCENARIO_FILE, NonFiniteKeys, RunContext
 from guidedarm.diagrams.tasks.registry import TaskDefinition
 from guidedarm.systems.errors import GuidedArmError, RunFailedError
@@ -30,6 +31,7 @@ def RunTask(task: TaskDefinition, scenario: Any, context: RunContext) -> dict[st
     wall_start = time.perf_counter()
     try:
         metrics = dict(task.run(scenario, context))
+        RaiseIfInterrupted()  # one Python dropped, with no progress report after it
     except RunFailedError as e:
         metrics = {"success": False, "failure": str(e)}
     except KeyboardInterrupt as e:
@@ -54,7 +56,9 @@ def RunTask(task: TaskDefinition, scenario: Any, context: RunContext) -> dict[st
 
 def InterruptedFailure(interrupt: KeyboardInterrupt) -> str:
     """The `failure` of a run stopped by Ctrl-C (`interrupted`) or by a signal the CLI
-    turns into a KeyboardInterrupt naming it (`interrupted by SIGTERM`)."""
+    turns into a KeyboardInterrupt naming it (`interrupted by SIGTERM`); the interrupt
+    counts as reported."""
+    TakeInterrupt()
     return f"{INTERRUPTED} by {interrupt.args[0]}" if interrupt.args else INTERRUPTED
 
 

@@ -81,6 +81,8 @@ def files(tmp_path_factory) -> Path:
     for name, text in texts.items():
         (root / name).write_text(text)
     (root / "zyx_hose.csv").write_text("z,y,x\n0.1,0.0,0.3\n0.1,0.1,0.3\n")
+    hairpin = [(x, -0.005, 0.1) for x in (0.3, 0.4, 0.5)] + [(x, 0.005, 0.1) for x in (0.5, 0.3)]
+    (root / "folded_hose.csv").write_text("".join(f"{x},{y},{z}\n" for x, y, z in hairpin))
     (root / "binary_hose.csv").write_bytes(BINARY)
     (root / "binary.yaml").write_bytes(BINARY)
     (root / "camera_binary.yaml").write_bytes(BINARY)
@@ -250,6 +252,12 @@ BAD_INPUTS = [
         "the header 'z,y,x' must be x,y,z",
     ),
     ("path-csv-nul", Run(PF, "path_csv={f}/nul.csv"), "must be x,y,z"),
+    ("path-csv-directory", Run(PF, flags=("--path-csv", "{f}")), "is a directory, not a CSV"),
+    (
+        "path-csv-folded",
+        Run(PF, flags=("--path-csv", "{f}/folded_hose.csv")),
+        "the hose passes through itself",
+    ),
     (
         "path-beside-path-csv",
         Run(PF, "path=paper_path_2", flags=("--path-csv", "{f}/binary_hose.csv")),
@@ -278,6 +286,17 @@ BAD_INPUTS = [
     ("continuous-min-points", Run(PF, "continuous.min_fit_points=1"), "min_fit_points"),
     ("continuous-turns", Run(PF, "continuous.search_turns_deg=[120]"), "search_turns_deg"),
     ("continuous-speeds", Run(PF, "continuous.min_speed=0.5"), "min_speed <= speed"),
+    (
+        "continuous-speed-beyond-readings",
+        Run(PF, "motion=continuous", "continuous.speed=1e3"),
+        "continuous.speed (1000 m/s) is faster than the hose fit can follow",
+    ),
+    (
+        "continuous-fit-too-short",
+        Run(PF, "motion=continuous", "continuous.fit_length=1e-9"),
+        "at most 6.25e-09 m/s",
+    ),
+    ("continuous-gate-tiny", Run(PF, "continuous.gate=1e-7"), "'continuous.gate'"),
     ("continuous-search", Run(PF, "continuous.loss_distance=0.05"), "loss_distance <"),
     (
         "kinematic-hardware",
@@ -420,7 +439,12 @@ BAD_INPUTS = [
     (
         "meshcat-host-unbindable",
         Run(JT, flags=("--meshcat", "--meshcat-host", "192.0.2.1")),
-        "Meshcat cannot listen on host '192.0.2.1'",
+        "Meshcat cannot listen on host '192.0.2.1': no address of this machine",
+    ),
+    (
+        "meshcat-host-unresolvable",
+        Run(JT, flags=("--meshcat", "--meshcat-host", "999.1.1.1")),
+        "Meshcat cannot listen on host '999.1.1.1': it does not resolve",
     ),
     # --- estimate-marker-pose: camera and panel files, images
     ("camera-missing", Estimate("{f}/missing.yaml"), "file not found"),

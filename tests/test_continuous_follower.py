@@ -168,10 +168,8 @@ def test_servo_step_keeps_speed_acceleration_and_position_limits():
     limits = _Limits(n)
     for _ in range(2000):
         J = rng.normal(size=(6, n))
-        V, error = rng.normal(size=6), rng.normal(size=6)
-        q_next, v_next, _ = ServoStep(
-            J, V, error, q, v, DT, limits, np.eye(3), np.ones(6), 0.02, 20
-        )
+        error = rng.normal(size=6)
+        q_next, v_next, _ = ServoStep(J, error, q, v, DT, limits, np.eye(3), np.ones(6), 0.02, 20)
         assert np.all(np.abs(v_next) <= 1.0 + 1e-12)
         assert np.all(np.abs(v_next - v) <= 5.0 * DT + 1e-12)
         assert np.allclose(q_next, q + v_next * DT)
@@ -179,16 +177,19 @@ def test_servo_step_keeps_speed_acceleration_and_position_limits():
         q, v = q_next, v_next
 
 
-def test_servo_step_follows_a_feasible_velocity_exactly():
-    J = np.eye(6)
-    V = np.full(6, 0.01)
+def test_servo_step_closes_a_small_error_at_the_gain():
+    """A small error within every limit: the joints move at gain x the displacement that
+    closes it (J^-1 error, whatever the row weights and T's orientation)."""
+    J = np.diag([1.0, 2.0, 0.5, 1.0, 1.5, 1.0])
+    error = np.full(6, 1e-4)
     R = RotationMatrix.MakeZRotation(0.3).matrix()
     weights = np.array([0.1, 1, 1, 1, 1, 1])
+    v_expected = 20 * np.linalg.solve(J, error)
     _, v, limited = ServoStep(
-        J, V, np.zeros(6), np.zeros(6), V.copy(), DT, _Limits(6), R, weights, 1e-6, 20
+        J, error, np.zeros(6), v_expected, DT, _Limits(6), R, weights, 1e-6, 20
     )
     assert not limited
-    assert v == pytest.approx(V, rel=1e-3)
+    assert v == pytest.approx(v_expected, rel=1e-3)
 
 
 def test_servo_closes_a_large_error_without_overshoot():
@@ -198,9 +199,7 @@ def test_servo_closes_a_large_error_without_overshoot():
     error_q = np.array([0.5, -0.3, 0.2, 0.0, 0.1, -0.4])
     q, v = np.zeros(6), np.zeros(6)
     for _ in range(int(3.0 / DT)):
-        q, v, _ = ServoStep(
-            J, np.zeros(6), error_q - q, q, v, DT, _Limits(6), np.eye(3), np.ones(6), 1e-6, 20
-        )
+        q, v, _ = ServoStep(J, error_q - q, q, v, DT, _Limits(6), np.eye(3), np.ones(6), 1e-6, 20)
         assert np.all(np.sign(error_q - q) * np.sign(error_q) >= -1e-3 * np.abs(error_q))
     assert q == pytest.approx(error_q, abs=1e-4)
 

@@ -7,6 +7,7 @@ from pydrake.multibody.plant import MultibodyPlant
 from guidedarm.systems.errors import ConfigurationError
 from guidedarm.systems.path_following.hose_geometry import (
     ArcLength,
+    CheckSelfClearance,
     HoseConfig,
     LoadHoseWorkspace,
     MinBendRadius,
@@ -14,6 +15,7 @@ from guidedarm.systems.path_following.hose_geometry import (
     RandomSmoothPath,
     ReadCenterline,
     RegisterHose,
+    Resample,
     WriteCenterline,
 )
 from guidedarm.systems.path_following.workspace import WorkspaceConfig
@@ -117,3 +119,41 @@ def test_hose_geometry_is_registered_with_roles():
 
     assert inspector.NumGeometriesWithRole(Role.kPerception) == len(ids) + 4
     assert inspector.NumGeometriesWithRole(Role.kProximity) == len(ids) + 4
+
+
+def Hairpin(half_gap: float, leg: float = 0.2) -> np.ndarray:
+    """Out along x, a half circle of radius half_gap, back along x (m)."""
+    t = np.linspace(0.0, np.pi, 60)[1:-1]
+    out = np.column_stack([np.linspace(0.0, leg, 40), np.full(40, -half_gap), np.zeros(40)])
+    turn = np.column_stack([leg + half_gap * np.sin(t), -half_gap * np.cos(t), np.zeros(58)])
+    return np.vstack([out, turn, out[::-1] * [1, -1, 1]])
+
+
+@pytest.mark.parametrize(
+    "half_gap, refused",
+    # the tube (20 mm) through itself below a 10 mm bend radius; the legs 2 x half_gap apart
+    [(0.004, True), (0.009, True), (0.0105, False), (0.03, False)],
+)
+def test_a_hose_through_itself_is_refused(half_gap, refused):
+    points = Hairpin(half_gap)
+    if not refused:
+        CheckSelfClearance(points, 0.020, "hairpin")
+        return
+    with pytest.raises(ConfigurationError, match="passes through itself") as error:
+        CheckSelfClearance(points, 0.020, "hairpin")
+    gap_mm = float(str(error.value).split("within ")[1].split(" mm")[0])
+    assert gap_mm == pytest.approx(2000 * half_gap, abs=0.6)
+
+
+def test_a_crossing_hose_is_refused_and_a_bridge_over_it_is_not():
+    for height, refused in ((0.0, True), (0.015, True), (0.025, False)):
+        # along x through the origin, then round by right-angle corners and back along -y
+        # through the point above the origin
+        corners = [[-0.1, 0, 0], [0.1, 0, 0], [0.1, 0.15, height], [0, 0.15, height]]
+        corners.append([0.0, -0.1, height])
+        points = Resample(np.array(corners, float), 0.005)
+        if refused:
+            with pytest.raises(ConfigurationError, match="passes through itself"):
+                CheckSelfClearance(points, 0.020, "crossing")
+        else:
+            CheckSelfClearance(points, 0.020, "crossing")

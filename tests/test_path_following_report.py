@@ -77,3 +77,37 @@ def test_steps_beyond_the_ends_are_left_out():
     match = CenterlineMatch(p_WO, centerline)
     assert match.beyond.tolist() == [False] * len(along) + [True, True]
     assert Metrics(_Records(p_WO, p_WO), centerline)["tracking_error_max_mm"] == 0.0
+
+
+def _Zigzag(legs: int = 3, leg: float = 0.06, gap: float = 0.025) -> np.ndarray:
+    """Legs along +x, -x, ... `gap` apart in y, joined by half circles (m, z = 0.1 m)."""
+    pieces, radius = [], gap / 2
+    turn = np.linspace(-np.pi / 2, np.pi / 2, 14)[1:-1]
+    for k in range(legs):
+        x = np.linspace(0.0, leg, 31) if k % 2 == 0 else np.linspace(leg, 0.0, 31)
+        pieces.append(np.column_stack([x, np.full(31, k * gap), np.full(31, 0.1)]))
+        if k < legs - 1:
+            sign, end = (1, leg) if k % 2 == 0 else (-1, 0.0)
+            y = k * gap + radius + radius * np.sin(turn)
+            x = end + sign * radius * np.cos(turn)
+            pieces.append(np.column_stack([x, y, np.full_like(x, 0.1)]))
+    return np.vstack(pieces)
+
+
+def test_a_tool_crossing_between_the_legs_of_a_folded_hose_stays_on_its_leg():
+    """Along the first leg to its middle at 50 mm/s (1 mm steps, 20 ms apart), then across
+    to the second leg (25 mm beside it, 99 mm further along the hose) and along that: the
+    match must not jump to the second leg, nor the followed length with it."""
+    centerline = _Zigzag()
+    first = np.column_stack([np.linspace(0.0, 0.03, 31), np.zeros(31), np.full(31, 0.1)])
+    across = np.column_stack([np.full(25, 0.03), np.linspace(0.001, 0.025, 25), np.full(25, 0.1)])
+    second = np.column_stack([np.linspace(0.029, 0.0, 30), np.full(30, 0.025), np.full(30, 0.1)])
+    p_WO = np.vstack([first, across, second])
+    records = _Records(p_WO, p_WO)
+    records[:, RECORD_FIELDS.index("t")] = 0.02 * np.arange(len(p_WO))
+    match = CenterlineMatch(p_WO, centerline)
+    assert match.s.max() == pytest.approx(0.03, abs=0.002)
+    metrics = Metrics(records, centerline, continuous=True)
+    assert metrics["average_speed_mm_s"] == pytest.approx(50.0, abs=2.0)
+    # the first leg's 30 mm and the hose within 25 mm of its end, of 0.18 + 0.08 m
+    assert metrics["coverage"] < 0.25

@@ -19,7 +19,12 @@ from guidedarm.diagrams.cli.command_run import LoadScenario
 from guidedarm.diagrams.tasks.path_following_diagram import MakeKinematicStation
 from guidedarm.diagrams.tasks.path_following_setup import MakeSetup
 from guidedarm.systems.path_following.path_follower_math import OrientationFromVector
-from guidedarm.systems.tof.primitive_ray_casting import SceneRayCaster
+from guidedarm.systems.tof.primitive_ray_casting import (
+    FirstHits,
+    ProximityShapes,
+    SceneRayCaster,
+    ShapeSizes,
+)
 from guidedarm.systems.tof.tof_tool_sensor_math import ConeRays, RayCaster
 
 RAYS = ConeRays(np.radians(25.0), 2)
@@ -44,6 +49,17 @@ def _PosesAlong(centerline: np.ndarray, grid_X_TS, rng, count: int):
         yield [X_WT @ X_TS for X_TS in grid_X_TS]
 
 
+def _KinematicStationAtStart(path: str):
+    """(setup, kinematic station, its context, its QueryObject) with the arm at the start
+    pose of path following on `path`."""
+    _, scenario, _ = LoadScenario("path_following", [f"path={path}"])
+    setup = MakeSetup(scenario)
+    station = MakeKinematicStation(setup.station)
+    context = station.CreateDefaultContext()
+    station.GetInputPort(f"{setup.arm}.position_commanded").FixValue(context, setup.q_start)
+    return setup, station, context, station.GetOutputPort("sim.query_object").Eval(context)
+
+
 @pytest.mark.parametrize(
     "path", ["paper_path_1", "paper_path_2", "paper_path_3", "paper_path_4", "random_0"]
 )
@@ -51,12 +67,7 @@ def test_the_analytic_caster_equals_sphere_tracing_around_a_hose(path):
     """40 random tool poses around each hose (the arm at its start, the cell, brackets):
     the analytic ranges equal sphere tracing to 1 um, hits and misses alike; the tracer is
     never beyond them and short by its stopping error only."""
-    _, scenario, _ = LoadScenario("path_following", [f"path={path}"])
-    setup = MakeSetup(scenario)
-    station = MakeKinematicStation(setup.station)
-    context = station.CreateDefaultContext()
-    station.GetInputPort(f"{setup.arm}.position_commanded").FixValue(context, setup.q_start)
-    query = station.GetOutputPort("sim.query_object").Eval(context)
+    setup, station, _, query = _KinematicStationAtStart(path)
     caster = station.GetSubsystemByName(f"{setup.tool_name}.sensor").Caster()
     reference = _ReferenceTracer(caster)
     coarse = RayCaster(caster.rays_S, caster.max_range, caster.ignored)
@@ -80,6 +91,58 @@ def test_the_analytic_caster_equals_sphere_tracing_around_a_hose(path):
     both = hit & np.isfinite(short)
     short_by = exact[both] - short[both]
     assert short_by.min() >= -1e-9 and np.median(short_by) < 2e-4 and short_by.max() < 5e-3
+
+
+def _BruteForce(query, caster: SceneRayCaster, poses: list) -> np.ndarray:
+    """Nearest hit of each pose's rays within max_range against every supported shape, one
+    shape at a time from its pose in the QueryObject: no broadphase, no shape table."""
+    X_WS = np.array([X.GetAsMatrix34() for X in poses])
+    p_WS, u_W = X_WS[:, :, 3], caster.rays_S @ X_WS[:, :, :3].transpose(0, 2, 1)
+    best = np.full(len(poses), np.inf)
+    inspector = query.inspector()
+    for g in ProximityShapes(inspector, caster.ignored)[0]:
+        kind, sizes, _ = ShapeSizes(inspector.GetShape(g))
+        X_WG = query.GetPoseInWorld(g)
+        R_WG = X_WG.rotation().matrix()
+        o = ((p_WS - X_WG.translation()) @ R_WG).T[:, None, :, None]
+        u = (u_W @ R_WG).transpose(2, 0, 1)[:, None]
+        with np.errstate(all="ignore"):
+            hits = FirstHits(o, u, np.sum(o * u, axis=0), kind, np.array([sizes]))
+        best = np.minimum(best, hits[0].min(axis=1))
+    best[best > caster.max_range] = np.inf
+    return best
+
+
+@pytest.mark.parametrize("path", ["paper_path_1", "paper_path_3", "random_0", "random_5"])
+def test_the_batched_caster_equals_brute_force_and_the_mount_the_sensor_bodies(path):
+    """100 random tool poses around the hose: the caster's broadphase and batched
+    intersection give the ranges of every shape intersected alone, to 1e-12 m, hits and
+    misses alike. At the arm's start pose the sensor's poses from the tool body alone
+    (its mount) equal those of the sensors' own bodies, and so do its ranges."""
+    setup, station, context, query = _KinematicStationAtStart(path)
+    sensor = station.GetSubsystemByName(f"{setup.tool_name}.sensor")
+    caster = sensor.Caster()
+    rng = np.random.default_rng(5)
+    exact, brute = [], []
+    for poses in _PosesAlong(setup.centerline, setup.grid.X_TS, rng, 100):
+        exact.append(caster.Ranges(query, poses))
+        brute.append(_BruteForce(query, caster, poses))
+    exact, brute = np.array(exact), np.array(brute)
+    np.testing.assert_array_equal(np.isfinite(exact), np.isfinite(brute))
+    assert np.isfinite(exact).mean() > 0.3
+    hit = np.isfinite(exact)
+    np.testing.assert_allclose(exact[hit], brute[hit], rtol=0, atol=1e-12)
+
+    # The sensor frames are the sensors' body frames, each a SceneGraph frame of its own.
+    inspector = query.inspector()
+    frames = {inspector.GetName(f): f for f in inspector.GetAllFrameIds()}
+    own = [query.GetPoseInWorld(frames[name]) for name in sensor._config.sensor_frames]
+    sensor_context = sensor.GetMyContextFromRoot(context)
+    for X, Y in zip(sensor.SensorPosesInWorld(sensor_context), own, strict=True):
+        np.testing.assert_allclose(X.GetAsMatrix34(), Y.GetAsMatrix34(), rtol=0, atol=1e-12)
+    true = sensor.TrueRanges(sensor_context)
+    np.testing.assert_allclose(true, _BruteForce(query, caster, own), rtol=0, atol=1e-12)
+    assert np.isfinite(true).sum() >= 4  # the tool at the start looks at the hose
 
 
 def _Scene(shape, X_WG: RigidTransform, anchored: bool):

@@ -19,6 +19,7 @@ from guidedarm.systems.tof.tof_tool_sensor_math import (
     ConeRays,
     DetectionGrid,
     Measure,
+    _LeastSquares2,
 )
 
 A, H, R = 0.022, 0.055, 0.010
@@ -308,3 +309,20 @@ def test_the_cylinder_model_of_a_perpendicular_hose_is_the_plane_model(cell):
                 assert cylinder is None
             else:
                 assert cylinder == pytest.approx(plane, abs=2e-5)
+
+
+def test_the_refinement_least_squares_is_lstsq():
+    """The Gauss-Newton's direct 2 x 2 normal equations give lstsq's solution, and a
+    rank-deficient Jacobian (parallel columns) falls back to lstsq's minimum-norm one."""
+    rng = np.random.default_rng(5)
+    for n in (2, 3, 6):
+        for _ in range(50):
+            J, r = rng.normal(size=(n, 2)), rng.normal(size=n)
+            expected = np.linalg.lstsq(J, r, rcond=None)[0]
+            got = _LeastSquares2([tuple(row) for row in J.tolist()], r.tolist())
+            assert np.allclose(got, expected, rtol=1e-9, atol=1e-12)
+    J = np.array([[1.0, 2.0], [2.0, 4.0], [-1.0, -2.0]])
+    r = np.array([1.0, 0.5, -2.0])
+    got = _LeastSquares2([tuple(row) for row in J.tolist()], r.tolist())
+    assert np.all(np.isfinite(got))
+    assert np.allclose(got, np.linalg.lstsq(J, r, rcond=None)[0], atol=1e-12)

@@ -25,6 +25,7 @@ from distributed import Client, LocalCluster, as_completed
 from guidedarm.diagrams.campaigns.jobs import DescribeAxes, Job
 from guidedarm.diagrams.campaigns.results import LOST_PREFIX, ResultsTable, RowOf
 from guidedarm.diagrams.campaigns.worker import RunJob
+from guidedarm.diagrams.interrupts import TakeInterrupt
 from guidedarm.diagrams.task_run import INTERRUPTED
 from guidedarm.systems.errors import ConfigurationError
 
@@ -123,6 +124,7 @@ def RunJobs(
             outcome.failed += not row["success"]
             meter.Done(job, row)
     except KeyboardInterrupt:
+        TakeInterrupt()
         outcome.interrupted = True
         client.cancel(futures)
     return outcome

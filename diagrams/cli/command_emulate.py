@@ -9,14 +9,17 @@ Without --scenario the station is the Wawrzyniak et al. cell (MZ04D, gripper, To
 from __future__ import annotations
 
 import argparse
-import socket
 
 import numpy as np
 from pydrake.multibody.parsing import LoadModelDirectives
 from pydrake.systems.framework import Context
 
 from guidedarm.diagrams.cli.command_run import LoadScenario
-from guidedarm.diagrams.station.hardware_config import CheckPort, ToFDriverConfig
+from guidedarm.diagrams.station.hardware_config import (
+    CheckPort,
+    ListenHostProblem,
+    ToFDriverConfig,
+)
 from guidedarm.diagrams.station.model_paths import MODELS_DIR
 from guidedarm.diagrams.station.scenario import ArmConfig, StationScenario
 from guidedarm.diagrams.station.station import MakeStation
@@ -143,11 +146,12 @@ def StartEmulators(
 
 
 def CheckArguments(args: argparse.Namespace) -> None:
-    """Refuses, before the station is built, a port outside 0..65535, a host that does not
-    resolve, a duration, servo acceleration or servo timeout that is not positive and
-    finite (the duration may be infinite), a ToF latency that is negative or infinite, and
-    --port, --host, --arm and the SERVO options for `tof` (which serves no arm), and --set
-    without --scenario (the default cell has no scenario keys); fills in their defaults."""
+    """Refuses, before the station is built, a port outside 0..65535, a host that is not an
+    address of this machine, a duration, servo acceleration or servo timeout that is not
+    positive and finite (the duration may be infinite), a ToF latency that is negative or
+    infinite, and --port, --host, --arm and the SERVO options for `tof` (which serves no
+    arm), and --set without --scenario (the default cell has no scenario keys); fills in
+    their defaults."""
     if args.overrides and not args.scenario:
         raise ConfigurationError("--set needs --scenario (the default cell has no scenario)")
     for option in ("port", "host", "arm"):
@@ -155,10 +159,9 @@ def CheckArguments(args: argparse.Namespace) -> None:
             raise ConfigurationError(f"--{option} applies to `emulate nachi` only")
     args.host = args.host or "127.0.0.1"
     CheckPort("--port", DEFAULT_PORT if args.port is None else args.port)
-    try:
-        socket.getaddrinfo(args.host, None, type=socket.SOCK_STREAM)
-    except (OSError, UnicodeError) as e:
-        raise ConfigurationError(f"--host {args.host!r}: cannot be resolved ({e})") from None
+    problem = ListenHostProblem(args.host)
+    if problem is not None:
+        raise ConfigurationError(f"--host {args.host!r}: cannot listen there, {problem}")
     if not args.duration > 0:
         raise ConfigurationError(f"--duration {args.duration}: must be positive")
     for option, default in (

@@ -108,7 +108,7 @@ def LoadScenario(name_or_path: str, overrides: list[str]) -> tuple[Any, Any, str
     if not isinstance(task_name, str):
         raise ScenarioError(f"{path}: missing key 'task' (the task this scenario runs)")
     task = GetTask(task_name)
-    scenario = load_typed(task.scenario_type, raw, str(path))
+    scenario = load_typed(task.scenario_type, raw, str(path), parsed.keys())
     if task.check_overrides is not None:
         task.check_overrides(scenario, parsed.keys())
     return task, scenario, path.stem
@@ -119,10 +119,11 @@ def run_command(args: argparse.Namespace) -> int:
     if getattr(args, "path_csv", None) is not None:
         args.overrides.append(f"path_csv={json.dumps(str(args.path_csv.resolve()))}")
     task, scenario, name = LoadScenario(args.scenario, args.overrides)
+    meshcat = MakeMeshcat(args.meshcat, args.meshcat_host or "localhost")
     context = RunContext(
         out_dir=PrepareOutputDirectory(args.out or Path("runs") / name), hardware=args.hardware
     )
-    context.meshcat = MakeMeshcat(args.meshcat, args.meshcat_host or "localhost")
+    context.meshcat = meshcat
     context.live = args.meshcat
     if args.meshcat:
         print(f"Meshcat: {context.meshcat.web_url()}", flush=True)

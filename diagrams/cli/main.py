@@ -13,11 +13,11 @@ import gc
 import importlib
 import os
 import pkgutil
-import signal
 import sys
 import threading
 
 import guidedarm.diagrams.cli as cli_package
+from guidedarm.diagrams.interrupts import InstallInterruptHandlers
 from guidedarm.systems.errors import ConfigurationError, GuidedArmError
 from guidedarm.systems.hardware.arm_link import CloseAllArmLinks, ReportStopErrors
 
@@ -53,7 +53,7 @@ def MakeArgumentParser() -> argparse.ArgumentParser:
 def main(argv: list[str] | None = None) -> int:
     """Entry point of the `guidedarm` console script."""
     if threading.current_thread() is threading.main_thread():
-        signal.signal(signal.SIGTERM, _Terminate)
+        InstallInterruptHandlers()
     try:
         args = MakeArgumentParser().parse_args(argv)
         code = int(args.func(args) or 0)
@@ -74,11 +74,6 @@ def main(argv: list[str] | None = None) -> int:
         # Drake objects such as Meshcat must be destroyed on the thread that made them; a
         # reference cycle left to the collector could be freed on any thread of the caller.
         gc.collect()
-
-
-def _Terminate(signum: int, frame: object) -> None:
-    """SIGTERM (a supervisor, `timeout`) ends a run as Ctrl-C does: with its summary."""
-    raise KeyboardInterrupt("SIGTERM")
 
 
 def _name(module_info: pkgutil.ModuleInfo) -> str:

@@ -3,6 +3,7 @@ tool, and where to reach it. Loaded with `yaml_load_typed` as `StationScenario.h
 each section checks itself in `Validate()` (comparisons written so that NaN fails).
 """
 
+import socket
 from dataclasses import dataclass, field
 
 from guidedarm.systems.config_checks import (
@@ -23,6 +24,26 @@ def CheckPort(key: str, port: int) -> None:
     """A TCP port number, 0..65535 (0: any free port, or the driver's default)."""
     if isinstance(port, bool) or not isinstance(port, int) or not 0 <= port <= 65535:
         raise ConfigurationError(f"{key}: {port} is not a TCP port (0..65535)")
+
+
+def ListenHostProblem(host: str) -> str | None:
+    """Why a server cannot listen on `host` (a name or address), or None when it can: the
+    name does not resolve, or no address it resolves to belongs to this machine. Checked
+    with a socket bound to port 0, in well under a second (a server library given such a
+    host may instead retry for minutes)."""
+    try:
+        addresses = socket.getaddrinfo(host, 0, type=socket.SOCK_STREAM)
+    except (OSError, UnicodeError) as e:
+        return f"it does not resolve ({e})"
+    errors = []
+    for family, kind, protocol, _, address in addresses:
+        with socket.socket(family, kind, protocol) as probe:
+            try:
+                probe.bind(address)
+                return None
+            except OSError as e:
+                errors.append(f"{address[0]}: {e.strerror}")
+    return "no address of this machine (" + "; ".join(errors) + ")"
 
 
 def _CheckChoice(key: str, value: str, choices: tuple[str, ...]) -> None:

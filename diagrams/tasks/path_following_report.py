@@ -22,10 +22,13 @@ from guidedarm.systems.path_following.hose_geometry import (
 from guidedarm.systems.path_following.path_follower_math import RECORD_FIELDS
 
 TRACKING_BOUND = 0.025
-# A step is matched within this arc length (m) of the previous step's match: more than a
-# step and the retreat of a recovery (a few long steps), less than the arc length between
-# two branches of a self-crossing hose.
+# A step is matched within MATCH_SLACK + 2 x the tool's move since the previous step, at
+# most MATCH_WINDOW, of arc length (m) from the previous step's match: the closest point of
+# a tool within TRACKING_BOUND of a bend of radius 2 x TRACKING_BOUND or more moves at most
+# twice as far as the tool. A fixed window let the match jump to a parallel branch of a
+# folded hose within it (and the followed length with it).
 MATCH_WINDOW = 0.1
+MATCH_SLACK = 0.01
 MATCH_SPACING = 0.002
 
 
@@ -42,8 +45,10 @@ def Positions(records: np.ndarray, prefix: str) -> np.ndarray:
 class CenterlineMatch:
     """The tool centres O of a run (in step order, starting at the hose's first point)
     matched to the centerline: `s` (m), each step's arc length, the closest centerline
-    point within MATCH_WINDOW of the previous step's; `beyond`, whether O lies beyond an
-    end of the hose; `pieces`, each step's index range of the resampled centerline."""
+    point within reach of the previous step's (MATCH_SLACK); `beyond`, whether O lies beyond an
+    end of the hose; `pieces`, each step's index range of the resampled centerline within
+    2 x TRACKING_BOUND of arc length of its match (where the errors are measured and the
+    hose counts as covered: another branch of a folded hose is not)."""
 
     def __init__(self, p_WO: np.ndarray, centerline: np.ndarray) -> None:
         self.fine = Resample(centerline, MATCH_SPACING)
@@ -53,18 +58,21 @@ class CenterlineMatch:
         self.beyond = np.zeros(count, bool)
         self.pieces = []
         s_previous, last = 0.0, len(self.fine) - 1
+        moves = np.linalg.norm(np.diff(p_WO, axis=0, prepend=p_WO[:1]), axis=1)
         for i, p in enumerate(p_WO):
-            lo, hi = self._Piece(s_previous)
+            lo, hi = self._Piece(s_previous, min(MATCH_SLACK + 2 * moves[i], MATCH_WINDOW))
             k = lo + int(np.argmin(np.linalg.norm(self.fine[lo : hi + 1] - p, axis=1)))
             self.s[i] = s_previous = self.s_fine[k]
-            self.pieces.append(self._Piece(s_previous))
+            self.pieces.append(self._Piece(s_previous, 2 * TRACKING_BOUND))
             self.beyond[i] = (
                 k == 0 and (p - self.fine[0]) @ (self.fine[1] - self.fine[0]) < 0
             ) or (k == last and (p - self.fine[-1]) @ (self.fine[-1] - self.fine[-2]) > 0)
 
-    def _Piece(self, s: float) -> tuple[int, int]:
-        lo = int(np.searchsorted(self.s_fine, s - MATCH_WINDOW))
-        hi = int(np.searchsorted(self.s_fine, s + MATCH_WINDOW, side="right")) - 1
+    def _Piece(self, s: float, window: float) -> tuple[int, int]:
+        """The index range of the resampled centerline within `window` (m) of arc length
+        s."""
+        lo = int(np.searchsorted(self.s_fine, s - window))
+        hi = int(np.searchsorted(self.s_fine, s + window, side="right")) - 1
         return lo, max(hi, lo + 1)
 
     def Distances(self, points: np.ndarray, steps: np.ndarray) -> np.ndarray:

@@ -34,6 +34,7 @@ from guidedarm.systems.config_checks import CheckConfig
 from guidedarm.systems.errors import ConfigurationError, GuidedArmError
 from guidedarm.systems.path_following.continuous_follower_math import ContinuousConfig
 from guidedarm.systems.path_following.hose_geometry import (
+    CheckSelfClearance,
     HoseConfig,
     LoadHoseWorkspace,
     RandomSmoothPath,
@@ -174,12 +175,29 @@ def _CheckScenario(scenario: PathFollowingScenario) -> None:
     _CheckExecutorKeys(scenario)
     if scenario.motion == "planner":
         CheckModeFields(scenario.planner)
+    if scenario.motion == "continuous":
+        _CheckContinuousReadings(scenario)
     arm = scenario.station.arms[scenario.arm]
     if scenario.motion == "continuous" and scenario.continuous.servo_period < arm.control_period:
         raise ConfigurationError(
             f"continuous.servo_period ({scenario.continuous.servo_period} s) is shorter than "
             f"station.arms.{scenario.arm}.control_period ({arm.control_period} s), the period "
             "at which the arm takes commands"
+        )
+
+
+def _CheckContinuousReadings(scenario: PathFollowingScenario) -> None:
+    """The hose fit needs min_fit_points readings within fit_length of hose: at the cruise
+    speed the ToF tool reads one every speed x period (m), so a faster cruise would leave
+    the fit without its tangent, and the speed setting would only mislead."""
+    c, period = scenario.continuous, scenario.station.tof_tools[scenario.tof].period
+    fastest = c.fit_length / (c.min_fit_points * period)
+    if not c.speed <= fastest:
+        raise ConfigurationError(
+            f"continuous.speed ({c.speed:g} m/s) is faster than the hose fit can follow: "
+            f"continuous.fit_length ({c.fit_length:g} m) must hold continuous.min_fit_points "
+            f"({c.min_fit_points}) readings, one every {period:g} s from the ToF tool, so "
+            f"at most {fastest:.3g} m/s"
         )
 
 
@@ -292,8 +310,8 @@ def _Workspace(scenario: PathFollowingScenario) -> WorkspaceConfig:
 
 
 def _LoadHose(scenario, workspace, solver, mount, q_home, out_dir) -> tuple[np.ndarray, str]:
-    """(centerline in B, the CSV or named path it came from); refuses a hose outside the
-    workspace."""
+    """(centerline in B, the CSV or named path it came from); refuses a hose that passes
+    through itself or leaves the workspace."""
     if scenario.path_csv or not scenario.path.startswith("random_"):
         source = scenario.path_csv or scenario.path
         centerline_B = ReadCenterline(source)
@@ -310,6 +328,7 @@ def _LoadHose(scenario, workspace, solver, mount, q_home, out_dir) -> tuple[np.n
         directory = Path(out_dir or tempfile.mkdtemp(prefix="guidedarm_hose_"))
         WriteCenterline(centerline_B, directory / "hose.csv")
         source = str((directory / "hose.csv").resolve())
+    CheckSelfClearance(centerline_B, scenario.station.hose.diameter, source)
     row = workspace.FirstOutside(centerline_B)
     if row is not None:
         raise ConfigurationError(

@@ -32,6 +32,7 @@ every retry is lost too, the hose has ended: the follower backs up to the last e
 and is DONE.
 """
 
+import bisect
 import math
 from dataclasses import dataclass, field, replace
 
@@ -68,7 +69,8 @@ class ContinuousConfig:
     gate: a hose point farther than this from the fit's extrapolation (once the fit has
         min_fit_points) is an outlier, counted as a reading without the hose (m): past the
         hose's end the cones still see its end cap behind the detection plane, each
-        reading a little farther off.
+        reading a little farther off. 0.5 mm (below the estimates' own scatter, every
+        reading would be an outlier) to 0.1 m.
     correction_gain: the target moves toward the estimated path at this rate times the
         distance, and its x axis turns toward the path's heading at this rate times the
         angle (1/s; a first-order filter of the fit's noise).
@@ -103,12 +105,12 @@ class ContinuousConfig:
     fit_length: float = Positive(0.03)
     min_fit_points: int = InRange(3, 10000, 8)
     spread_limit: float = InRange(1e-4, 0.05, 0.006)
-    gate: float = Positive(0.008)
+    gate: float = InRange(5e-4, 0.1, 0.008)
     correction_gain: float = Positive(8.0)
     max_correction_speed: float = Positive(0.03)
     max_turn_rate_deg: float = Positive(30.0)
     heading_tolerance_deg: float = InRange(0.5, 90.0, 10.0)
-    servo_period: float = Positive(0.004)
+    servo_period: float = Positive(0.008)
     servo_gain: float = Positive(20.0)
     rotation_weight: float = InRange(1e-3, 1.0, 0.05)
     roll_weight: float = InRange(0.0, 1.0, 0.1)
@@ -169,7 +171,7 @@ class JointHistory:
             return self._q[0]
         if t >= times[-1]:
             return self._q[-1]
-        k = int(np.searchsorted(times, t))
+        k = bisect.bisect_left(times, t)  # np.searchsorted's index, without a list -> array
         w = (t - times[k - 1]) / (times[k] - times[k - 1])
         return (1 - w) * self._q[k - 1] + w * self._q[k]
 
@@ -290,37 +292,37 @@ class HoseEstimate:
         perpendicular to the detection plane, which feeds axis_fit (AxisInTool); None
         leaves axis_fit as it is."""
         s = self.ToolCoordinate(X_WT)
-        p_WO = X_WT.translation()
+        p_WO = X_WT.translation().copy()
         if S_W is not None and self.IsOutlier(s, S_W, config):
             S_W = None
+        axis_fit, axis_rows = self.axis_fit, self.axis_rows
         if S_W is not None and S_W_plain is not None:
-            self = self._WithAxisPoint(s, S_W_plain, config)
-        row = np.concatenate([[s, float(S_W is not None)], S_W if S_W is not None else p_WO])
-        rows = np.vstack([self.rows, row])
-        detected = rows[rows[:, 1] > 0.5]
-        if S_W is None or len(detected) == 0:
+            axis_fit, axis_rows = self._AxisFit(s, S_W_plain, config)
+        point = S_W if S_W is not None else p_WO
+        rows = np.concatenate((self.rows, [[s, float(S_W is not None), *point.tolist()]]))
+        if S_W is None:
             keep = rows[:, 0] >= self.fit.s - config.fit_length
-            rows = rows[keep] if keep.sum() >= 2 else rows[-2:]
-            return replace(self, rows=rows, p_WO=p_WO.copy(), s_tool=s)
-        keep = rows[:, 0] >= s - config.fit_length
-        rows = rows[keep]
-        fit = FitHose(rows, s, self.fit, config)
-        trail = np.vstack([self.trail, np.concatenate([[fit.s], fit.p, fit.u])])
-        return HoseEstimate(fit, rows, trail, p_WO.copy(), s, self.axis_fit, self.axis_rows)
-
-    def _WithAxisPoint(self, s: float, S_W: np.ndarray, config: ContinuousConfig) -> "HoseEstimate":
-        """axis_fit refitted with the hose point S_W (perpendicular model) at s."""
-        row = np.concatenate([[s, 1.0], S_W])[None]
-        rows = row if self.axis_rows is None else np.vstack([self.axis_rows, row])
+            rows = rows[keep] if np.count_nonzero(keep) >= 2 else rows[-2:]
+            return HoseEstimate(self.fit, rows, self.trail, p_WO, s, axis_fit, axis_rows)
         rows = rows[rows[:, 0] >= s - config.fit_length]
-        axis_fit = FitHose(rows, s, self.axis_fit or self.fit, config)
-        return replace(self, axis_fit=axis_fit, axis_rows=rows)
+        fit = FitHose(rows, s, self.fit, config)
+        trail = np.concatenate((self.trail, [[fit.s, *fit.p.tolist(), *fit.u.tolist()]]))
+        return HoseEstimate(fit, rows, trail, p_WO, s, axis_fit, axis_rows)
+
+    def _AxisFit(
+        self, s: float, S_W: np.ndarray, config: ContinuousConfig
+    ) -> tuple[LocalFit, np.ndarray]:
+        """(axis_fit, axis_rows) refitted with the hose point S_W (perpendicular model) at s."""
+        row = [[s, 1.0, *S_W.tolist()]]
+        rows = np.array(row) if self.axis_rows is None else np.concatenate((self.axis_rows, row))
+        rows = rows[rows[:, 0] >= s - config.fit_length]
+        return FitHose(rows, s, self.axis_fit or self.fit, config), rows
 
     def IsOutlier(self, s: float, S_W: np.ndarray, config: ContinuousConfig) -> bool:
         """Whether S_W, read at path coordinate s, is off the established fit by > gate."""
         if self.fit.detections < config.min_fit_points:
             return False
-        return bool(np.linalg.norm(S_W - self.fit.Point(s)) > config.gate)
+        return _Norm(S_W - self.fit.Point(s)) > config.gate
 
     def TrailPoint(self, s: float) -> tuple[np.ndarray, np.ndarray]:
         """(point, unit tangent) of the trail at path coordinate s (clamped to its ends)."""
@@ -330,6 +332,10 @@ class HoseEstimate:
         p = np.array([np.interp(s, ss, ps[:, k]) for k in range(3)])
         u = np.array([np.interp(s, ss, us[:, k]) for k in range(3)])
         return p, u / np.linalg.norm(u)
+
+
+# The powers of the fit's polynomial (np.vander's columns, without its overhead).
+_POWERS = np.arange(3)
 
 
 def FitHose(
@@ -342,7 +348,8 @@ def FitHose(
     detected = rows[rows[:, 1] > 0.5]
     d = detected[:, 0] - s_end
     points = detected[:, 2:5]
-    span = float(d.max() - d.min()) if len(d) else 0.0
+    d_list = d.tolist()
+    span = max(d_list) - min(d_list) if d_list else 0.0
     if len(d) < config.min_fit_points or span < config.fit_length / 3:
         p = points[-min(len(d), 4) :].mean(axis=0) if len(d) else previous.p
         # A handful of points says nothing about the noise: residual 0.
@@ -358,37 +365,57 @@ def FitHose(
             span=span,
         )
     degree = 2 if span >= 2 * config.fit_length / 3 else 1
-    A = np.vander(d, degree + 1, increasing=True)
-    coef, *_ = np.linalg.lstsq(A, points, rcond=None)
-    squares = float(np.sum((points - A @ coef) ** 2))
-    residual = math.sqrt(squares / len(d))
+    # The normal equations in tau = d / fit_length (in [-1, 0]: well conditioned, unlike
+    # those in d, whose powers span four orders of magnitude), solved by the inverse the
+    # covariance needs anyway; the sums over the readings in numpy, the 3 x 3 algebra in
+    # floats (lstsq, inv and numpy's calls on 3-vectors cost more in overhead than work).
+    length = config.fit_length
+    count = len(d)
+    A = (d / length)[:, None] ** _POWERS[: degree + 1]
+    gram = (A.T @ A).tolist()
+    inverse = _InverseOfSymmetric(gram)
+    moments = A.T @ points
+    coef = np.array(inverse) @ moments
+    misfit = points - A @ coef
+    squares = float(np.vdot(misfit, misfit))
+    residual = math.sqrt(squares / count)
     # The noise lies across the hose (the detection plane holds S): two axes of variance
-    # sigma^2 each; the fit's covariance is sigma^2 (A^T A)^-1 per axis.
-    sigma2 = squares / (2 * max(len(d) - degree - 1, 1))
-    covariance = np.linalg.inv(A.T @ A)
-    spread = math.sqrt(2 * sigma2 * covariance[0, 0])
-    slope = np.linalg.lstsq(A[:, :2], points, rcond=None)[0][1]
-    u = _Direction(coef[1], previous.u)
-    c = np.zeros(3)
+    # sigma^2 each; the fit's covariance is sigma^2 (A^T A)^-1 per axis (in d: tau's
+    # scaled by fit_length^-(i + j)).
+    sigma2 = squares / (2 * max(count - degree - 1, 1))
+    spread = math.sqrt(2 * sigma2 * inverse[0][0])
+    coef, moments = coef.tolist(), moments.tolist()
+    # The least-squares line's slope (per m of d), from the centred sums.
+    mean_tau = gram[0][1] / count
+    slope = [
+        (m1 - mean_tau * m0) / ((gram[1][1] - mean_tau * gram[0][1]) * length)
+        for m0, m1 in zip(moments[0], moments[1], strict=True)
+    ]
+    derivative = [v / length for v in coef[1]]
+    u = _Direction(derivative, previous.u)
+    u_list = u.tolist()
+    c = [0.0, 0.0, 0.0]
     curvature_error = 0.0
     if degree == 2:
-        scale = 2 / max(float(np.linalg.norm(coef[1])), 1e-6) ** 2
-        a = scale * coef[2]
-        c = a - (a @ u) * u
-        curvature_error = scale * math.sqrt(sigma2 * covariance[2, 2])
-        k = float(np.linalg.norm(c))
+        scale = 2 / max(math.sqrt(_Dot(derivative, derivative)), 1e-6) ** 2 / (length * length)
+        a = [scale * v for v in coef[2]]
+        along = _Dot(a, u_list)
+        c = [v - along * w for v, w in zip(a, u_list, strict=True)]
+        curvature_error = scale * math.sqrt(sigma2 * inverse[2][2])
+        k = math.sqrt(_Dot(c, c))
         if k > 0:  # the line's direction is the path's at the window's centroid
-            shrunk = c * (max(k - 2 * curvature_error, 0.0) / k)
-            slope = slope / max(float(np.linalg.norm(slope)), 1e-9) - shrunk * float(np.mean(d))
+            shrink = max(k - 2 * curvature_error, 0.0) / k * mean_tau * length
+            norm = max(math.sqrt(_Dot(slope, slope)), 1e-9)
+            slope = [v / norm - shrink * w for v, w in zip(slope, c, strict=True)]
     heading = _Direction(slope, previous.heading)
     return LocalFit(
         s_end,
-        coef[0],
+        np.array(coef[0]),
         u,
-        c,
+        np.array(c),
         residual,
         len(rows),
-        len(detected),
+        count,
         heading,
         spread,
         curvature_error,
@@ -396,13 +423,31 @@ def FitHose(
     )
 
 
-def _Direction(derivative: np.ndarray, previous: np.ndarray) -> np.ndarray:
-    """The unit direction of a fitted derivative; `previous` when it is ~0 or reverses the
-    path (a fit cannot turn the direction of travel around)."""
-    norm = float(np.linalg.norm(derivative))
-    if norm < 1e-6 or derivative @ previous < 0:
+def _InverseOfSymmetric(m: list[list[float]]) -> list[list[float]]:
+    """The inverse of a symmetric positive definite 2 x 2 or 3 x 3 matrix (its adjugate
+    over its determinant)."""
+    if len(m) == 2:
+        (a, b), (_, d) = m
+        det = a * d - b * b
+        return [[d / det, -b / det], [-b / det, a / det]]
+    (a, b, c), (_, d, e), (_, _, f) = m
+    A, B, C = d * f - e * e, c * e - b * f, b * e - c * d
+    det = a * A + b * B + c * C
+    D, E, F = a * f - c * c, b * c - a * e, a * d - b * b
+    return [[A / det, B / det, C / det], [B / det, D / det, E / det], [C / det, E / det, F / det]]
+
+
+def _Direction(derivative: list[float], previous: np.ndarray) -> np.ndarray:
+    """The unit direction of a fitted derivative (floats); `previous` when it is ~0 or
+    reverses the path (a fit cannot turn the direction of travel around)."""
+    norm = math.sqrt(_Dot(derivative, derivative))
+    if norm < 1e-6 or _Dot(derivative, previous.tolist()) < 0:
         return previous
-    return derivative / norm
+    return np.array([v / norm for v in derivative])
+
+
+def _Dot(a: list[float], b: list[float]) -> float:
+    return a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
 
 
 def Confidence(fit: LocalFit, config: ContinuousConfig) -> float:

@@ -11,7 +11,7 @@ from __future__ import annotations
 
 import numpy as np
 from pydrake.common.value import AbstractValue
-from pydrake.math import RigidTransform, RotationMatrix
+from pydrake.math import RigidTransform
 from pydrake.multibody.plant import MultibodyPlant
 from pydrake.multibody.tree import Frame, JacobianWrtVariable
 from pydrake.systems.framework import BasicVector, Context, DiscreteValues, LeafSystem
@@ -86,9 +86,8 @@ class DifferentialIkServo(LeafSystem):
         self._target = self.DeclareAbstractInputPort(
             "X_WT_desired", AbstractValue.Make(RigidTransform())
         )
-        # [q, v, status, the previous target's rotation (9) and position (3), 1 once set,
-        # 1 + the index in _bodies of the body at a wall (0: none)]
-        initial = np.concatenate([np.asarray(q_initial, float), np.zeros(n + 15)])
+        # [q, v, status, 1 + the index in _bodies of the body at a wall (0: none)]
+        initial = np.concatenate([np.asarray(q_initial, float), np.zeros(n + 2)])
         self._state = self.DeclareDiscreteState(initial)
         self.DeclarePeriodicDiscreteUpdateEvent(period, 0.0, self._Update)
         # The outputs are parts of the state: cached until it changes.
@@ -126,15 +125,8 @@ class DifferentialIkServo(LeafSystem):
             plant_context, JacobianWrtVariable.kV, self._frame, _ORIGIN, self._world, self._world
         )
         X_WD = self._target.Eval(context)
-        V_target = np.zeros(6)
-        if x[-1] > 0.5:
-            X_previous = RigidTransform(
-                RotationMatrix(x[2 * n + 1 : 2 * n + 10].reshape(3, 3)), x[2 * n + 10 : 2 * n + 13]
-            )
-            V_target = PoseError(X_previous, X_WD) / self._period
         q_next, v_next, limited = ServoStep(
             J,
-            V_target,
             PoseError(X_WT, X_WD),
             q,
             v,
@@ -149,10 +141,8 @@ class DifferentialIkServo(LeafSystem):
         if wall:
             q_next, v_next = BrakeStep(q, v, self._period, self._limits)
         state = np.empty(len(x))
-        state[:n], state[n : 2 * n], state[2 * n] = q_next, v_next, float(limited)
-        state[2 * n + 1 : 2 * n + 10] = X_WD.rotation().matrix().ravel()
-        state[2 * n + 10 : 2 * n + 13] = X_WD.translation()
-        state[2 * n + 13], state[2 * n + 14] = 1.0, wall
+        state[:n], state[n : 2 * n] = q_next, v_next
+        state[2 * n], state[2 * n + 1] = float(limited), wall
         discrete.set_value(self._state, state)
 
     def _BodyAtWall(self, q: np.ndarray) -> int:

@@ -9,11 +9,10 @@ x, y, z) and the damped weighted pseudo-inverse
 (the damping grows only near a singularity, where it trades the least weighted motion,
 the tool's orientation, for bounded joint speeds; elsewhere the task is met exactly),
 one period is
-    v_ff  = J# V_target            the target's own velocity, fed forward, so that a
-                                   steadily moving target leaves no growing lag
+    v_c   = the damping's share of v_centre (below)
     dq    = J# error               the joints' displacement that closes the pose error
     v_fb  = dq min(gain, sqrt(2 a_fb / max_i |dq_i| / a_i))
-    v_wanted = (v_ff + v_fb), scaled down as a whole into the speed limits
+    v_wanted = (v_c + v_fb), scaled down as a whole into the speed limits
     v_next = v + s (v_wanted - v), s in [0, 1] the largest that keeps every joint within
              v +- acceleration x period
     q_next = q + v_next period, v_next braked so that every joint can stop before its
@@ -48,7 +47,7 @@ from pydrake.multibody.plant import MultibodyPlant
 from pydrake.multibody.tree import RigidBody
 
 # Share of the acceleration limits the error feedback may plan with: the rest is kept for
-# the changes of the feed-forward (the target's turns and speed changes).
+# the target's own turns and speed changes, which reach the joints through the error.
 FEEDBACK_ACCELERATION_SHARE = 0.5
 # The joint-centring velocity at a joint's limit, as a share of its speed limit.
 CENTRING_SPEED_SHARE = 0.3
@@ -109,7 +108,6 @@ def CentringVelocity(q: np.ndarray, limits: JointLimits) -> np.ndarray:
 
 def ServoStep(
     J: np.ndarray,
-    V_target: np.ndarray,
     error: np.ndarray,
     q: np.ndarray,
     v: np.ndarray,
@@ -121,16 +119,15 @@ def ServoStep(
     gain: float,
 ) -> tuple[np.ndarray, np.ndarray, bool]:
     """(q_next, v_next, limited): one period (module docstring). J: the 6 x n spatial
-    velocity Jacobian of T in W at q; V_target: the target's spatial velocity and error:
-    the pose error of T (both [w; v] in W, PoseError's order); R_WT: T's orientation
-    (3 x 3); limited: whether a speed or acceleration limit changed v_next."""
+    velocity Jacobian of T in W at q; error: the pose error of T ([w; v] in W, PoseError's
+    order); R_WT: T's orientation (3 x 3); limited: whether a speed or acceleration limit
+    changed v_next."""
     n = J.shape[1]
-    # J and the two right-hand sides (the feed-forward and the error) as one 6 x (n + 2)
-    # matrix, expressed in T and weighted by rows; its normal equations in one product.
-    A = np.empty((6, n + 2))
+    # J and the error as one 6 x (n + 1) matrix, expressed in T and weighted by rows; its
+    # normal equations in one product.
+    A = np.empty((6, n + 1))
     A[:, :n] = J
-    A[:, n] = V_target
-    A[:, n + 1] = error
+    A[:, n] = error
     R_TW = R_WT.T
     A[:3] = R_TW @ A[:3]
     A[3:] = R_TW @ A[3:]
@@ -139,16 +136,17 @@ def ServoStep(
     # J_T' J_T = V diag(e) V': sigma_min^2 of J_T is e[0], and the damped solve is diagonal.
     e, V = np.linalg.eigh(normal[:, :n])
     lam2 = max(damping**2 - max(float(e[0]), 0.0), MIN_DAMPING**2)
-    rhs = normal[:, n:]
-    rhs[:, 0] += lam2 * CentringVelocity(q, limits)
+    rhs = np.empty((n, 2))
+    rhs[:, 0] = lam2 * CentringVelocity(q, limits)
+    rhs[:, 1] = normal[:, n]
     solution = V @ ((V.T @ rhs) / (e + lam2)[:, None])
     # The rest joint by joint in Python floats: numpy's per-call overhead exceeds its work
     # on n joints (the same IEEE operations, so the same values).
-    v_ff, dq = solution[:, 0].tolist(), solution[:, 1].tolist()
+    v_c, dq = solution[:, 0].tolist(), solution[:, 1].tolist()
     q_, v_ = q.tolist(), v.tolist()
     reach = max(abs(d) / a for d, a in zip(dq, limits.feedback_acceleration_list, strict=True))
     scale = min(gain, math.sqrt(2.0 / reach)) if reach > 0 else gain
-    v_wanted = [f + d * scale for f, d in zip(v_ff, dq, strict=True)]
+    v_wanted = [c + d * scale for c, d in zip(v_c, dq, strict=True)]
     speed_ratio = min(
         s / max(abs(w), 1e-300) for s, w in zip(limits.speed_list, v_wanted, strict=True)
     )

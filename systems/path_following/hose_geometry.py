@@ -62,10 +62,14 @@ def ResolveCenterlinePath(name_or_file: str) -> Path:
     """The CSV of a named path or a file path; ConfigurationError if neither exists."""
     path = Path(name_or_file)
     if path.suffix.lower() == ".csv" or path.is_file():
+        if path.is_dir():
+            raise ConfigurationError(f"centerline {path}: is a directory, not a CSV file")
         if not path.is_file():
             raise ConfigurationError(f"centerline file not found: {path}")
         return path
     named = HOSES_DIR / f"{name_or_file}.csv"
+    if not named.is_file() and path.is_dir():
+        raise ConfigurationError(f"centerline {path}: is a directory, not a CSV file")
     if not named.is_file():
         known = ", ".join(sorted(p.stem for p in HOSES_DIR.glob("*.csv")))
         raise ConfigurationError(f"unknown hose path '{name_or_file}' (known: {known})")
@@ -135,6 +139,34 @@ def ValidateCenterline(points: np.ndarray, source: str = "centerline") -> np.nda
     if steps.sum() < MIN_HOSE_LENGTH:
         raise ConfigurationError(f"{source}: too short ({steps.sum():.3f} m < {MIN_HOSE_LENGTH} m)")
     return points
+
+
+def CheckSelfClearance(centerline: np.ndarray, diameter: float, source: str) -> None:
+    """Refuses a hose (ConfigurationError) whose tube of `diameter` (m) would pass through
+    itself: two points of its centerline (m) farther apart along it than half a turn of
+    the tightest bend the tube allows (pi x its radius) but closer than the diameter. (A
+    folded or crossing centerline is no hose a robot can follow: the sensors would see
+    both branches at once.)"""
+    radius = diameter / 2
+    spacing = radius / 4
+    points = Resample(centerline, spacing)
+    s = ArcLength(points)
+    # Sampled, the closest approach of two stretches reads at most
+    # sqrt(d^2 + spacing^2 / 2) - d long (0.08 mm for a 20 mm hose): what is refused is
+    # certainly too close, and at most that much closeness slips through.
+    limit = diameter
+    for start in range(0, len(points), 512):
+        block = points[start : start + 512]
+        distance = np.linalg.norm(block[:, None, :] - points[None, :, :], axis=2)
+        apart = np.abs(s[start : start + 512, None] - s[None, :]) > math.pi * radius
+        distance[~apart] = np.inf
+        i, j = np.unravel_index(np.argmin(distance), distance.shape)
+        if distance[i, j] < limit:
+            raise ConfigurationError(
+                f"{source}: the hose passes through itself: its centerline {s[start + i]:.3f} m "
+                f"and {s[j]:.3f} m along it come within {1000 * distance[i, j]:.1f} mm, less "
+                f"than the hose's diameter ({1000 * diameter:.1f} mm)"
+            )
 
 
 def Resample(points: np.ndarray, spacing: float) -> np.ndarray:
@@ -316,6 +348,7 @@ def RegisterHose(plant: MultibodyPlant, centerline: np.ndarray, config: HoseConf
     """
     if not (config.diameter > 0 and config.segment_length > 0):
         raise ConfigurationError("hose diameter and segment_length must be positive")
+    CheckSelfClearance(centerline, config.diameter, config.centerline or "hose")
     radius = config.diameter / 2
     points = Resample(centerline, config.segment_length)
     world = plant.world_body()

@@ -17,12 +17,16 @@ so each step handles all shapes of a kind at once.
 from __future__ import annotations
 
 import copy
+import math
+from collections.abc import Callable
+from typing import NamedTuple
 
 import numpy as np
 from pydrake.geometry import (
     Box,
     Capsule,
     Cylinder,
+    FrameId,
     GeometryId,
     HalfSpace,
     QueryObject,
@@ -39,26 +43,28 @@ SUPPORTED = (Box, Capsule, Cylinder, HalfSpace, Sphere)
 _KINDS = ("box", "capsule", "cylinder", "halfspace", "sphere")
 
 
-def ShapeSizes(shape) -> tuple[str, list[float], list[float]]:
-    """(kind, sizes, half extents in G) of a SUPPORTED shape. Sizes: box half sizes;
-    capsule or cylinder (radius, half length, 0) along G's z; sphere (radius, 0, 0);
-    half-space (G's z <= 0) none. Half extents: of a box in G holding the shape (m)."""
+def ShapeSizes(shape) -> tuple[str, list[float], float]:
+    """(kind, sizes, radius) of a SUPPORTED shape. Sizes: box half sizes; capsule or
+    cylinder (radius, half length, 0) along G's z; sphere (radius, 0, 0); half-space (G's
+    z <= 0) none. Radius: of the smallest ball about G's origin holding the shape (m)."""
     if isinstance(shape, Box):
         half = [shape.width() / 2, shape.depth() / 2, shape.height() / 2]
-        return "box", half, half
+        return "box", half, float(np.linalg.norm(half))
     if isinstance(shape, Capsule | Cylinder):
-        kind = "capsule" if isinstance(shape, Capsule) else "cylinder"
         r, h = shape.radius(), shape.length() / 2
-        return kind, [r, h, 0.0], [r, r, h + r if kind == "capsule" else h]
+        if isinstance(shape, Capsule):
+            return "capsule", [r, h, 0.0], h + r
+        return "cylinder", [r, h, 0.0], float(np.hypot(r, h))
     if isinstance(shape, Sphere):
-        return "sphere", [shape.radius(), 0.0, 0.0], [shape.radius()] * 3
-    return "halfspace", [0.0, 0.0, 0.0], [np.inf] * 3
+        return "sphere", [shape.radius(), 0.0, 0.0], shape.radius()
+    return "halfspace", [0.0, 0.0, 0.0], np.inf
 
 
 class ShapeTable:
-    """Shapes sorted by kind: frames G in W (R (N, 3, 3), p (N, 3)), sizes (N, 3) and
-    bounds (N, 2, 3), axis-aligned boxes in W. Shapes on moving frames F keep X_FG and
-    take X_WF at each Pose()."""
+    """Shapes sorted by kind: frames G in W (R (M, 3, 3), p (M, 3), and p2 = |p|^2 (M,)),
+    sizes (M, 3) and radii (M,) of balls about G's origins holding them; the kinds present
+    in that order, shapes starts[i]:starts[i + 1] of kinds[i]. Shapes on moving frames F
+    keep X_FG and take X_WF at each Pose()."""
 
     def __init__(self, shapes: list[tuple[object, RigidTransform, int]]) -> None:
         """shapes: (shape, X_FG, frame index), frame index -1 for the world."""
@@ -67,22 +73,17 @@ class ShapeTable:
             key=lambda row: _KINDS.index(row[0]),
         )
         kinds = [row[0] for row in rows]
-        self.slices = {
-            kind: slice(kinds.index(kind), len(kinds) - kinds[::-1].index(kind))
-            for kind in _KINDS
-            if kind in kinds
-        }
+        self.kinds = [kind for kind in _KINDS if kind in kinds]
+        self.starts = np.array([kinds.index(kind) for kind in self.kinds] + [len(kinds)], int)
         self.R = np.array([row[3].rotation().matrix() for row in rows]).reshape(-1, 3, 3)
         self.p = np.array([row[3].translation() for row in rows]).reshape(-1, 3)
         self.sizes = np.array([row[1] for row in rows], float).reshape(-1, 3)
-        self._extent_G = np.array([row[2] for row in rows], float).reshape(-1, 3)
+        self.radii = np.array([row[2] for row in rows], float)
         frame = np.array([row[4] for row in rows], int)
         self._moving = np.flatnonzero(frame >= 0)
         self._frame = frame[self._moving]
-        self._R_FG, self._p_FG = self.R[self._moving], self.p[self._moving]
-        self._bounded = np.isfinite(self._extent_G[:, 0])
-        self.bounds = np.stack([np.full_like(self.p, -np.inf), np.full_like(self.p, np.inf)], 1)
-        self._Bound(np.flatnonzero(self._bounded))
+        self._R_FG, self._p_FG = self.R[self._moving], self.p[self._moving, :, None]
+        self.p2 = np.sum(self.p * self.p, axis=1)
 
     def Pose(self, R_WF: np.ndarray, p_WF: np.ndarray) -> None:
         """Poses the shapes on moving frames from their frames' poses in W."""
@@ -90,36 +91,36 @@ class ShapeTable:
             return
         R = R_WF[self._frame]
         self.R[self._moving] = R @ self._R_FG
-        self.p[self._moving] = p_WF[self._frame] + np.einsum("nij,nj->ni", R, self._p_FG)
-        self._Bound(self._moving[self._bounded[self._moving]])
-
-    def _Bound(self, index: np.ndarray) -> None:
-        extent = np.einsum("nij,nj->ni", np.abs(self.R[index]), self._extent_G[index])
-        self.bounds[index, 0] = self.p[index] - extent
-        self.bounds[index, 1] = self.p[index] + extent
+        p = p_WF[self._frame] + (R @ self._p_FG)[:, :, 0]
+        self.p[self._moving] = p
+        self.p2[self._moving] = np.sum(p * p, axis=1)
 
 
-def FirstHits(o: np.ndarray, u: np.ndarray, kind: str, sizes: np.ndarray) -> np.ndarray:
-    """Distance (P, K) along each of K unit rays from each of P origins to a shape's surface
-    (m; 0 from inside, inf on a miss or behind the origin): o (P, 3) and u (P, K, 3) in the
-    shape's frame G, sizes (P, 3) as Primitives holds them. Call within
+def FirstHits(
+    o: np.ndarray, u: np.ndarray, ou: np.ndarray, kind: str, sizes: np.ndarray
+) -> np.ndarray:
+    """Distance (C, N, K) along K unit rays from each of N origins to each of C shapes'
+    surfaces (m; 0 from inside, inf on a miss or behind the origin): o (3, C, N, 1) and
+    u (3, C, N, K), coordinates first, in each shape's frame G, and their dot products
+    ou (C, N, K); sizes (C, 3) as ShapeSizes gives them. Call within
     np.errstate(all="ignore"): a miss is a NaN square root or a division by zero, and a
     NaN compares false."""
     if kind == "box":
-        return _Box(o[:, None, :], u, sizes[:, None, :])
+        return _Box(o, u, sizes.T[:, :, None, None])
+    ox, oy, oz = o
+    ux, uy, uz = u
     if kind == "halfspace":
-        return _HalfSpace(o[:, 2:3], u[..., 2])
-    ou = np.einsum("pj,pkj->pk", o, u)
-    radius2 = (sizes[:, 0] ** 2)[:, None]
+        return _HalfSpace(oz, uz)
+    radius2 = sizes[:, 0, None, None] ** 2
+    rho2 = ox * ox + oy * oy
     if kind == "sphere":
-        return _SphereEntry(ou, (np.sum(o * o, axis=1))[:, None] - radius2)
-    half = sizes[:, 1:2]
-    oz, uz = o[:, 2:3], u[..., 2]
-    rho2 = (o[:, 0] ** 2 + o[:, 1] ** 2)[:, None]
-    # The infinite cylinder x^2 + y^2 = r^2: a t^2 + 2 b t + c = 0.
-    a = 1.0 - uz * uz
+        c = rho2 + oz * oz - radius2
+        return np.where(c <= 0, 0.0, _SphereEntry(ou, c))
+    half = sizes[:, 1, None, None]
+    # The infinite cylinder x^2 + y^2 = r^2: a t^2 + 2 b t + c = 0, with -a at hand.
+    minus_a = uz * uz - 1.0
     b = ou - oz * uz
-    t = (-b - np.sqrt(b * b - a * (rho2 - radius2))) / a
+    t = (b + np.sqrt(b * b + minus_a * (rho2 - radius2))) / minus_a
     z = oz + t * uz
     side = np.where((t >= 0) & (np.abs(z) <= half), t, np.inf)
     within = np.abs(oz) <= half
@@ -127,7 +128,7 @@ def FirstHits(o: np.ndarray, u: np.ndarray, kind: str, sizes: np.ndarray) -> np.
         # Only the flat end facing an origin beyond it can be entered.
         end = np.sign(oz) * half
         t_end = (end - oz) / uz
-        x, y = o[:, 0:1] + t_end * u[..., 0], o[:, 1:2] + t_end * u[..., 1]
+        x, y = ox + t_end * ux, oy + t_end * uy
         cap = np.where((t_end >= 0) & (x * x + y * y <= radius2) & ~within, t_end, np.inf)
         inside = (rho2 <= radius2) & within
         return np.where(inside, 0.0, np.fmin(side, cap))
@@ -141,18 +142,18 @@ def FirstHits(o: np.ndarray, u: np.ndarray, kind: str, sizes: np.ndarray) -> np.
 
 
 def _SphereEntry(b: np.ndarray, c: np.ndarray) -> np.ndarray:
-    """First t >= 0 with t^2 + 2 b t + c = 0 (a unit ray entering a sphere; c <= 0: the
-    origin is inside, t = 0), inf on a miss."""
-    t = -b - np.sqrt(b * b - c)
-    return np.where(c <= 0, 0.0, np.where(t >= 0, t, np.inf))
+    """First t >= 0 with t^2 + 2 b t + c = 0 for an origin outside the sphere (c > 0; a
+    unit ray entering it), inf on a miss."""
+    t = -(b + np.sqrt(b * b - c))
+    return np.where(t >= 0, t, np.inf)
 
 
 def _Box(o: np.ndarray, u: np.ndarray, half: np.ndarray) -> np.ndarray:
-    """Slab test of a box centred at G's origin with half sizes `half`."""
+    """Slab test of boxes centred at G's origin with half sizes `half` (3, C, 1, 1)."""
     inverse = 1.0 / u
     t1, t2 = (-half - o) * inverse, (half - o) * inverse
-    near = np.maximum(np.max(np.fmin(t1, t2), axis=-1), 0.0)
-    far = np.min(np.fmax(t1, t2), axis=-1)
+    near = np.maximum(np.fmin(t1, t2).max(axis=0), 0.0)
+    far = np.fmax(t1, t2).min(axis=0)
     return np.where(far >= near, near, np.inf)
 
 
@@ -162,35 +163,50 @@ def _HalfSpace(oz: np.ndarray, uz: np.ndarray) -> np.ndarray:
 
 
 def CastCones(
-    X_WS: tuple[np.ndarray, np.ndarray],
-    rays_S: np.ndarray,
-    cone_bounds: np.ndarray,
+    p_WS: np.ndarray,
+    u_W: np.ndarray,
+    z_WS: np.ndarray,
+    half_angle: float,
     table: ShapeTable,
+    reach: float,
 ) -> np.ndarray:
-    """Nearest hit (m, inf for none) of each sensor's cone rays against the table's shapes.
-    X_WS: rotations (N, 3, 3) and origins (N, 3) of N sensors; rays_S (K, 3) unit
-    directions in a sensor frame; cone_bounds (N, 2, 3) each sensor's ray box, tested
-    against each shape's box before any intersection."""
-    R_WS, p_WS = X_WS
-    best = np.full(len(p_WS), np.inf)
-    overlap = np.all(
-        (table.bounds[:, None, 0] <= cone_bounds[None, :, 1])
-        & (cone_bounds[None, :, 0] <= table.bounds[:, None, 1]),
-        axis=2,
-    )
-    shapes, sensors = np.nonzero(overlap)  # sorted by shape, so by kind
-    for kind, part in table.slices.items():
-        lo, hi = np.searchsorted(shapes, [part.start, part.stop])
-        if lo == hi:
-            continue
-        shape, sensor = shapes[lo:hi], sensors[lo:hi]
-        # Each pair's origin and rays in the shape's frame G.
-        R_GW = table.R[shape].transpose(0, 2, 1)
-        o = np.einsum("pij,pj->pi", R_GW, p_WS[sensor] - table.p[shape])
-        u = (R_GW @ R_WS[sensor] @ rays_S.T).transpose(0, 2, 1)
-        with np.errstate(all="ignore"):
-            hits = FirstHits(o, u, kind, table.sizes[shape]).min(axis=1)
-        np.minimum.at(best, sensor, hits)
+    """Nearest hit (m, inf for none) of each sensor's rays against the table's shapes.
+    p_WS (N, 3): the origins of N sensors; u_W (N, K, 3): K unit rays of each, in W, all
+    within half_angle (< pi / 2) of the sensor's axis z_WS (N, 3); reach: the rays' length
+    (m). Only the shapes whose ball meets a sensor's cone (of half_angle, truncated at
+    reach) are intersected, all of them with every ray, one numpy pass per kind of shape."""
+    n, k = u_W.shape[:2]
+    # A ball of radius rho centred at (x along the axis, y off it) from the apex meets the
+    # cone only if its centre is within rho of the half-plane bounding the cone's side,
+    # y cos - x sin <= rho, and of the slab 0 <= x <= reach. Squared distances from dot
+    # products lose up to ~1e-16 m^2: rho gets 1 um to spare.
+    dots = table.p @ np.concatenate([p_WS, z_WS]).T
+    x = dots[:, n:] - np.sum(p_WS * z_WS, axis=1)
+    distance2 = table.p2[:, None] - 2 * dots[:, :n] + np.sum(p_WS * p_WS, axis=1)
+    y = np.sqrt(np.maximum(distance2 - x * x, 0.0))
+    rho = table.radii[:, None] + 1e-6
+    side = y * math.cos(half_angle) - x * math.sin(half_angle)
+    near = np.flatnonzero(((side <= rho) & (x >= -rho) & (x <= reach + rho)).any(axis=1))
+    best = np.full(n, np.inf)
+    if len(near) == 0:
+        return best
+    # The origins and rays in each near shape's frame G, coordinate i of all of them from
+    # G's axis i in W: o (3, C, N, 1), u (3, C, N, K).
+    axes = table.R[near].transpose(2, 0, 1)
+    p_WG = table.p[near]
+    o = (axes @ p_WS.T - np.sum(axes * p_WG, axis=2)[:, :, None])[..., None]
+    u_W = u_W.reshape(-1, 3)
+    u = (axes @ u_W.T).reshape(3, len(near), n, k)
+    # o . u, a rotation invariant: (p_WS - p_WG) . u_W.
+    ou = (np.sum(p_WS.repeat(k, axis=0) * u_W, axis=1) - p_WG @ u_W.T).reshape(-1, n, k)
+    sizes = table.sizes[near]
+    # near is sorted, as the table is by kind: each kind is one run of it.
+    runs = np.searchsorted(near, table.starts)
+    with np.errstate(all="ignore"):
+        for kind, lo, hi in zip(table.kinds, runs[:-1], runs[1:], strict=True):
+            if lo < hi:
+                hits = FirstHits(o[:, lo:hi], u[:, lo:hi], ou[lo:hi], kind, sizes[lo:hi])
+                best = np.minimum(best, hits.min(axis=(0, 2)))
     return best
 
 
@@ -205,18 +221,38 @@ def ProximityShapes(
     return supported, other
 
 
+class SensorMount(NamedTuple):
+    """Sensors fixed on one SceneGraph frame F (of their body, or of a body welded to it):
+    F's id and the sensors' poses X_FS in it."""
+
+    frame: FrameId
+    X_FS: tuple[RigidTransform, ...]
+
+
 class SceneRayCaster:
     """Nearest returns of cone rays against a SceneGraph scene: the primitive shapes in
     closed form (CastCones), any other shape by sphere tracing (RayCaster), the geometries
-    in `ignored` not at all. Ranges in m, poses in the world W. Its table of shapes is
-    rewritten at each reading: one caster serves one thread."""
+    in `ignored` not at all. Ranges in m, poses in the world W. Sensors on a `mount` are
+    read from their frame's pose alone (MountedRanges), their rays in F computed once.
+    Its table of shapes is rewritten at each reading: one caster serves one thread."""
 
     def __init__(
-        self, rays_S: np.ndarray, max_range: float, ignored: frozenset[GeometryId]
+        self,
+        rays_S: np.ndarray,
+        max_range: float,
+        ignored: frozenset[GeometryId],
+        mount: SensorMount | None = None,
     ) -> None:
         self.rays_S = rays_S
         self.max_range = max_range
         self.ignored = ignored
+        self.mount = mount
+        self._half_angle = math.acos(min(1.0, rays_S[:, 2].min()))
+        if mount is not None:
+            X_FS = np.array([X.GetAsMatrix34() for X in mount.X_FS])
+            self._p_FS = X_FS[:, :, 3]
+            self._u_F = rays_S @ X_FS[:, :, :3].transpose(0, 2, 1)  # (N, K, 3)
+            self._z_F = X_FS[:, :, 2]
         self._version = None
         self._table = ShapeTable([])
         self._frames: list = []
@@ -224,20 +260,42 @@ class SceneRayCaster:
 
     def Ranges(self, query: QueryObject, poses: list[RigidTransform]) -> np.ndarray:
         """Nearest return within each sensor's cone (m), or inf when nothing is in range."""
+        X_WS = np.array([X.GetAsMatrix34() for X in poses])
+        R_WS = X_WS[:, :, :3]
+        u_W = self.rays_S @ R_WS.transpose(0, 2, 1)
+        return self._Cast(query, X_WS[:, :, 3], u_W, R_WS[:, :, 2], lambda: poses)
+
+    def MountedPoses(self, query: QueryObject) -> list[RigidTransform]:
+        """X_WS of the mount's sensors."""
+        X_WF = query.GetPoseInWorld(self.mount.frame)
+        return [X_WF @ X_FS for X_FS in self.mount.X_FS]
+
+    def MountedRanges(self, query: QueryObject) -> np.ndarray:
+        """Ranges(query, MountedPoses(query)), from one pose query."""
+        X_WF = query.GetPoseInWorld(self.mount.frame).GetAsMatrix34()
+        R_WF = X_WF[:, :3]
+        p_WS = self._p_FS @ R_WF.T + X_WF[:, 3]
+        u_W, z_WS = self._u_F @ R_WF.T, self._z_F @ R_WF.T
+        return self._Cast(query, p_WS, u_W, z_WS, lambda: self.MountedPoses(query))
+
+    def _Cast(
+        self,
+        query: QueryObject,
+        p_WS: np.ndarray,
+        u_W: np.ndarray,
+        z_WS: np.ndarray,
+        poses: Callable[[], list[RigidTransform]],
+    ) -> np.ndarray:
+        """Ranges of sensors at p_WS (N, 3) with axes z_WS (N, 3) and rays u_W (N, K, 3);
+        poses() gives their X_WS for sphere tracing."""
         self._Refresh(query.inspector())
         if self._frames:
             X_WF = np.array([query.GetPoseInWorld(f).GetAsMatrix34() for f in self._frames])
             self._table.Pose(X_WF[:, :, :3], X_WF[:, :, 3])
-        X_WS = np.array([X.GetAsMatrix34() for X in poses])
-        R_WS, p_WS = X_WS[:, :, :3], X_WS[:, :, 3]
-        # A sensor's rays lie in the box of its origin and their far ends.
-        ends = p_WS[:, None, :] + self.max_range * (R_WS @ self.rays_S.T).transpose(0, 2, 1)
-        lower = np.minimum(ends.min(axis=1), p_WS)
-        cone_bounds = np.stack([lower, np.maximum(ends.max(axis=1), p_WS)], axis=1)
-        ranges = CastCones((R_WS, p_WS), self.rays_S, cone_bounds, self._table)
+        ranges = CastCones(p_WS, u_W, z_WS, self._half_angle, self._table, self.max_range)
         ranges[ranges > self.max_range] = np.inf
         if self._tracer is not None:
-            traced = [self._tracer.Range(query, X_WS) for X_WS in poses]
+            traced = [self._tracer.Range(query, X_WS) for X_WS in poses()]
             ranges = np.minimum(ranges, traced)
         return ranges
 

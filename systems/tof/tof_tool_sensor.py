@@ -20,7 +20,7 @@ from pydrake.systems.framework import BasicVector, Context, DiscreteValues, Leaf
 from guidedarm.systems.config_checks import CheckFields, InRange, NonNegative, Positive
 from guidedarm.systems.errors import ConfigurationError
 from guidedarm.systems.plant_frames import GetScopedFrame
-from guidedarm.systems.tof.primitive_ray_casting import SceneRayCaster
+from guidedarm.systems.tof.primitive_ray_casting import SceneRayCaster, SensorMount
 from guidedarm.systems.tof.tof_tool_sensor_math import (
     ConeRays,
     DetectionGrid,
@@ -139,8 +139,6 @@ class ToFToolSensor(LeafSystem):
         config.Validate()
         self._config = config
         frames = [GetScopedFrame(plant, name, "tof sensor_frames") for name in config.sensor_frames]
-        self._frame_ids = [plant.GetBodyFrameIdOrThrow(f.body().index()) for f in frames]
-        self._X_BS = [f.GetFixedPoseInBodyFrame() for f in frames]
         instance = frames[0].model_instance()
         ignored = {
             g
@@ -151,6 +149,7 @@ class ToFToolSensor(LeafSystem):
             ConeRays(np.radians(config.cone_angle_deg), config.rings),
             config.max_range,
             frozenset(ignored),
+            MakeSensorMount(plant, config),
         )
         self._query_port = self.DeclareAbstractInputPort(
             "query_object", AbstractValue.Make(QueryObject())
@@ -178,15 +177,12 @@ class ToFToolSensor(LeafSystem):
 
     def SensorPosesInWorld(self, context: Context) -> list[RigidTransform]:
         """X_WS of the six sensors."""
-        query = self._query_port.Eval(context)
-        return [
-            query.GetPoseInWorld(f) @ X for f, X in zip(self._frame_ids, self._X_BS, strict=True)
-        ]
+        return self._caster.MountedPoses(self._query_port.Eval(context))
 
     def TrueRanges(self, context: Context) -> np.ndarray:
         """Noise-free nearest returns at the context's time (m; inf when nothing is in
         range)."""
-        return self._caster.Ranges(self._query_port.Eval(context), self.SensorPosesInWorld(context))
+        return self._caster.MountedRanges(self._query_port.Eval(context))
 
     def _Read(self, context: Context, k: int, drift: np.ndarray) -> np.ndarray:
         """Range k from the geometry at the context's time, as a state reading."""
@@ -198,7 +194,7 @@ class ToFToolSensor(LeafSystem):
             self.TrueRanges(context) + bias, rng, c.noise_std, c.quantization, c.max_range
         )
         available = k * c.period if k * c.period > t else t
-        return np.r_[ranges, valid.astype(float), np.full(NUM_SENSORS, t), available]
+        return np.concatenate([ranges, valid, np.full(NUM_SENSORS, t), [available]])
 
     def _Initialize(self, context: Context, state: DiscreteValues) -> None:
         k = int(np.floor(context.get_time() / self._config.period + _TIME_TOLERANCE))
@@ -232,6 +228,24 @@ class ToFToolSensor(LeafSystem):
             output.SetFromVector(self._Current(context)[part])
 
         return calc
+
+
+def MakeSensorMount(plant: MultibodyPlant, config: ToFToolConfig) -> SensorMount:
+    """The sensors' mount on the (finalized) plant's tool body B: B's SceneGraph frame and
+    X_BS. Raises ConfigurationError for a sensor frame not welded to B."""
+    config.Validate()
+    context = plant.CreateDefaultContext()
+    body = GetScopedFrame(plant, config.tool_frame, "tof tool_frame").body()
+    welded = {b.index() for b in plant.GetBodiesWeldedTo(body)}
+    X_BS = []
+    for name in config.sensor_frames:
+        frame = GetScopedFrame(plant, name, "tof sensor_frames")
+        if frame.body().index() not in welded:
+            raise ConfigurationError(
+                f"tof sensor frame {name} must be welded to the tool frame's body {body.name()}"
+            )
+        X_BS.append(frame.CalcPose(context, body.body_frame()))
+    return SensorMount(plant.GetBodyFrameIdOrThrow(body.index()), tuple(X_BS))
 
 
 def MakeDetectionGrid(plant: MultibodyPlant, config: ToFToolConfig) -> DetectionGrid:

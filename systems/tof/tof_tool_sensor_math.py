@@ -54,7 +54,8 @@ CONSISTENCY_FRACTION = 0.75
 # Rim rays over the half of a cone's rim that faces an oblique hose (_CylinderRange).
 BOUNDARY_SAMPLES = 19
 _RIM_PHI = np.linspace(-math.pi / 2, math.pi / 2, BOUNDARY_SAMPLES)
-_RIM_COS, _RIM_SIN = np.cos(_RIM_PHI)[:, None], np.sin(_RIM_PHI)[:, None]
+# A 3-vector as floats (x, y, z).
+Vector = tuple[float, float, float]
 
 
 def ConeRays(cone_angle: float, rings: int) -> np.ndarray:
@@ -214,6 +215,20 @@ class DetectionGrid:
         col = np.linalg.norm(points - emitters[None, 3:, :], axis=2)
         object.__setattr__(self, "_expected", (row - self.hose_radius, col - self.hose_radius))
         object.__setattr__(self, "_detect_memo", [None])
+        object.__setattr__(self, "_start_memo", [None])
+        object.__setattr__(self, "_expected_lists", tuple(e.tolist() for e in self._expected))
+        # Floats for the ranging model (_CylinderRange, _Refine).
+        object.__setattr__(self, "_emitter_list", [tuple(e) for e in emitters.tolist()])
+        object.__setattr__(self, "_axis_list", [tuple(a) for a in axes.tolist()])
+        object.__setattr__(self, "_centre", tuple(points[1, 1].tolist()))
+        if self.cone_angle is not None:
+            half = self.cone_angle / 2
+            object.__setattr__(self, "_cone_cos", math.cos(half))
+            rim = [
+                (math.sin(half) * math.cos(phi), math.sin(half) * math.sin(phi))
+                for phi in _RIM_PHI.tolist()
+            ]
+            object.__setattr__(self, "_rim", rim)
 
     def ExpectedRanges(self) -> tuple[np.ndarray, np.ndarray]:
         """Ranges (3, 3) of the row and the column sensor for a hose centred at each point."""
@@ -223,17 +238,38 @@ class DetectionGrid:
         """(detected, errors), each a (3, 3) bool array (row sensor i, column sensor j),
         read-only: the latest reading's are kept, since a follower, its estimator and the
         sensor's outputs each ask for the same reading's."""
+        return self._Detection(ranges, valid)[:2]
+
+    def _Detection(
+        self, ranges: np.ndarray, valid: np.ndarray
+    ) -> tuple[np.ndarray, np.ndarray, list[list[bool]]]:
+        """Detect's (detected, errors) and the error-free detections as lists (RangingEstimate's),
+        of the latest reading (kept). In floats: nine points cost numpy more in per-call
+        overhead than in arithmetic."""
         ranges, valid = np.asarray(ranges, float), np.asarray(valid, bool)
         key = (ranges.tobytes(), valid.tobytes())
         latest = self._detect_memo[0]  # one read and one write: safe across threads
         if latest is not None and latest[0] == key:
             return latest[1]
-        detected = valid[:3, None] & valid[None, 3:]
-        row, col = self.ExpectedRanges()
-        misfit = np.maximum(np.abs(ranges[:3, None] - row), np.abs(ranges[None, 3:] - col))
-        consistent = detected & (misfit <= self.spacing * CONSISTENCY_FRACTION)
-        result = (detected, detected & ~_PatchOfBestFit(consistent, misfit))
-        for array in result:
+        r, v = ranges.tolist(), valid.tolist()
+        expected_row, expected_col = self._expected_lists
+        tolerance = self.spacing * CONSISTENCY_FRACTION
+        detected = [[v[i] and v[3 + j] for j in range(3)] for i in range(3)]
+        misfit = [
+            [
+                max(abs(r[i] - expected_row[i][j]), abs(r[3 + j] - expected_col[i][j]))
+                for j in range(3)
+            ]
+            for i in range(3)
+        ]
+        consistent = [
+            [detected[i][j] and misfit[i][j] <= tolerance for j in range(3)] for i in range(3)
+        ]
+        patch = _PatchOfBestFit(consistent, misfit)
+        good = [[detected[i][j] and patch[i][j] for j in range(3)] for i in range(3)]
+        errors = [[detected[i][j] and not patch[i][j] for j in range(3)] for i in range(3)]
+        result = (np.array(detected), np.array(errors), good)
+        for array in result[:2]:
             array.flags.writeable = False
         self._detect_memo[0] = (key, result)
         return result
@@ -256,44 +292,67 @@ class DetectionGrid:
         unit direction in T when known (the fit then models a cylinder of that axis through
         the centre, see PredictedRange); None: the hose crosses the detection plane
         perpendicularly (along x_T)."""
-        detected, errors = self.Detect(ranges, valid)
-        good = detected & ~errors
-        if not good.any():
+        start = self._Start(ranges, valid)
+        if start is None:
             return None, False
+        c, ranges, sensors = start
+        c = self._Refine(c, ranges, sensors, axis)
+        return np.array(c), _Distance(c, self._centre) < self.spacing / 2
+
+    def _Start(
+        self, ranges: np.ndarray, valid: np.ndarray
+    ) -> tuple[Vector, list[float], list[int]] | None:
+        """The ranging estimator's start (module docstring): the trilaterated centre (T),
+        the ranges and the trusted sensors with a return; None when the grid detects
+        nothing or the start lies off the field. The latest reading's is kept: a follower
+        estimates each reading twice (without and with the hose's axis)."""
+        ranges, valid = np.asarray(ranges, float), np.asarray(valid, bool)
+        key = (ranges.tobytes(), valid.tobytes())
+        latest = self._start_memo[0]  # one read and one write: safe across threads
+        if latest is not None and latest[0] == key:
+            return latest[1]
+        good = self._Detection(ranges, valid)[2]
         # Only sensors that take part in an error-free grid detection are trusted.
-        trusted = np.concatenate([good.any(axis=1), good.any(axis=0)])
-        centre = self.points[1, 1]
+        trusted = [any(line) for line in good] + [any(column) for column in zip(*good, strict=True)]
+        # Floats from here on (numpy's per-call overhead on 3-vectors outweighs the work).
+        ranges, valid = ranges.tolist(), valid.tolist()
+        centre = self._centre
         row = _Nearest(ranges, trusted, range(3))
         col = _Nearest(ranges, trusted, range(3, 6))
         r = self.hose_radius
+        emitters, axes = self._emitter_list, self._axis_list
         candidates = []
         if row is not None and col is not None:
             candidates.append(
                 _CircleIntersection(
-                    self.emitters[row],
+                    emitters[row],
                     ranges[row] + r,
-                    self.emitters[col],
+                    emitters[col],
                     ranges[col] + r,
-                    self.axes[row],
+                    axes[row],
                     centre,
                 )
             )
         for k in (row, col):
             if k is not None:
-                candidates.append(self.emitters[k] + self.axes[k] * (ranges[k] + r))
-        for c in candidates:
-            if c is not None and _Norm(c - centre) <= self.field_radius:
-                sensors = np.flatnonzero(trusted & np.asarray(valid, bool))
-                c = self._Refine(c, ranges, sensors, axis)
-                return c, bool(_Norm(c - centre) < self.spacing / 2)
-        return None, False
+                e, z, t = emitters[k], axes[k], ranges[k] + r
+                candidates.append((e[0] + z[0] * t, e[1] + z[1] * t, e[2] + z[2] * t))
+        start = next(
+            (c for c in candidates if c is not None and _Distance(c, centre) <= self.field_radius),
+            None,
+        )
+        if start is not None:
+            start = (start, ranges, [k for k in range(6) if trusted[k] and valid[k]])
+        self._start_memo[0] = (key, start)
+        return start
 
     def PredictedRange(self, k: int, c: np.ndarray, axis: np.ndarray | None = None) -> float | None:
         """Range (m) sensor k reads for a hose centred at c (the detection plane, T), or None
         when its cone misses the hose: the nearest in-plane ray of the cone. With `axis`
         (unit, T) the hose is the cylinder of that axis through c (_CylinderRange)."""
         if axis is not None:
-            return self._CylinderRange(k, c, axis)
+            c, axis = np.asarray(c, float).tolist(), np.asarray(axis, float).tolist()
+            return self._CylinderRange(k, tuple(c), tuple(axis))
         half = self.cone_angle / 2
         d = c - self.emitters[k]
         distance = _Norm(d)
@@ -309,7 +368,7 @@ class DetectionGrid:
         r2 = self.hose_radius**2
         return None if h2 > r2 else t - math.sqrt(r2 - h2)
 
-    def _CylinderRange(self, k: int, c: np.ndarray, axis: np.ndarray) -> float | None:
+    def _CylinderRange(self, k: int, c: Vector, axis: Vector) -> float | None:
         """Range (m) sensor k reads for the cylinder of radius hose_radius, unit axis `axis`
         through c (T), or None when its cone misses it.
 
@@ -320,79 +379,132 @@ class DetectionGrid:
         perpendicular on the axis; when that direction leaves the cone the nearest return
         is on the cone's rim, minimised over BOUNDARY_SAMPLES rim rays on the side facing
         the axis and a parabola through the least three (smooth in c, which the
-        Gauss-Newton's finite differences need)."""
-        e, z = self.emitters[k], self.axes[k]
-        d = e - c - axis * float((e - c) @ axis)  # from the axis to the emitter, normal to it
-        distance = _Norm(d)
+        Gauss-Newton's finite differences need).
+
+        In floats, not arrays: _Refine calls it a dozen times a reading, and numpy's
+        per-call overhead on 3-vectors costs more than the arithmetic."""
+        (e0, e1, e2), (z0, z1, z2) = self._emitter_list[k], self._axis_list[k]
+        a0, a1, a2 = axis
+        f0, f1, f2 = e0 - c[0], e1 - c[1], e2 - c[2]
+        along = f0 * a0 + f1 * a1 + f2 * a2
+        # From the axis to the emitter, normal to the axis.
+        d0, d1, d2 = f0 - a0 * along, f1 - a1 * along, f2 - a2 * along
+        distance = math.sqrt(d0 * d0 + d1 * d1 + d2 * d2)
         r = self.hose_radius
         if distance <= r:
             return None
-        n = -d / distance
-        half = self.cone_angle / 2
-        if n @ z >= math.cos(half):
+        n0, n1, n2 = -d0 / distance, -d1 / distance, -d2 / distance
+        nz = n0 * z0 + n1 * z1 + n2 * z2
+        cos_half = self._cone_cos
+        if nz >= cos_half:
             return distance - r
-        side = n - (n @ z) * z
-        norm = _Norm(side)
-        if norm < 1e-12 or n @ z <= 0:
+        s0, s1, s2 = n0 - nz * z0, n1 - nz * z1, n2 - nz * z2
+        norm = math.sqrt(s0 * s0 + s1 * s1 + s2 * s2)
+        if norm < 1e-12 or nz <= 0:
             return None
-        x1 = side / norm
-        y1 = _Cross(z, x1)
-        w = math.cos(half) * z + math.sin(half) * (_RIM_COS * x1 + _RIM_SIN * y1)
-        w_perp = w - np.outer(w @ axis, axis)
-        a2 = np.einsum("ij,ij->i", w_perp, w_perp)
-        b = w_perp @ d
-        disc = b * b - a2 * (distance * distance - r * r)
-        hit = (disc >= 0) & (b < 0)
-        if not hit.any():
+        x0, x1, x2 = s0 / norm, s1 / norm, s2 / norm
+        y0, y1, y2 = z1 * x2 - z2 * x1, z2 * x0 - z0 * x2, z0 * x1 - z1 * x0
+        # A rim ray w = cos_half z + sin_half (cos(phi) x + sin(phi) y) (unit) meets the
+        # cylinder where |d + t w_perp| = r, w_perp its part normal to the axis:
+        # a t^2 + 2 b t + distance^2 - r^2 = 0 with a = |w_perp|^2 = 1 - (w . axis)^2 and
+        # b = w_perp . d = w . d - (w . axis)(axis . d); the nearer root when b < 0.
+        za, xa, ya = (
+            z0 * a0 + z1 * a1 + z2 * a2,
+            x0 * a0 + x1 * a1 + x2 * a2,
+            y0 * a0 + y1 * a1 + y2 * a2,
+        )
+        zd, xd, yd = (
+            z0 * d0 + z1 * d1 + z2 * d2,
+            x0 * d0 + x1 * d1 + x2 * d2,
+            y0 * d0 + y1 * d1 + y2 * d2,
+        )
+        ad = a0 * d0 + a1 * d1 + a2 * d2
+        wa0, wd0 = cos_half * za, cos_half * zd
+        gap = distance * distance - r * r
+        t = []
+        for cos_phi, sin_phi in self._rim:
+            wa = wa0 + cos_phi * xa + sin_phi * ya
+            b = wd0 + cos_phi * xd + sin_phi * yd - wa * ad
+            a = 1.0 - wa * wa
+            disc = b * b - a * gap
+            t.append((-b - math.sqrt(disc)) / max(a, 1e-12) if disc >= 0 and b < 0 else math.inf)
+        best = min(t)
+        if best == math.inf:
             return None
-        t = np.where(hit, (-b - np.sqrt(np.maximum(disc, 0.0))) / np.maximum(a2, 1e-12), np.inf)
-        i = int(np.argmin(t))
-        if 0 < i < len(t) - 1 and np.isfinite(t[i - 1]) and np.isfinite(t[i + 1]):
-            curvature = t[i - 1] - 2 * t[i] + t[i + 1]
+        i = t.index(best)
+        if 0 < i < len(t) - 1 and t[i - 1] < math.inf and t[i + 1] < math.inf:
+            curvature = t[i - 1] - 2 * best + t[i + 1]
             if curvature > 0:
                 slope = (t[i + 1] - t[i - 1]) / 2
-                return float(t[i] - slope * slope / (2 * curvature))
-        return float(t[i])
+                return best - slope * slope / (2 * curvature)
+        return best
 
     def _Refine(
-        self,
-        c: np.ndarray,
-        ranges: np.ndarray,
-        sensors: np.ndarray,
-        axis: np.ndarray | None = None,
-    ) -> np.ndarray:
+        self, c: Vector, ranges: list[float], sensors: list[int], axis: np.ndarray | None
+    ) -> Vector:
         """Gauss-Newton fit of the hose centre to the sensors' ranges, from c (a hose along
         `axis` when given); c itself when the fit has fewer than three ranges (two with
-        `axis`) to use or leaves the grid cell it started in."""
+        `axis`) to use or leaves the grid cell it started in. The Jacobian is by finite
+        differences, the 2 x 2 normal equations solved directly (lstsq when they are
+        ill-conditioned), all in floats (a reading's dozen model evaluations cost more in
+        numpy's per-call overhead than in arithmetic)."""
         # Two ranges determine the centre exactly; the perpendicular model asks for a third
         # to average, while an oblique hose moves even the two sensors trilateration uses.
         needed = 3 if axis is None else 2
         if self.cone_angle is None or len(sensors) < needed:
             return c
-        basis = (self.axes[0], self.axes[3])
-        x = c.copy()
+        if axis is None:
+            model = lambda k, p: self.PredictedRange(k, np.array(p))  # noqa: E731
+        else:
+            axis_floats = tuple(axis.tolist())
+            model = lambda k, p: self._CylinderRange(k, p, axis_floats)  # noqa: E731
+        (u0, u1, u2), (v0, v1, v2) = self._axis_list[0], self._axis_list[3]
+        measured = [ranges[k] for k in sensors]
+        x0, x1, x2 = c
         h = 1e-5
         for _ in range(8):
-            residuals, jacobian = [], []
-            moved = [x + h * b for b in basis]
-            for k in sensors:
-                p = self.PredictedRange(k, x, axis)
-                shifted = [self.PredictedRange(k, m, axis) for m in moved]
-                if p is None or None in shifted:
+            moved_u = (x0 + h * u0, x1 + h * u1, x2 + h * u2)
+            moved_v = (x0 + h * v0, x1 + h * v1, x2 + h * v2)
+            rows, residuals = [], []
+            for k, measured_k in zip(sensors, measured, strict=True):
+                p = model(k, (x0, x1, x2))
+                q_u = model(k, moved_u)
+                q_v = model(k, moved_v)
+                if p is None or q_u is None or q_v is None:
                     continue
-                residuals.append(ranges[k] - p)
-                jacobian.append([(q - p) / h for q in shifted])
-            if len(residuals) < needed:
+                rows.append(((q_u - p) / h, (q_v - p) / h))
+                residuals.append(measured_k - p)
+            if len(rows) < needed:
                 return c
-            step = np.linalg.lstsq(np.array(jacobian), np.array(residuals), rcond=None)[0]
-            x = x + step[0] * basis[0] + step[1] * basis[1]
-            if _Norm(step) < 1e-6:
+            step_u, step_v = _LeastSquares2(rows, residuals)
+            x0 += step_u * u0 + step_v * v0
+            x1 += step_u * u1 + step_v * v1
+            x2 += step_u * u2 + step_v * v2
+            if math.sqrt(step_u * step_u + step_v * step_v) < 1e-6:
                 break
-        return x if _Norm(x - c) <= self.spacing / 2 else c
+        x = (x0, x1, x2)
+        return x if _Distance(x, c) <= self.spacing / 2 else c
 
 
-def _PatchOfBestFit(consistent: np.ndarray, misfit: np.ndarray) -> np.ndarray:
-    """The 4-connected patch of consistent points that holds the best-fitting one.
+def _LeastSquares2(rows: list[tuple[float, float]], residuals: list[float]) -> tuple[float, float]:
+    """The least-squares solution of J s = r for J with two columns (rows), by the normal
+    equations; np.linalg.lstsq's (the minimum-norm one) when J is nearly rank-deficient."""
+    s00 = s01 = s11 = g0 = g1 = 0.0
+    for (j0, j1), r in zip(rows, residuals, strict=True):
+        s00 += j0 * j0
+        s01 += j0 * j1
+        s11 += j1 * j1
+        g0 += j0 * r
+        g1 += j1 * r
+    det = s00 * s11 - s01 * s01
+    if det <= 1e-10 * s00 * s11:
+        step = np.linalg.lstsq(np.array(rows), np.array(residuals), rcond=None)[0]
+        return float(step[0]), float(step[1])
+    return (s11 * g0 - s01 * g1) / det, (s00 * g1 - s01 * g0) / det
+
+
+def _PatchOfBestFit(consistent: list[list[bool]], misfit: list[list[float]]) -> list[list[bool]]:
+    """The 4-connected patch of consistent points (3 x 3) that holds the best-fitting one.
 
     The hose crosses the detection plane once, and a hose between two points is consistent
     with both, so the points that see it are edge neighbours. A consistent point off that
@@ -400,21 +512,23 @@ def _PatchOfBestFit(consistent: np.ndarray, misfit: np.ndarray) -> np.ndarray:
     centre the two outer sensors facing a far corner read the hose's flanks at ranges that
     fit the corner too, and the mean of centre and corner put S half a grid diagonal
     (15.6 mm) off the hose."""
-    if not consistent.any():
-        return consistent
-    start = np.unravel_index(np.argmin(np.where(consistent, misfit, np.inf)), misfit.shape)
-    patch = np.zeros_like(consistent)
-    frontier = [start]
+    patch = [[False] * 3 for _ in range(3)]
+    start = None
+    for i in range(3):
+        for j in range(3):
+            if consistent[i][j] and (start is None or misfit[i][j] < misfit[start[0]][start[1]]):
+                start = (i, j)
+    frontier = [start] if start is not None else []
     while frontier:
         i, j = frontier.pop()
-        if not (0 <= i < 3 and 0 <= j < 3) or patch[i, j] or not consistent[i, j]:
+        if not (0 <= i < 3 and 0 <= j < 3) or patch[i][j] or not consistent[i][j]:
             continue
-        patch[i, j] = True
+        patch[i][j] = True
         frontier += [(i + 1, j), (i - 1, j), (i, j + 1), (i, j - 1)]
     return patch
 
 
-def _Nearest(ranges: np.ndarray, valid: np.ndarray, indices: range) -> int | None:
+def _Nearest(ranges: list[float], valid: list[bool], indices: range) -> int | None:
     best = None
     for k in indices:
         if valid[k] and (best is None or ranges[k] < ranges[best]):
@@ -433,34 +547,44 @@ def _ClosestPointOfLines(p1, u1, p2, u2) -> np.ndarray:
     return (p1 + s * u1 + p2 + t * u2) / 2
 
 
-def _CircleIntersection(c1, r1, c2, r2, u1, centre) -> np.ndarray | None:
+def _CircleIntersection(
+    c1: Vector, r1: float, c2: Vector, r2: float, u1: Vector, centre: Vector
+) -> Vector | None:
     """The intersection of spheres (c1, r1), (c2, r2) in the plane of c1, c2 and u1 that is
     nearest to `centre` (closest point when they do not meet)."""
-    d_vec = c2 - c1
-    d = _Norm(d_vec)
+    d = _Distance(c2, c1)
     if d < 1e-9:
         return None
-    ex = d_vec / d
+    ex = tuple((b - a) / d for a, b in zip(c1, c2, strict=True))
     normal = _Cross(ex, u1)
-    length = _Norm(normal)
+    length = math.sqrt(_Dot(normal, normal))
     if length < 1e-9:
         return None
-    ey = _Cross(normal / length, ex)
+    ey = _Cross(tuple(v / length for v in normal), ex)
     x = (r1 * r1 - r2 * r2 + d * d) / (2 * d)
     h2 = r1 * r1 - x * x
     h = math.sqrt(h2) if h2 > 0 else 0.0
-    options = [c1 + x * ex + h * ey, c1 + x * ex - h * ey]
-    return min(options, key=lambda p: _Norm(p - centre))
+    options = [
+        tuple(c + x * a + sign * h * b for c, a, b in zip(c1, ex, ey, strict=True))
+        for sign in (1.0, -1.0)
+    ]
+    return min(options, key=lambda p: _Distance(p, centre))
 
 
 def _Norm(v: np.ndarray) -> float:
     """|v| (np.linalg.norm's value, the square root of the dot product) without its
-    per-call overhead: the ranging estimator calls it hundreds of times a reading."""
+    per-call overhead."""
     return math.sqrt(float(v.dot(v)))
 
 
-def _Cross(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """a x b of two 3-vectors, as np.cross computes it, without its per-call overhead."""
-    a0, a1, a2 = a.tolist()
-    b0, b1, b2 = b.tolist()
-    return np.array([a1 * b2 - a2 * b1, a2 * b0 - a0 * b2, a0 * b1 - a1 * b0])
+def _Dot(a: Vector, b: Vector) -> float:
+    return a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
+
+
+def _Distance(a: Vector, b: Vector) -> float:
+    d0, d1, d2 = a[0] - b[0], a[1] - b[1], a[2] - b[2]
+    return math.sqrt(d0 * d0 + d1 * d1 + d2 * d2)
+
+
+def _Cross(a: Vector, b: Vector) -> Vector:
+    return (a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0])

@@ -1,0 +1,65 @@
+"""Ctrl-C and SIGTERM during a run: a KeyboardInterrupt at once, and again at the run's next
+progress report if Python dropped the first.
+
+Python raises a signal handler's exception wherever the main thread is; raised inside a
+finalizer or a weakref callback (e.g. during a garbage collection) it is dropped with an
+"Exception ignored" report and the run would go on to its end. The interrupt is therefore
+also kept pending until a run reports it (`TakeInterrupt`), and RunContext.progress, which
+every simulation loop calls, raises it again.
+"""
+
+from __future__ import annotations
+
+import signal
+import sys
+from types import FrameType
+from typing import Any
+
+# The names of the signals received and not yet reported ("" for Ctrl-C).
+_PENDING: list[str] = []
+
+
+def InstallInterruptHandlers() -> None:
+    """SIGINT and SIGTERM raise KeyboardInterrupt (naming SIGTERM) and stay pending; a
+    KeyboardInterrupt Python cannot raise (or an error raised while handling it) is not
+    printed: the interrupt is raised again later."""
+    signal.signal(signal.SIGINT, _OnSignal)
+    signal.signal(signal.SIGTERM, _OnSignal)
+    default_hook = sys.unraisablehook
+
+    def hook(unraisable: Any) -> None:
+        if not _FromInterrupt(unraisable.exc_value):
+            default_hook(unraisable)
+
+    sys.unraisablehook = hook
+
+
+def _FromInterrupt(error: BaseException | None) -> bool:
+    """Whether `error` is a KeyboardInterrupt or was raised while one was handled."""
+    seen = set()
+    while error is not None and id(error) not in seen:
+        if isinstance(error, KeyboardInterrupt):
+            return True
+        seen.add(id(error))
+        error = error.__context__
+    return False
+
+
+def _OnSignal(signum: int, frame: FrameType | None) -> None:
+    _PENDING.append("SIGTERM" if signum == signal.SIGTERM else "")
+    raise _Interrupt(_PENDING[-1])
+
+
+def RaiseIfInterrupted() -> None:
+    """Raises the pending interrupt, if any (a safe point of a long loop)."""
+    if _PENDING:
+        raise _Interrupt(_PENDING[-1])
+
+
+def TakeInterrupt() -> None:
+    """Marks the pending interrupts as reported (the run has stopped for them)."""
+    _PENDING.clear()
+
+
+def _Interrupt(name: str) -> KeyboardInterrupt:
+    return KeyboardInterrupt(name) if name else KeyboardInterrupt()

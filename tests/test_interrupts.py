@@ -1,0 +1,53 @@
+"""Ctrl-C and SIGTERM during a run: an interrupt Python drops (raised inside a finalizer)
+still stops the run at its next progress report, and only until the run reports it."""
+
+from __future__ import annotations
+
+import os
+import signal
+import sys
+
+import pytest
+
+from guidedarm.diagrams.interrupts import InstallInterruptHandlers
+from guidedarm.diagrams.run_context import RunContext
+from guidedarm.diagrams.task_run import InterruptedFailure
+
+
+@pytest.fixture
+def handlers():
+    saved = {s: signal.getsignal(s) for s in (signal.SIGINT, signal.SIGTERM)}
+    hook = sys.unraisablehook
+    InstallInterruptHandlers()
+    yield
+    for signum, handler in saved.items():
+        signal.signal(signum, handler)
+    sys.unraisablehook = hook
+
+
+class _SignalsWhenCollected:
+    def __init__(self, signum: int) -> None:
+        self.signum = signum
+
+    def __del__(self) -> None:
+        os.kill(os.getpid(), self.signum)
+        for _ in range(1000):  # the handler runs between two of these bytecodes
+            pass
+
+
+@pytest.mark.parametrize(
+    "signum, failure",
+    [(signal.SIGINT, "interrupted"), (signal.SIGTERM, "interrupted by SIGTERM")],
+    ids=["ctrl-c", "sigterm"],
+)
+def test_an_interrupt_dropped_in_a_finalizer_stops_the_next_progress_report(
+    handlers, tmp_path, capsys, signum, failure
+):
+    context = RunContext(out_dir=tmp_path)
+    context.quiet = True
+    _SignalsWhenCollected(signum)  # collected at once: its interrupt is dropped
+    assert "KeyboardInterrupt" not in capsys.readouterr().err
+    with pytest.raises(KeyboardInterrupt) as interrupt:
+        context.progress("step 1")
+    assert InterruptedFailure(interrupt.value) == failure
+    context.progress("step 2")  # reported: the run may write its summary
