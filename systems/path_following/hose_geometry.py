@@ -61,15 +61,13 @@ class HoseConfig:
 def ResolveCenterlinePath(name_or_file: str) -> Path:
     """The CSV of a named path or a file path; ConfigurationError if neither exists."""
     path = Path(name_or_file)
+    named = HOSES_DIR / f"{name_or_file}.csv"
+    if path.is_dir() and not named.is_file():
+        raise ConfigurationError(f"centerline {path}: is a directory, not a CSV file")
     if path.suffix.lower() == ".csv" or path.is_file():
-        if path.is_dir():
-            raise ConfigurationError(f"centerline {path}: is a directory, not a CSV file")
         if not path.is_file():
             raise ConfigurationError(f"centerline file not found: {path}")
         return path
-    named = HOSES_DIR / f"{name_or_file}.csv"
-    if not named.is_file() and path.is_dir():
-        raise ConfigurationError(f"centerline {path}: is a directory, not a CSV file")
     if not named.is_file():
         known = ", ".join(sorted(p.stem for p in HOSES_DIR.glob("*.csv")))
         raise ConfigurationError(f"unknown hose path '{name_or_file}' (known: {known})")
