@@ -17,6 +17,7 @@ import tty
 
 import numpy as np
 
+from guidedarm.systems.hardware import nachi_protocol as nachi
 from guidedarm.systems.hardware.arm_link import JointSample
 from guidedarm.systems.hardware.line_socket import LineSocket
 from guidedarm.systems.hardware.nachi_emulator import NachiControllerLogic
@@ -89,7 +90,8 @@ class FreezingNachiController:
         self._server = socket.create_server(("127.0.0.1", 0))
         self.port = self._server.getsockname()[1]
         self.frozen = False
-        self.last_reply = 0.0  # host time of the last reply sent (time.monotonic(), s)
+        # host time (time.monotonic(), s) the last joint measurement (a READ_JOINTS reply) was sent
+        self.last_measurement = 0.0
         self.received_frozen: list[tuple[float, str]] = []
         threading.Thread(target=self._Serve, daemon=True).start()
 
@@ -106,8 +108,13 @@ class FreezingNachiController:
                     continue
                 q = self.logic.commanded
                 self.logic.Measure(time.monotonic() - start, q, np.zeros(3), np.zeros(3))
-                lines.WriteLines(self.logic.Handle(line))
-                self.last_reply = time.monotonic()
+                replies = self.logic.Handle(line)
+                # The driver's watchdog runs from its newest measurement: the reply to a
+                # target (OK) refreshes nothing. Stamped before the write, which the link
+                # may read and stamp before this thread runs again.
+                if line == nachi.READ_JOINTS:
+                    self.last_measurement = time.monotonic()
+                lines.WriteLines(replies)
 
     def close(self) -> None:
         with contextlib.suppress(OSError):  # wakes an accept() that no client reached

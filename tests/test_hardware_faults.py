@@ -73,8 +73,8 @@ def test_frozen_controller_is_sent_stop_within_watchdog_plus_a_period():
     )
     stops = [t for t, line in controller.received_frozen if line == "STOP"]
     assert len(stops) == 1
-    delay = stops[0] - controller.last_reply
-    print(f"\nfrozen controller: last reply to STOP received {delay:.3f} s")
+    delay = stops[0] - controller.last_measurement
+    print(f"\nfrozen controller: last measurement to STOP received {delay:.3f} s")
     # Thread scheduling on the shared 2-core machine adds a few ms (up to tens under a load
     # average of 10) to the period.
     assert watchdog < delay < watchdog + period + 0.05
