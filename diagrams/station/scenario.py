@@ -41,8 +41,16 @@ def _default_plant_config() -> MultibodyPlantConfig:
     )
 
 
+# Meshcat frames every 32 ms: 16 steps of the default 2 ms plant, so a frame adds no
+# simulator step of its own, and about the replay's 30 frames a second (Drake's 1/64 s
+# falls between plant steps and records twice the frames the replay keeps).
+VISUALIZATION_PERIOD = 0.032
+
+
 def _default_visualization() -> VisualizationConfig:
-    return VisualizationConfig(publish_contacts=False, publish_inertia=False)
+    return VisualizationConfig(
+        publish_period=VISUALIZATION_PERIOD, publish_contacts=False, publish_inertia=False
+    )
 
 
 @dataclass
