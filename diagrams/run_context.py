@@ -222,7 +222,7 @@ def AdvanceWithProgress(
 ) -> float:
     """Advances `simulator` to `t_final` in chunks, printing progress; returns the sim time.
 
-    A monitor set on the simulator may stop it early (EventStatus.ReachedTermination); the
+    An event or a monitor returning EventStatus.ReachedTermination stops it early; the
     returned time is where it stopped. The pace is the context's (RunContext.pace): against
     hardware wall-clock pace, since the drivers' clocks are real.
     """

@@ -14,7 +14,7 @@ import dataclasses
 
 from pydrake.common.yaml import yaml_load_typed
 from pydrake.systems.analysis import Simulator
-from pydrake.systems.framework import DiagramBuilder, EventStatus
+from pydrake.systems.framework import DiagramBuilder
 from pydrake.systems.primitives import LogVectorOutput
 
 from guidedarm.diagrams.scenario_loading import SCENARIO_DIR
@@ -24,7 +24,6 @@ from guidedarm.diagrams.tasks.path_following_diagram import AddPathFollowing
 from guidedarm.diagrams.tasks.path_following_execution import LastRecordPerStep
 from guidedarm.diagrams.tasks.path_following_report import Metrics
 from guidedarm.diagrams.tasks.path_following_setup import MakeSetup
-from guidedarm.systems.path_following.path_follower import DONE, FAILED
 
 parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
 parser.add_argument("--estimator", choices=["grid", "ranging"], default="grid")
@@ -43,16 +42,7 @@ station = builder.AddNamedSystem("station", MakeStation(setup.station))
 follower, ik = AddPathFollowing(builder, station, setup)
 steps = LogVectorOutput(follower.GetOutputPort("step_record"), builder, setup.period)
 simulator = Simulator(builder.Build())
-
-
-def StopWhenTheFollowerStops(root_context):
-    mode, _ = follower.GetOutputPort("mode").Eval(follower.GetMyContextFromRoot(root_context))
-    if mode in (DONE, FAILED):
-        return EventStatus.ReachedTermination(follower, "the follower stopped")
-    return EventStatus.DidNothing()
-
-
-simulator.set_monitor(StopWhenTheFollowerStops)
+# The follower ends AdvanceTo when it stops (its update returns ReachedTermination).
 simulator.AdvanceTo(scenario.max_time)
 
 root = simulator.get_context()

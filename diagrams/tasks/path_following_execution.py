@@ -21,11 +21,11 @@ from dataclasses import dataclass
 import numpy as np
 from pydrake.geometry import QueryObject
 from pydrake.systems.analysis import ApplySimulatorConfig, Simulator
-from pydrake.systems.framework import Diagram, DiagramBuilder, EventStatus
+from pydrake.systems.framework import Diagram, DiagramBuilder
 from pydrake.systems.primitives import LogVectorOutput
 
 from guidedarm.diagrams.overlays.path_following_overlays import AddPathFollowingOverlays
-from guidedarm.diagrams.run_context import RunContext
+from guidedarm.diagrams.run_context import AdvanceWithProgress, RunContext
 from guidedarm.diagrams.station.station import MakeStation
 from guidedarm.diagrams.task_run import InterruptedFailure
 from guidedarm.diagrams.tasks.path_following_diagram import (
@@ -92,26 +92,16 @@ def _Simulate(setup: Setup, station: Diagram, context: RunContext, visualized: b
     )
     simulator = Simulator(builder.Build())
     ApplySimulatorConfig(setup.station.simulator_config, simulator)
-    context.pace(simulator, setup.max_time)
     root = simulator.get_mutable_context()
     follower_context = follower.GetMyContextFromRoot(root)
-
-    def monitor(_):
-        context.progress(
-            lambda: f"step {follower.Loop(follower_context).step}, t = {root.get_time():.1f} s"
-        )
-        if follower.Stopped(follower_context):
-            return EventStatus.ReachedTermination(follower, "follower stopped")
-        return EventStatus.DidNothing()
-
-    simulator.set_monitor(monitor)
     simulator.Initialize()
     if visualized:
         context.start_recording()
     start = time.perf_counter()
     fault = None
     try:
-        simulator.AdvanceTo(setup.max_time)
+        # The follower's update ends AdvanceTo once it stops (ReachedTermination).
+        AdvanceWithProgress(simulator, setup.max_time, context)
     except (RunFailedError, KeyboardInterrupt) as e:
         # a device fault, Ctrl-C or SIGTERM: the summary keeps what was measured so far
         fault = InterruptedFailure(e) if isinstance(e, KeyboardInterrupt) else str(e)

@@ -23,7 +23,7 @@ from pydrake.common.value import AbstractValue
 from pydrake.math import RigidTransform
 from pydrake.multibody.plant import MultibodyPlant
 from pydrake.multibody.tree import Frame
-from pydrake.systems.framework import BasicVector, Context, LeafSystem, State
+from pydrake.systems.framework import BasicVector, Context, EventStatus, LeafSystem, State
 
 from guidedarm.systems.path_following.continuous_follower_math import (
     BACK,
@@ -36,7 +36,7 @@ from guidedarm.systems.path_following.continuous_follower_math import (
     OnReading,
     Reference,
 )
-from guidedarm.systems.path_following.path_follower import DeclareStepOutputs
+from guidedarm.systems.path_following.path_follower import DeclareStepOutputs, StoppedStatus
 from guidedarm.systems.path_following.path_follower_math import EstimateHose
 from guidedarm.systems.tof.tof_tool_sensor_math import DetectionGrid
 
@@ -148,10 +148,10 @@ class ContinuousFollower(LeafSystem):
         self._plant.SetPositions(self._plant_context, q)
         return self._tool.CalcPoseInWorld(self._plant_context)
 
-    def _Update(self, context: Context, state: State) -> None:
+    def _Update(self, context: Context, state: State) -> EventStatus:
         run = self.Loop(context)
         if run.stopped:
-            return
+            return EventStatus.DidNothing()
         t = context.get_time()
         q = self._position.Eval(context)
         history = JointHistory.Copy(run.history)
@@ -174,6 +174,7 @@ class ContinuousFollower(LeafSystem):
             )
             run = replace(run, reference=reference)
         state.get_mutable_abstract_state(self._run).set_value(run)
+        return StoppedStatus(self, run.stopped)
 
     def _Stall(self, run: _Run, history: JointHistory, q: np.ndarray, t: float) -> _Run:
         """run with `history`, tracking how long the joints have stayed still; after

@@ -24,7 +24,7 @@ from typing import Any, NamedTuple
 import numpy as np
 from pydrake.common.value import AbstractValue
 from pydrake.math import RigidTransform
-from pydrake.systems.framework import BasicVector, Context, LeafSystem, State
+from pydrake.systems.framework import BasicVector, Context, EventStatus, LeafSystem, State
 
 from guidedarm.systems.errors import GuidedArmError
 from guidedarm.systems.path_following.joint_moves import (
@@ -161,7 +161,7 @@ class PathFollower(LeafSystem):
         """Whether the run is over (DONE or FAILED)."""
         return self.Loop(context).mode in (DONE, FAILED)
 
-    def _Update(self, context: Context, state: State) -> None:
+    def _Update(self, context: Context, state: State) -> EventStatus:
         loop = self.Loop(context)
         t = context.get_time()
         if loop.mode == SENSE:
@@ -171,8 +171,9 @@ class PathFollower(LeafSystem):
         elif loop.mode == MOVE:
             loop = self._Move(context, loop, t)
         else:
-            return
+            return EventStatus.DidNothing()
         state.get_mutable_abstract_state(self._loop).set_value(loop)
+        return StoppedStatus(self, loop.mode in (DONE, FAILED))
 
     def _Sense(self, context: Context, loop: _Loop, t: float) -> _Loop:
         params = self._params
@@ -273,6 +274,14 @@ class PathFollower(LeafSystem):
 
     def _CalcFailure(self, context: Context, output: AbstractValue) -> None:
         output.set_value(self.Loop(context).failure)
+
+
+def StoppedStatus(follower: LeafSystem, stopped: bool) -> EventStatus:
+    """A follower's update status: ReachedTermination once the run is over (the hose's end
+    found, or a failure), which ends the Simulator's AdvanceTo at this update's time."""
+    if stopped:
+        return EventStatus.ReachedTermination(follower, "follower stopped")
+    return EventStatus.Succeeded()
 
 
 def DeclareStepOutputs(system: LeafSystem, loop: Callable[[Context], Any]) -> None:
