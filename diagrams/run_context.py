@@ -144,9 +144,13 @@ class RunContext:
         return path
 
     def start_recording(self) -> None:
-        """Starts recording the Meshcat animation (call before simulating)."""
+        """Starts recording the Meshcat animation (call before simulating). Without a live
+        page, poses and properties go into the recording only: sending each to the page
+        too would cost the loop time (and Meshcat's thread a core) for nobody to see."""
         if self.meshcat is not None:
-            self.meshcat.StartRecording(frames_per_second=30.0)
+            self.meshcat.StartRecording(
+                frames_per_second=30.0, set_visualizations_while_recording=self.live
+            )
 
     def write_replay(self) -> Path | None:
         """Publishes the recorded animation and writes it as a self-contained HTML page."""

@@ -55,7 +55,11 @@ class Replay:
         return sorted(p for p in self.objects if p.startswith(prefix))
 
     def Translation(self, path: str) -> list[float]:
-        """The translation of the (column-major 4 x 4) transform set at `path`."""
+        """The translation at `path` that the page shows at the end: the last key of its
+        recorded `position` track, else the (column-major 4 x 4) transform set there (a
+        run without a live page records poses into the animation only)."""
+        if (path, "position") in self.tracks:
+            return list(self.tracks[(path, "position")]["keys"][-1]["value"])
         return self.transforms[path][12:15]
 
     def Keyframes(self, path: str, name: str) -> list[tuple[float, Any]]:
