@@ -18,6 +18,7 @@ from guidedarm.diagrams.overlays.overlay_geometry import (
     PLAN_RGBA,
     ArmFramePoses,
     FrustumSegments,
+    GrowingPolyline,
     RecordedPose,
 )
 from guidedarm.diagrams.overlays.tof_tool_overlay import ToFToolOverlay
@@ -166,3 +167,45 @@ def test_a_still_pose_is_recorded_at_both_ends_of_the_pause(meshcat, tmp_path):
     keys = Replay(tmp_path / "pose.html").Keyframes("/overlays/pose", "position")
     # No glide from 0 to 0.3 during the pause: x = 0 is held until t = 1.0.
     assert [(t, v[0]) for t, v in keys] == [(0.0, 0.0), (1.0, 0.0), (1.5, 0.3)]
+
+
+def test_polyline_without_chunks_shows_each_segment_at_its_time_and_no_tail(meshcat, tmp_path):
+    """chunk_s = 0 (the detected path): each new point's segment is its own line, hidden
+    before its time, shown from it; no tail path is drawn or recorded."""
+    line = GrowingPolyline(meshcat, "/overlays/line", PLAN_RGBA, chunk_s=0.0)
+    meshcat.StartRecording(frames_per_second=30.0)
+    times = [0.1, 0.3, 0.6]
+    for k, t in enumerate(times):
+        line.Append(np.array([0.01 * k, 0.0, 0.0]), t)
+    meshcat.StopRecording()
+    meshcat.PublishRecording()
+    page = tmp_path / "line.html"
+    page.write_text(meshcat.StaticHtml())
+    meshcat.DeleteRecording()
+    replay = Replay(page)
+    segments = replay.Paths("/overlays/line/")
+    assert segments == ["/overlays/line/0000", "/overlays/line/0001"]
+    for segment, t in zip(segments, times[1:], strict=True):
+        keys = replay.Keyframes(segment, "visible")
+        assert keys[0] == (0.0, False) and keys[-1][1] and keys[-1][0] == pytest.approx(t, abs=0.02)
+    assert not any(path.startswith("/overlays/line/tail") for path, _ in replay.tracks)
+
+
+def test_frame_poses_follow_every_new_q_even_in_the_same_array():
+    """ArmFramePoses reuses its kinematics for a repeated q only: a new q, also written
+    into the array it was last given, moves the frame as a fresh context does."""
+    _, scenario, _ = LoadScenario("ur10e_joint_tour", [])
+    plant = MakeMultibodyPlant(scenario.station)
+    arm = plant.GetModelInstanceByName("ur10e")
+    tool = GetScopedFrame(plant, "ur10e::tool0", "tool")
+    poses = ArmFramePoses(plant, arm)
+    q = plant.GetPositions(plant.CreateDefaultContext(), arm)
+    (X_0,) = poses.Poses(q, [tool])
+    q += 0.3
+    (X_1,) = poses.Poses(q, [tool])
+    context = plant.CreateDefaultContext()
+    plant.SetPositions(context, arm, q)
+    assert X_1.IsExactlyEqualTo(tool.CalcPoseInWorld(context))
+    assert np.linalg.norm(X_1.translation() - X_0.translation()) > 0.05
+    (X_again,) = poses.Poses(q.copy(), [tool])
+    assert X_again.IsExactlyEqualTo(X_1)

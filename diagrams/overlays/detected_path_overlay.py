@@ -46,7 +46,7 @@ class DetectedPathOverlay(LeafSystem):
             p_WS = np.asarray(record[_S])
             point = f"{self._path}/points/{step:04d}"
             self._meshcat.SetObject(point, Sphere(0.003), SENSED_RGBA)
-            self._meshcat.SetTransform(point, RigidTransform(p_WS))
+            self._meshcat.SetTransform(point, RigidTransform(p=p_WS))
             AppearAt(self._meshcat, point, t)
             self._line.Append(p_WS, t)
         return EventStatus.Succeeded()

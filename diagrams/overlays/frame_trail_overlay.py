@@ -51,6 +51,8 @@ class FrameTrailOverlay(LeafSystem):
     def _Publish(self, context: Context) -> EventStatus:
         t = context.get_time()
         (X_WF,) = self._poses.Poses(self._position.Eval(context), [self._frame])
-        self.trail.Append(X_WF.translation(), t)
-        self._head.Set(RigidTransform(X_WF.translation()), t)
+        p_WF = X_WF.translation()
+        self.trail.Append(p_WF, t)
+        # The keyword picks pybind's overload at once (a positional p tries others).
+        self._head.Set(RigidTransform(p=p_WF), t)
         return EventStatus.Succeeded()

@@ -107,11 +107,13 @@ class GrowingPolyline:
 
     def _Flush(self, t: float) -> None:
         """Draws the gathered points as one chunk that appears at time t."""
-        tail = f"{self._path}/tail"
-        # Shown only from the latest chunk on: its earlier "shown" keyframe is overwritten.
-        SetRecordedVisibility(self._meshcat, tail, False, self._chunk_start)
-        SetRecordedVisibility(self._meshcat, tail, True, t)
-        self._meshcat.Delete(f"{tail}/<object>")
+        if self._chunk_s > 0:  # with chunks of 0 s every point flushes: there is no tail
+            tail = f"{self._path}/tail"
+            # Shown only from the latest chunk on: its earlier "shown" keyframe is
+            # overwritten.
+            SetRecordedVisibility(self._meshcat, tail, False, self._chunk_start)
+            SetRecordedVisibility(self._meshcat, tail, True, t)
+            self._meshcat.Delete(f"{tail}/<object>")
         self._chunk_start = t
         if len(self._pending) < 2:
             return
@@ -124,19 +126,23 @@ class GrowingPolyline:
 
 class ArmFramePoses:
     """Poses in world of frames of a plant from one arm's joint positions (its own
-    context, so it may share a plant with other users)."""
+    context, so it may share a plant with other users). Overlays publishing at the same
+    time ask with the same q: the context keeps its kinematics for it."""
 
     def __init__(self, plant: MultibodyPlant, arm: ModelInstanceIndex) -> None:
         self.plant = plant
         self._arm = arm
         self._context = plant.CreateDefaultContext()
+        self._q: np.ndarray | None = None
 
     def num_positions(self) -> int:
         return self.plant.num_positions(self._arm)
 
     def Poses(self, q: np.ndarray, frames: list[Frame]) -> list[RigidTransform]:
         """X_WF of each frame with the arm at q (rad)."""
-        self.plant.SetPositions(self._context, self._arm, q)
+        if self._q is None or not np.array_equal(q, self._q):
+            self.plant.SetPositions(self._context, self._arm, q)
+            self._q = np.array(q)
         return [frame.CalcPoseInWorld(self._context) for frame in frames]
 
 

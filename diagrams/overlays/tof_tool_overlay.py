@@ -58,6 +58,15 @@ class ToFToolOverlay(LeafSystem):
         self._visible: dict[str, bool] = {}
         self._changed: set[str] = set()
         self._ranges_drawn = np.full(6, np.nan)
+        # The paths drawn at each reading, formed once: each sensor's (hit rays, hit
+        # point), each grid point's {state: path}, and the state each point shows.
+        sensors = [f"{path}/sensor_{k + 1}" for k in range(6)]
+        self._hit_paths = [(f"{sensor}/hit", f"{sensor}/hit_point") for sensor in sensors]
+        self._state_paths = [
+            {state: f"{path}/grid/p{n // 3 + 1}{n % 3 + 4}/{state}" for state in GRID_STATES}
+            for n in range(9)
+        ]
+        self._states_drawn: list[str | None] = [None] * 9
         self._pose = RecordedPose(meshcat, path)
         self._Draw(grid, rays_S, max_range)
         self.DeclareInitializationPublishEvent(self._Start)
@@ -96,6 +105,7 @@ class ToFToolOverlay(LeafSystem):
         self._visible.clear()
         self._changed.clear()
         self._ranges_drawn[:] = np.nan
+        self._states_drawn = [None] * 9
         self._pose.Reset()
         self._PublishPose(context)
         return self._PublishReading(context)
@@ -109,20 +119,21 @@ class ToFToolOverlay(LeafSystem):
         t = context.get_time()
         m = self._meshcat
         ranges, valid = self._ranges.Eval(context), self._valid.Eval(context) > 0.5
-        for k in range(6):
-            sensor = f"{self._path}/sensor_{k + 1}"
-            self._Set(f"{sensor}/hit", bool(valid[k]), t)
-            self._Set(f"{sensor}/hit_point", bool(valid[k]), t)
+        for k, (hit, hit_point) in enumerate(self._hit_paths):
+            self._Set(hit, bool(valid[k]), t)
+            self._Set(hit_point, bool(valid[k]), t)
             if valid[k] and ranges[k] != self._ranges_drawn[k]:
                 r = float(ranges[k])
-                m.SetProperty(f"{sensor}/hit", "scale", [r, r, r], t)
-                m.SetTransform(f"{sensor}/hit_point", RigidTransform([0.0, 0.0, r]), t)
+                m.SetProperty(hit, "scale", [r, r, r], t)
+                # The keyword picks pybind's overload at once (a positional p tries others).
+                m.SetTransform(hit_point, RigidTransform(p=[0.0, 0.0, r]), t)
                 self._ranges_drawn[k] = r
         detected = self._detections.Eval(context) > 0.5
         errors = self._errors.Eval(context) > 0.5
-        for n in range(9):
+        for n, paths in enumerate(self._state_paths):
             state = "error" if errors[n] else "detected" if detected[n] else "none"
-            point = f"{self._path}/grid/p{n // 3 + 1}{n % 3 + 4}"
-            for name in GRID_STATES:
-                self._Set(f"{point}/{name}", name == state, t)
+            if state != self._states_drawn[n]:
+                for name, point in paths.items():
+                    self._Set(point, name == state, t)
+                self._states_drawn[n] = state
         return EventStatus.Succeeded()

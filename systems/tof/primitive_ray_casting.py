@@ -62,9 +62,10 @@ def ShapeSizes(shape) -> tuple[str, list[float], float]:
 
 class ShapeTable:
     """Shapes sorted by kind: frames G in W (R (M, 3, 3), p (M, 3), and p2 = |p|^2 (M,)),
-    sizes (M, 3) and radii (M,) of balls about G's origins holding them; the kinds present
-    in that order, shapes starts[i]:starts[i + 1] of kinds[i]. Shapes on moving frames F
-    keep X_FG and take X_WF at each Pose()."""
+    sizes (M, 3) and radii (M,) of balls about G's origins holding them (rho (M, 1): plus
+    the broadphase's margin); the kinds present in that order, shapes
+    starts[i]:starts[i + 1] of kinds[i]. Shapes on moving frames F keep X_FG and take X_WF
+    at each Pose()."""
 
     def __init__(self, shapes: list[tuple[object, RigidTransform, int]]) -> None:
         """shapes: (shape, X_FG, frame index), frame index -1 for the world."""
@@ -84,6 +85,9 @@ class ShapeTable:
         self._frame = frame[self._moving]
         self._R_FG, self._p_FG = self.R[self._moving], self.p[self._moving, :, None]
         self.p2 = np.sum(self.p * self.p, axis=1)
+        # CastCones' ball radii with 1 um to spare, and their negatives, formed once.
+        self.rho = self.radii[:, None] + 1e-6
+        self.minus_rho = -self.rho
 
     def Pose(self, R_WF: np.ndarray, p_WF: np.ndarray) -> None:
         """Poses the shapes on moving frames from their frames' poses in W."""
@@ -93,7 +97,7 @@ class ShapeTable:
         self.R[self._moving] = R @ self._R_FG
         p = p_WF[self._frame] + (R @ self._p_FG)[:, :, 0]
         self.p[self._moving] = p
-        self.p2[self._moving] = np.sum(p * p, axis=1)
+        self.p2[self._moving] = (p * p).sum(axis=1)
 
 
 def FirstHits(
@@ -123,8 +127,8 @@ def FirstHits(
     t = (b + np.sqrt(b * b + minus_a * (rho2 - radius2))) / minus_a
     z = oz + t * uz
     side = np.where((t >= 0) & (np.abs(z) <= half), t, np.inf)
-    within = np.abs(oz) <= half
     if kind == "cylinder":
+        within = np.abs(oz) <= half
         # Only the flat end facing an origin beyond it can be entered.
         end = np.sign(oz) * half
         t_end = (end - oz) / uz
@@ -179,14 +183,15 @@ def CastCones(
     # A ball of radius rho centred at (x along the axis, y off it) from the apex meets the
     # cone only if its centre is within rho of the half-plane bounding the cone's side,
     # y cos - x sin <= rho, and of the slab 0 <= x <= reach. Squared distances from dot
-    # products lose up to ~1e-16 m^2: rho gets 1 um to spare.
+    # products lose up to ~1e-16 m^2: rho has 1 um to spare. Numpy's per-call overhead is
+    # the cost at these sizes: reductions use the array methods (np.sum adds a layer).
     dots = table.p @ np.concatenate([p_WS, z_WS]).T
-    x = dots[:, n:] - np.sum(p_WS * z_WS, axis=1)
-    distance2 = table.p2[:, None] - 2 * dots[:, :n] + np.sum(p_WS * p_WS, axis=1)
+    x = dots[:, n:] - (p_WS * z_WS).sum(axis=1)
+    distance2 = table.p2[:, None] - 2 * dots[:, :n] + (p_WS * p_WS).sum(axis=1)
     y = np.sqrt(np.maximum(distance2 - x * x, 0.0))
-    rho = table.radii[:, None] + 1e-6
     side = y * math.cos(half_angle) - x * math.sin(half_angle)
-    near = np.flatnonzero(((side <= rho) & (x >= -rho) & (x <= reach + rho)).any(axis=1))
+    rho = table.rho
+    near = np.flatnonzero(((side <= rho) & (x >= table.minus_rho) & (x <= reach + rho)).any(1))
     best = np.full(n, np.inf)
     if len(near) == 0:
         return best
@@ -194,19 +199,19 @@ def CastCones(
     # G's axis i in W: o (3, C, N, 1), u (3, C, N, K).
     axes = table.R[near].transpose(2, 0, 1)
     p_WG = table.p[near]
-    o = (axes @ p_WS.T - np.sum(axes * p_WG, axis=2)[:, :, None])[..., None]
+    o = (axes @ p_WS.T - (axes * p_WG).sum(axis=2)[:, :, None])[..., None]
     u_W = u_W.reshape(-1, 3)
     u = (axes @ u_W.T).reshape(3, len(near), n, k)
     # o . u, a rotation invariant: (p_WS - p_WG) . u_W.
-    ou = (np.sum(p_WS.repeat(k, axis=0) * u_W, axis=1) - p_WG @ u_W.T).reshape(-1, n, k)
+    ou = ((p_WS.repeat(k, axis=0) * u_W).sum(axis=1) - p_WG @ u_W.T).reshape(-1, n, k)
     sizes = table.sizes[near]
     # near is sorted, as the table is by kind: each kind is one run of it.
-    runs = np.searchsorted(near, table.starts)
+    runs = np.searchsorted(near, table.starts).tolist()
     with np.errstate(all="ignore"):
         for kind, lo, hi in zip(table.kinds, runs[:-1], runs[1:], strict=True):
             if lo < hi:
                 hits = FirstHits(o[:, lo:hi], u[:, lo:hi], ou[lo:hi], kind, sizes[lo:hi])
-                best = np.minimum(best, hits.min(axis=(0, 2)))
+                np.minimum(best, hits.min(axis=(0, 2)), out=best)
     return best
 
 
