@@ -103,7 +103,9 @@ class JointLimits:
 
 def PoseError(X_current: RigidTransform, X_desired: RigidTransform) -> np.ndarray:
     """[rotation vector; translation] (rad, m; in W) taking X_current to X_desired."""
-    R_error = X_desired.rotation().multiply(X_current.rotation().inverse())
+    # R_desired R_current^-1 as the rotation of the composed transforms: the same product
+    # in fewer pydrake calls.
+    R_error = (X_desired @ X_current.inverse()).rotation()
     angle_axis = R_error.ToAngleAxis()
     w = angle_axis.axis() * angle_axis.angle()
     return np.concatenate([w, X_desired.translation() - X_current.translation()])
@@ -167,18 +169,25 @@ def ServoStep(
     )
     if speed_ratio < 1.0:
         v_wanted = [w * speed_ratio for w in v_wanted]
-    dv = [w - x for w, x in zip(v_wanted, v_, strict=True)]
-    excess = max([abs(d) / (a * period) for d, a in zip(dv, limits.acceleration_list, strict=True)])
-    if excess > 1.0:
-        v_next = [x + d / excess for x, d in zip(v_, dv, strict=True)]
-    else:
-        v_next = [x + d for x, d in zip(v_, dv, strict=True)]
-    # Braking: at most the speed from which the joint stops at its limit, and never past it
-    # (the min and max as in _SELECT).
-    q_next = []
-    for i, (qi, a2, lower, upper) in enumerate(
-        zip(q_, limits.twice_acceleration_list, limits.lower_list, limits.upper_list, strict=True)
+    excess = max(
+        [
+            abs(w - x) / (a * period)
+            for w, x, a in zip(v_wanted, v_, limits.acceleration_list, strict=True)
+        ]
+    )
+    # v + (v_wanted - v) scaled into the acceleration limits, then braking: at most the speed
+    # from which the joint stops at its limit, and never past it (min and max as in _SELECT).
+    q_next, v_next = [], []
+    for qi, vi, wi, a2, lower, upper in zip(
+        q_,
+        v_,
+        v_wanted,
+        limits.twice_acceleration_list,
+        limits.lower_list,
+        limits.upper_list,
+        strict=True,
     ):
+        vi = vi + (wi - vi) / excess if excess > 1.0 else vi + (wi - vi)
         to_upper, to_lower = upper - qi, qi - lower
         high = math.sqrt(a2 * (0.0 if to_upper < 0.0 else to_upper))
         if to_upper / period < high:
@@ -188,12 +197,11 @@ def ServoStep(
             low = -to_lower / period
         if low > high:
             high = low
-        vi = v_next[i]
         if low > vi:
             vi = low
         if high < vi:
             vi = high
-        v_next[i] = vi
+        v_next.append(vi)
         q_next.append(qi + vi * period)
     limited = excess > 1.0 or speed_ratio < 1.0
     return np.array(q_next), np.array(v_next), limited
@@ -221,17 +229,13 @@ def ReachBound(plant: MultibodyPlant, bodies: list[RigidBody]) -> float:
     return max(Chain(body, np.zeros(3)) for body in bodies)
 
 
-def StoppingPositions(q: np.ndarray, v: np.ndarray, limits: JointLimits) -> np.ndarray:
+def StoppingPositions(q: np.ndarray, v: np.ndarray, limits: JointLimits) -> list[float]:
     """Where each joint comes to rest (rad) braking from v (rad/s) at its acceleration
     limit."""
-    return np.array(
-        [
-            qi + vi * abs(vi) / a2
-            for qi, vi, a2 in zip(
-                q.tolist(), v.tolist(), limits.twice_acceleration_list, strict=True
-            )
-        ]
-    )
+    return [
+        qi + vi * abs(vi) / a2
+        for qi, vi, a2 in zip(q.tolist(), v.tolist(), limits.twice_acceleration_list, strict=True)
+    ]
 
 
 def BrakeStep(
