@@ -79,7 +79,7 @@ class DifferentialIkServo(LeafSystem):
         # origin was at least `margin` (m) inside the walls, so no q with
         # reach * sum |q - q_checked| < margin needs the kinematics.
         self._reach = ReachBound(plant, self._bodies)
-        self._clear = (np.zeros(n), 0.0)
+        self._clear = ([0.0] * n, 0.0)
         self._R_BW = self._X_BW.rotation().matrix()
         self._p_BW = self._X_BW.translation()
         self._world = plant.world_frame()
@@ -132,7 +132,7 @@ class DifferentialIkServo(LeafSystem):
             v,
             self._period,
             self._limits,
-            X_WT.rotation().matrix(),
+            X_WT.GetAsMatrix34()[:, :3],  # R_WT in one pydrake call
             self._weights,
             self._damping,
             self._gain,
@@ -145,12 +145,13 @@ class DifferentialIkServo(LeafSystem):
         state[2 * n], state[2 * n + 1] = float(limited), wall
         discrete.set_value(self._state, state)
 
-    def _BodyAtWall(self, q: np.ndarray) -> int:
-        """1 + the index of the first body whose origin at q lies outside the walls, or 0."""
+    def _BodyAtWall(self, q: list[float]) -> int:
+        """1 + the index of the first body whose origin at q (rad) lies outside the walls,
+        or 0."""
         if self._workspace is None:
             return 0
         q_checked, margin = self._clear
-        if self._reach * float(np.abs(q - q_checked).sum()) < margin:
+        if self._reach * sum([abs(a - b) for a, b in zip(q, q_checked, strict=True)]) < margin:
             return 0
         self._plant.SetPositions(self._plant_context, q)
         # All body poses in one evaluation of the plant's port, then the origins in B.
@@ -160,7 +161,7 @@ class DifferentialIkServo(LeafSystem):
         k = self._workspace.FirstOutside(p_BBo)
         if k is not None:
             return k + 1
-        self._clear = (q.copy(), self._workspace.Margin(p_BBo))
+        self._clear = (q, self._workspace.Margin(p_BBo))
         return 0
 
     def _CalcFailure(self, context: Context, output: AbstractValue) -> None:

@@ -53,57 +53,75 @@ FEEDBACK_ACCELERATION_SHARE = 0.5
 CENTRING_SPEED_SHARE = 0.3
 # The damping away from singularities (a regularisation only).
 MIN_DAMPING = 1e-3
+# _SELECT: on a few floats, a conditional expression picks the operand min(a, b) or
+# max(a, b) would (`b if b < a else a`, `b if b > a else a`) at a fraction of the cost: the
+# builtins parse keyword arguments on every call, which costs more than a joint's arithmetic.
 
 
 @dataclass(frozen=True)
 class JointLimits:
     """Per joint: position range (rad), speed (rad/s) and acceleration (rad/s^2) limits.
-    middle, half_range, feedback_acceleration and the limits as lists are derived once
-    (ServoStep runs at the servo rate, where numpy's per-call overhead is the cost)."""
+    The lists below are derived once: ServoStep and StoppingPositions run at the servo
+    rate on n joints, where numpy's per-call overhead exceeds its work, so they compute in
+    Python floats (the same IEEE operations as numpy's elementwise ones, so the same values).
+    """
 
     lower: np.ndarray
     upper: np.ndarray
     speed: np.ndarray
     acceleration: np.ndarray
-    middle: np.ndarray = field(init=False, repr=False)
-    half_range: np.ndarray = field(init=False, repr=False)
-    feedback_acceleration: np.ndarray = field(init=False, repr=False)
-    # The same as lists of floats, for ServoStep's joint-by-joint part.
     lower_list: list[float] = field(init=False, repr=False)
     upper_list: list[float] = field(init=False, repr=False)
     speed_list: list[float] = field(init=False, repr=False)
     acceleration_list: list[float] = field(init=False, repr=False)
+    # 2 x acceleration (rad/s^2; doubling is exact, so products with it are unchanged).
+    twice_acceleration_list: list[float] = field(init=False, repr=False)
     feedback_acceleration_list: list[float] = field(init=False, repr=False)
+    # CentringVelocity's constants: the middle of each range (rad), half its width (rad),
+    # the centring speed at a limit (rad/s).
+    middle_list: list[float] = field(init=False, repr=False)
+    half_range_list: list[float] = field(init=False, repr=False)
+    centring_speed_list: list[float] = field(init=False, repr=False)
 
     def __post_init__(self) -> None:
-        feedback = FEEDBACK_ACCELERATION_SHARE * self.acceleration
+        lower, upper = np.asarray(self.lower, float), np.asarray(self.upper, float)
+        speed, acceleration = np.asarray(self.speed, float), np.asarray(self.acceleration, float)
         derived = {
-            "middle": 0.5 * (self.lower + self.upper),
-            "half_range": np.maximum(0.5 * (self.upper - self.lower), 1e-9),
-            "feedback_acceleration": feedback,
-            "lower_list": np.asarray(self.lower, float).tolist(),
-            "upper_list": np.asarray(self.upper, float).tolist(),
-            "speed_list": np.asarray(self.speed, float).tolist(),
-            "acceleration_list": np.asarray(self.acceleration, float).tolist(),
-            "feedback_acceleration_list": np.asarray(feedback, float).tolist(),
+            "lower_list": lower,
+            "upper_list": upper,
+            "speed_list": speed,
+            "acceleration_list": acceleration,
+            "twice_acceleration_list": 2 * acceleration,
+            "feedback_acceleration_list": FEEDBACK_ACCELERATION_SHARE * acceleration,
+            "middle_list": 0.5 * (lower + upper),
+            "half_range_list": np.maximum(0.5 * (upper - lower), 1e-9),
+            "centring_speed_list": CENTRING_SPEED_SHARE * speed,
         }
         for name, value in derived.items():
-            object.__setattr__(self, name, value)
+            object.__setattr__(self, name, value.tolist())
 
 
 def PoseError(X_current: RigidTransform, X_desired: RigidTransform) -> np.ndarray:
     """[rotation vector; translation] (rad, m; in W) taking X_current to X_desired."""
-    R_error = X_desired.rotation().multiply(X_current.rotation().inverse())
+    # R_desired R_current^-1 as the rotation of the composed transforms: the same product
+    # in fewer pydrake calls.
+    R_error = (X_desired @ X_current.inverse()).rotation()
     angle_axis = R_error.ToAngleAxis()
     w = angle_axis.axis() * angle_axis.angle()
     return np.concatenate([w, X_desired.translation() - X_current.translation()])
 
 
-def CentringVelocity(q: np.ndarray, limits: JointLimits) -> np.ndarray:
-    """Joint velocities (rad/s) toward the middle of each joint's range: 0 there,
+def CentringVelocity(q: list[float], limits: JointLimits) -> list[float]:
+    """Joint velocities (rad/s) toward the middle of each joint's range (q: rad): 0 there,
     CENTRING_SPEED_SHARE of the speed limit at a limit, cubic in between."""
-    x = np.minimum(np.maximum((limits.middle - q) / limits.half_range, -1.0), 1.0)
-    return CENTRING_SPEED_SHARE * limits.speed * x**3
+    velocities = []
+    for qi, middle, half_range, speed in zip(
+        q, limits.middle_list, limits.half_range_list, limits.centring_speed_list, strict=True
+    ):
+        x = (middle - qi) / half_range
+        x = -1.0 if x < -1.0 else 1.0 if x > 1.0 else x  # clipped to [-1, 1] (_SELECT)
+        velocities.append(speed * x**3)
+    return velocities
 
 
 def ServoStep(
@@ -123,51 +141,68 @@ def ServoStep(
     order); R_WT: T's orientation (3 x 3); limited: whether a speed or acceleration limit
     changed v_next."""
     n = J.shape[1]
-    # J and the error as one 6 x (n + 1) matrix, expressed in T and weighted by rows; its
-    # normal equations in one product.
-    A = np.empty((6, n + 1))
-    A[:, :n] = J
-    A[:, n] = error
-    R_TW = R_WT.T
-    A[:3] = R_TW @ A[:3]
-    A[3:] = R_TW @ A[3:]
-    A *= np.reshape(weights, (6, 1))
+    # J and the error as one 6 x (n + 1) matrix, expressed in T (its two 3-row halves
+    # rotated in one stacked product, each the same BLAS product as alone) and weighted by
+    # rows; its normal equations in one product.
+    A = R_WT.T @ np.concatenate((J, error[:, None]), axis=1).reshape(2, 3, n + 1)
+    A = A.reshape(6, n + 1)
+    A *= weights[:, None]
     normal = A[:, :n].T @ A
     # J_T' J_T = V diag(e) V': sigma_min^2 of J_T is e[0], and the damped solve is diagonal.
     e, V = np.linalg.eigh(normal[:, :n])
     lam2 = max(damping**2 - max(float(e[0]), 0.0), MIN_DAMPING**2)
-    rhs = np.empty((n, 2))
-    rhs[:, 0] = lam2 * CentringVelocity(q, limits)
-    rhs[:, 1] = normal[:, n]
-    solution = V @ ((V.T @ rhs) / (e + lam2)[:, None])
-    # The rest joint by joint in Python floats: numpy's per-call overhead exceeds its work
-    # on n joints (the same IEEE operations, so the same values).
-    v_c, dq = solution[:, 0].tolist(), solution[:, 1].tolist()
     q_, v_ = q.tolist(), v.tolist()
-    reach = max(abs(d) / a for d, a in zip(dq, limits.feedback_acceleration_list, strict=True))
+    rhs = np.empty((n, 2))
+    rhs[:, 0] = [lam2 * c for c in CentringVelocity(q_, limits)]
+    rhs[:, 1] = normal[:, n]
+    v_c, dq = (V @ ((V.T @ rhs) / (e + lam2)[:, None])).T.tolist()
+    # The rest joint by joint in Python floats (JointLimits), in list comprehensions (the
+    # cheapest loops in CPython).
+    reach = max([abs(d) / a for d, a in zip(dq, limits.feedback_acceleration_list, strict=True)])
     scale = min(gain, math.sqrt(2.0 / reach)) if reach > 0 else gain
     v_wanted = [c + d * scale for c, d in zip(v_c, dq, strict=True)]
     speed_ratio = min(
-        s / max(abs(w), 1e-300) for s, w in zip(limits.speed_list, v_wanted, strict=True)
+        [
+            s / (1e-300 if abs(w) < 1e-300 else abs(w))  # s / max(|w|, 1e-300) (_SELECT)
+            for s, w in zip(limits.speed_list, v_wanted, strict=True)
+        ]
     )
     if speed_ratio < 1.0:
         v_wanted = [w * speed_ratio for w in v_wanted]
-    dv = [w - x for w, x in zip(v_wanted, v_, strict=True)]
-    excess = max(abs(d) / (a * period) for d, a in zip(dv, limits.acceleration_list, strict=True))
-    if excess > 1.0:
-        v_next = [x + d / excess for x, d in zip(v_, dv, strict=True)]
-    else:
-        v_next = [x + d for x, d in zip(v_, dv, strict=True)]
-    # Braking: at most the speed from which the joint stops at its limit, and never past it.
-    q_next = []
-    for i, (qi, a, lower, upper) in enumerate(
-        zip(q_, limits.acceleration_list, limits.lower_list, limits.upper_list, strict=True)
+    excess = max(
+        [
+            abs(w - x) / (a * period)
+            for w, x, a in zip(v_wanted, v_, limits.acceleration_list, strict=True)
+        ]
+    )
+    # v + (v_wanted - v) scaled into the acceleration limits, then braking: at most the speed
+    # from which the joint stops at its limit, and never past it (min and max as in _SELECT).
+    q_next, v_next = [], []
+    for qi, vi, wi, a2, lower, upper in zip(
+        q_,
+        v_,
+        v_wanted,
+        limits.twice_acceleration_list,
+        limits.lower_list,
+        limits.upper_list,
+        strict=True,
     ):
+        vi = vi + (wi - vi) / excess if excess > 1.0 else vi + (wi - vi)
         to_upper, to_lower = upper - qi, qi - lower
-        high = min(math.sqrt(2 * a * max(to_upper, 0.0)), to_upper / period)
-        low = max(-math.sqrt(2 * a * max(to_lower, 0.0)), -to_lower / period)
-        v_next[i] = min(max(v_next[i], low), max(high, low))
-        q_next.append(qi + v_next[i] * period)
+        high = math.sqrt(a2 * (0.0 if to_upper < 0.0 else to_upper))
+        if to_upper / period < high:
+            high = to_upper / period
+        low = -math.sqrt(a2 * (0.0 if to_lower < 0.0 else to_lower))
+        if -to_lower / period > low:
+            low = -to_lower / period
+        if low > high:
+            high = low
+        if low > vi:
+            vi = low
+        if high < vi:
+            vi = high
+        v_next.append(vi)
+        q_next.append(qi + vi * period)
     limited = excess > 1.0 or speed_ratio < 1.0
     return np.array(q_next), np.array(v_next), limited
 
@@ -194,9 +229,13 @@ def ReachBound(plant: MultibodyPlant, bodies: list[RigidBody]) -> float:
     return max(Chain(body, np.zeros(3)) for body in bodies)
 
 
-def StoppingPositions(q: np.ndarray, v: np.ndarray, limits: JointLimits) -> np.ndarray:
-    """Where each joint comes to rest (rad) braking from v at its acceleration limit."""
-    return q + v * np.abs(v) / (2 * limits.acceleration)
+def StoppingPositions(q: np.ndarray, v: np.ndarray, limits: JointLimits) -> list[float]:
+    """Where each joint comes to rest (rad) braking from v (rad/s) at its acceleration
+    limit."""
+    return [
+        qi + vi * abs(vi) / a2
+        for qi, vi, a2 in zip(q.tolist(), v.tolist(), limits.twice_acceleration_list, strict=True)
+    ]
 
 
 def BrakeStep(
