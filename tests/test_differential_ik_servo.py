@@ -49,24 +49,22 @@ def test_workspace_margin_is_the_distance_to_the_nearest_wall():
     assert walls.Margin(points) == pytest.approx(0.05)
 
 
-def test_servo_outputs_are_cached_until_the_state_changes(setup):
-    """position_commanded is computed once per state, not at each evaluation in between
-    (the station's interpolator reads it every 2 ms plant step)."""
+def test_servo_outputs_are_its_state(setup):
+    """position_commanded and velocity_commanded are the servo's q and v state (Drake state
+    outputs: no Python call when the station's interpolator reads them every plant step),
+    and follow a change of that state."""
     plant = setup.solver.plant
     tool = GetScopedFrame(plant, setup.station.tof_tools["tof"].tool_frame, "tool")
     servo = DifferentialIkServo(plant, tool, setup.q_start, 0.004, 1.0, 5.0, 20.0, np.ones(6), 0.02)
     context = servo.CreateDefaultContext()
     servo.GetInputPort("X_WT_desired").FixValue(context, RigidTransform())
-    port = servo.GetOutputPort("position_commanded")
-    np.testing.assert_array_equal(port.Eval(context), setup.q_start)
-    calls = []
-    original = servo._Output
-    servo._Output = lambda *args: calls.append(1) or original(*args)
-    for t in (0.001, 0.002, 0.003):
-        context.SetTime(t)
-        port.Eval(context)
-    assert calls == []
-    x = context.get_discrete_state_vector().get_value().copy()
-    x[0] += 0.1
-    context.SetDiscreteState(x)
-    assert port.Eval(context)[0] == pytest.approx(setup.q_start[0] + 0.1)
+    position = servo.GetOutputPort("position_commanded")
+    velocity = servo.GetOutputPort("velocity_commanded")
+    np.testing.assert_array_equal(position.Eval(context), setup.q_start)
+    np.testing.assert_array_equal(velocity.Eval(context), np.zeros(6))
+    q = setup.q_start + 0.1
+    context.SetDiscreteState(0, q)
+    context.SetDiscreteState(1, np.full(6, 0.2))
+    np.testing.assert_array_equal(position.Eval(context), q)
+    np.testing.assert_array_equal(velocity.Eval(context), np.full(6, 0.2))
+    assert servo.GetOutputPort("failure").Eval(context) == ""

@@ -14,7 +14,7 @@ from pydrake.common.value import AbstractValue
 from pydrake.math import RigidTransform
 from pydrake.multibody.plant import MultibodyPlant
 from pydrake.multibody.tree import Frame, JacobianWrtVariable
-from pydrake.systems.framework import BasicVector, Context, DiscreteValues, LeafSystem
+from pydrake.systems.framework import Context, DiscreteValues, LeafSystem
 
 from guidedarm.systems.path_following.differential_ik_servo_math import (
     BrakeStep,
@@ -86,22 +86,16 @@ class DifferentialIkServo(LeafSystem):
         self._target = self.DeclareAbstractInputPort(
             "X_WT_desired", AbstractValue.Make(RigidTransform())
         )
-        # [q, v, status, 1 + the index in _bodies of the body at a wall (0: none)]
-        initial = np.concatenate([np.asarray(q_initial, float), np.zeros(n + 2)])
-        self._state = self.DeclareDiscreteState(initial)
+        # q, v, [status], [1 + the index in _bodies of the body at a wall (0: none)]
+        self._q = self.DeclareDiscreteState(np.asarray(q_initial, float))
+        self._v = self.DeclareDiscreteState(n)
+        self._status = self.DeclareDiscreteState(1)
+        self._wall = self.DeclareDiscreteState(1)
         self.DeclarePeriodicDiscreteUpdateEvent(period, 0.0, self._Update)
-        # The outputs are parts of the state: cached until it changes.
-        for name, part in (
-            ("position_commanded", slice(0, n)),
-            ("velocity_commanded", slice(n, 2 * n)),
-            ("status", slice(2 * n, 2 * n + 1)),
-        ):
-            self.DeclareVectorOutputPort(
-                name,
-                part.stop - part.start,
-                lambda c, o, part=part: self._Output(c, o, part),
-                prerequisites_of_calc={self.xd_ticket()},
-            )
+        # Outputs copied from the state by Drake, without a Python call.
+        self.DeclareStateOutputPort("position_commanded", self._q)
+        self.DeclareStateOutputPort("velocity_commanded", self._v)
+        self.DeclareStateOutputPort("status", self._status)
         self.DeclareAbstractOutputPort(
             "failure",
             lambda: AbstractValue.Make(""),
@@ -110,13 +104,12 @@ class DifferentialIkServo(LeafSystem):
         )
 
     def _Update(self, context: Context, discrete: DiscreteValues) -> None:
-        n = self._n
-        x = context.get_discrete_state(self._state).get_value()
-        q, v = x[:n], x[n : 2 * n]
-        if x[-1] > 0:  # at a wall: brake to a stop and stay
-            state = x.copy()
-            state[:n], state[n : 2 * n] = BrakeStep(q, v, self._period, self._limits)
-            discrete.set_value(self._state, state)
+        q = context.get_discrete_state(self._q).get_value()
+        v = context.get_discrete_state(self._v).get_value()
+        if context.get_discrete_state(self._wall)[0] > 0:  # at a wall: brake to a stop, stay
+            q_next, v_next = BrakeStep(q, v, self._period, self._limits)
+            discrete.set_value(self._q, q_next)
+            discrete.set_value(self._v, v_next)
             return
         plant, plant_context = self._plant, self._plant_context
         plant.SetPositions(plant_context, q)
@@ -140,10 +133,10 @@ class DifferentialIkServo(LeafSystem):
         wall = self._BodyAtWall(StoppingPositions(q_next, v_next, self._limits))
         if wall:
             q_next, v_next = BrakeStep(q, v, self._period, self._limits)
-        state = np.empty(len(x))
-        state[:n], state[n : 2 * n] = q_next, v_next
-        state[2 * n], state[2 * n + 1] = float(limited), wall
-        discrete.set_value(self._state, state)
+        discrete.set_value(self._q, q_next)
+        discrete.set_value(self._v, v_next)
+        discrete.set_value(self._status, [float(limited)])
+        discrete.set_value(self._wall, [float(wall)])
 
     def _BodyAtWall(self, q: list[float]) -> int:
         """1 + the index of the first body whose origin at q (rad) lies outside the walls,
@@ -165,13 +158,10 @@ class DifferentialIkServo(LeafSystem):
         return 0
 
     def _CalcFailure(self, context: Context, output: AbstractValue) -> None:
-        k = int(context.get_discrete_state(self._state).get_value()[-1])
+        k = int(context.get_discrete_state(self._wall)[0])
         output.set_value(
             ""
             if k == 0
             else f"{self._bodies[k - 1].name()} would leave the workspace "
             f"({self._workspace.Describe()}; m, base frame)"
         )
-
-    def _Output(self, context: Context, output: BasicVector, part: slice) -> None:
-        output.SetFromVector(context.get_discrete_state(self._state).get_value()[part])
