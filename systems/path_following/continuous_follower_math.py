@@ -34,6 +34,7 @@ and is DONE.
 
 import bisect
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass, field, replace
 
 import numpy as np
@@ -48,6 +49,8 @@ FOLLOW, SEARCH, BACK, RETRY, DONE = range(5)
 # asymptotically.
 END_OF_LEG = 5e-4
 MODE_NAMES = ("follow", "search", "back", "retry", "done")
+# A 3-vector as floats (x, y, z).
+Vector = Sequence[float]
 
 
 @dataclass
@@ -204,26 +207,36 @@ class LocalFit:
     span: float = 0.0
     # Derived once (Advance reads them every servo period): |c| (1/m); the curvature the
     # readings support, |c| less two standard errors, >= 0 (1/m); the curvature vector
-    # of the extrapolation ahead of p (c scaled to the significant curvature).
+    # of the extrapolation ahead of p (c scaled to the significant curvature); Point's
+    # vectors as floats (p, u, c / 2 behind p; heading, c_ahead / 2 ahead of it).
     curvature: float = field(init=False, repr=False)
     significant_curvature: float = field(init=False, repr=False)
     c_ahead: np.ndarray = field(init=False, repr=False)
+    _behind: tuple[Vector, Vector, Vector] = field(init=False, repr=False, compare=False)
+    _ahead: tuple[Vector, Vector, Vector] = field(init=False, repr=False, compare=False)
 
     def __post_init__(self) -> None:
         k = _Norm(self.c)
         significant = max(k - 2 * self.curvature_error, 0.0)
+        c_ahead = self.c * (significant / k) if k > 0 else self.c
+        p = tuple(self.p.tolist())
         object.__setattr__(self, "curvature", k)
         object.__setattr__(self, "significant_curvature", significant)
-        object.__setattr__(self, "c_ahead", self.c * (significant / k) if k > 0 else self.c)
+        object.__setattr__(self, "c_ahead", c_ahead)
+        object.__setattr__(self, "_behind", (p, tuple(self.u.tolist()), _Half(self.c)))
+        object.__setattr__(self, "_ahead", (p, tuple(self.heading.tolist()), _Half(c_ahead)))
 
-    def Point(self, s: float) -> np.ndarray:
-        """The hose at path coordinate s (m, W): the quadratic within the window; ahead
-        of p, along `heading` bending by the significant curvature (the quadratic's end
-        slope and curvature, extrapolated, carry the noise of the readings ahead)."""
+    def Point(self, s: float) -> Vector:
+        """The hose at path coordinate s (m, W; floats): the quadratic within the window;
+        ahead of p, along `heading` bending by the significant curvature (the quadratic's
+        end slope and curvature, extrapolated, carry the noise of the readings ahead)."""
         d = s - self.s
-        if d <= 0:
-            return self.p + self.u * d + 0.5 * self.c * d * d
-        return self.p + self.heading * d + 0.5 * self.c_ahead * d * d
+        p, u, h = self._behind if d <= 0 else self._ahead
+        return (
+            p[0] + u[0] * d + h[0] * d * d,
+            p[1] + u[1] * d + h[1] * d * d,
+            p[2] + u[2] * d + h[2] * d * d,
+        )
 
 
 @dataclass(frozen=True)
@@ -446,7 +459,7 @@ def _Direction(derivative: list[float], previous: np.ndarray) -> np.ndarray:
     return np.array([v / norm for v in derivative])
 
 
-def _Dot(a: list[float], b: list[float]) -> float:
+def _Dot(a: Vector, b: Vector) -> float:
     return a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
 
 
@@ -533,7 +546,8 @@ def OnReading(
 def Advance(
     ref: Reference, estimate: HoseEstimate, dt: float, config: ContinuousConfig
 ) -> Reference:
-    """The target one servo period later (module docstring)."""
+    """The target one servo period later (module docstring). Its 3-vectors in floats: numpy's
+    per-call overhead on them costs more than the arithmetic, every servo period."""
     if ref.mode == DONE:
         return replace(ref, v=0.0)
     fit = estimate.fit
@@ -554,7 +568,8 @@ def Advance(
     # proportion: it waits for the tool to turn instead of dragging it off the hose
     # sideways. (The heading of 30 mm of noisy readings wobbles by a few degrees, which
     # tilts the detection plane harmlessly.)
-    lag = math.acos(max(-1.0, min(1.0, float(ref.x @ fit.heading)))) if ref.mode == FOLLOW else 0.0
+    x_ref, heading = ref.x.tolist(), fit.heading.tolist()
+    lag = math.acos(max(-1.0, min(1.0, _Dot(x_ref, heading)))) if ref.mode == FOLLOW else 0.0
     tolerance = math.radians(config.heading_tolerance_deg)
     if lag > tolerance:
         v_goal *= tolerance / lag
@@ -563,30 +578,35 @@ def Advance(
     # The target moves with the path it is on (the estimate's curve in FOLLOW, the search's
     # line, the trail backwards), then is corrected toward the path's point at a bounded
     # speed: a new fit moves that point, and the correction filters the jump.
+    r_ref = ref.r.tolist()
     if ref.mode == RETRY:
         s = ref.s + v * dt
-        moved = ref.r + ref.retry_direction * v * dt
-        goal, x_goal = moved, ref.retry_direction
+        x_goal = ref.retry_direction.tolist()
+        moved = goal = [a + b * v * dt for a, b in zip(r_ref, x_goal, strict=True)]
     elif ref.mode == BACK:
         s = ref.s - v * dt
-        goal, x_goal = _BackPoint(estimate, ref, s)
-        moved = ref.r + goal - _BackPoint(estimate, ref, ref.s)[0]
+        goal, x_goal = (w.tolist() for w in _BackPoint(estimate, ref, s))
+        back = _BackPoint(estimate, ref, ref.s)[0].tolist()
+        moved = [a + b - c for a, b, c in zip(r_ref, goal, back, strict=True)]
     elif ref.mode == SEARCH:  # straight on: the fit's curvature is not extrapolated so far
         s = ref.s + v * dt
-        goal, x_goal = fit.p + fit.u * (s - fit.s), fit.u
-        moved = ref.r + fit.u * v * dt
+        p, x_goal = fit.p.tolist(), fit.u.tolist()
+        goal = [a + b * (s - fit.s) for a, b in zip(p, x_goal, strict=True)]
+        moved = [a + b * v * dt for a, b in zip(r_ref, x_goal, strict=True)]
     else:
         s = ref.s + v * dt
-        goal, x_goal = fit.Point(s), fit.heading
-        moved = ref.r + goal - fit.Point(ref.s)
-    d = goal - moved
-    gap = math.sqrt(float(d @ d))
+        goal, x_goal = fit.Point(s), heading
+        back = fit.Point(ref.s)
+        moved = [a + b - c for a, b, c in zip(r_ref, goal, back, strict=True)]
+    d = [a - b for a, b in zip(goal, moved, strict=True)]
+    gap = math.sqrt(_Dot(d, d))
     budget = min(config.correction_gain * gap, config.max_correction_speed) * dt
-    r = _Toward(moved, goal, budget)
-    angle = math.acos(max(-1.0, min(1.0, float(ref.x @ x_goal))))
+    # Toward the goal by at most the budget.
+    r = goal if gap <= budget else [a + b * (budget / gap) for a, b in zip(moved, d, strict=True)]
+    angle = math.acos(max(-1.0, min(1.0, _Dot(x_ref, x_goal))))
     turn = min(config.correction_gain * angle, math.radians(config.max_turn_rate_deg)) * dt
-    x = _Turn(ref.x, x_goal, turn)
-    ref = replace(ref, r=r, x=x, s=s, v=v)
+    x = _Turn(x_ref, x_goal, turn)
+    ref = replace(ref, r=np.array(r), x=np.array(x), s=s, v=v)
     if remaining <= END_OF_LEG:
         ref = _NextSearchStage(ref, estimate, config)
     return ref
@@ -623,24 +643,26 @@ def _Norm(v: np.ndarray) -> float:
     return math.sqrt(float(v.dot(v)))
 
 
-def _Toward(a: np.ndarray, b: np.ndarray, step: float) -> np.ndarray:
-    d = b - a
-    n = _Norm(d)
-    return b.copy() if n <= step else a + d * (step / n)
+def _Half(v: np.ndarray) -> Vector:
+    return tuple((0.5 * v).tolist())
 
 
-def _Turn(x: np.ndarray, goal: np.ndarray, angle: float) -> np.ndarray:
+def _Turn(x: Vector, goal: Vector, angle: float) -> Vector:
     """x (unit) turned toward goal by at most `angle` (rad), unit length: within the plane
-    of the two, toward goal's part perpendicular to x."""
-    c = max(-1.0, min(1.0, float(x @ goal)))
+    of the two, toward goal's part perpendicular to x (floats)."""
+    c = max(-1.0, min(1.0, _Dot(x, goal)))
     between = math.acos(c)
     if between <= angle:
-        return goal / math.sqrt(float(goal @ goal))
-    perpendicular = goal - c * x
-    length = math.sqrt(float(perpendicular @ perpendicular))
+        norm = math.sqrt(_Dot(goal, goal))
+        return [v / norm for v in goal]
+    perpendicular = [a - c * b for a, b in zip(goal, x, strict=True)]
+    length = math.sqrt(_Dot(perpendicular, perpendicular))
     if length < 1e-12:  # goal opposite x: turn toward the world z axis (x if x is z)
         toward = [0.0, 0.0, 1.0] if abs(x[2]) < 1 - 1e-9 else [1.0, 0.0, 0.0]
-        perpendicular = np.array(toward) - float(x @ toward) * x
-        length = math.sqrt(float(perpendicular @ perpendicular))
-    turned = x * math.cos(angle) + perpendicular * (math.sin(angle) / length)
-    return turned / math.sqrt(float(turned @ turned))
+        along = _Dot(x, toward)
+        perpendicular = [a - along * b for a, b in zip(toward, x, strict=True)]
+        length = math.sqrt(_Dot(perpendicular, perpendicular))
+    cos, scale = math.cos(angle), math.sin(angle) / length
+    turned = [a * cos + b * scale for a, b in zip(x, perpendicular, strict=True)]
+    norm = math.sqrt(_Dot(turned, turned))
+    return [v / norm for v in turned]
