@@ -35,7 +35,8 @@ and is DONE.
 import bisect
 import math
 from collections.abc import Sequence
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, field
+from typing import Any, TypeVar
 
 import numpy as np
 from pydrake.math import RigidTransform, RotationMatrix
@@ -51,6 +52,7 @@ END_OF_LEG = 5e-4
 MODE_NAMES = ("follow", "search", "back", "retry", "done")
 # A 3-vector as floats (x, y, z).
 Vector = Sequence[float]
+Frozen = TypeVar("Frozen")
 
 
 @dataclass
@@ -144,39 +146,38 @@ class ContinuousConfig:
             raise ConfigurationError("continuous: need history >= 10 servo_period")
 
 
+@dataclass(frozen=True)
 class JointHistory:
-    """Measured joint positions (rad) at their times (s), the last `span` seconds."""
+    """Measured joint positions (rad) at their times (s, increasing), the last `span`
+    seconds; immutable (With returns the history with one more measurement)."""
 
-    def __init__(self, span: float) -> None:
-        self._span = span
-        self._t: list[float] = []
-        self._q: list[np.ndarray] = []
+    span: float
+    times: tuple[float, ...] = ()
+    positions: tuple[np.ndarray, ...] = ()
 
-    @staticmethod
-    def Copy(other: "JointHistory") -> "JointHistory":
-        copy = JointHistory(other._span)
-        copy._t, copy._q = list(other._t), list(other._q)
-        return copy
-
-    def Add(self, t: float, q: np.ndarray) -> None:
-        if self._t and t <= self._t[-1]:
-            self._t[-1], self._q[-1] = t, np.array(q, float)
-        else:
-            self._t.append(t)
-            self._q.append(np.array(q, float))
-        while len(self._t) > 2 and self._t[1] < t - self._span:
-            del self._t[0], self._q[0]
+    def With(self, t: float, q: np.ndarray) -> "JointHistory":
+        """The history with q measured at t (replacing a measurement at or after t), less
+        the measurements before t - span that interpolation no longer needs (two kept)."""
+        times, positions = self.times, self.positions
+        if times and t <= times[-1]:
+            times, positions = times[:-1], positions[:-1]
+        times, positions = times + (t,), positions + (np.array(q, float),)
+        # The first measurement kept: the last one before t - span.
+        first = min(max(bisect.bisect_left(times, t - self.span) - 1, 0), len(times) - 2)
+        if first > 0:
+            times, positions = times[first:], positions[first:]
+        return JointHistory(self.span, times, positions)
 
     def At(self, t: float) -> np.ndarray:
         """q at time t, linearly interpolated (the nearest end outside the kept span)."""
-        times = self._t
+        times = self.times
         if t <= times[0]:
-            return self._q[0]
+            return self.positions[0]
         if t >= times[-1]:
-            return self._q[-1]
+            return self.positions[-1]
         k = bisect.bisect_left(times, t)  # np.searchsorted's index, without a list -> array
         w = (t - times[k - 1]) / (times[k] - times[k - 1])
-        return (1 - w) * self._q[k - 1] + w * self._q[k]
+        return (1 - w) * self.positions[k - 1] + w * self.positions[k]
 
 
 @dataclass(frozen=True)
@@ -515,6 +516,18 @@ class Reference:
         return RigidTransform(OrientationFromVector(self.x), self.r)
 
 
+def Replaced(value: Frozen, **changes: Any) -> Frozen:
+    """dataclasses.replace(value, **changes) for a frozen dataclass that derives nothing
+    (no __post_init__, no init=False field: Reference, the follower's state): a copy of
+    its fields with `changes`. replace walks the fields and runs __init__, a few us that
+    the follower would pay several times per servo period."""
+    if not changes.keys() <= value.__dataclass_fields__.keys():
+        raise TypeError(f"{type(value).__name__} has no field among {sorted(changes)}")
+    copy = object.__new__(type(value))
+    copy.__dict__.update(value.__dict__, **changes)
+    return copy
+
+
 def OnReading(
     ref: Reference, estimate: HoseEstimate, X_WT: RigidTransform, config: ContinuousConfig
 ) -> Reference:
@@ -528,18 +541,18 @@ def OnReading(
     fit = estimate.fit
     s_tool = estimate.s_tool
     if ref.mode == FOLLOW:
-        ref = replace(ref, s=s_tool + float((ref.r - X_WT.translation()) @ fit.u))
+        ref = Replaced(ref, s=s_tool + float((ref.r - X_WT.translation()) @ fit.u))
     detected = estimate.IsDetected()
     if detected and ref.mode in (SEARCH, RETRY):
-        return replace(ref, mode=FOLLOW, retry_direction=None)
+        return Replaced(ref, mode=FOLLOW, retry_direction=None)
     if (
         ref.mode == FOLLOW
         and ref.lost_s is not None
         and fit.s > ref.lost_s + config.search_distance
     ):
-        return replace(ref, retry=0, lost_s=None, recoveries=ref.recoveries + 1)
+        return Replaced(ref, retry=0, lost_s=None, recoveries=ref.recoveries + 1)
     if not detected and ref.mode == FOLLOW and s_tool > fit.s + config.loss_distance:
-        return replace(ref, mode=SEARCH, lost_s=fit.s if ref.lost_s is None else ref.lost_s)
+        return Replaced(ref, mode=SEARCH, lost_s=fit.s if ref.lost_s is None else ref.lost_s)
     return ref
 
 
@@ -549,7 +562,7 @@ def Advance(
     """The target one servo period later (module docstring). Its 3-vectors in floats: numpy's
     per-call overhead on them costs more than the arithmetic, every servo period."""
     if ref.mode == DONE:
-        return replace(ref, v=0.0)
+        return Replaced(ref, v=0.0)
     fit = estimate.fit
     if ref.mode == FOLLOW:
         v_goal, s_stop = TargetSpeed(fit, config), fit.s + config.look_ahead
@@ -606,7 +619,7 @@ def Advance(
     angle = math.acos(max(-1.0, min(1.0, _Dot(x_ref, x_goal))))
     turn = min(config.correction_gain * angle, math.radians(config.max_turn_rate_deg)) * dt
     x = _Turn(x_ref, x_goal, turn)
-    ref = replace(ref, r=np.array(r), x=np.array(x), s=s, v=v)
+    ref = Replaced(ref, r=np.array(r), x=np.array(x), s=s, v=v)
     if remaining <= END_OF_LEG:
         ref = _NextSearchStage(ref, estimate, config)
     return ref
@@ -616,15 +629,15 @@ def _NextSearchStage(ref: Reference, estimate: HoseEstimate, config: ContinuousC
     """At the end of a search leg: forward legs turn back, a finished back-up starts the
     next retry, or (none left) the hose has ended."""
     if ref.mode in (SEARCH, RETRY):
-        return replace(ref, mode=BACK, v=0.0)
+        return Replaced(ref, mode=BACK, v=0.0)
     if ref.mode != BACK:
         return ref
     if ref.retry >= len(config.search_turns_deg):
-        return replace(ref, mode=DONE, v=0.0)
+        return Replaced(ref, mode=DONE, v=0.0)
     fit = estimate.fit
     turn = math.radians(config.search_turns_deg[ref.retry])
     direction = RotationMatrix.MakeZRotation(turn) @ fit.u
-    return replace(ref, mode=RETRY, retry=ref.retry + 1, retry_direction=direction, s=fit.s, v=0.0)
+    return Replaced(ref, mode=RETRY, retry=ref.retry + 1, retry_direction=direction, s=fit.s, v=0.0)
 
 
 def _BackPoint(estimate: HoseEstimate, ref: Reference, s: float) -> tuple[np.ndarray, np.ndarray]:
