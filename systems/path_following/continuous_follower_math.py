@@ -33,6 +33,7 @@ and is DONE.
 """
 
 import bisect
+import functools
 import math
 from collections.abc import Sequence
 from dataclasses import dataclass, field
@@ -208,31 +209,33 @@ class LocalFit:
     span: float = 0.0
     # Derived once (Advance reads them every servo period): |c| (1/m); the curvature the
     # readings support, |c| less two standard errors, >= 0 (1/m); the curvature vector
-    # of the extrapolation ahead of p (c scaled to the significant curvature); Point's
-    # vectors as floats (p, u, c / 2 behind p; heading, c_ahead / 2 ahead of it).
+    # of the extrapolation ahead of p (c scaled to the significant curvature).
     curvature: float = field(init=False, repr=False)
     significant_curvature: float = field(init=False, repr=False)
     c_ahead: np.ndarray = field(init=False, repr=False)
-    _behind: tuple[Vector, Vector, Vector] = field(init=False, repr=False, compare=False)
-    _ahead: tuple[Vector, Vector, Vector] = field(init=False, repr=False, compare=False)
 
     def __post_init__(self) -> None:
         k = _Norm(self.c)
         significant = max(k - 2 * self.curvature_error, 0.0)
-        c_ahead = self.c * (significant / k) if k > 0 else self.c
-        p = tuple(self.p.tolist())
         object.__setattr__(self, "curvature", k)
         object.__setattr__(self, "significant_curvature", significant)
-        object.__setattr__(self, "c_ahead", c_ahead)
-        object.__setattr__(self, "_behind", (p, tuple(self.u.tolist()), _Half(self.c)))
-        object.__setattr__(self, "_ahead", (p, tuple(self.heading.tolist()), _Half(c_ahead)))
+        object.__setattr__(self, "c_ahead", self.c * (significant / k) if k > 0 else self.c)
+
+    @functools.cached_property
+    def _quadratics(self) -> tuple[tuple[Vector, Vector, Vector], tuple[Vector, Vector, Vector]]:
+        """Point's (p, slope, half the curvature vector) as floats, behind and ahead of p;
+        made on first use (an axis fit never needs them)."""
+        p = tuple(self.p.tolist())
+        behind = (p, tuple(self.u.tolist()), _Half(self.c))
+        return behind, (p, tuple(self.heading.tolist()), _Half(self.c_ahead))
 
     def Point(self, s: float) -> Vector:
         """The hose at path coordinate s (m, W; floats): the quadratic within the window;
         ahead of p, along `heading` bending by the significant curvature (the quadratic's
         end slope and curvature, extrapolated, carry the noise of the readings ahead)."""
         d = s - self.s
-        p, u, h = self._behind if d <= 0 else self._ahead
+        behind, ahead = self._quadratics
+        p, u, h = behind if d <= 0 else ahead
         return (
             p[0] + u[0] * d + h[0] * d * d,
             p[1] + u[1] * d + h[1] * d * d,

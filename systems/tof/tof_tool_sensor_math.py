@@ -421,13 +421,16 @@ class DetectionGrid:
         ad = a0 * d0 + a1 * d1 + a2 * d2
         wa0, wd0 = cos_half * za, cos_half * zd
         gap = distance * distance - r * r
+        # The loop runs some 250 times a reading: names bound locally, and a < 1e-12 tested
+        # inline for max(a, 1e-12) (the same value, NaN included).
         t = []
+        append, sqrt, inf = t.append, math.sqrt, math.inf
         for cos_phi, sin_phi in self._rim:
             wa = wa0 + cos_phi * xa + sin_phi * ya
             b = wd0 + cos_phi * xd + sin_phi * yd - wa * ad
             a = 1.0 - wa * wa
             disc = b * b - a * gap
-            t.append((-b - math.sqrt(disc)) / max(a, 1e-12) if disc >= 0 and b < 0 else math.inf)
+            append((-b - sqrt(disc)) / (1e-12 if a < 1e-12 else a) if disc >= 0 and b < 0 else inf)
         best = min(t)
         if best == math.inf:
             return None
