@@ -151,10 +151,14 @@ def test_search_legs_run_forward_then_back():
 def test_joint_history_interpolates_at_the_stamp():
     history = JointHistory(0.1)
     for k in range(100):
-        history.Add(k * DT, np.full(2, k * DT))
+        history = history.With(k * DT, np.full(2, k * DT))
     assert history.At(0.3).tolist() == pytest.approx([0.3, 0.3])
     assert history.At(0.3942) == pytest.approx([0.3942, 0.3942])
     assert history.At(0.0)[0] == pytest.approx(0.396 - 0.1 - DT, abs=DT)  # older than kept
+    # immutable: a later measurement (or one replacing the latest) leaves it as it was
+    later = history.With(0.4, np.full(2, 1.0)).With(0.4, np.full(2, 2.0))
+    assert later.At(0.4).tolist() == [2.0, 2.0] and len(later.times) == len(history.times)
+    assert history.At(1.0).tolist() == [0.396, 0.396]
 
 
 def _Limits(n: int, q_limit: float = 3.0) -> JointLimits:

@@ -16,6 +16,7 @@ the servo's `failure` (a workspace wall reached), which ends the run.
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, replace
 
 import numpy as np
@@ -35,6 +36,7 @@ from guidedarm.systems.path_following.continuous_follower_math import (
     JointHistory,
     OnReading,
     Reference,
+    Replaced,
 )
 from guidedarm.systems.path_following.path_follower import DeclareStepOutputs, StoppedStatus
 from guidedarm.systems.path_following.path_follower_math import EstimateHose
@@ -52,7 +54,7 @@ STALL_TIME = 2.0
 @dataclass(frozen=True)
 class _Run:
     """The follower's abstract state; never changed in place (see PathFollower's _Loop):
-    JointHistory is replaced by a copy before it changes."""
+    Replaced (continuous_follower_math) makes the next one."""
 
     reference: Reference
     estimate: HoseEstimate
@@ -110,8 +112,7 @@ class ContinuousFollower(LeafSystem):
         self._plant_context = plant.CreateDefaultContext()
         n = len(q_initial)
         X_WT = self._ToolPose(np.asarray(q_initial, float))
-        history = JointHistory(config.history)
-        history.Add(0.0, q_initial)
+        history = JointHistory(config.history).With(0.0, q_initial)
         start = _Run(Reference.Start(X_WT), HoseEstimate.Start(X_WT), history)
         self._ranges = self.DeclareVectorInputPort("ranges", 6)
         self._valid = self.DeclareVectorInputPort("valid", 6)
@@ -154,9 +155,7 @@ class ContinuousFollower(LeafSystem):
             return EventStatus.DidNothing()
         t = context.get_time()
         q = self._position.Eval(context)
-        history = JointHistory.Copy(run.history)
-        history.Add(t, q)
-        run = self._Stall(run, history, q, t)
+        run = self._Stall(run, run.history.With(t, q), q, t)
         stamps = self._measured_at.Eval(context)
         # The mean as sum / 6 (numpy's mean's value) and the min over floats: numpy's
         # per-call overhead counts at the servo rate.
@@ -172,7 +171,7 @@ class ContinuousFollower(LeafSystem):
             reference = Advance(
                 run.reference, run.estimate, self._config.servo_period, self._config
             )
-            run = replace(run, reference=reference)
+            run = Replaced(run, reference=reference)
         state.get_mutable_abstract_state(self._run).set_value(run)
         return StoppedStatus(self, run.stopped)
 
@@ -185,8 +184,8 @@ class ContinuousFollower(LeafSystem):
         if run.still_q is None or any(
             abs(a - b) > STILL_TOLERANCE for a, b in zip(q_list, run.still_q, strict=True)
         ):
-            return replace(run, history=history, still_q=q_list, still_since=t)
-        run = replace(run, history=history)
+            return Replaced(run, history=history, still_q=q_list, still_since=t)
+        run = Replaced(run, history=history)
         if t - run.still_since < STALL_TIME:
             return run
         return _CannotFollow(
@@ -216,35 +215,37 @@ class ContinuousFollower(LeafSystem):
         if not estimate.IsDetected():
             S_W = None
         detected, errors = self._grid.Detect(ranges, valid)
-        record = np.concatenate(
+        # One array from floats (RECORD_FIELDS): numpy's per-piece overhead counts.
+        S = S_W if S_W is not None else p_WO
+        record = np.array(
             [
-                [run.step, stamp],
-                p_WO,
-                S_W if S_W is not None else p_WO,
-                [
-                    float(S_W is not None),
-                    0.0,
-                    float(reference.mode != FOLLOW),
-                    reference.retry,
-                    reference.recoveries,
-                    float(reference.mode == DONE),
-                    0.0,
-                ],
-                ranges,
-                valid.astype(float),
-            ]
+                run.step,
+                stamp,
+                *p_WO.tolist(),
+                *S.tolist(),
+                float(S_W is not None),
+                0.0,
+                float(reference.mode != FOLLOW),
+                reference.retry,
+                reference.recoveries,
+                float(reference.mode == DONE),
+                0.0,
+                *ranges.tolist(),
+                *valid.tolist(),
+            ],
+            float,
         )
-        lag = np.linalg.norm(
-            self._ToolPose(run.history.At(context.get_time())).translation() - run.reference.r
-        )
-        run = replace(
+        # The arm's lag behind the target, |p| as np.linalg.norm's sqrt(p . p).
+        p = self._ToolPose(run.history.At(context.get_time())).translation() - run.reference.r
+        lag = math.sqrt(float(p.dot(p)))
+        run = Replaced(
             run,
             reference=reference,
             estimate=estimate,
             stamp=stamp,
             step=run.step + 1,
             record=record,
-            grid=np.concatenate([detected.ravel(), errors.ravel()]).astype(float),
+            grid=np.concatenate((detected, errors), axis=None).astype(float),
         )
         if lag > MAX_LAG:
             run = _CannotFollow(
@@ -268,5 +269,5 @@ def _CannotFollow(run: _Run, why: str) -> _Run:
     or back-up past the latest estimate, the hose ends there as far as the arm can reach
     (DONE; a search mid-hose then fails on its coverage)."""
     if run.reference.mode == FOLLOW:
-        return replace(run, failure=why)
-    return replace(run, reference=replace(run.reference, mode=DONE, v=0.0))
+        return Replaced(run, failure=why)
+    return Replaced(run, reference=Replaced(run.reference, mode=DONE, v=0.0))

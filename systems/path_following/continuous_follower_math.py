@@ -33,8 +33,11 @@ and is DONE.
 """
 
 import bisect
+import functools
 import math
-from dataclasses import dataclass, field, replace
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+from typing import Any, TypeVar
 
 import numpy as np
 from pydrake.math import RigidTransform, RotationMatrix
@@ -48,6 +51,9 @@ FOLLOW, SEARCH, BACK, RETRY, DONE = range(5)
 # asymptotically.
 END_OF_LEG = 5e-4
 MODE_NAMES = ("follow", "search", "back", "retry", "done")
+# A 3-vector as floats (x, y, z).
+Vector = Sequence[float]
+Frozen = TypeVar("Frozen")
 
 
 @dataclass
@@ -141,39 +147,38 @@ class ContinuousConfig:
             raise ConfigurationError("continuous: need history >= 10 servo_period")
 
 
+@dataclass(frozen=True)
 class JointHistory:
-    """Measured joint positions (rad) at their times (s), the last `span` seconds."""
+    """Measured joint positions (rad) at their times (s, increasing), the last `span`
+    seconds; immutable (With returns the history with one more measurement)."""
 
-    def __init__(self, span: float) -> None:
-        self._span = span
-        self._t: list[float] = []
-        self._q: list[np.ndarray] = []
+    span: float
+    times: tuple[float, ...] = ()
+    positions: tuple[np.ndarray, ...] = ()
 
-    @staticmethod
-    def Copy(other: "JointHistory") -> "JointHistory":
-        copy = JointHistory(other._span)
-        copy._t, copy._q = list(other._t), list(other._q)
-        return copy
-
-    def Add(self, t: float, q: np.ndarray) -> None:
-        if self._t and t <= self._t[-1]:
-            self._t[-1], self._q[-1] = t, np.array(q, float)
-        else:
-            self._t.append(t)
-            self._q.append(np.array(q, float))
-        while len(self._t) > 2 and self._t[1] < t - self._span:
-            del self._t[0], self._q[0]
+    def With(self, t: float, q: np.ndarray) -> "JointHistory":
+        """The history with q measured at t (replacing a measurement at or after t), less
+        the measurements before t - span that interpolation no longer needs (two kept)."""
+        times, positions = self.times, self.positions
+        if times and t <= times[-1]:
+            times, positions = times[:-1], positions[:-1]
+        times, positions = times + (t,), positions + (np.array(q, float),)
+        # The first measurement kept: the last one before t - span.
+        first = min(max(bisect.bisect_left(times, t - self.span) - 1, 0), len(times) - 2)
+        if first > 0:
+            times, positions = times[first:], positions[first:]
+        return JointHistory(self.span, times, positions)
 
     def At(self, t: float) -> np.ndarray:
         """q at time t, linearly interpolated (the nearest end outside the kept span)."""
-        times = self._t
+        times = self.times
         if t <= times[0]:
-            return self._q[0]
+            return self.positions[0]
         if t >= times[-1]:
-            return self._q[-1]
+            return self.positions[-1]
         k = bisect.bisect_left(times, t)  # np.searchsorted's index, without a list -> array
         w = (t - times[k - 1]) / (times[k] - times[k - 1])
-        return (1 - w) * self._q[k - 1] + w * self._q[k]
+        return (1 - w) * self.positions[k - 1] + w * self.positions[k]
 
 
 @dataclass(frozen=True)
@@ -216,14 +221,26 @@ class LocalFit:
         object.__setattr__(self, "significant_curvature", significant)
         object.__setattr__(self, "c_ahead", self.c * (significant / k) if k > 0 else self.c)
 
-    def Point(self, s: float) -> np.ndarray:
-        """The hose at path coordinate s (m, W): the quadratic within the window; ahead
-        of p, along `heading` bending by the significant curvature (the quadratic's end
-        slope and curvature, extrapolated, carry the noise of the readings ahead)."""
+    @functools.cached_property
+    def _quadratics(self) -> tuple[tuple[Vector, Vector, Vector], tuple[Vector, Vector, Vector]]:
+        """Point's (p, slope, half the curvature vector) as floats, behind and ahead of p;
+        made on first use (an axis fit never needs them)."""
+        p = tuple(self.p.tolist())
+        behind = (p, tuple(self.u.tolist()), _Half(self.c))
+        return behind, (p, tuple(self.heading.tolist()), _Half(self.c_ahead))
+
+    def Point(self, s: float) -> Vector:
+        """The hose at path coordinate s (m, W; floats): the quadratic within the window;
+        ahead of p, along `heading` bending by the significant curvature (the quadratic's
+        end slope and curvature, extrapolated, carry the noise of the readings ahead)."""
         d = s - self.s
-        if d <= 0:
-            return self.p + self.u * d + 0.5 * self.c * d * d
-        return self.p + self.heading * d + 0.5 * self.c_ahead * d * d
+        behind, ahead = self._quadratics
+        p, u, h = behind if d <= 0 else ahead
+        return (
+            p[0] + u[0] * d + h[0] * d * d,
+            p[1] + u[1] * d + h[1] * d * d,
+            p[2] + u[2] * d + h[2] * d * d,
+        )
 
 
 @dataclass(frozen=True)
@@ -446,7 +463,7 @@ def _Direction(derivative: list[float], previous: np.ndarray) -> np.ndarray:
     return np.array([v / norm for v in derivative])
 
 
-def _Dot(a: list[float], b: list[float]) -> float:
+def _Dot(a: Vector, b: Vector) -> float:
     return a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
 
 
@@ -502,6 +519,18 @@ class Reference:
         return RigidTransform(OrientationFromVector(self.x), self.r)
 
 
+def Replaced(value: Frozen, **changes: Any) -> Frozen:
+    """dataclasses.replace(value, **changes) for a frozen dataclass that derives nothing
+    (no __post_init__, no init=False field: Reference, the follower's state): a copy of
+    its fields with `changes`. replace walks the fields and runs __init__, a few us that
+    the follower would pay several times per servo period."""
+    if not changes.keys() <= value.__dataclass_fields__.keys():
+        raise TypeError(f"{type(value).__name__} has no field among {sorted(changes)}")
+    copy = object.__new__(type(value))
+    copy.__dict__.update(value.__dict__, **changes)
+    return copy
+
+
 def OnReading(
     ref: Reference, estimate: HoseEstimate, X_WT: RigidTransform, config: ContinuousConfig
 ) -> Reference:
@@ -515,27 +544,28 @@ def OnReading(
     fit = estimate.fit
     s_tool = estimate.s_tool
     if ref.mode == FOLLOW:
-        ref = replace(ref, s=s_tool + float((ref.r - X_WT.translation()) @ fit.u))
+        ref = Replaced(ref, s=s_tool + float((ref.r - X_WT.translation()) @ fit.u))
     detected = estimate.IsDetected()
     if detected and ref.mode in (SEARCH, RETRY):
-        return replace(ref, mode=FOLLOW, retry_direction=None)
+        return Replaced(ref, mode=FOLLOW, retry_direction=None)
     if (
         ref.mode == FOLLOW
         and ref.lost_s is not None
         and fit.s > ref.lost_s + config.search_distance
     ):
-        return replace(ref, retry=0, lost_s=None, recoveries=ref.recoveries + 1)
+        return Replaced(ref, retry=0, lost_s=None, recoveries=ref.recoveries + 1)
     if not detected and ref.mode == FOLLOW and s_tool > fit.s + config.loss_distance:
-        return replace(ref, mode=SEARCH, lost_s=fit.s if ref.lost_s is None else ref.lost_s)
+        return Replaced(ref, mode=SEARCH, lost_s=fit.s if ref.lost_s is None else ref.lost_s)
     return ref
 
 
 def Advance(
     ref: Reference, estimate: HoseEstimate, dt: float, config: ContinuousConfig
 ) -> Reference:
-    """The target one servo period later (module docstring)."""
+    """The target one servo period later (module docstring). Its 3-vectors in floats: numpy's
+    per-call overhead on them costs more than the arithmetic, every servo period."""
     if ref.mode == DONE:
-        return replace(ref, v=0.0)
+        return Replaced(ref, v=0.0)
     fit = estimate.fit
     if ref.mode == FOLLOW:
         v_goal, s_stop = TargetSpeed(fit, config), fit.s + config.look_ahead
@@ -554,7 +584,8 @@ def Advance(
     # proportion: it waits for the tool to turn instead of dragging it off the hose
     # sideways. (The heading of 30 mm of noisy readings wobbles by a few degrees, which
     # tilts the detection plane harmlessly.)
-    lag = math.acos(max(-1.0, min(1.0, float(ref.x @ fit.heading)))) if ref.mode == FOLLOW else 0.0
+    x_ref, heading = ref.x.tolist(), fit.heading.tolist()
+    lag = math.acos(max(-1.0, min(1.0, _Dot(x_ref, heading)))) if ref.mode == FOLLOW else 0.0
     tolerance = math.radians(config.heading_tolerance_deg)
     if lag > tolerance:
         v_goal *= tolerance / lag
@@ -563,30 +594,35 @@ def Advance(
     # The target moves with the path it is on (the estimate's curve in FOLLOW, the search's
     # line, the trail backwards), then is corrected toward the path's point at a bounded
     # speed: a new fit moves that point, and the correction filters the jump.
+    r_ref = ref.r.tolist()
     if ref.mode == RETRY:
         s = ref.s + v * dt
-        moved = ref.r + ref.retry_direction * v * dt
-        goal, x_goal = moved, ref.retry_direction
+        x_goal = ref.retry_direction.tolist()
+        moved = goal = [a + b * v * dt for a, b in zip(r_ref, x_goal, strict=True)]
     elif ref.mode == BACK:
         s = ref.s - v * dt
-        goal, x_goal = _BackPoint(estimate, ref, s)
-        moved = ref.r + goal - _BackPoint(estimate, ref, ref.s)[0]
+        goal, x_goal = (w.tolist() for w in _BackPoint(estimate, ref, s))
+        back = _BackPoint(estimate, ref, ref.s)[0].tolist()
+        moved = [a + b - c for a, b, c in zip(r_ref, goal, back, strict=True)]
     elif ref.mode == SEARCH:  # straight on: the fit's curvature is not extrapolated so far
         s = ref.s + v * dt
-        goal, x_goal = fit.p + fit.u * (s - fit.s), fit.u
-        moved = ref.r + fit.u * v * dt
+        p, x_goal = fit.p.tolist(), fit.u.tolist()
+        goal = [a + b * (s - fit.s) for a, b in zip(p, x_goal, strict=True)]
+        moved = [a + b * v * dt for a, b in zip(r_ref, x_goal, strict=True)]
     else:
         s = ref.s + v * dt
-        goal, x_goal = fit.Point(s), fit.heading
-        moved = ref.r + goal - fit.Point(ref.s)
-    d = goal - moved
-    gap = math.sqrt(float(d @ d))
+        goal, x_goal = fit.Point(s), heading
+        back = fit.Point(ref.s)
+        moved = [a + b - c for a, b, c in zip(r_ref, goal, back, strict=True)]
+    d = [a - b for a, b in zip(goal, moved, strict=True)]
+    gap = math.sqrt(_Dot(d, d))
     budget = min(config.correction_gain * gap, config.max_correction_speed) * dt
-    r = _Toward(moved, goal, budget)
-    angle = math.acos(max(-1.0, min(1.0, float(ref.x @ x_goal))))
+    # Toward the goal by at most the budget.
+    r = goal if gap <= budget else [a + b * (budget / gap) for a, b in zip(moved, d, strict=True)]
+    angle = math.acos(max(-1.0, min(1.0, _Dot(x_ref, x_goal))))
     turn = min(config.correction_gain * angle, math.radians(config.max_turn_rate_deg)) * dt
-    x = _Turn(ref.x, x_goal, turn)
-    ref = replace(ref, r=r, x=x, s=s, v=v)
+    x = _Turn(x_ref, x_goal, turn)
+    ref = Replaced(ref, r=np.array(r), x=np.array(x), s=s, v=v)
     if remaining <= END_OF_LEG:
         ref = _NextSearchStage(ref, estimate, config)
     return ref
@@ -596,15 +632,15 @@ def _NextSearchStage(ref: Reference, estimate: HoseEstimate, config: ContinuousC
     """At the end of a search leg: forward legs turn back, a finished back-up starts the
     next retry, or (none left) the hose has ended."""
     if ref.mode in (SEARCH, RETRY):
-        return replace(ref, mode=BACK, v=0.0)
+        return Replaced(ref, mode=BACK, v=0.0)
     if ref.mode != BACK:
         return ref
     if ref.retry >= len(config.search_turns_deg):
-        return replace(ref, mode=DONE, v=0.0)
+        return Replaced(ref, mode=DONE, v=0.0)
     fit = estimate.fit
     turn = math.radians(config.search_turns_deg[ref.retry])
     direction = RotationMatrix.MakeZRotation(turn) @ fit.u
-    return replace(ref, mode=RETRY, retry=ref.retry + 1, retry_direction=direction, s=fit.s, v=0.0)
+    return Replaced(ref, mode=RETRY, retry=ref.retry + 1, retry_direction=direction, s=fit.s, v=0.0)
 
 
 def _BackPoint(estimate: HoseEstimate, ref: Reference, s: float) -> tuple[np.ndarray, np.ndarray]:
@@ -623,24 +659,26 @@ def _Norm(v: np.ndarray) -> float:
     return math.sqrt(float(v.dot(v)))
 
 
-def _Toward(a: np.ndarray, b: np.ndarray, step: float) -> np.ndarray:
-    d = b - a
-    n = _Norm(d)
-    return b.copy() if n <= step else a + d * (step / n)
+def _Half(v: np.ndarray) -> Vector:
+    return tuple((0.5 * v).tolist())
 
 
-def _Turn(x: np.ndarray, goal: np.ndarray, angle: float) -> np.ndarray:
+def _Turn(x: Vector, goal: Vector, angle: float) -> Vector:
     """x (unit) turned toward goal by at most `angle` (rad), unit length: within the plane
-    of the two, toward goal's part perpendicular to x."""
-    c = max(-1.0, min(1.0, float(x @ goal)))
+    of the two, toward goal's part perpendicular to x (floats)."""
+    c = max(-1.0, min(1.0, _Dot(x, goal)))
     between = math.acos(c)
     if between <= angle:
-        return goal / math.sqrt(float(goal @ goal))
-    perpendicular = goal - c * x
-    length = math.sqrt(float(perpendicular @ perpendicular))
+        norm = math.sqrt(_Dot(goal, goal))
+        return [v / norm for v in goal]
+    perpendicular = [a - c * b for a, b in zip(goal, x, strict=True)]
+    length = math.sqrt(_Dot(perpendicular, perpendicular))
     if length < 1e-12:  # goal opposite x: turn toward the world z axis (x if x is z)
         toward = [0.0, 0.0, 1.0] if abs(x[2]) < 1 - 1e-9 else [1.0, 0.0, 0.0]
-        perpendicular = np.array(toward) - float(x @ toward) * x
-        length = math.sqrt(float(perpendicular @ perpendicular))
-    turned = x * math.cos(angle) + perpendicular * (math.sin(angle) / length)
-    return turned / math.sqrt(float(turned @ turned))
+        along = _Dot(x, toward)
+        perpendicular = [a - along * b for a, b in zip(toward, x, strict=True)]
+        length = math.sqrt(_Dot(perpendicular, perpendicular))
+    cos, scale = math.cos(angle), math.sin(angle) / length
+    turned = [a * cos + b * scale for a, b in zip(x, perpendicular, strict=True)]
+    norm = math.sqrt(_Dot(turned, turned))
+    return [v / norm for v in turned]

@@ -224,6 +224,7 @@ class DetectionGrid:
         if self.cone_angle is not None:
             half = self.cone_angle / 2
             object.__setattr__(self, "_cone_cos", math.cos(half))
+            object.__setattr__(self, "_cone_sin", math.sin(half))
             rim = [
                 (math.sin(half) * math.cos(phi), math.sin(half) * math.sin(phi))
                 for phi in _RIM_PHI.tolist()
@@ -350,20 +351,30 @@ class DetectionGrid:
         """Range (m) sensor k reads for a hose centred at c (the detection plane, T), or None
         when its cone misses the hose: the nearest in-plane ray of the cone. With `axis`
         (unit, T) the hose is the cylinder of that axis through c (_CylinderRange)."""
+        c = tuple(np.asarray(c, float).tolist())
         if axis is not None:
-            c, axis = np.asarray(c, float).tolist(), np.asarray(axis, float).tolist()
-            return self._CylinderRange(k, tuple(c), tuple(axis))
-        half = self.cone_angle / 2
-        d = c - self.emitters[k]
-        distance = _Norm(d)
-        along = float(d @ self.axes[k])
+            return self._CylinderRange(k, c, tuple(np.asarray(axis, float).tolist()))
+        return self._PlaneRange(k, c)
+
+    def _PlaneRange(self, k: int, c: Vector) -> float | None:
+        """PredictedRange of a hose perpendicular to the detection plane, in floats (the
+        Gauss-Newton of _Refine calls it a dozen times a reading)."""
+        (e0, e1, e2), (z0, z1, z2) = self._emitter_list[k], self._axis_list[k]
+        d0, d1, d2 = c[0] - e0, c[1] - e1, c[2] - e2
+        distance = math.sqrt(d0 * d0 + d1 * d1 + d2 * d2)
+        along = d0 * z0 + d1 * z1 + d2 * z2
         if along <= 0:
             return None
-        if along >= distance * math.cos(half):
+        if along >= distance * self._cone_cos:
             return distance - self.hose_radius
-        side = d - along * self.axes[k]
-        edge = math.cos(half) * self.axes[k] + math.sin(half) * side / np.linalg.norm(side)
-        t = float(d @ edge)
+        s0, s1, s2 = d0 - along * z0, d1 - along * z1, d2 - along * z2
+        norm = math.sqrt(s0 * s0 + s1 * s1 + s2 * s2)
+        cos_half, sin_half = self._cone_cos, self._cone_sin
+        t = (
+            d0 * (cos_half * z0 + sin_half * s0 / norm)
+            + d1 * (cos_half * z1 + sin_half * s1 / norm)
+            + d2 * (cos_half * z2 + sin_half * s2 / norm)
+        )
         h2 = distance * distance - t * t
         r2 = self.hose_radius**2
         return None if h2 > r2 else t - math.sqrt(r2 - h2)
@@ -421,13 +432,16 @@ class DetectionGrid:
         ad = a0 * d0 + a1 * d1 + a2 * d2
         wa0, wd0 = cos_half * za, cos_half * zd
         gap = distance * distance - r * r
+        # The loop runs some 250 times a reading: names bound locally, and a < 1e-12 tested
+        # inline for max(a, 1e-12) (the same value, NaN included).
         t = []
+        append, sqrt, inf = t.append, math.sqrt, math.inf
         for cos_phi, sin_phi in self._rim:
             wa = wa0 + cos_phi * xa + sin_phi * ya
             b = wd0 + cos_phi * xd + sin_phi * yd - wa * ad
             a = 1.0 - wa * wa
             disc = b * b - a * gap
-            t.append((-b - math.sqrt(disc)) / max(a, 1e-12) if disc >= 0 and b < 0 else math.inf)
+            append((-b - sqrt(disc)) / (1e-12 if a < 1e-12 else a) if disc >= 0 and b < 0 else inf)
         best = min(t)
         if best == math.inf:
             return None
@@ -454,7 +468,7 @@ class DetectionGrid:
         if self.cone_angle is None or len(sensors) < needed:
             return c
         if axis is None:
-            model = lambda k, p: self.PredictedRange(k, np.array(p))  # noqa: E731
+            model = self._PlaneRange
         else:
             axis_floats = tuple(axis.tolist())
             model = lambda k, p: self._CylinderRange(k, p, axis_floats)  # noqa: E731
