@@ -16,6 +16,9 @@ max <= 10 mm).
     .venv/bin/python tests/benchmarks/bench_continuous_following.py --floor PATH
         [--set KEY=VALUE ...]
 
+    .venv/bin/python tests/benchmarks/bench_continuous_following.py --rtf PATH [N]
+        [--set KEY=VALUE ...]
+
 --quick: paper paths only; --more: random_20..39 too; --set: scenario overrides passed
 to every run (e.g. --set station.plant_config.time_step=0.004). --breakdown: one
 continuous ranging run on PATH in this process, printing the CPU time (process time,
@@ -24,13 +27,17 @@ simulation loop and of each per-tick Python system in it (the rest of the loop i
 plant and SceneGraph, the servo's C++ systems, Meshcat's C++ visualizer, loggers and the
 framework's event dispatch). --floor: the same figure for the station alone with its arm
 held at PATH's start pose, with and without its ToF sensor: the cost no follower can go
-below. One run after another (about 10-30 s each in continuous mode, minutes
-stop-and-go).
+below. --rtf: N (default 5) continuous ranging runs of PATH, alternating `guidedarm run`
+(which records the Meshcat replay) and the same run without Meshcat (as a campaign worker
+runs it: no replay, no overlays), each in its own process; prints each run's
+realtime_factor and the median of each kind. One run after another (about 10-30 s each
+in continuous mode, minutes stop-and-go).
 """
 
 import collections
 import contextlib
 import json
+import statistics
 import subprocess
 import sys
 import tempfile
@@ -185,7 +192,51 @@ def Floor(path: str, seconds: float = 4.0) -> None:
         print(f"{label:40s} {(time.process_time() - start) / seconds:.3f} CPU s per simulated s")
 
 
+# A run without Meshcat, as diagrams/campaigns/worker.py makes it; prints realtime_factor.
+_HEADLESS_RUN = """
+import sys, tempfile
+from pathlib import Path
+from guidedarm.diagrams.cli.command_run import LoadScenario
+from guidedarm.diagrams.run_context import RunContext
+from guidedarm.diagrams.task_run import RunTask
+task, scenario, _ = LoadScenario("path_following", sys.argv[1:])
+out = Path(tempfile.mkdtemp(prefix="bench_cont_"))
+print(RunTask(task, scenario, RunContext(out_dir=out, quiet=True))["realtime_factor"])
+"""
+
+
+def RealtimeFactors(path: str, runs: int) -> None:
+    """Prints the realtime_factor of `runs` continuous ranging runs of `path`, alternating
+    runs with the replay recorded and runs without Meshcat, and each kind's median."""
+    factors: dict[str, list[float]] = {"with the replay": [], "without Meshcat": []}
+    settings = [
+        f"path={path}",
+        "motion=continuous",
+        "estimator=ranging",
+        *Overrides(sys.argv)[1::2],
+    ]
+    for k in range(runs):
+        if k % 2 == 0:
+            kind, rtf = "with the replay", RunOne(path, "continuous", "ranging")["rtf"]
+        else:
+            command = [sys.executable, "-c", _HEADLESS_RUN, *settings]
+            result = subprocess.run(command, capture_output=True, text=True, check=True)
+            kind, rtf = "without Meshcat", float(result.stdout.split()[-1])
+        factors[kind].append(rtf)
+        print(f"run {k + 1}: {kind}: realtime_factor {rtf}", flush=True)
+    for kind, values in factors.items():
+        if values:
+            print(
+                f"{kind}: median {statistics.median(values)} (min {min(values)}, max {max(values)})"
+            )
+
+
 def main() -> None:
+    if "--rtf" in sys.argv:
+        at = sys.argv.index("--rtf")
+        count = sys.argv[at + 2] if len(sys.argv) > at + 2 else ""
+        RealtimeFactors(sys.argv[at + 1], int(count) if count.isdigit() else 5)
+        return
     if "--breakdown" in sys.argv:
         Breakdown(sys.argv[sys.argv.index("--breakdown") + 1])
         return
