@@ -12,11 +12,12 @@ from guidedarm.diagrams.overlays.overlay_geometry import (
     GrowingPolyline,
     RecordedPose,
 )
+from guidedarm.diagrams.station.scenario import VISUALIZATION_PERIOD
 
-# About the 30 frames per second of the replays (RunContext.start_recording), and a
-# multiple of the station's 2 ms plant step: publishing between the plant's steps splits
-# them (at 1/30 s the path_following demo took 25.8 s of CPU instead of 22.4 s).
-OVERLAY_PERIOD = 0.032
+# The overlays draw with the station's MeshcatVisualizer: on the plant's steps, at about the
+# replay's frame rate (publishing between the plant's steps splits them: at 1/30 s the
+# path_following demo took 25.8 s of CPU instead of 22.4 s).
+OVERLAY_PERIOD = VISUALIZATION_PERIOD
 
 
 class FrameTrailOverlay(LeafSystem):
