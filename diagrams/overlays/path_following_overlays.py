@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 import numpy as np
-from pydrake.geometry import Meshcat
+from pydrake.geometry import Meshcat, Role
 from pydrake.multibody.plant import MultibodyPlant
 from pydrake.systems.framework import Diagram, DiagramBuilder, LeafSystem
 from pydrake.systems.primitives import MatrixGain
@@ -82,8 +82,8 @@ def AddPathFollowingOverlays(
         "tool_centre_overlay", FrameTrailOverlay(meshcat, TOOL_CENTRE_PATH, poses, tool, TOOL_RGBA)
     )
     builder.Connect(q_measured, centre.get_input_port())
-    if station.HasSubsystemNamed("plant"):  # the simulated station draws the true hose
-        hose = HoseIllustrationPaths(station)
+    hose = HoseIllustrationPaths(station)
+    if hose:
         builder.AddNamedSystem("see_through_hose", SeeThroughGeometry(meshcat, hose))
     if scenario.hose is not None:
         centerline = ReadCenterline(scenario.hose.centerline)
@@ -91,9 +91,16 @@ def AddPathFollowingOverlays(
 
 
 def HoseIllustrationPaths(station: Diagram) -> list[str]:
-    """Meshcat paths of the simulated station's hose illustration geometry (world-body
-    geometries named `hose_<i>`, drawn by the MeshcatVisualizer under /drake/illustration)."""
-    plant = station.GetSubsystemByName("plant")
+    """Meshcat paths of the hose illustration geometry of a station with a SceneGraph named
+    `scene_graph` (world-frame geometries named `hose_<i>`, drawn by the MeshcatVisualizer
+    under /drake/illustration); none without."""
+    if not station.HasSubsystemNamed("scene_graph"):
+        return []
     inspector = station.GetSubsystemByName("scene_graph").model_inspector()
-    names = [inspector.GetName(g) for g in plant.GetVisualGeometriesForBody(plant.world_body())]
+    world = inspector.world_frame_id()
+    names = [
+        inspector.GetName(g)
+        for g in inspector.GetAllGeometryIds(Role.kIllustration)
+        if inspector.GetFrameId(g) == world
+    ]
     return [f"/drake/illustration/{name}" for name in names if name.startswith("hose_")]

@@ -93,6 +93,26 @@ def MakeStation(
         builder.Connect(scene_graph.get_query_output_port(), sensor.get_input_port())
         for port in TOF_PORTS:
             builder.ExportOutput(sensor.GetOutputPort(port), f"{name}.{port}")
+    AddMeshcatVisualization(builder, scenario, meshcat, plant, scene_graph)
+    builder.ExportOutput(scene_graph.get_query_output_port(), "sim.query_object")
+    builder.ExportOutput(plant.get_body_poses_output_port(), "sim.body_poses")
+    builder.ExportOutput(plant.get_state_output_port(), "sim.plant_state")
+    builder.ExportOutput(plant.get_contact_results_output_port(), "sim.contact_results")
+    diagram = builder.Build()
+    diagram.set_name("station")
+    return diagram
+
+
+def AddMeshcatVisualization(
+    builder: DiagramBuilder,
+    scenario: StationScenario,
+    meshcat: Meshcat | None,
+    plant: MultibodyPlant,
+    scene_graph: SceneGraph,
+) -> None:
+    """Draws `scene_graph` (of the builder) with `plant`'s geometry in `meshcat` as
+    scenario.visualization says (nothing without a Meshcat). Raises ConfigurationError for
+    an LCM bus: stations visualize in Meshcat only."""
     if scenario.visualization.lcm_bus != VisualizationConfig().lcm_bus:
         raise ConfigurationError(
             "visualization.lcm_bus: the station visualizes in Meshcat only; lcm_bus cannot be set"
@@ -102,15 +122,13 @@ def MakeStation(
         # whose LCM messages (for Meldis, which nothing here runs) cost 0.03 CPU s per
         # simulated second of path following.
         ApplyVisualizationConfig(
-            scenario.visualization, builder, meshcat=meshcat, lcm=DrakeLcm("memq://null")
+            scenario.visualization,
+            builder,
+            plant=plant,
+            scene_graph=scene_graph,
+            meshcat=meshcat,
+            lcm=DrakeLcm("memq://null"),
         )
-    builder.ExportOutput(scene_graph.get_query_output_port(), "sim.query_object")
-    builder.ExportOutput(plant.get_body_poses_output_port(), "sim.body_poses")
-    builder.ExportOutput(plant.get_state_output_port(), "sim.plant_state")
-    builder.ExportOutput(plant.get_contact_results_output_port(), "sim.contact_results")
-    diagram = builder.Build()
-    diagram.set_name("station")
-    return diagram
 
 
 def _AddArm(

@@ -25,13 +25,14 @@ from __future__ import annotations
 from typing import NamedTuple
 
 import numpy as np
-from pydrake.geometry import SceneGraph
+from pydrake.geometry import Meshcat, SceneGraph
 from pydrake.multibody.plant import MultibodyPlant
 from pydrake.systems.framework import Diagram, DiagramBuilder
 from pydrake.systems.primitives import PassThrough
 from pydrake.systems.rendering import MultibodyPositionToGeometryPose
 
 from guidedarm.diagrams.station.scenario import StationScenario
+from guidedarm.diagrams.station.station import AddMeshcatVisualization
 from guidedarm.diagrams.station.station_plant import GetArmInstance, MakeMultibodyPlant
 from guidedarm.diagrams.tasks.path_following_setup import Setup
 from guidedarm.systems.errors import ConfigurationError
@@ -184,10 +185,11 @@ def AddContinuousFollowing(
     return PathFollowing(follower, servo)
 
 
-def MakeKinematicStation(scenario: StationScenario) -> Diagram:
+def MakeKinematicStation(scenario: StationScenario, meshcat: Meshcat | None = None) -> Diagram:
     """A station without dynamics: the plant of the scenario's models (hose included) on a
     SceneGraph, posed where its one arm is commanded, and its ToF tools reading that
-    SceneGraph. Ports as MakeStation's: input `<arm>.position_commanded` (n, rad); outputs
+    SceneGraph; drawn in `meshcat` as MakeStation draws its plant, if given. Ports as
+    MakeStation's: input `<arm>.position_commanded` (n, rad); outputs
     `<arm>.position_measured` (n, rad; the command itself), `<tof>.ranges`, `<tof>.valid`,
     `<tof>.detections`, `<tof>.detection_errors`, and `sim.query_object`."""
     if len(scenario.arms) != 1:
@@ -216,6 +218,7 @@ def MakeKinematicStation(scenario: StationScenario) -> Diagram:
         builder.Connect(scene_graph.get_query_output_port(), sensor.get_input_port())
         for port in TOF_PORTS:
             builder.ExportOutput(sensor.GetOutputPort(port), f"{name}.{port}")
+    AddMeshcatVisualization(builder, scenario, meshcat, plant, scene_graph)
     builder.ExportOutput(scene_graph.get_query_output_port(), "sim.query_object")
     diagram = builder.Build()
     diagram.set_name("kinematic_station")

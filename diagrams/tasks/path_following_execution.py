@@ -32,6 +32,7 @@ from guidedarm.diagrams.tasks.path_following_diagram import (
     AddPathFollowing,
     MakeKinematicStation,
 )
+from guidedarm.diagrams.tasks.path_following_replay import AddReplayLogs, DrawReplay
 from guidedarm.diagrams.tasks.path_following_setup import Setup
 from guidedarm.systems.errors import RunFailedError
 
@@ -65,7 +66,8 @@ def Execute(setup: Setup, executor: str, context: RunContext) -> Execution:
     if executor == "kinematic":
         station = kinematic
     else:
-        station = MakeStation(setup.station, context.meshcat, context.hardware)
+        meshcat = None if _ReplayAfterLoop(context) else context.meshcat
+        station = MakeStation(setup.station, meshcat, context.hardware)
     execution = _Simulate(setup, station, context, visualized=executor != "kinematic")
     execution.collisions = CountContactSteps(execution, kinematic, setup.arm)
     return execution
@@ -75,9 +77,13 @@ def _Simulate(setup: Setup, station: Diagram, context: RunContext, visualized: b
     builder = DiagramBuilder()
     builder.AddNamedSystem("station", station)
     follower, _ = AddPathFollowing(builder, station, setup)
+    replay_logs = None
+    if visualized and _ReplayAfterLoop(context):
+        replay_logs = AddReplayLogs(builder, station, follower, setup.arm)
+    drawn_in_loop = visualized and replay_logs is None
     AddPathFollowingOverlays(
         builder,
-        context.meshcat if visualized else None,
+        context.meshcat if drawn_in_loop else None,
         station,
         follower,
         setup.solver.plant,
@@ -95,7 +101,7 @@ def _Simulate(setup: Setup, station: Diagram, context: RunContext, visualized: b
     root = simulator.get_mutable_context()
     follower_context = follower.GetMyContextFromRoot(root)
     simulator.Initialize()
-    if visualized:
+    if drawn_in_loop:
         context.start_recording()
     start = time.perf_counter()
     fault = None
@@ -107,8 +113,10 @@ def _Simulate(setup: Setup, station: Diagram, context: RunContext, visualized: b
         fault = InterruptedFailure(e) if isinstance(e, KeyboardInterrupt) else str(e)
         context.progress(f"{fault}; writing the summary", force=True)
     wall_time = time.perf_counter() - start
-    if visualized:
+    if drawn_in_loop:
         context.write_replay()
+    elif replay_logs is not None:
+        DrawReplay(replay_logs, root, setup, context)
     loop = follower.Loop(follower_context)
     failure = fault or loop.failure or None
     if failure is None and not follower.Stopped(follower_context):
@@ -124,6 +132,14 @@ def _Simulate(setup: Setup, station: Diagram, context: RunContext, visualized: b
         wall_time=wall_time,
         aborted=fault is not None,
     )
+
+
+def _ReplayAfterLoop(context: RunContext) -> bool:
+    """Whether the simulated station's replay is drawn after the loop from its logs
+    (path_following_replay): when Meshcat only records, nobody watches the loop. A live
+    page is drawn as the loop runs, and so is a hardware run (its station draws the arm
+    from the drivers' measurements)."""
+    return context.meshcat is not None and not context.live and not context.hardware
 
 
 def LastRecordPerStep(samples: np.ndarray) -> np.ndarray:
