@@ -42,6 +42,7 @@ import math
 from dataclasses import dataclass, field
 
 import numpy as np
+from numpy.linalg import _umath_linalg
 from pydrake.math import RigidTransform
 from pydrake.multibody.plant import MultibodyPlant
 from pydrake.multibody.tree import RigidBody
@@ -111,6 +112,18 @@ def PoseError(X_current: RigidTransform, X_desired: RigidTransform) -> np.ndarra
     return np.concatenate([w, X_desired.translation() - X_current.translation()])
 
 
+def SymmetricEigen(M: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """np.linalg.eigh(M) of a symmetric matrix M: (eigenvalues ascending, eigenvectors as
+    columns), bit for bit, from eigh's own gufunc (LAPACK dsyevd on the lower triangle)
+    called directly: eigh's checks and floating-point error context cost as much as
+    decomposing a 6 x 6 matrix. numpy is pinned in pyproject.toml;
+    tests/test_differential_ik_servo.py compares the two."""
+    e, V = _umath_linalg.eigh_lo(M, signature="d->dd")
+    if math.isnan(e[0]):  # the gufunc's NaNs where eigh raises
+        raise np.linalg.LinAlgError("Eigenvalues did not converge")
+    return e, V
+
+
 def CentringVelocity(q: list[float], limits: JointLimits) -> list[float]:
     """Joint velocities (rad/s) toward the middle of each joint's range (q: rad): 0 there,
     CENTRING_SPEED_SHARE of the speed limit at a limit, cubic in between."""
@@ -149,7 +162,7 @@ def ServoStep(
     A *= weights[:, None]
     normal = A[:, :n].T @ A
     # J_T' J_T = V diag(e) V': sigma_min^2 of J_T is e[0], and the damped solve is diagonal.
-    e, V = np.linalg.eigh(normal[:, :n])
+    e, V = SymmetricEigen(normal[:, :n])
     lam2 = max(damping**2 - max(float(e[0]), 0.0), MIN_DAMPING**2)
     q_, v_ = q.tolist(), v.tolist()
     rhs = np.empty((n, 2))
