@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 from pydrake.geometry import Meshcat, Role
 from pydrake.multibody.plant import MultibodyPlant
-from pydrake.systems.framework import Diagram, DiagramBuilder, LeafSystem
+from pydrake.systems.framework import Diagram, DiagramBuilder, System
 from pydrake.systems.primitives import MatrixGain
 
 from guidedarm.diagrams.overlays.detected_path_overlay import DetectedPathOverlay
@@ -35,7 +35,7 @@ def AddPathFollowingOverlays(
     builder: DiagramBuilder,
     meshcat: Meshcat | None,
     station: Diagram,
-    follower: LeafSystem,
+    follower: System,
     plant: MultibodyPlant,
     scenario: StationScenario,
     arm: str,

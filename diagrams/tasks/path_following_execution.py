@@ -24,7 +24,6 @@ from pydrake.systems.analysis import ApplySimulatorConfig, Simulator
 from pydrake.systems.framework import Diagram, DiagramBuilder
 from pydrake.systems.primitives import LogVectorOutput
 
-from guidedarm.diagrams.overlays.path_following_overlays import AddPathFollowingOverlays
 from guidedarm.diagrams.run_context import AdvanceWithProgress, RunContext
 from guidedarm.diagrams.station.station import MakeStation
 from guidedarm.diagrams.task_run import InterruptedFailure
@@ -32,7 +31,11 @@ from guidedarm.diagrams.tasks.path_following_diagram import (
     AddPathFollowing,
     MakeKinematicStation,
 )
-from guidedarm.diagrams.tasks.path_following_replay import AddReplayLogs, DrawReplay
+from guidedarm.diagrams.tasks.path_following_replay import (
+    AddReplayLogs,
+    AddSetupOverlays,
+    DrawReplay,
+)
 from guidedarm.diagrams.tasks.path_following_setup import Setup
 from guidedarm.systems.errors import RunFailedError
 
@@ -81,16 +84,7 @@ def _Simulate(setup: Setup, station: Diagram, context: RunContext, visualized: b
     if visualized and _ReplayAfterLoop(context):
         replay_logs = AddReplayLogs(builder, station, follower, setup.arm)
     drawn_in_loop = visualized and replay_logs is None
-    AddPathFollowingOverlays(
-        builder,
-        context.meshcat if drawn_in_loop else None,
-        station,
-        follower,
-        setup.solver.plant,
-        setup.station,
-        setup.arm,
-        setup.tool_name,
-    )
+    AddSetupOverlays(builder, context.meshcat if drawn_in_loop else None, station, follower, setup)
     record_period = setup.continuous.servo_period if setup.moves == "continuous" else setup.period
     record_log = LogVectorOutput(follower.GetOutputPort("step_record"), builder, record_period)
     q_log = LogVectorOutput(

@@ -15,8 +15,9 @@ import copy
 from dataclasses import dataclass
 
 import numpy as np
+from pydrake.geometry import Meshcat
 from pydrake.systems.analysis import Simulator
-from pydrake.systems.framework import Context, Diagram, DiagramBuilder, LeafSystem
+from pydrake.systems.framework import Context, Diagram, DiagramBuilder, LeafSystem, System
 from pydrake.systems.primitives import LogVectorOutput, TrajectorySource, VectorLogSink
 from pydrake.trajectories import PiecewisePolynomial
 
@@ -50,6 +51,27 @@ def AddReplayLogs(
     return ReplayLogs(q, logs)
 
 
+def AddSetupOverlays(
+    builder: DiagramBuilder,
+    meshcat: Meshcat | None,
+    station: Diagram,
+    follower: System,
+    setup: Setup,
+) -> None:
+    """AddPathFollowingOverlays for the run `setup` describes (its arm, ToF tool and IK
+    plant); nothing without a Meshcat."""
+    AddPathFollowingOverlays(
+        builder,
+        meshcat,
+        station,
+        follower,
+        setup.solver.plant,
+        setup.station,
+        setup.arm,
+        setup.tool_name,
+    )
+
+
 def DrawReplay(logs: ReplayLogs, root: Context, setup: Setup, context: RunContext) -> None:
     """Records the run's drawing from `logs` (in the loop's root context) into
     context.meshcat, up to the loop's final time, and writes replay.html."""
@@ -63,16 +85,7 @@ def DrawReplay(logs: ReplayLogs, root: Context, setup: Setup, context: RunContex
         joints.get_output_port(), station.GetInputPort(f"{setup.arm}.position_commanded")
     )
     follower = builder.AddNamedSystem("logged_follower", _LoggedFollower(logs, root))
-    AddPathFollowingOverlays(
-        builder,
-        context.meshcat,
-        station,
-        follower,
-        setup.solver.plant,
-        setup.station,
-        setup.arm,
-        setup.tool_name,
-    )
+    AddSetupOverlays(builder, context.meshcat, station, follower, setup)
     simulator = Simulator(builder.Build())
     simulator.Initialize()
     context.start_recording()
