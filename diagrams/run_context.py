@@ -222,9 +222,14 @@ def ServeMeshcat(meshcat: Meshcat, wait_s: float | None = None) -> None:
 
 
 def AdvanceWithProgress(
-    simulator: Simulator, t_final: float, context: RunContext, chunk_s: float = 0.25
+    simulator: Simulator,
+    t_final: float,
+    context: RunContext,
+    chunk_s: float = 0.25,
+    describe: Callable[[], str] | None = None,
 ) -> float:
-    """Advances `simulator` to `t_final` in chunks, printing progress; returns the sim time.
+    """Advances `simulator` to `t_final` in chunks, printing progress (describe(), or
+    the simulated time) after each; returns the sim time.
 
     An event or a monitor returning EventStatus.ReachedTermination stops it early; the
     returned time is where it stopped. The pace is the context's (RunContext.pace): against
@@ -235,7 +240,7 @@ def AdvanceWithProgress(
     while t < t_final:
         status = simulator.AdvanceTo(min(t + chunk_s, t_final))
         t = simulator.get_context().get_time()
-        context.progress(f"simulated {t:.2f} / {t_final:.2f} s")
+        context.progress(describe or (lambda t=t: f"simulated {t:.2f} / {t_final:.2f} s"))
         if status.reason() != status.ReturnReason.kReachedBoundaryTime:
             break
     return t

@@ -101,7 +101,14 @@ def _Simulate(setup: Setup, station: Diagram, context: RunContext, visualized: b
     fault = None
     try:
         # The follower's update ends AdvanceTo once it stops (ReachedTermination).
-        AdvanceWithProgress(simulator, setup.max_time, context)
+        AdvanceWithProgress(
+            simulator,
+            setup.max_time,
+            context,
+            describe=lambda: (
+                f"step {follower.Loop(follower_context).step}, t = {root.get_time():.1f} s"
+            ),
+        )
     except (RunFailedError, KeyboardInterrupt) as e:
         # a device fault, Ctrl-C or SIGTERM: the summary keeps what was measured so far
         fault = InterruptedFailure(e) if isinstance(e, KeyboardInterrupt) else str(e)
