@@ -226,9 +226,8 @@ def RealtimeFactors(path: str, runs: int) -> None:
         print(f"run {k + 1}: {kind}: realtime_factor {rtf}", flush=True)
     for kind, values in factors.items():
         if values:
-            print(
-                f"{kind}: median {statistics.median(values)} (min {min(values)}, max {max(values)})"
-            )
+            median = statistics.median(values)
+            print(f"{kind}: median {median:.2f} (min {min(values)}, max {max(values)})")
 
 
 def main() -> None:
