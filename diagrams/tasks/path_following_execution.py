@@ -66,24 +66,25 @@ def Execute(setup: Setup, executor: str, context: RunContext) -> Execution:
     """Runs the follower on the `station` or `kinematic` station until it stops or
     setup.max_time, then counts the steps with robot-hose contact."""
     kinematic = MakeKinematicStation(setup.station)
+    drawing = _Drawing(executor, context)
     if executor == "kinematic":
         station = kinematic
     else:
-        meshcat = None if _ReplayAfterLoop(context) else context.meshcat
+        meshcat = context.meshcat if drawing == "loop" else None
         station = MakeStation(setup.station, meshcat, context.hardware)
-    execution = _Simulate(setup, station, context, visualized=executor != "kinematic")
+    execution = _Simulate(setup, station, context, drawing)
     execution.collisions = CountContactSteps(execution, kinematic, setup.arm)
     return execution
 
 
-def _Simulate(setup: Setup, station: Diagram, context: RunContext, visualized: bool) -> Execution:
+def _Simulate(setup: Setup, station: Diagram, context: RunContext, drawing: str) -> Execution:
     builder = DiagramBuilder()
     builder.AddNamedSystem("station", station)
     follower, _ = AddPathFollowing(builder, station, setup)
-    replay_logs = None
-    if visualized and _ReplayAfterLoop(context):
-        replay_logs = AddReplayLogs(builder, station, follower, setup.arm)
-    drawn_in_loop = visualized and replay_logs is None
+    drawn_in_loop = drawing == "loop"
+    replay_logs = (
+        AddReplayLogs(builder, station, follower, setup.arm) if drawing == "after" else None
+    )
     AddSetupOverlays(builder, context.meshcat if drawn_in_loop else None, station, follower, setup)
     record_period = setup.continuous.servo_period if setup.moves == "continuous" else setup.period
     record_log = LogVectorOutput(follower.GetOutputPort("step_record"), builder, record_period)
@@ -135,12 +136,14 @@ def _Simulate(setup: Setup, station: Diagram, context: RunContext, visualized: b
     )
 
 
-def _ReplayAfterLoop(context: RunContext) -> bool:
-    """Whether the simulated station's replay is drawn after the loop from its logs
-    (path_following_replay): when Meshcat only records, nobody watches the loop. A live
-    page is drawn as the loop runs, and so is a hardware run (its station draws the arm
-    from the drivers' measurements)."""
-    return context.meshcat is not None and not context.live and not context.hardware
+def _Drawing(executor: str, context: RunContext) -> str:
+    """How the run is drawn in Meshcat: `none` (the kinematic executor, or no Meshcat),
+    `after` the loop from its logs (path_following_replay) when Meshcat only records the
+    simulated station's replay and nobody watches the loop, else in the `loop` (a live
+    page; a hardware run, whose station draws the arm from the drivers' measurements)."""
+    if executor == "kinematic" or context.meshcat is None:
+        return "none"
+    return "loop" if context.live or context.hardware else "after"
 
 
 def LastRecordPerStep(samples: np.ndarray) -> np.ndarray:

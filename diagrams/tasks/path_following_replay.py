@@ -11,8 +11,7 @@ the same replay.
 
 from __future__ import annotations
 
-import copy
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 from pydrake.geometry import Meshcat
@@ -77,8 +76,7 @@ def DrawReplay(logs: ReplayLogs, root: Context, setup: Setup, context: RunContex
     context.meshcat, up to the loop's final time, and writes replay.html."""
     builder = DiagramBuilder()
     # The drawing needs the scene, not the sensor: no ToF tool (its rays cost time).
-    scene = copy.copy(setup.station)
-    scene.tof_tools = {}
+    scene = replace(setup.station, tof_tools={})
     station = builder.AddNamedSystem("station", MakeKinematicStation(scene, context.meshcat))
     joints = builder.AddNamedSystem("logged_joints", _Playback(logs.q, root))
     builder.Connect(

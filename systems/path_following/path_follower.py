@@ -83,6 +83,11 @@ class _Loop:
     grid: np.ndarray | None = None
     failure: str = ""
 
+    @property
+    def stopped(self) -> bool:
+        """Whether the run is over (DONE or FAILED)."""
+        return self.mode in (DONE, FAILED)
+
     def __deepcopy__(self, memo: dict) -> "_Loop":
         return self
 
@@ -159,7 +164,7 @@ class PathFollower(LeafSystem):
 
     def Stopped(self, context: Context) -> bool:
         """Whether the run is over (DONE or FAILED)."""
-        return self.Loop(context).mode in (DONE, FAILED)
+        return self.Loop(context).stopped
 
     def _Update(self, context: Context, state: State) -> EventStatus:
         loop = self.Loop(context)
@@ -173,7 +178,7 @@ class PathFollower(LeafSystem):
         else:
             return EventStatus.DidNothing()
         state.get_mutable_abstract_state(self._loop).set_value(loop)
-        return StoppedStatus(self, loop.mode in (DONE, FAILED))
+        return StoppedStatus(self, loop.stopped)
 
     def _Sense(self, context: Context, loop: _Loop, t: float) -> _Loop:
         params = self._params
