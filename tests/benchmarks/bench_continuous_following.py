@@ -233,8 +233,16 @@ def RealtimeFactors(path: str, runs: int) -> None:
 def main() -> None:
     if "--rtf" in sys.argv:
         at = sys.argv.index("--rtf")
-        count = sys.argv[at + 2] if len(sys.argv) > at + 2 else ""
-        RealtimeFactors(sys.argv[at + 1], int(count) if count.isdigit() else 5)
+        count = sys.argv[at + 2] if len(sys.argv) > at + 2 else "--"
+        if count.startswith("--"):
+            count = "5"
+        if len(sys.argv) <= at + 1 or not count.isdigit() or int(count) < 1:
+            print(
+                "bench_continuous_following: --rtf needs a PATH and optionally N >= 1 runs",
+                file=sys.stderr,
+            )
+            sys.exit(2)
+        RealtimeFactors(sys.argv[at + 1], int(count))
         return
     if "--breakdown" in sys.argv:
         Breakdown(sys.argv[sys.argv.index("--breakdown") + 1])
