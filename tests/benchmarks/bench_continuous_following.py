@@ -24,14 +24,14 @@ to every run (e.g. --set station.plant_config.time_step=0.004). --breakdown: one
 continuous ranging run on PATH in this process, printing the CPU time (process time,
 which other processes' load disturbs less than wall time) per simulated second of the
 simulation loop and of each per-tick Python system in it (the rest of the loop is the
-plant and SceneGraph, the servo's C++ systems, Meshcat's C++ visualizer, loggers and the
-framework's event dispatch). --floor: the same figure for the station alone with its arm
-held at PATH's start pose, with and without its ToF sensor: the cost no follower can go
-below. --rtf: N (default 5) continuous ranging runs of PATH, alternating `guidedarm run`
-(which records the Meshcat replay) and the same run without Meshcat (as a campaign worker
-runs it: no replay, no overlays), each in its own process; prints each run's
-realtime_factor and the median of each kind. One run after another (about 10-30 s each
-in continuous mode, minutes stop-and-go).
+plant and SceneGraph, the servo's C++ systems, loggers and the framework's event
+dispatch), and of the replay's overlays, drawn after the loop. --floor: the same figure
+for the station alone with its arm held at PATH's start pose, with and without its ToF
+sensor: the cost no follower can go below. --rtf: N (default 5) continuous ranging runs
+of PATH, alternating `guidedarm run` (which draws the Meshcat replay after the loop) and
+the same run without Meshcat (as a campaign worker runs it: no replay), each in its own
+process; prints each run's realtime_factor and the median of each kind. One run after
+another (about 10-30 s each in continuous mode, minutes stop-and-go).
 """
 
 import collections
@@ -116,7 +116,7 @@ def Breakdown(path: str) -> None:
     )
 
     servo = differential_ik_servo.DifferentialIkServo
-    overlay = "Meshcat overlays (Python; the replay's)"
+    overlay = "Meshcat overlays (the replay, after the loop)"
     follower = continuous_follower.ContinuousFollower
     timed = (
         (servo, "_Update", "DifferentialIkServo"),
