@@ -217,7 +217,14 @@ def test_a_job_that_breaks_outside_its_task_is_a_lost_row_run_again(tmp_path):
     jobs = ExpandJobs(LoadCampaign(str(_Write(tmp_path, TOUR + "grid: {max_speed: [2.5]}\n"))))
     table = ResultsTable(tmp_path / "results.csv", ["max_speed"])
     not_a_folder = _Write(tmp_path, "", "file")  # the job cannot make its run folder here
-    local = {"host": "127.0.0.1", "protocol": "tcp", "dashboard_address": None}
+    # As the engine's own cluster: the scheduler's HTTP endpoints on a free loopback port,
+    # not 8787, which another test's cluster may hold.
+    local = {
+        "host": "127.0.0.1",
+        "protocol": "tcp",
+        "dashboard_address": None,
+        "scheduler_kwargs": {"dashboard": False, "dashboard_address": "127.0.0.1:0"},
+    }
     with Client(processes=False, n_workers=1, threads_per_worker=1, **local) as c:
         outcome = RunJobs(c, jobs, table, None, runs_dir=not_a_folder, progress=print)
     assert (outcome.ran, outcome.lost) == (1, 1)
