@@ -62,28 +62,29 @@ def Overrides(argv: list[str]) -> list[str]:
 
 
 def RunOne(path: str, motion: str, estimator: str) -> dict:
-    out = Path(tempfile.mkdtemp(prefix="bench_cont_"))
-    start = time.perf_counter()
-    subprocess.run(
-        [
-            GUIDEDARM,
-            "run",
-            "path_following",
-            "--out",
-            str(out),
-            "--set",
-            f"path={path}",
-            "--set",
-            f"motion={motion}",
-            "--set",
-            f"estimator={estimator}",
-            *Overrides(sys.argv),
-        ],
-        capture_output=True,
-        check=False,
-    )
-    summary = json.loads((out / "summary.json").read_text())
-    summary["wall_s"] = round(time.perf_counter() - start, 1)
+    """The summary of one `guidedarm run` (its output folder removed), with its wall time."""
+    with tempfile.TemporaryDirectory(prefix="bench_cont_") as out:
+        start = time.perf_counter()
+        subprocess.run(
+            [
+                GUIDEDARM,
+                "run",
+                "path_following",
+                "--out",
+                out,
+                "--set",
+                f"path={path}",
+                "--set",
+                f"motion={motion}",
+                "--set",
+                f"estimator={estimator}",
+                *Overrides(sys.argv),
+            ],
+            capture_output=True,
+            check=False,
+        )
+        summary = json.loads((Path(out) / "summary.json").read_text())
+        summary["wall_s"] = round(time.perf_counter() - start, 1)
     summary["rtf"] = summary.get("realtime_factor")
     return summary
 
@@ -144,13 +145,13 @@ def Breakdown(path: str) -> None:
                 cpu["simulation loop"] += time.process_time() - start
 
     path_following_execution.Simulator = TimedSimulator
-    out = Path(tempfile.mkdtemp(prefix="bench_cont_"))
-    args = ["run", "path_following", "--out", str(out), "--set", f"path={path}"]
-    args += ["--set", "motion=continuous", "--set", "estimator=ranging", *Overrides(sys.argv)]
-    sys.argv = ["guidedarm", *args]
-    with contextlib.suppress(SystemExit):  # the CLI exits with the run's status
-        guidedarm_main()
-    s = json.loads((out / "summary.json").read_text())
+    with tempfile.TemporaryDirectory(prefix="bench_cont_") as out:
+        args = ["run", "path_following", "--out", out, "--set", f"path={path}"]
+        args += ["--set", "motion=continuous", "--set", "estimator=ranging"]
+        sys.argv = ["guidedarm", *args, *Overrides(sys.argv)]
+        with contextlib.suppress(SystemExit):  # the CLI exits with the run's status
+            guidedarm_main()
+        s = json.loads((Path(out) / "summary.json").read_text())
     sim = s["sim_time_s"]
     print(f"{path}: {sim} s simulated, realtime_factor {s['realtime_factor']} (wall)")
     print(
@@ -200,8 +201,8 @@ from guidedarm.diagrams.cli.command_run import LoadScenario
 from guidedarm.diagrams.run_context import RunContext
 from guidedarm.diagrams.task_run import RunTask
 task, scenario, _ = LoadScenario("path_following", sys.argv[1:])
-out = Path(tempfile.mkdtemp(prefix="bench_cont_"))
-print(RunTask(task, scenario, RunContext(out_dir=out, quiet=True))["realtime_factor"])
+with tempfile.TemporaryDirectory(prefix="bench_cont_") as out:
+    print(RunTask(task, scenario, RunContext(out_dir=Path(out), quiet=True))["realtime_factor"])
 """
 
 
