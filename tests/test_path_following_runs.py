@@ -7,7 +7,9 @@ which is about 5 times faster (docs/path_following.md).
 """
 
 import json
+import os
 import re
+import tempfile
 from pathlib import Path
 
 import numpy as np
@@ -248,3 +250,22 @@ def test_an_initial_position_at_the_start_pose_is_kept(tmp_path):
     at_start = f"station.arms.mz04d.initial_position={q_start.tolist()}"
     _, scenario, _ = LoadScenario("path_following", [at_start])
     np.testing.assert_array_equal(MakeSetup(scenario, tmp_path).q_start, q_start)
+
+
+def test_a_random_hose_set_up_without_a_folder_is_one_shared_file(monkeypatch, tmp_path):
+    """Without an output folder a random hose's CSV goes to one file named by its content
+    (the station reads it back): the same hose twice is the same file, another hose
+    another, and nothing else is left in the temporary directory."""
+    from guidedarm.diagrams.tasks.path_following_setup import MakeSetup
+    from guidedarm.systems.path_following.hose_geometry import ReadCenterline
+
+    monkeypatch.setattr(tempfile, "tempdir", str(tmp_path))
+    sources = []
+    for path in ("random_3", "random_3", "random_4"):
+        _, scenario, _ = LoadScenario("path_following", [f"path={path}"])
+        setup = MakeSetup(scenario)
+        sources.append(setup.station.hose.centerline)
+        np.testing.assert_allclose(ReadCenterline(sources[-1]), setup.centerline_B, atol=5e-7)
+    assert sources[0] == sources[1] != sources[2]
+    assert [p.name for p in tmp_path.iterdir()] == [f"guidedarm_hoses_{os.getuid()}"]
+    assert len(list((tmp_path / f"guidedarm_hoses_{os.getuid()}").iterdir())) == 2

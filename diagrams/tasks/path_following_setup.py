@@ -13,6 +13,8 @@ from __future__ import annotations
 
 import copy
 import dataclasses
+import hashlib
+import os
 import tempfile
 from dataclasses import dataclass
 from pathlib import Path
@@ -107,7 +109,7 @@ class Setup:
 
 def MakeSetup(scenario: PathFollowingScenario, out_dir: Path | None = None) -> Setup:
     """Checks the scenario, places the hose and solves the start pose (module docstring).
-    out_dir receives the CSV of a random path (default: a new temporary directory)."""
+    out_dir receives the CSV of a random path (default: _RandomHoseFile's shared folder)."""
     _CheckScenario(scenario)
     station = copy.deepcopy(scenario.station)
     base_frame = scenario.base_frame or f"{scenario.arm}::base"
@@ -325,9 +327,7 @@ def _LoadHose(scenario, workspace, solver, mount, q_home, out_dir) -> tuple[np.n
             )
         seed = int(digits)
         centerline_B = ReachableRandomPath(scenario, seed, workspace, solver, mount, q_home)
-        directory = Path(out_dir or tempfile.mkdtemp(prefix="guidedarm_hose_"))
-        WriteCenterline(centerline_B, directory / "hose.csv")
-        source = str((directory / "hose.csv").resolve())
+        source = str(_RandomHoseFile(centerline_B, out_dir).resolve())
     CheckSelfClearance(centerline_B, scenario.station.hose.diameter, source)
     row = workspace.FirstOutside(centerline_B)
     if row is not None:
@@ -357,6 +357,25 @@ def _ResolveHose(scenario, station: StationScenario, source: str, base_frame: st
 
 def _SameHose(a: str, b: str) -> bool:
     return ResolveCenterlinePath(a).resolve() == ResolveCenterlinePath(b).resolve()
+
+
+def _RandomHoseFile(centerline_B: np.ndarray, out_dir: Path | None) -> Path:
+    """The CSV the station reads a random hose from: out_dir/hose.csv, or without out_dir
+    a file named by the centerline's content in one folder of the user's under the
+    temporary directory (the same hose, the same file: repeated setups add no files)."""
+    if out_dir is not None:
+        path = Path(out_dir) / "hose.csv"
+        WriteCenterline(centerline_B, path)
+        return path
+    folder = Path(tempfile.gettempdir()) / f"guidedarm_hoses_{os.getuid()}"
+    folder.mkdir(mode=0o700, exist_ok=True)
+    path = folder / f"hose_{hashlib.sha256(centerline_B.tobytes()).hexdigest()[:16]}.csv"
+    if not path.is_file():
+        # Written aside, then renamed: a parallel setup of the same hose never reads half.
+        partial = path.with_name(f"{path.stem}.{os.getpid()}.partial")
+        WriteCenterline(centerline_B, partial)
+        os.replace(partial, path)
+    return path
 
 
 def MakeSolver(
