@@ -376,3 +376,28 @@ def test_refusals_before_a_run_are_one_line(args, message, tmp_path):
     assert message in lines[0]
     assert "Traceback" not in result.stdout + result.stderr
     assert not (tmp_path / "run" / "summary.json").exists()
+
+
+def test_an_arm_away_from_the_start_pose_is_refused_before_any_command(q_start, tmp_path):
+    """The emulator solves its own start pose from a seed 0.3 rad (joint 1) away, which
+    lands about 0.01 rad from the run's: the run refuses in one line naming the joint and
+    the offset, exit 2, without a summary, and the arm never moved."""
+    cell = Cell([q_start[0] + 0.3, *q_start[1:]], tmp_path)
+    try:
+        run = Run(cell, tmp_path / "out", cell.tof_device)
+        run.Wait()
+        output = run.Output()
+        assert run.process.returncode == 2, output
+        errors = [line for line in output.splitlines() if line.startswith("guidedarm: error")]
+        assert len(errors) == 1, output
+        assert re.fullmatch(
+            r"guidedarm: error: mz04d is not at the task's start pose: joint \d is "
+            r"[+-]0\.0\d{3} rad from it \(tolerance 0\.0001 rad\); bring the arm there first "
+            r"\(an emulator: start it with --scenario and the run's --set options\)",
+            errors[0],
+        ), errors
+        assert "Traceback" not in output and "Failure at" not in output
+        assert not (tmp_path / "out" / "run" / "summary.json").exists()
+        assert cell.Moves() == 0
+    finally:
+        cell.Close()
