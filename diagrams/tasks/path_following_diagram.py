@@ -31,7 +31,7 @@ from pydrake.systems.framework import Diagram, DiagramBuilder
 from pydrake.systems.primitives import PassThrough
 from pydrake.systems.rendering import MultibodyPositionToGeometryPose
 
-from guidedarm.diagrams.builder_checks import CheckStationWiring
+from guidedarm.diagrams.builder_checks import CheckFieldTypes, CheckStationWiring
 from guidedarm.diagrams.station.scenario import StationScenario
 from guidedarm.diagrams.station.station import AddMeshcatVisualization
 from guidedarm.diagrams.station.station_plant import GetArmInstance, MakeMultibodyPlant
@@ -207,6 +207,8 @@ def MakeKinematicStation(scenario: StationScenario, meshcat: Meshcat | None = No
     MakeStation's: input `<arm>.position_commanded` (n, rad); outputs
     `<arm>.position_measured` (n, rad; the command itself), `<tof>.ranges`, `<tof>.valid`,
     `<tof>.detections`, `<tof>.detection_errors`, and `sim.query_object`."""
+    CheckInstance("scenario", scenario, StationScenario)
+    CheckFieldTypes(scenario, "scenario")
     if len(scenario.arms) != 1:
         raise ConfigurationError("the kinematic station takes exactly one arm")
     (arm,) = scenario.arms

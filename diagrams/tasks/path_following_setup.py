@@ -24,6 +24,7 @@ import numpy as np
 from pydrake.math import RigidTransform
 from pydrake.multibody.plant import MultibodyPlant
 
+from guidedarm.diagrams.builder_checks import CheckFieldTypes
 from guidedarm.diagrams.station.scenario import ArmConfig, StationScenario
 from guidedarm.diagrams.station.station_plant import (
     ArmAndAttachments,
@@ -32,7 +33,7 @@ from guidedarm.diagrams.station.station_plant import (
     GetArmInstance,
     MakeMultibodyPlant,
 )
-from guidedarm.systems.config_checks import CheckConfig
+from guidedarm.systems.config_checks import CheckConfig, CheckInstance
 from guidedarm.systems.errors import ConfigurationError, GuidedArmError
 from guidedarm.systems.path_following.continuous_follower_math import ContinuousConfig
 from guidedarm.systems.path_following.hose_geometry import (
@@ -110,6 +111,10 @@ class Setup:
 def MakeSetup(scenario: PathFollowingScenario, out_dir: Path | None = None) -> Setup:
     """Checks the scenario, places the hose and solves the start pose (module docstring).
     out_dir receives the CSV of a random path (default: _RandomHoseFile's shared folder)."""
+    from guidedarm.diagrams.tasks.path_following import PathFollowingScenario  # imports this
+
+    CheckInstance("scenario", scenario, PathFollowingScenario)
+    CheckFieldTypes(scenario, "scenario")
     _CheckScenario(scenario)
     station = copy.deepcopy(scenario.station)
     base_frame = scenario.base_frame or f"{scenario.arm}::base"
