@@ -168,3 +168,26 @@ def test_make_setup_refuses_a_dict():
 )
 def test_load_scenario_refuses_arguments_of_the_wrong_type(name, overrides, message):
     _refused(lambda: LoadScenario(name, overrides), message)
+
+
+@pytest.mark.parametrize(
+    "name, overrides, message",
+    [
+        ("ur10e_waypoints", ["limits=bogus"], "limits must be one of"),
+        ("ur10e_waypoints", ["waypoints=[]"], "waypoints: at least one waypoint is needed"),
+        (
+            "ur10e_waypoints",
+            ["limits=none", "max_joint_velocity=[2]"],
+            "'max_joint_velocity' has no effect with limits=none",
+        ),
+        ("ur10e_joint_tour", ["arm=ur5"], "arm 'ur5' is not in station.arms"),
+        ("panel_operation", ["camera=webcam"], "camera 'webcam' is not in station.cameras"),
+        ("panel_operation", ["arm=ur5"], "arm 'ur5' is not in station.arms"),
+        ("path_following", ["motion=teleport"], "motion must be one of"),
+        ("path_following", ["tof=tof2"], "station must define arms.mz04d and tof_tools.tof2"),
+    ],
+)
+def test_every_task_checks_its_scenario_at_load(name, overrides, message):
+    """The rules between a task scenario's keys (its Validate()) hold when it is loaded,
+    not first when its task runs."""
+    _refused(lambda: LoadScenario(name, overrides), message)
