@@ -25,7 +25,7 @@ from typing import Any, TypeVar
 
 from pydrake.common.yaml import yaml_dump, yaml_load_data, yaml_load_file, yaml_load_typed
 
-from guidedarm.systems.config_checks import CheckConfig
+from guidedarm.systems.config_checks import CheckConfig, FieldError
 from guidedarm.systems.errors import ConfigurationError
 
 SCENARIO_DIR = Path(__file__).resolve().parent / "scenarios"
@@ -75,7 +75,13 @@ def AddOverridesArgument(parser: argparse.ArgumentParser, help: str) -> None:
 
 
 def parse_overrides(items: list[str]) -> dict[str, Any]:
-    """Parses `key=value` strings; values are read as YAML scalars or flow collections."""
+    """Parses a list of `key=value` strings (FieldError naming `overrides` for anything
+    else, e.g. one string); values are read as YAML scalars or flow collections."""
+    if isinstance(items, str) or not isinstance(items, list | tuple):
+        raise FieldError("overrides", f"expected a list of 'key=value' strings, got {items!r}")
+    for i, item in enumerate(items):
+        if not isinstance(item, str):
+            raise FieldError(f"overrides[{i}]", f"expected a 'key=value' string, got {item!r}")
     overrides: dict[str, Any] = {}
     for item in items:
         key, sep, value = item.partition("=")

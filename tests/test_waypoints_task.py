@@ -57,10 +57,13 @@ def test_the_same_planner_drives_the_other_arms(name):
     assert all(d < scenario.planner.neighbourhood_radius for d in metrics["waypoint_distance_m"])
 
 
-def test_unknown_limits_choice_is_a_configuration_error(capsys, tmp_path):
-    code = main(["run", "ur10e_waypoints", "--out", str(tmp_path), "--set", "limits=jerk"])
+def test_unknown_limits_choice_is_refused_at_load_before_any_output(capsys, tmp_path):
+    out = tmp_path / "run"
+    code = main(["run", "ur10e_waypoints", "--out", str(out), "--set", "limits=jerk"])
     assert code == 2
-    assert "limits must be one of" in capsys.readouterr().err
+    printed = capsys.readouterr()
+    assert "limits must be one of" in printed.err and "running" not in printed.out
+    assert not out.exists()  # no scenario.yaml, no folder
 
 
 def test_unreachable_waypoint_fails_before_any_motion(capsys, tmp_path):

@@ -39,6 +39,7 @@ from guidedarm.diagrams.scenario_loading import (
 )
 from guidedarm.diagrams.task_run import RunTask
 from guidedarm.diagrams.tasks.registry import GetTask
+from guidedarm.systems.config_checks import CheckInstance
 from guidedarm.systems.errors import ConfigurationError
 
 FAILED = 1
@@ -99,8 +100,11 @@ def CheckMeshcatArguments(args: argparse.Namespace) -> None:
         raise ConfigurationError("--meshcat-host must not be empty")
 
 
-def LoadScenario(name_or_path: str, overrides: list[str]) -> tuple[Any, Any, str]:
-    """Returns (task, typed scenario, scenario name) for a scenario and `--set` overrides."""
+def LoadScenario(name_or_path: str | Path, overrides: list[str]) -> tuple[Any, Any, str]:
+    """Returns (task, typed scenario, scenario name) for a scenario and `--set` overrides
+    (a list of `key=value` strings), after the task's checks of the scenario: its types and
+    bounds, its Validate() (the rules between its keys) and the task's check_overrides."""
+    CheckInstance("name_or_path", name_or_path, (str, Path))
     path = resolve_scenario_path(name_or_path)
     parsed = parse_overrides(overrides)
     raw = apply_overrides(read_raw_scenario(path), parsed)

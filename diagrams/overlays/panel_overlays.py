@@ -7,6 +7,7 @@ from pydrake.geometry import Cylinder, Meshcat, Rgba
 from pydrake.math import RigidTransform
 from pydrake.systems.framework import Diagram, DiagramBuilder, LeafSystem
 
+from guidedarm.diagrams.builder_checks import CheckStationWiring
 from guidedarm.diagrams.overlays.overlay_geometry import (
     OVERLAYS,
     TRUTH_RGBA,
@@ -41,6 +42,9 @@ def AddPanelOverlays(
     panel. Nothing without a Meshcat."""
     if meshcat is None:
         return
+    CheckStationWiring(
+        builder, station, outputs=[f"{arm}.position_measured"], new_systems=["panel_overlay"]
+    )
     poses = ArmFramePoses(kinematics.plant, kinematics.plant.GetModelInstanceByName(arm))
     view = builder.AddNamedSystem(
         "panel_overlay",

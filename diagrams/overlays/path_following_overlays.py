@@ -8,6 +8,7 @@ from pydrake.multibody.plant import MultibodyPlant
 from pydrake.systems.framework import Diagram, DiagramBuilder, System
 from pydrake.systems.primitives import MatrixGain
 
+from guidedarm.diagrams.builder_checks import CheckStationWiring
 from guidedarm.diagrams.overlays.detected_path_overlay import DetectedPathOverlay
 from guidedarm.diagrams.overlays.frame_trail_overlay import OVERLAY_PERIOD, FrameTrailOverlay
 from guidedarm.diagrams.overlays.overlay_geometry import (
@@ -51,6 +52,12 @@ def AddPathFollowingOverlays(
     camera looks at the scenario's hose, seen from beyond it. Nothing without a Meshcat."""
     if meshcat is None:
         return
+    CheckStationWiring(
+        builder,
+        station,
+        outputs=[f"{arm}.position_measured"],
+        new_systems=["tof_overlay", "detected_path_overlay", "tool_centre_overlay"],
+    )
     tof = scenario.ToFTool(tof_name)
     poses = ArmFramePoses(plant, plant.GetModelInstanceByName(arm))
     tool = GetScopedFrame(plant, tof.tool_frame, f"tof_tools.{tof_name}.tool_frame")

@@ -36,6 +36,7 @@ from pydrake.systems.primitives import (
 from pydrake.systems.sensors import CameraConfig, RgbdSensor
 from pydrake.visualization import ApplyVisualizationConfig, VisualizationConfig
 
+from guidedarm.diagrams.builder_checks import CheckFieldTypes
 from guidedarm.diagrams.station.hardware_station import MakeHardwareStation
 from guidedarm.diagrams.station.scenario import ArmConfig, StationScenario
 from guidedarm.diagrams.station.station_plant import (
@@ -70,6 +71,7 @@ def MakeStation(
 ) -> Diagram:
     """Builds the station Diagram of `scenario` (simulated, or hardware drivers)."""
     CheckInstance("scenario", scenario, StationScenario)
+    CheckFieldTypes(scenario, "scenario")
     CheckInstance("meshcat", meshcat, (Meshcat, type(None)))
     CheckInstance("hardware", hardware, bool)
     if hardware:

@@ -26,7 +26,13 @@ from guidedarm.diagrams.station.station_plant import (
     MakeMultibodyPlant,
 )
 from guidedarm.diagrams.tasks.registry import TaskDefinition
-from guidedarm.systems.config_checks import NonNegative, Positive
+from guidedarm.systems.config_checks import (
+    CheckConfig,
+    CheckFields,
+    CheckInstance,
+    NonNegative,
+    Positive,
+)
 from guidedarm.systems.errors import ConfigurationError
 
 
@@ -44,6 +50,17 @@ class JointTourScenario:
     settle_time: float = NonNegative(0.5)
     max_final_error: float = Positive(0.01)
     station: StationScenario = field(default_factory=StationScenario)
+
+    def Validate(self) -> None:
+        """Checked at load (CheckConfig): the fields' bounds, at least one waypoint, and
+        `arm` one of station.arms."""
+        CheckFields(self)
+        if not self.waypoints:
+            raise ConfigurationError("waypoints: at least one waypoint is needed")
+        if self.arm not in self.station.arms:
+            raise ConfigurationError(
+                f"arm '{self.arm}' is not in station.arms {list(self.station.arms)}"
+            )
 
 
 def MakeTourTrajectory(
@@ -72,11 +89,12 @@ def MakeTourTrajectory(
 
 
 def TourStart(scenario: JointTourScenario) -> np.ndarray:
-    """The arm's start (rad), after refusing waypoints that do not fit the arm's model: a
-    wrong number of joints, or positions outside its joint limits."""
+    """The arm's start (rad), after the scenario's checks (JointTourScenario.Validate) and
+    refusing waypoints that do not fit the arm's model: a wrong number of joints, or
+    positions outside its joint limits."""
+    CheckInstance("scenario", scenario, JointTourScenario)
+    CheckConfig(scenario)
     arms = scenario.station.arms
-    if scenario.arm not in arms:
-        raise ConfigurationError(f"arm '{scenario.arm}' is not in station.arms {list(arms)}")
     plant = MakeMultibodyPlant(scenario.station, [scenario.arm])
     for i, w in enumerate(scenario.waypoints):
         CheckJointPositions(plant, scenario.arm, w, f"waypoints[{i}]")

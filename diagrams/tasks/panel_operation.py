@@ -58,7 +58,14 @@ from guidedarm.diagrams.tasks.panel_operation_report import (
 )
 from guidedarm.diagrams.tasks.planner_builder import MakeAccelerationPlanner
 from guidedarm.diagrams.tasks.registry import TaskDefinition
-from guidedarm.systems.config_checks import CheckFields, InRange, NonNegative, Positive
+from guidedarm.systems.config_checks import (
+    CheckConfig,
+    CheckFields,
+    CheckInstance,
+    InRange,
+    NonNegative,
+    Positive,
+)
 from guidedarm.systems.errors import ConfigurationError
 from guidedarm.systems.markers.image_degradation import DegradationConfig, SeededDegradation
 from guidedarm.systems.markers.panel_operation_math import (
@@ -155,6 +162,19 @@ class PanelOperationScenario:
     time_limit_s: float = Positive(40.0)
     station: StationScenario = field(default_factory=StationScenario)
 
+    def Validate(self) -> None:
+        """Checked at load (CheckConfig): the fields' bounds, `arm` and `camera` in the
+        station, and the camera's supersampling set by the top-level key only."""
+        CheckFields(self)
+        if self.arm not in self.station.arms:
+            raise ConfigurationError(f"arm '{self.arm}' is not in station.arms")
+        if self.camera not in self.station.cameras:
+            raise ConfigurationError(f"camera '{self.camera}' is not in station.cameras")
+        if self.degradation.supersampling != 1:
+            raise ConfigurationError(
+                "set the camera's supersampling (>= 1) with the top-level key 'supersampling'"
+            )
+
 
 class PanelOperationRun:
     """The diagram of one scenario; `Run(start)` simulates from a start joint vector, so
@@ -163,13 +183,9 @@ class PanelOperationRun:
     def __init__(self, scenario: PanelOperationScenario, context: RunContext) -> None:
         self.scenario = scenario
         self.context = context
+        CheckInstance("scenario", scenario, PanelOperationScenario)
+        CheckConfig(scenario)
         self.panel = LoadPanelSpec(MODELS_DIR / scenario.panel_file)
-        if scenario.camera not in scenario.station.cameras:
-            raise ConfigurationError(f"camera '{scenario.camera}' is not in station.cameras")
-        if scenario.degradation.supersampling != 1 or scenario.supersampling < 1:
-            raise ConfigurationError(
-                "set the camera's supersampling (>= 1) with the top-level key 'supersampling'"
-            )
         self._Build()
 
     def _Build(self) -> None:

@@ -16,13 +16,16 @@ instances])`: the arm as the station places it, without the panel.
 
 from __future__ import annotations
 
+import numbers
 from dataclasses import dataclass
 
 from pydrake.systems.framework import DiagramBuilder, System
 
+from guidedarm.diagrams.builder_checks import CheckStationWiring
 from guidedarm.diagrams.station.scenario import StationScenario
 from guidedarm.diagrams.station.station_plant import MakeMultibodyPlant
 from guidedarm.diagrams.tasks.panel_files import IntrinsicsFromCameraConfig
+from guidedarm.systems.config_checks import CheckInstance, FieldError
 from guidedarm.systems.errors import ConfigurationError
 from guidedarm.systems.markers.image_degradation import DegradationConfig, ImageDegradation
 from guidedarm.systems.markers.marker_pose_estimator import MarkerPoseEstimator
@@ -136,6 +139,19 @@ def AddPanelOperation(
     frames, required when operation.motion is "planner"; the sequencer then sends each
     move as a task and the planner streams the arm's commands.
     """
+    CheckInstance("station_scenario", station_scenario, StationScenario)
+    CheckInstance("panel", panel, PanelSpec)
+    if isinstance(switch, bool) or not isinstance(switch, numbers.Integral):
+        raise FieldError("switch", f"expected int, got {switch!r}")
+    for key, value in (("arm", arm), ("camera", camera), ("tip_frame", tip_frame)):
+        CheckInstance(key, value, str)
+    for key, value, expected in (
+        ("operation", operation, PanelOperationConfig),
+        ("degradation", degradation, DegradationConfig),
+        ("intrinsics", intrinsics, CameraIntrinsics),
+        ("planner", planner, tuple),
+    ):
+        CheckInstance(key, value, (expected, type(None)))
     operation = operation or PanelOperationConfig()
     if not 1 <= switch <= len(panel.switches):
         raise ConfigurationError(f"switch must be 1 .. {len(panel.switches)}, got {switch}")
@@ -144,6 +160,15 @@ def AddPanelOperation(
             'an AccelerationPlanner is needed exactly when operation.motion is "planner"'
         )
     kinematics = MakeCameraArmKinematics(station_scenario, arm, camera, tip_frame)
+    CheckStationWiring(
+        builder,
+        station,
+        inputs=[f"{arm}.position_commanded"],
+        outputs=[f"{camera}.rgb_image", f"{arm}.state_estimated"],
+        new_systems=["marker_pose_estimator", "panel_operation"]
+        + ["image_degradation"] * (degradation is not None)
+        + ["planner"] * (planner is not None),
+    )
     k = degradation.supersampling if degradation is not None else 1
     if intrinsics is None:
         intrinsics = IntrinsicsFromCameraConfig(station_scenario.cameras[camera], k)

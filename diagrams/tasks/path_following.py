@@ -24,9 +24,9 @@ from guidedarm.diagrams.tasks.path_following_report import (
     Repeatability,
     SpeedAndErrorAlongPath,
 )
-from guidedarm.diagrams.tasks.path_following_setup import MakeSetup, Setup
+from guidedarm.diagrams.tasks.path_following_setup import CheckScenarioRules, MakeSetup, Setup
 from guidedarm.diagrams.tasks.registry import TaskDefinition
-from guidedarm.systems.config_checks import InRange, Positive
+from guidedarm.systems.config_checks import CheckFields, InRange, Positive
 from guidedarm.systems.errors import ConfigurationError
 from guidedarm.systems.path_following.continuous_follower_math import ContinuousConfig
 from guidedarm.systems.path_following.hose_geometry import RandomPathConfig
@@ -84,6 +84,13 @@ class PathFollowingScenario:
     gripper_frame: str = "gripper::gripper"
     tof: str = "tof"
     station: StationScenario = field(default_factory=StationScenario)
+
+    def Validate(self) -> None:
+        """Checked at load (CheckConfig): the fields' bounds, then the rules between the
+        keys (CheckScenarioRules: choices, the arm and ToF tool in the station, keys the
+        chosen motion or executor would not read)."""
+        CheckFields(self)
+        CheckScenarioRules(self)
 
 
 def Run(

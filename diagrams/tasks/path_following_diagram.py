@@ -31,10 +31,12 @@ from pydrake.systems.framework import Diagram, DiagramBuilder
 from pydrake.systems.primitives import PassThrough
 from pydrake.systems.rendering import MultibodyPositionToGeometryPose
 
+from guidedarm.diagrams.builder_checks import CheckFieldTypes, CheckStationWiring
 from guidedarm.diagrams.station.scenario import StationScenario
 from guidedarm.diagrams.station.station import AddMeshcatVisualization
 from guidedarm.diagrams.station.station_plant import GetArmInstance, MakeMultibodyPlant
 from guidedarm.diagrams.tasks.path_following_setup import Setup
+from guidedarm.systems.config_checks import CheckInstance
 from guidedarm.systems.errors import ConfigurationError
 from guidedarm.systems.path_following.continuous_follower import ContinuousFollower
 from guidedarm.systems.path_following.differential_ik_servo import DifferentialIkServo
@@ -86,8 +88,17 @@ def AddPathFollowing(
     `<tof>.measured_at`, 6, s) and a DifferentialIkServo streams its target to
     `<arm>.position_commanded` (AddContinuousFollowing).
     """
+    CheckInstance("setup", setup, Setup)
     if setup.moves == "continuous":
         return AddContinuousFollowing(builder, station, setup)
+    arm, tof = setup.arm, setup.tool_name
+    CheckStationWiring(
+        builder,
+        station,
+        inputs=[f"{arm}.position_commanded"],
+        outputs=[f"{tof}.ranges", f"{tof}.valid", f"{arm}.position_measured"],
+        new_systems=["tool_pose_ik", "path_follower"],
+    )
     if plan_move is None and setup.moves == "planner":
         plan_move = MakePlannerMoves(setup)
     ik = builder.AddNamedSystem(
@@ -105,7 +116,6 @@ def AddPathFollowing(
             plan_move,
         ),
     )
-    arm, tof = setup.arm, setup.tool_name
     q_measured = station.GetOutputPort(f"{arm}.position_measured")
     builder.Connect(station.GetOutputPort(f"{tof}.ranges"), follower.GetInputPort("ranges"))
     builder.Connect(station.GetOutputPort(f"{tof}.valid"), follower.GetInputPort("valid"))
@@ -140,12 +150,17 @@ def AddContinuousFollowing(
         ──position_commanded──> station `<arm>.position_commanded`
     DifferentialIkServo `failure` ──> ContinuousFollower `servo_failure`
     """
+    CheckInstance("setup", setup, Setup)
     arm, tof = setup.arm, setup.tool_name
-    if not station.HasOutputPort(f"{tof}.measured_at"):
-        raise ConfigurationError(
-            f"motion=continuous needs the station's `{tof}.measured_at` (the ToF readings' "
-            "measurement instants)"
-        )
+    CheckStationWiring(
+        builder,
+        station,
+        inputs=[f"{arm}.position_commanded"],
+        # measured_at: the ToF readings' measurement instants, for motion compensation
+        outputs=[f"{tof}.{port}" for port in ("ranges", "valid", "measured_at")]
+        + [f"{arm}.position_measured"],
+        new_systems=["path_follower", "differential_ik"],
+    )
     plant = setup.solver.plant
     tool_frame = setup.station.tof_tools[tof].tool_frame
     tool = GetScopedFrame(plant, tool_frame, f"tof_tools.{tof}.tool_frame")
@@ -192,6 +207,8 @@ def MakeKinematicStation(scenario: StationScenario, meshcat: Meshcat | None = No
     MakeStation's: input `<arm>.position_commanded` (n, rad); outputs
     `<arm>.position_measured` (n, rad; the command itself), `<tof>.ranges`, `<tof>.valid`,
     `<tof>.detections`, `<tof>.detection_errors`, and `sim.query_object`."""
+    CheckInstance("scenario", scenario, StationScenario)
+    CheckFieldTypes(scenario, "scenario")
     if len(scenario.arms) != 1:
         raise ConfigurationError("the kinematic station takes exactly one arm")
     (arm,) = scenario.arms

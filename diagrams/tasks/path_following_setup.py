@@ -24,6 +24,7 @@ import numpy as np
 from pydrake.math import RigidTransform
 from pydrake.multibody.plant import MultibodyPlant
 
+from guidedarm.diagrams.builder_checks import CheckFieldTypes
 from guidedarm.diagrams.station.scenario import ArmConfig, StationScenario
 from guidedarm.diagrams.station.station_plant import (
     ArmAndAttachments,
@@ -32,7 +33,7 @@ from guidedarm.diagrams.station.station_plant import (
     GetArmInstance,
     MakeMultibodyPlant,
 )
-from guidedarm.systems.config_checks import CheckConfig
+from guidedarm.systems.config_checks import CheckConfig, CheckInstance
 from guidedarm.systems.errors import ConfigurationError, GuidedArmError
 from guidedarm.systems.path_following.continuous_follower_math import ContinuousConfig
 from guidedarm.systems.path_following.hose_geometry import (
@@ -108,9 +109,14 @@ class Setup:
 
 
 def MakeSetup(scenario: PathFollowingScenario, out_dir: Path | None = None) -> Setup:
-    """Checks the scenario, places the hose and solves the start pose (module docstring).
+    """Checks the scenario (its types, then CheckConfig: PathFollowingScenario.Validate),
+    places the hose and solves the start pose (module docstring).
     out_dir receives the CSV of a random path (default: _RandomHoseFile's shared folder)."""
-    _CheckScenario(scenario)
+    from guidedarm.diagrams.tasks.path_following import PathFollowingScenario  # imports this
+
+    CheckInstance("scenario", scenario, PathFollowingScenario)
+    CheckFieldTypes(scenario, "scenario")
+    CheckConfig(scenario)
     station = copy.deepcopy(scenario.station)
     base_frame = scenario.base_frame or f"{scenario.arm}::base"
     X_WB = FixedFramePose(station, base_frame, "base_frame")
@@ -157,9 +163,9 @@ def MakeSetup(scenario: PathFollowingScenario, out_dir: Path | None = None) -> S
     )
 
 
-def _CheckScenario(scenario: PathFollowingScenario) -> None:
-    """The declared bounds of every field (config_checks), then the rules between them."""
-    CheckConfig(scenario)
+def CheckScenarioRules(scenario: PathFollowingScenario) -> None:
+    """The rules between the scenario's keys (PathFollowingScenario.Validate, after the
+    fields' bounds)."""
     if scenario.executor not in EXECUTORS:
         raise ConfigurationError(f"executor must be one of {EXECUTORS}, got '{scenario.executor}'")
     if scenario.motion not in MOVES:

@@ -23,7 +23,13 @@ from guidedarm.diagrams.station.station import MakeStation
 from guidedarm.diagrams.tasks.planner_builder import MakeAccelerationPlanner, SymmetricLimit
 from guidedarm.diagrams.tasks.planner_plots import PlotScaling, PlotTcpPath
 from guidedarm.diagrams.tasks.registry import TaskDefinition
-from guidedarm.systems.config_checks import NonNegative, Positive
+from guidedarm.systems.config_checks import (
+    CheckConfig,
+    CheckFields,
+    CheckInstance,
+    NonNegative,
+    Positive,
+)
 from guidedarm.systems.errors import ConfigurationError
 from guidedarm.systems.planning.acceleration_planner import AccelerationPlanner
 from guidedarm.systems.planning.acceleration_planner_config import (
@@ -70,6 +76,17 @@ class WaypointsScenario:
     max_tracking_error: float = Positive(0.01)
     station: StationScenario = field(default_factory=StationScenario)
 
+    def Validate(self) -> None:
+        """Checked at load (CheckConfig): the fields' bounds, `limits` one of LIMIT_CHOICES,
+        at least one waypoint, and no key set that the run would not read
+        (CheckReadKeys)."""
+        CheckFields(self)
+        if self.limits not in LIMIT_CHOICES:
+            raise ConfigurationError(f"limits must be one of {LIMIT_CHOICES}, got '{self.limits}'")
+        if not self.waypoints:
+            raise ConfigurationError("waypoints: at least one waypoint is needed")
+        CheckReadKeys(self)
+
 
 @dataclass
 class PlannerSetup:
@@ -89,11 +106,10 @@ class PlannerSetup:
 def MakePlannerSetup(scenario: WaypointsScenario) -> PlannerSetup:
     """The scenario's planner through MakeAccelerationPlanner, which refuses bad input
     before any motion: unknown arm or frames, bad limits or gains, waypoints out of reach,
-    and a near-singular start in the paper's mode."""
-    if scenario.limits not in LIMIT_CHOICES:
-        raise ConfigurationError(f"limits must be one of {LIMIT_CHOICES}, got '{scenario.limits}'")
-    if not scenario.waypoints:
-        raise ConfigurationError("waypoints: at least one waypoint is needed")
+    and a near-singular start in the paper's mode; before those, the scenario's own checks
+    (WaypointsScenario.Validate)."""
+    CheckInstance("scenario", scenario, WaypointsScenario)
+    CheckConfig(scenario)
     velocity = SymmetricLimit(scenario.max_joint_velocity, "max_joint_velocity")
     acceleration = SymmetricLimit(scenario.max_joint_acceleration, "max_joint_acceleration")
     planner = MakeAccelerationPlanner(
@@ -131,7 +147,6 @@ def CheckReadKeys(scenario: WaypointsScenario) -> None:
 
 def RunWaypoints(scenario: WaypointsScenario, context: RunContext) -> dict[str, Any]:
     """Simulates the planner driving the station's arm; returns the Table-2 metrics."""
-    CheckReadKeys(scenario)
     setup = MakePlannerSetup(scenario)
     arm = scenario.arm
     builder = DiagramBuilder()
