@@ -154,6 +154,27 @@ def CheckArgument(name: str, value: Any, bound: Bound) -> None:
         raise _Under(name, e) from None
 
 
+def CheckVector(
+    name: str, value: Any, size: int | None = None, bound: Bound = FINITE
+) -> np.ndarray:
+    """Checks a vector argument of a public builder (joint positions, weights, a point):
+    `size` numbers (any size if None), each within `bound`; returns it as a float array.
+    Raises FieldError naming the argument (and the element)."""
+    try:
+        vector = np.asarray(value, float)
+    except (TypeError, ValueError):
+        vector = None
+    if vector is None or vector.ndim != 1 or (size is not None and len(vector) != size):
+        count = "numbers" if size is None else f"{size} numbers"
+        raise FieldError(name, f"expected a vector of {count}, got {value!r}")
+    for i, item in enumerate(vector.tolist()):
+        try:
+            _CheckNumber(item, bound)
+        except ConfigurationError as e:
+            raise _Under(f"{name}[{i}]", e) from None
+    return vector
+
+
 def CheckInstance(name: str, value: Any, expected: type | tuple[type, ...]) -> None:
     """Checks the type of an argument of a public builder (a scenario, a plant, a frame);
     raises FieldError naming the argument and the type expected (None passes where
