@@ -204,3 +204,13 @@ def test_an_empty_image_is_refused_naming_its_size():
         DegradeImage(np.zeros((0, 0, 4), np.uint8), DegradationConfig())
     with pytest.raises(ConfigurationError, match=r"the image is 5 x 4 px.*supersampling = 2"):
         DegradeImage(np.zeros((4, 5, 4), np.uint8), DegradationConfig(supersampling=2))
+
+
+def test_the_hardware_drivers_refuse_a_bad_period():
+    from guidedarm.systems.hardware.tof_driver import ToFDriver
+    from guidedarm.systems.hardware.tof_protocol import ToFLineCollector
+
+    with pytest.raises(ConfigurationError, match="key 'period': must be > 0, got 0"):
+        ToFDriver(ToFLineCollector(), period=0.0, watchdog=0.2)
+    with pytest.raises(ConfigurationError, match="key 'latency': must be >= 0, got -1"):
+        ToFDriver(ToFLineCollector(), period=0.02, watchdog=0.2, latency=-1.0)
