@@ -8,6 +8,11 @@ Every scenario, camera and panel file is checked by CheckConfig right after its 
     field declares another bound;
   - a field declared with Positive, NonNegative or InRange meets that bound (every element,
     for a list field);
+  - a dataclass field holds a value of its annotated type (a config made in Python may
+    hold 2.5 for an int or "3" for a float): an int is an int (not a bool), a float an int
+    or a float (not a bool), a bool a bool, a str a str, list[T] a list (tuple, array) of
+    T, dict[K, V] a dict of V, `T | None` None or a T, a config class an instance of it;
+    other annotations are not checked;
   - Drake's structs inside a schema (MultibodyPlantConfig, SimulatorConfig, CameraConfig,
     Transform, ...) are walked the same way, with the bounds of DRAKE_BOUNDS and the
     checks of DRAKE_CHECKS;
@@ -21,8 +26,11 @@ must be > 0, got nan`.
 from __future__ import annotations
 
 import dataclasses
+import functools
 import math
 import numbers
+import types
+import typing
 from collections.abc import Callable
 from dataclasses import MISSING, dataclass
 from typing import Any
@@ -122,13 +130,14 @@ def CheckConfig(config: Any, key: str = "") -> None:
 
 
 def CheckFields(config: Any) -> None:
-    """Checks the fields of one dataclass or Drake struct: declared bounds, finiteness,
-    a bool field holding a bool (a config made in Python may hold "false", which is
-    truthy), and every nested config (through its own Validate() when it has one)."""
+    """Checks the fields of one dataclass or Drake struct: declared types (a config made in
+    Python may hold "false", which is truthy, or 2.5 for a count), declared bounds,
+    finiteness, and every nested config (through its own Validate() when it has one)."""
+    hints = _TypeHints(type(config)) if dataclasses.is_dataclass(config) else {}
     for name, value, bound in _Fields(config):
-        if name in _BoolFields(config) and not isinstance(value, bool | np.bool_):
-            raise FieldError(name, f"expected true or false, got {value!r}")
         try:
+            if name in hints:
+                _CheckType(value, hints[name])
             _CheckValue(value, bound)
         except ConfigurationError as e:
             raise _Under(name, e) from None
@@ -143,6 +152,27 @@ def CheckArgument(name: str, value: Any, bound: Bound) -> None:
         _CheckNumber(float(value), bound)
     except ConfigurationError as e:
         raise _Under(name, e) from None
+
+
+def CheckVector(
+    name: str, value: Any, size: int | None = None, bound: Bound = FINITE
+) -> np.ndarray:
+    """Checks a vector argument of a public builder (joint positions, weights, a point):
+    `size` numbers (any size if None), each within `bound`; returns it as a float array.
+    Raises FieldError naming the argument (and the element)."""
+    try:
+        vector = np.asarray(value, float)
+    except (TypeError, ValueError):
+        vector = None
+    if vector is None or vector.ndim != 1 or (size is not None and len(vector) != size):
+        count = "numbers" if size is None else f"{size} numbers"
+        raise FieldError(name, f"expected a vector of {count}, got {value!r}")
+    for i, item in enumerate(vector.tolist()):
+        try:
+            _CheckNumber(item, bound)
+        except ConfigurationError as e:
+            raise _Under(f"{name}[{i}]", e) from None
+    return vector
 
 
 def CheckInstance(name: str, value: Any, expected: type | tuple[type, ...]) -> None:
@@ -165,10 +195,62 @@ def CheckNames(name: str, value: Any) -> None:
             raise FieldError(f"{name}[{i}]", f"expected a name, got {item!r}")
 
 
-def _BoolFields(config: Any) -> set[str]:
-    if not dataclasses.is_dataclass(config):
-        return set()
-    return {f.name for f in dataclasses.fields(config) if f.type in (bool, "bool")}
+@functools.cache
+def _TypeHints(cls: type) -> dict[str, Any]:
+    """The resolved field annotations of a dataclass type ({} if they cannot be resolved)."""
+    try:
+        return typing.get_type_hints(cls)
+    except Exception:  # a name imported for type checking only: leave its fields unchecked
+        return {}
+
+
+def _CheckType(value: Any, annotation: Any) -> None:
+    """Raises FieldError (key: the element's index, if any) unless `value` holds the type
+    `annotation` (see the module docstring)."""
+    origin, args = typing.get_origin(annotation), typing.get_args(annotation)
+    if origin in (typing.Union, types.UnionType):
+        if value is None and type(None) in args:
+            return
+        errors = []
+        for option in (a for a in args if a is not type(None)):
+            try:
+                return _CheckType(value, option)
+            except FieldError as e:
+                errors.append(e)
+        raise errors[0]
+    why = _Mismatch(value, annotation, origin)
+    if why is not None:
+        raise FieldError("", why)
+    if origin in (list, dict) and args:
+        items = value.items() if origin is dict else enumerate(value)
+        for key, item in items:
+            try:
+                _CheckType(item, args[-1])
+            except FieldError as e:
+                raise _Under(f"[{key}]" if origin is list else str(key), e) from None
+
+
+def _Mismatch(value: Any, annotation: Any, origin: Any) -> str | None:
+    """Why `value` is not of the outer type of `annotation`, or None."""
+    number = isinstance(value, numbers.Real) and not isinstance(value, bool | np.bool_)
+    if annotation is bool and not isinstance(value, bool | np.bool_):
+        return f"expected true or false, got {value!r}"
+    if annotation is int and not (number and isinstance(value, numbers.Integral)):
+        return f"expected an integer, got {value!r}"
+    if annotation is float and not number:
+        return f"expected a number, got {value!r}"
+    if annotation is str and not isinstance(value, str):
+        return f"expected a string, got {value!r}"
+    if origin is list and (not isinstance(value, list | tuple | np.ndarray) or np.ndim(value) == 0):
+        return f"expected a list, got {value!r}"
+    if origin is dict and not isinstance(value, dict):
+        return f"expected a mapping, got {value!r}"
+    config_class = isinstance(annotation, type) and (
+        dataclasses.is_dataclass(annotation) or hasattr(annotation, "__fields__")
+    )
+    if config_class and not isinstance(value, annotation):
+        return f"expected {annotation.__name__}, got {value!r}"
+    return None
 
 
 def _Fields(config: Any) -> list[tuple[str, Any, Bound | None]]:

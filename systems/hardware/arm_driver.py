@@ -21,6 +21,7 @@ from typing import NoReturn
 import numpy as np
 from pydrake.systems.framework import BasicVector, Context, DiscreteValues, LeafSystem
 
+from guidedarm.systems.config_checks import POSITIVE, CheckArgument
 from guidedarm.systems.errors import HardwareFaultError
 from guidedarm.systems.hardware.arm_link import ArmLink, DescribeError, JointSample, StopArm
 from guidedarm.systems.hardware.command_guard import CheckCommand, CommandRefusedError, JointLimits
@@ -44,6 +45,12 @@ class ArmDriver(LeafSystem):
         stale_after: float,
     ) -> None:
         super().__init__()
+        for name, value in (
+            ("period", period),
+            ("watchdog", watchdog),
+            ("stale_after", stale_after),
+        ):
+            CheckArgument(name, value, POSITIVE)
         self._link = link
         self._limits = limits
         self._period = period

@@ -20,6 +20,7 @@ import time
 import numpy as np
 from pydrake.systems.framework import BasicVector, Context, DiscreteValues, LeafSystem
 
+from guidedarm.systems.config_checks import NON_NEGATIVE, POSITIVE, CheckArgument
 from guidedarm.systems.hardware.arm_link import FailStoppingAllArms
 from guidedarm.systems.hardware.tof_protocol import NUM_SENSORS, ToFLineCollector
 from guidedarm.systems.tof.tof_tool_sensor import DeclareGridOutputs
@@ -48,6 +49,13 @@ class ToFDriver(LeafSystem):
         latency: float = 0.0,
     ) -> None:
         super().__init__()
+        for name, value in (
+            ("period", period),
+            ("watchdog", watchdog),
+            ("no_return_range", no_return_range),
+        ):
+            CheckArgument(name, value, POSITIVE)
+        CheckArgument("latency", latency, NON_NEGATIVE)
         self._collector = collector
         self._watchdog = watchdog
         self._latency = latency

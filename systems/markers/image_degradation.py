@@ -22,7 +22,7 @@ from pydrake.common.value import AbstractValue
 from pydrake.systems.framework import Context, LeafSystem
 from pydrake.systems.sensors import ImageRgba8U
 
-from guidedarm.systems.config_checks import CheckFields, NonNegative, Positive
+from guidedarm.systems.config_checks import CheckFields, CheckInstance, NonNegative, Positive
 from guidedarm.systems.errors import ConfigurationError
 
 
@@ -65,8 +65,12 @@ def DegradeImage(image: np.ndarray, params: DegradationConfig, stream: int = 0) 
     noise draw."""
     params.Validate()
     k = params.supersampling
-    if image.shape[0] % k or image.shape[1] % k:
-        raise ConfigurationError(f"image size {image.shape[:2]} is not a multiple of {k}")
+    height, width = image.shape[:2]
+    if height == 0 or width == 0 or height % k or width % k:
+        raise ConfigurationError(
+            f"the image is {width} x {height} px; its width and height must be positive "
+            f"multiples of supersampling = {k}"
+        )
     if k > 1:
         size = (image.shape[1] // k, image.shape[0] // k)
         image = cv2.resize(image, size, interpolation=cv2.INTER_AREA)
@@ -88,6 +92,7 @@ class ImageDegradation(LeafSystem):
 
     def __init__(self, params: DegradationConfig) -> None:
         super().__init__()
+        CheckInstance("params", params, DegradationConfig)
         params.Validate()
         self._params = params
         self._input = self.DeclareAbstractInputPort(

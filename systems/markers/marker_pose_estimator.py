@@ -12,6 +12,7 @@ from pydrake.math import RigidTransform
 from pydrake.systems.framework import BasicVector, Context, LeafSystem
 from pydrake.systems.sensors import ImageRgba8U
 
+from guidedarm.systems.config_checks import CheckInstance
 from guidedarm.systems.markers.marker_pose_estimator_math import (
     MarkerPoseEstimate,
     MarkerPoseSolver,
@@ -29,6 +30,7 @@ class MarkerPoseEstimator(LeafSystem):
 
     def __init__(self, solver: MarkerPoseSolver) -> None:
         super().__init__()
+        CheckInstance("solver", solver, MarkerPoseSolver)
         self._solver = solver
         self._image = self.DeclareAbstractInputPort(
             "color_image", AbstractValue.Make(ImageRgba8U())

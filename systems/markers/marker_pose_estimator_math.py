@@ -26,7 +26,7 @@ import numpy as np
 from pydrake.common.schema import Transform
 from pydrake.math import RigidTransform, RotationMatrix
 
-from guidedarm.systems.config_checks import CheckFields, Positive
+from guidedarm.systems.config_checks import CheckFields, CheckInstance, Positive
 from guidedarm.systems.errors import ConfigurationError
 
 # A pose whose corners reproject worse than this (RMS, pixels) is reported invalid: it means
@@ -135,6 +135,11 @@ class MarkerPoseSolver:
     """Detects the markers of `panel` in images of a camera with `intrinsics`."""
 
     def __init__(self, intrinsics: CameraIntrinsics, panel: PanelSpec) -> None:
+        """Bad arguments raise ConfigurationError naming them."""
+        CheckInstance("intrinsics", intrinsics, CameraIntrinsics)
+        CheckInstance("panel", panel, PanelSpec)
+        intrinsics.Validate()
+        CheckFields(panel)
         if not panel.markers:
             raise ConfigurationError("the panel has no markers")
         ids = [m.id for m in panel.markers]

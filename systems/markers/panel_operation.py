@@ -32,6 +32,7 @@ from pydrake.common.value import AbstractValue
 from pydrake.math import RigidTransform
 from pydrake.systems.framework import BasicVector, Context, LeafSystem, State
 
+from guidedarm.systems.config_checks import CheckFields, CheckInstance, FieldError
 from guidedarm.systems.errors import ConfigurationError
 from guidedarm.systems.markers.marker_pose_estimator_math import (
     MarkerPoseEstimate,
@@ -98,7 +99,16 @@ class PanelOperation(LeafSystem):
         planner_frames: PlannerFrames | None = None,
     ) -> None:
         super().__init__()
+        CheckInstance("kinematics", kinematics, CameraArmKinematics)
+        CheckInstance("panel", panel, PanelSpec)
+        CheckFields(panel)
+        if not panel.markers:
+            raise FieldError("panel", "the panel has no markers")
+        CheckInstance("switch", switch, SwitchSpec)
+        switch.Validate()
+        CheckInstance("config", config, PanelOperationConfig)
         config.Validate()
+        CheckInstance("planner_frames", planner_frames, (PlannerFrames, type(None)))
         if config.motion == "planner" and planner_frames is None:
             raise ConfigurationError('motion "planner" needs the planner\'s frames')
         self._planner_frames = planner_frames if config.motion == "planner" else None

@@ -17,9 +17,10 @@ from pydrake.multibody.plant import MultibodyPlant
 from pydrake.multibody.tree import Frame
 from pydrake.solvers import Solve
 
-from guidedarm.systems.config_checks import CheckFields, NonNegative, Positive
+from guidedarm.systems.config_checks import CheckFields, CheckInstance, NonNegative, Positive
 from guidedarm.systems.errors import ConfigurationError
 from guidedarm.systems.markers.marker_pose_estimator_math import PanelSpec, SwitchSpec
+from guidedarm.systems.plant_frames import CheckFrame, CheckPlant
 
 # The camera looks straight at the panel: image x = panel x, image y = -panel y.
 R_PC_STRAIGHT = RotationMatrix(np.diag([1.0, -1.0, -1.0]))
@@ -80,6 +81,10 @@ class CameraArmKinematics:
         tip_frame: Frame,
         X_FC: RigidTransform | None = None,
     ) -> None:
+        CheckPlant("plant", plant)
+        CheckFrame("camera_frame", camera_frame, plant)
+        CheckFrame("tip_frame", tip_frame, plant)
+        CheckInstance("X_FC", X_FC, (RigidTransform, type(None)))
         self.plant = plant
         self.camera_frame = camera_frame
         self.tip_frame = tip_frame

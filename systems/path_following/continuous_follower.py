@@ -26,6 +26,7 @@ from pydrake.multibody.plant import MultibodyPlant
 from pydrake.multibody.tree import Frame
 from pydrake.systems.framework import BasicVector, Context, EventStatus, LeafSystem, State
 
+from guidedarm.systems.config_checks import CheckInstance, CheckVector, FieldError
 from guidedarm.systems.path_following.continuous_follower_math import (
     BACK,
     DONE,
@@ -39,7 +40,8 @@ from guidedarm.systems.path_following.continuous_follower_math import (
     Replaced,
 )
 from guidedarm.systems.path_following.path_follower import DeclareStepOutputs, StoppedStatus
-from guidedarm.systems.path_following.path_follower_math import EstimateHose
+from guidedarm.systems.path_following.path_follower_math import ESTIMATORS, EstimateHose
+from guidedarm.systems.plant_frames import CheckFrame, CheckPlant
 from guidedarm.systems.tof.tof_tool_sensor_math import DetectionGrid
 
 # The arm this far (m) from the target means it cannot follow (limits, a singularity).
@@ -89,7 +91,8 @@ class ContinuousFollower(LeafSystem):
 
     plant, tool: the controller plant (positions = the arm's joints) and T on it;
     grid, estimator: the tool's detection grid and `grid` or `ranging`; q_initial: the
-    start joints (rad), T on the hose's first point along it.
+    start joints (rad), T on the hose's first point along it. Bad arguments raise
+    ConfigurationError naming them.
     """
 
     def __init__(
@@ -102,7 +105,16 @@ class ContinuousFollower(LeafSystem):
         q_initial: np.ndarray,
     ) -> None:
         super().__init__()
+        CheckInstance("config", config, ContinuousConfig)
         config.Validate()
+        CheckPlant("plant", plant)
+        CheckFrame("tool", tool, plant)
+        CheckInstance("grid", grid, DetectionGrid)
+        if estimator not in ESTIMATORS:
+            raise FieldError(
+                "estimator", f"must be one of {', '.join(ESTIMATORS)}, got {estimator!r}"
+            )
+        q_initial = CheckVector("q_initial", q_initial, plant.num_positions())
         if estimator == "grid":
             # The grid estimator's points are the grid's (spacing apart): a jump of one
             # spacing is its resolution, not an outlier.
@@ -111,7 +123,7 @@ class ContinuousFollower(LeafSystem):
         self._grid, self._estimator = grid, estimator
         self._plant_context = plant.CreateDefaultContext()
         n = len(q_initial)
-        X_WT = self._ToolPose(np.asarray(q_initial, float))
+        X_WT = self._ToolPose(q_initial)
         history = JointHistory(config.history).With(0.0, q_initial)
         start = _Run(Reference.Start(X_WT), HoseEstimate.Start(X_WT), history)
         self._ranges = self.DeclareVectorInputPort("ranges", 6)

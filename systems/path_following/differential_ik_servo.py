@@ -16,7 +16,17 @@ from pydrake.multibody.plant import MultibodyPlant
 from pydrake.multibody.tree import Frame, JacobianWrtVariable
 from pydrake.systems.framework import Context, DiscreteValues, LeafSystem
 
+from guidedarm.systems.config_checks import (
+    NON_NEGATIVE,
+    POSITIVE,
+    Bound,
+    CheckArgument,
+    CheckInstance,
+    CheckVector,
+    FieldError,
+)
 from guidedarm.systems.path_following.differential_ik_servo_math import (
+    MIN_DAMPING,
     BrakeStep,
     JointLimits,
     PoseError,
@@ -25,6 +35,7 @@ from guidedarm.systems.path_following.differential_ik_servo_math import (
     StoppingPositions,
 )
 from guidedarm.systems.path_following.workspace import WorkspaceConfig
+from guidedarm.systems.plant_frames import CheckFrame, CheckPlant
 
 _ORIGIN = np.zeros(3)  # the controlled frame's origin, in that frame
 
@@ -38,9 +49,11 @@ class DifferentialIkServo(LeafSystem):
     plant: a controller plant whose positions are exactly the arm's n joints; frame: the
     controlled frame on it; q_initial: the start joints (rad); period (s); max_speed
     (rad/s) and max_acceleration (rad/s^2) per joint; the plant's position limits apply;
-    gain: of the pose error (1/s); weights (6: roll about x_T, pitch, yaw, x, y, z) and
-    damping: of the least squares (differential_ik_servo_math.ServoStep); workspace and
-    X_WB: the walls (m, the arm's base frame B) and B's pose in W, None: no walls.
+    gain: of the pose error (1/s); weights (6 >= 0, not all 0: roll about x_T, pitch, yaw,
+    x, y, z) and damping (in [MIN_DAMPING, 1]): of the least squares
+    (differential_ik_servo_math.ServoStep); workspace and X_WB: the walls (m, the arm's base
+    frame B) and B's pose in W, None: no walls. Bad arguments raise ConfigurationError
+    naming them.
     """
 
     def __init__(
@@ -58,11 +71,29 @@ class DifferentialIkServo(LeafSystem):
         X_WB: RigidTransform | None = None,
     ) -> None:
         super().__init__()
+        CheckPlant("plant", plant)
+        CheckFrame("frame", frame, plant)
         n = plant.num_positions()
+        q_initial = CheckVector("q_initial", q_initial, n)
+        for name, value in (
+            ("period", period),
+            ("max_speed", max_speed),
+            ("max_acceleration", max_acceleration),
+            ("gain", gain),
+        ):
+            CheckArgument(name, value, POSITIVE)
+        weights = CheckVector("weights", weights, 6, NON_NEGATIVE)
+        if not weights.any():
+            raise FieldError("weights", f"at least one must be > 0, got {weights}")
+        CheckArgument("damping", damping, Bound(MIN_DAMPING, 1.0))
+        CheckInstance("workspace", workspace, (WorkspaceConfig, type(None)))
+        if workspace is not None:
+            workspace.Validate()
+        CheckInstance("X_WB", X_WB, (RigidTransform, type(None)))
         self._plant, self._frame, self._n = plant, frame, n
         self._plant_context = plant.CreateDefaultContext()
         self._period, self._gain = period, gain
-        self._weights, self._damping = np.asarray(weights, float), damping
+        self._weights, self._damping = weights, damping
         self._limits = JointLimits(
             plant.GetPositionLowerLimits(),
             plant.GetPositionUpperLimits(),
@@ -87,7 +118,7 @@ class DifferentialIkServo(LeafSystem):
             "X_WT_desired", AbstractValue.Make(RigidTransform())
         )
         # q, v, [status], [1 + the index in _bodies of the body at a wall (0: none)]
-        self._q = self.DeclareDiscreteState(np.asarray(q_initial, float))
+        self._q = self.DeclareDiscreteState(q_initial)
         self._v = self.DeclareDiscreteState(n)
         self._status = self.DeclareDiscreteState(1)
         self._wall = self.DeclareDiscreteState(1)

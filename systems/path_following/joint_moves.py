@@ -15,18 +15,24 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from guidedarm.systems.config_checks import CheckFields, Positive
+
 
 @dataclass(frozen=True)
 class MotionLimits:
     """tool_speed (m/s), max_joint_speed (rad/s), tool_acceleration (m/s^2),
-    max_joint_acceleration (rad/s^2), settle_tolerance (rad), settle_timeout (s)."""
+    max_joint_acceleration (rad/s^2), settle_tolerance (rad), settle_timeout (s); all > 0."""
 
-    tool_speed: float = 0.05
-    max_joint_speed: float = 1.0
-    tool_acceleration: float = 0.5
-    max_joint_acceleration: float = 5.0
-    settle_tolerance: float = 1e-3
-    settle_timeout: float = 2.0
+    tool_speed: float = Positive(0.05)
+    max_joint_speed: float = Positive(1.0)
+    tool_acceleration: float = Positive(0.5)
+    max_joint_acceleration: float = Positive(5.0)
+    settle_tolerance: float = Positive(1e-3)
+    settle_timeout: float = Positive(2.0)
+
+    def Validate(self) -> None:
+        """Raises ConfigurationError naming the first bad limit."""
+        CheckFields(self)
 
 
 @dataclass(frozen=True)

@@ -26,6 +26,7 @@ from pydrake.common.value import AbstractValue
 from pydrake.math import RigidTransform
 from pydrake.systems.framework import BasicVector, Context, EventStatus, LeafSystem, State
 
+from guidedarm.systems.config_checks import POSITIVE, CheckArgument, CheckInstance, CheckVector
 from guidedarm.systems.errors import GuidedArmError
 from guidedarm.systems.path_following.joint_moves import (
     MotionLimits,
@@ -113,8 +114,17 @@ class PathFollower(LeafSystem):
         plan_move: MovePlanner | None = None,
     ) -> None:
         """plan_move: how moves are made (default: joint_moves.PlanJointMove with `motion`;
-        e.g. planner_moves.PlannerMoves); motion's settle limits apply either way."""
+        e.g. planner_moves.PlannerMoves); motion's settle limits apply either way. Bad
+        arguments raise ConfigurationError naming them."""
         super().__init__()
+        CheckInstance("params", params, FollowerConfig)
+        CheckInstance("mount", mount, ToolMount)
+        CheckInstance("grid", grid, DetectionGrid)
+        q_initial = CheckVector("q_initial", q_initial)
+        CheckInstance("motion", motion, MotionLimits)
+        motion.Validate()
+        CheckArgument("period", period, POSITIVE)
+        CheckInstance("plan_move", plan_move, (Callable, type(None)))
         params = params.Resolved()
         self._params, self._mount, self._grid, self._motion = params, mount, grid, motion
         self._period = period

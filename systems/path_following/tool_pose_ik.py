@@ -10,6 +10,7 @@ from pydrake.common.value import AbstractValue
 from pydrake.math import RigidTransform
 from pydrake.systems.framework import BasicVector, Context, LeafSystem, State
 
+from guidedarm.systems.config_checks import POSITIVE, CheckArgument, CheckInstance, CheckVector
 from guidedarm.systems.path_following.tool_pose_ik_math import ToolPoseSolver
 
 STATUS_SIZE = 3  # request id solved, success (0/1), solve time (s)
@@ -28,8 +29,11 @@ class ToolPoseIk(LeafSystem):
         self, solver: ToolPoseSolver, period: float, q_initial: np.ndarray | None = None
     ) -> None:
         """period: the update tick (s); q_initial: the goal held before the first request
-        (rad; default the solver plant's default positions), the arm's start position."""
+        (rad; default the solver plant's default positions), the arm's start position. Bad
+        arguments raise ConfigurationError naming them."""
         super().__init__()
+        CheckInstance("solver", solver, ToolPoseSolver)
+        CheckArgument("period", period, POSITIVE)
         self._solver = solver
         n = len(solver.q_indices)
         self._n = n
@@ -40,6 +44,7 @@ class ToolPoseIk(LeafSystem):
         self._position_measured = self.DeclareVectorInputPort("position_measured", n)
         if q_initial is None:
             q_initial = solver.plant.GetPositions(solver.context)
+        q_initial = CheckVector("q_initial", q_initial, n)
         initial = np.concatenate([[0.0, 1.0, 0.0], q_initial])
         self._state = self.DeclareDiscreteState(initial)
         self._failure = self.DeclareAbstractState(AbstractValue.Make(""))

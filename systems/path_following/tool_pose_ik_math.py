@@ -41,12 +41,15 @@ from pydrake.solvers import SnoptSolver, Solve
 from guidedarm.systems.config_checks import (
     CheckFields,
     CheckInstance,
+    CheckVector,
+    FieldError,
     InRange,
     NonNegative,
     Positive,
 )
 from guidedarm.systems.errors import ConfigurationError
 from guidedarm.systems.path_following.workspace import WorkspaceConfig
+from guidedarm.systems.plant_frames import CheckFrame, CheckPlant
 
 
 @dataclass
@@ -115,9 +118,11 @@ class ToolPoseSolver:
         sideways by the tool's length times the shortfall. workspace: the walls (default the
         paper's cell) in the arm's base frame B, whose pose in the world is X_WB (default the
         identity)."""
-        CheckInstance("plant", plant, MultibodyPlant)
+        CheckPlant("plant", plant)
         CheckInstance("instance", instance, ModelInstanceIndex)
-        CheckInstance("frame", frame, Frame)
+        if not int(instance) < plant.num_model_instances():
+            raise FieldError("instance", f"no model instance {int(instance)} in the plant")
+        CheckFrame("frame", frame, plant)
         CheckInstance("limits", limits, ToolPoseIkConfig)
         CheckInstance("workspace", workspace, (WorkspaceConfig, type(None)))
         CheckInstance("X_WB", X_WB, (RigidTransform, type(None)))
@@ -128,7 +133,7 @@ class ToolPoseSolver:
         self.workspace = workspace or WorkspaceConfig()
         self.workspace.Validate()
         self.X_WB = X_WB or RigidTransform()
-        self.p_FQ = np.zeros(3) if p_FQ is None else np.asarray(p_FQ, float)
+        self.p_FQ = np.zeros(3) if p_FQ is None else CheckVector("p_FQ", p_FQ, 3)
         self.context = plant.CreateDefaultContext()
         self._q_start = plant.GetPositions(self.context).copy()
         joints = plant.GetJointIndices(instance)

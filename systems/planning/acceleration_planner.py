@@ -24,6 +24,7 @@ import numpy as np
 from pydrake.common.value import AbstractValue
 from pydrake.systems.framework import BasicVector, Context, DiscreteValues, LeafSystem
 
+from guidedarm.systems.config_checks import CheckInstance, CheckVector
 from guidedarm.systems.errors import ConfigurationError
 from guidedarm.systems.planning.acceleration_planner_math import (
     AccelerationPlanning,
@@ -68,6 +69,10 @@ class AccelerationPlanner(LeafSystem):
         q_guess: np.ndarray | None = None,
     ) -> None:
         super().__init__()
+        CheckInstance("planning", planning, AccelerationPlanning)
+        CheckInstance("accept_tasks", accept_tasks, bool)
+        if q_guess is not None:
+            q_guess = CheckVector("q_guess", q_guess, 6)
         if not accept_tasks:
             kinematics = planning.kinematics
             if q_guess is None:

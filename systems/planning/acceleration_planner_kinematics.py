@@ -24,7 +24,9 @@ from pydrake.math import RollPitchYaw, RotationMatrix
 from pydrake.multibody.plant import MultibodyPlant
 from pydrake.multibody.tree import Frame, JacobianWrtVariable, ModelInstanceIndex
 
+from guidedarm.systems.config_checks import POSITIVE, CheckArgument, CheckInstance, FieldError
 from guidedarm.systems.errors import ConfigurationError, RunFailedError
+from guidedarm.systems.plant_frames import CheckFrame, CheckPlant
 
 
 class PlanningError(RunFailedError):
@@ -201,14 +203,17 @@ class ArmKinematics:
         tool_frame: Frame,
         min_singular_value: float = 0.01,
     ) -> None:
+        CheckPlant("plant", plant)
+        CheckInstance("instance", instance, ModelInstanceIndex)
+        if not int(instance) < plant.num_model_instances():
+            raise FieldError("instance", f"no model instance {int(instance)} in the plant")
+        CheckFrame("base_frame", base_frame, plant)
+        CheckFrame("tool_frame", tool_frame, plant)
+        CheckArgument("min_singular_value", min_singular_value, POSITIVE)
         if plant.num_velocities(instance) != 6 or plant.num_positions(instance) != 6:
             raise ConfigurationError(
                 f"the planner needs a 6-DoF arm; {plant.GetModelInstanceName(instance)} has "
                 f"{plant.num_velocities(instance)} joints"
-            )
-        if not min_singular_value > 0:
-            raise ConfigurationError(
-                f"min_singular_value must be positive, got {min_singular_value}"
             )
         self.plant = plant
         self.instance = instance

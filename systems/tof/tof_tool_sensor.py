@@ -17,9 +17,15 @@ from pydrake.math import RigidTransform
 from pydrake.multibody.plant import MultibodyPlant
 from pydrake.systems.framework import BasicVector, Context, DiscreteValues, LeafSystem
 
-from guidedarm.systems.config_checks import CheckFields, InRange, NonNegative, Positive
+from guidedarm.systems.config_checks import (
+    CheckFields,
+    CheckInstance,
+    InRange,
+    NonNegative,
+    Positive,
+)
 from guidedarm.systems.errors import ConfigurationError
-from guidedarm.systems.plant_frames import GetScopedFrame
+from guidedarm.systems.plant_frames import CheckPlant, GetScopedFrame
 from guidedarm.systems.tof.primitive_ray_casting import SceneRayCaster, SensorMount
 from guidedarm.systems.tof.tof_tool_sensor_math import (
     ConeRays,
@@ -135,7 +141,12 @@ class ToFToolSensor(LeafSystem):
     """
 
     def __init__(self, plant: MultibodyPlant, config: ToFToolConfig) -> None:
+        """plant: a finalized plant registered with the SceneGraph whose QueryObject the
+        `query_object` input carries (the station's); bad arguments raise
+        ConfigurationError naming them."""
         super().__init__()
+        CheckPlant("plant", plant, scene_graph=True)
+        CheckInstance("config", config, ToFToolConfig)
         config.Validate()
         self._config = config
         frames = [GetScopedFrame(plant, name, "tof sensor_frames") for name in config.sensor_frames]
