@@ -9,7 +9,6 @@ import pytest
 from pydrake.systems.framework import DiagramBuilder
 from pydrake.systems.primitives import ConstantVectorSource, PassThrough
 
-from guidedarm.diagrams.builder_checks import CheckFieldTypes
 from guidedarm.diagrams.cli.command_run import LoadScenario
 from guidedarm.diagrams.scenario_loading import list_named_scenarios
 from guidedarm.diagrams.station.scenario import ArmConfig, StationScenario
@@ -23,6 +22,7 @@ from guidedarm.diagrams.tasks.path_following_diagram import (
     MakeKinematicStation,
 )
 from guidedarm.diagrams.tasks.path_following_setup import MakeSetup
+from guidedarm.systems.config_checks import CheckConfig
 from guidedarm.systems.errors import ConfigurationError
 
 PANEL_ARGS = {"arm": "rover_arm", "camera": "camera", "tip_frame": "rover_gripper::gripper_tip"}
@@ -127,13 +127,13 @@ def _ur10e(**fields) -> StationScenario:
 @pytest.mark.parametrize(
     "scenario, message",
     [
-        (_ur10e(arms=["ur10e"]), "key 'scenario.arms': expected a dict of name: ArmConfig, got"),
+        (_ur10e(arms=["ur10e"]), "key 'scenario.arms': expected a mapping, got ['ur10e']"),
         (_ur10e(arms={"ur10e": {}}), "key 'scenario.arms.ur10e': expected ArmConfig, got {}"),
         (
             _ur10e(arms={"ur10e": ArmConfig(kp="5")}),
-            "key 'scenario.arms.ur10e.kp': expected float, got '5'",
+            "key 'scenario.arms.ur10e.kp': expected a number, got '5'",
         ),
-        (_ur10e(hose="hose.csv"), "key 'scenario.hose': expected HoseConfig or None"),
+        (_ur10e(hose="hose.csv"), "key 'scenario.hose': expected HoseConfig, got 'hose.csv'"),
     ],
 )
 def test_station_builders_refuse_scenario_fields_of_the_wrong_type(scenario, message):
@@ -144,7 +144,7 @@ def test_station_builders_refuse_scenario_fields_of_the_wrong_type(scenario, mes
 
 def test_every_shipped_scenario_and_numpy_values_have_their_declared_types():
     for name in list_named_scenarios():
-        CheckFieldTypes(LoadScenario(name, [])[1], name)
+        CheckConfig(LoadScenario(name, [])[1], name)
     arm = ArmConfig(initial_position=np.zeros(6), kp=np.float64(900.0), kd=40)
     plant = MakeMultibodyPlant(_ur10e(arms={"ur10e": arm}))
     assert plant.num_positions() == 6

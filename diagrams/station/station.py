@@ -36,7 +36,6 @@ from pydrake.systems.primitives import (
 from pydrake.systems.sensors import CameraConfig, RgbdSensor
 from pydrake.visualization import ApplyVisualizationConfig, VisualizationConfig
 
-from guidedarm.diagrams.builder_checks import CheckFieldTypes
 from guidedarm.diagrams.station.hardware_station import MakeHardwareStation
 from guidedarm.diagrams.station.scenario import ArmConfig, StationScenario
 from guidedarm.diagrams.station.station_plant import (
@@ -46,7 +45,7 @@ from guidedarm.diagrams.station.station_plant import (
     MakeMultibodyPlant,
     SetInitialPositions,
 )
-from guidedarm.systems.config_checks import CheckInstance
+from guidedarm.systems.config_checks import CheckConfig, CheckInstance
 from guidedarm.systems.errors import ConfigurationError
 from guidedarm.systems.tof.tof_tool_sensor import TOF_PORTS, ToFToolSensor
 
@@ -71,7 +70,7 @@ def MakeStation(
 ) -> Diagram:
     """Builds the station Diagram of `scenario` (simulated, or hardware drivers)."""
     CheckInstance("scenario", scenario, StationScenario)
-    CheckFieldTypes(scenario, "scenario")
+    CheckConfig(scenario, "scenario")
     CheckInstance("meshcat", meshcat, (Meshcat, type(None)))
     CheckInstance("hardware", hardware, bool)
     if hardware:
@@ -146,12 +145,6 @@ def _AddArm(
         raise ConfigurationError(
             f"arms.{name}: every joint must have an actuator ({n} actuators, "
             f"{plant.num_velocities(instance)} joints)"
-        )
-    if not 0 < arm.control_period < np.inf:
-        raise ConfigurationError(f"arms.{name}.control_period must be positive")
-    if not (0 < arm.kp < np.inf and np.isfinite(arm.kd)):
-        raise ConfigurationError(
-            f"arms.{name}: gains must be positive (kp) and finite, got kp={arm.kp}, kd={arm.kd}"
         )
     kd = arm.kd if arm.kd > 0 else 2.0 * np.sqrt(arm.kp)
     controller_plant = MakeMultibodyPlant(scenario, ArmAndAttachments(plant, name))

@@ -24,10 +24,15 @@ from pydrake.multibody.parsing import (
 from pydrake.multibody.plant import MultibodyPlant
 from pydrake.multibody.tree import ModelInstanceIndex
 
-from guidedarm.diagrams.builder_checks import CheckFieldTypes
 from guidedarm.diagrams.station.model_paths import MakeParser
 from guidedarm.diagrams.station.scenario import ArmConfig, StationScenario
-from guidedarm.systems.config_checks import NON_NEGATIVE, CheckArgument, CheckInstance, CheckNames
+from guidedarm.systems.config_checks import (
+    NON_NEGATIVE,
+    CheckArgument,
+    CheckConfig,
+    CheckInstance,
+    CheckNames,
+)
 from guidedarm.systems.errors import ConfigurationError
 from guidedarm.systems.path_following.hose_geometry import ReadCenterline, RegisterHose
 from guidedarm.systems.plant_frames import GetScopedFrame
@@ -47,7 +52,7 @@ def MakeMultibodyPlant(
     and for the hose); the caller adds both to a diagram, or poses the plant's geometry
     with MultibodyPositionToGeometryPose. Bad arguments raise ConfigurationError."""
     CheckInstance("scenario", scenario, StationScenario)
-    CheckFieldTypes(scenario, "scenario")
+    CheckConfig(scenario, "scenario")
     if model_instance_names is not None:
         CheckNames("model_instance_names", model_instance_names)
     CheckArgument("time_step", time_step, NON_NEGATIVE)

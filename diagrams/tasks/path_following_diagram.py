@@ -31,12 +31,12 @@ from pydrake.systems.framework import Diagram, DiagramBuilder
 from pydrake.systems.primitives import PassThrough
 from pydrake.systems.rendering import MultibodyPositionToGeometryPose
 
-from guidedarm.diagrams.builder_checks import CheckFieldTypes, CheckStationWiring
+from guidedarm.diagrams.builder_checks import CheckStationWiring
 from guidedarm.diagrams.station.scenario import StationScenario
 from guidedarm.diagrams.station.station import AddMeshcatVisualization
 from guidedarm.diagrams.station.station_plant import GetArmInstance, MakeMultibodyPlant
 from guidedarm.diagrams.tasks.path_following_setup import Setup
-from guidedarm.systems.config_checks import CheckInstance
+from guidedarm.systems.config_checks import CheckConfig, CheckInstance
 from guidedarm.systems.errors import ConfigurationError
 from guidedarm.systems.path_following.continuous_follower import ContinuousFollower
 from guidedarm.systems.path_following.differential_ik_servo import DifferentialIkServo
@@ -208,7 +208,7 @@ def MakeKinematicStation(scenario: StationScenario, meshcat: Meshcat | None = No
     `<arm>.position_measured` (n, rad; the command itself), `<tof>.ranges`, `<tof>.valid`,
     `<tof>.detections`, `<tof>.detection_errors`, and `sim.query_object`."""
     CheckInstance("scenario", scenario, StationScenario)
-    CheckFieldTypes(scenario, "scenario")
+    CheckConfig(scenario, "scenario")
     if len(scenario.arms) != 1:
         raise ConfigurationError("the kinematic station takes exactly one arm")
     (arm,) = scenario.arms

@@ -24,7 +24,6 @@ import numpy as np
 from pydrake.math import RigidTransform
 from pydrake.multibody.plant import MultibodyPlant
 
-from guidedarm.diagrams.builder_checks import CheckFieldTypes
 from guidedarm.diagrams.station.scenario import ArmConfig, StationScenario
 from guidedarm.diagrams.station.station_plant import (
     ArmAndAttachments,
@@ -109,13 +108,13 @@ class Setup:
 
 
 def MakeSetup(scenario: PathFollowingScenario, out_dir: Path | None = None) -> Setup:
-    """Checks the scenario (its types, then CheckConfig: PathFollowingScenario.Validate),
-    places the hose and solves the start pose (module docstring).
+    """Checks the scenario (CheckConfig: its fields' types and bounds, then
+    PathFollowingScenario.Validate), places the hose and solves the start pose (module
+    docstring).
     out_dir receives the CSV of a random path (default: _RandomHoseFile's shared folder)."""
     from guidedarm.diagrams.tasks.path_following import PathFollowingScenario  # imports this
 
     CheckInstance("scenario", scenario, PathFollowingScenario)
-    CheckFieldTypes(scenario, "scenario")
     CheckConfig(scenario)
     station = copy.deepcopy(scenario.station)
     base_frame = scenario.base_frame or f"{scenario.arm}::base"
