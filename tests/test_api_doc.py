@@ -41,8 +41,11 @@ def LeafSystemClasses() -> dict[str, type]:
     return classes
 
 
-def DeclaredPorts(function_or_class) -> set[str]:
-    """Names of the ports the source of a class (or function) declares."""
+def DeclaredPorts(function_or_class, seen: set | None = None) -> set[str]:
+    """Names of the ports the source of a class (or function) declares, through the
+    functions of guidedarm.systems it calls (each read once: some call themselves)."""
+    seen = set() if seen is None else seen
+    seen.add(function_or_class)
     source = textwrap.dedent(inspect.getsource(function_or_class))
     tree = ast.parse(source)
     module = inspect.getmodule(function_or_class)
@@ -77,8 +80,12 @@ def DeclaredPorts(function_or_class) -> set[str]:
                 )
         elif isinstance(func, ast.Name):  # a helper that declares ports for the system
             helper = getattr(module, func.id, None)
-            if inspect.isfunction(helper) and helper.__module__.startswith("guidedarm.systems"):
-                names.update(DeclaredPorts(helper))
+            if (
+                inspect.isfunction(helper)
+                and helper.__module__.startswith("guidedarm.systems")
+                and helper not in seen
+            ):
+                names.update(DeclaredPorts(helper, seen))
     return names
 
 
