@@ -3,6 +3,7 @@ resolved-rate servo's limits, and one seeded run through the station."""
 
 import dataclasses
 import math
+import re
 
 import numpy as np
 import pytest
@@ -387,3 +388,51 @@ def test_an_arm_that_cannot_move_fails_following_after_the_stall_time():
     simulator.AdvanceTo(STALL_TIME + 0.1)
     assert "has not moved for 2 s" in follower.Loop(context).failure
     assert follower.Stopped(context)
+
+
+@pytest.mark.parametrize("closest, failure", [(0.012, "sensor 3"), (0.016, "")])
+def test_a_reading_within_min_range_of_a_sensor_ends_the_run(closest, failure):
+    """The follower on the kinematic station, its ranges replaced by 40 mm everywhere but
+    sensor 3: 12 mm (below continuous.min_range, 15 mm: the tool is at the hose) ends the
+    run at the first reading naming the sensor; 16 mm does not."""
+    from pydrake.systems.primitives import ConstantVectorSource
+
+    from guidedarm.diagrams.cli.command_run import LoadScenario
+    from guidedarm.diagrams.tasks.path_following_diagram import MakeKinematicStation
+    from guidedarm.diagrams.tasks.path_following_setup import MakeSetup
+    from guidedarm.systems.path_following.continuous_follower import ContinuousFollower
+    from guidedarm.systems.plant_frames import GetScopedFrame
+
+    _, scenario, _ = LoadScenario("path_following", ["motion=continuous", "estimator=ranging"])
+    setup = MakeSetup(scenario)
+    plant = setup.solver.plant
+    tool = GetScopedFrame(plant, setup.station.tof_tools["tof"].tool_frame, "tool")
+    builder = DiagramBuilder()
+    station = builder.AddSystem(MakeKinematicStation(setup.station))
+    held = builder.AddSystem(ConstantVectorSource(setup.q_start))
+    builder.Connect(held.get_output_port(), station.GetInputPort("mz04d.position_commanded"))
+    follower = builder.AddSystem(
+        ContinuousFollower(setup.continuous, plant, tool, setup.grid, "ranging", setup.q_start)
+    )
+    ranges = builder.AddSystem(ConstantVectorSource([0.04, 0.04, closest, 0.04, 0.04, 0.04]))
+    builder.Connect(ranges.get_output_port(), follower.GetInputPort("ranges"))
+    for port in ("valid", "measured_at"):
+        builder.Connect(station.GetOutputPort(f"tof.{port}"), follower.GetInputPort(port))
+    builder.Connect(
+        station.GetOutputPort("mz04d.position_measured"),
+        follower.GetInputPort("position_measured"),
+    )
+    simulator = Simulator(builder.Build())
+    context = follower.GetMyContextFromRoot(simulator.get_mutable_context())
+    simulator.AdvanceTo(0.1)
+    run = follower.Loop(context)
+    if failure:
+        assert re.fullmatch(
+            rf"the hose came within 12 mm of {failure} at reading 0 \(t = 0\.00 s; "
+            r"continuous.min_range 15 mm\): the tool is at the hose, in a bend tighter than "
+            r"it can follow; stopped",
+            run.failure,
+        ), run.failure
+        assert follower.Stopped(context) and run.step == 1
+    else:
+        assert run.failure == "" and run.step > 1

@@ -259,6 +259,18 @@ class ContinuousFollower(LeafSystem):
             record=record,
             grid=np.concatenate((detected, errors), axis=None).astype(float),
         )
+        closest, sensor = min(
+            ((r, k) for k, (r, v) in enumerate(zip(ranges.tolist(), valid, strict=True)) if v),
+            default=(math.inf, 0),
+        )
+        if closest < self._config.min_range:
+            return Replaced(
+                run,
+                failure=f"the hose came within {1000 * closest:.0f} mm of sensor {sensor + 1} at "
+                f"reading {run.step - 1} (t = {stamp:.2f} s; continuous.min_range "
+                f"{1000 * self._config.min_range:.0f} mm): the tool is at the hose, in a bend "
+                "tighter than it can follow; stopped",
+            )
         if lag > MAX_LAG:
             run = _CannotFollow(
                 run,
