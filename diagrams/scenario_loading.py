@@ -155,15 +155,20 @@ def load_typed(
 
 
 def _NamingTheOverride(error: ScenarioError, source: str, overridden: list[str]) -> ScenarioError:
-    """`error` ("SOURCE: key 'K': ...") as "--set key 'K': ..." when K came from --set."""
+    """`error` ("SOURCE: key 'K': ...") as "--set key 'K': ..." when K came from --set, and
+    as "SOURCE with --set K.x: key 'K': ..." when a rule between K's fields refuses it and
+    some of them came from --set."""
     text = str(error)
     named = re.match(re.escape(source) + r": (?:unknown )?key '([^']*)'", text)
     if named is None:
         return error
     key = named.group(1)
-    if not any(key == k or key.startswith((f"{k}.", f"{k}[")) for k in overridden):
-        return error
-    return ScenarioError("--set " + text[len(source) + 2 :])
+    if any(key == k or key.startswith((f"{k}.", f"{k}[")) for k in overridden):
+        return ScenarioError("--set " + text[len(source) + 2 :])
+    inside = [k for k in overridden if k.startswith((f"{key}.", f"{key}["))]
+    if inside:
+        return ScenarioError(f"{source} with --set {', '.join(inside)}: {text[len(source) + 2 :]}")
+    return error
 
 
 def _refuse_replaced_keys(schema: Any, raw: dict[str, Any], source: str) -> None:

@@ -91,3 +91,17 @@ def test_cli_reports_bad_scenario_in_one_line(tmp_path, run_cli):
     lines = err.strip().splitlines()
     assert len(lines) == 1 and "unknown key 'colour'" in lines[0]
     assert "Traceback" not in err
+
+
+def test_a_rule_between_fields_names_the_set_that_broke_it():
+    """A --set that breaks a rule between the fields of a section (continuous: loss_distance
+    < look_ahead) is named beside the scenario file, not left for the user to guess."""
+    from guidedarm.diagrams.cli.command_run import LoadScenario
+    from guidedarm.diagrams.scenario_loading import ScenarioError
+
+    with pytest.raises(ScenarioError) as refused:
+        LoadScenario("path_following", ["motion=continuous", "continuous.look_ahead=0.008"])
+    assert str(refused.value).endswith(
+        "path_following.yaml with --set continuous.look_ahead: key 'continuous': continuous: "
+        "need loss_distance < look_ahead"
+    )
