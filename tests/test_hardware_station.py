@@ -155,7 +155,7 @@ def test_bad_driver_settings_are_refused_before_connecting(arm, tof, message):
         tof_tools={"tof": ToFDriverConfig(**{"device": "/dev/null", **tof})},
     )
     scenario = Mz04dScenario(hardware=hardware, tof_tools={"tof": ToFToolConfig()})
-    with pytest.raises(ConfigurationError, match=f"^key 'hardware\\.{message}"):
+    with pytest.raises(ConfigurationError, match=f"^key 'scenario\\.hardware\\.{message}"):
         MakeStation(scenario, hardware=True)
 
 
