@@ -12,7 +12,7 @@ from pydrake.common.yaml import yaml_dump_typed
 from guidedarm.diagrams.interrupts import RaiseIfInterrupted, TakeInterrupt
 from guidedarm.diagrams.run_context import RESOLVED_SCENARIO_FILE, NonFiniteKeys, RunContext
 from guidedarm.diagrams.tasks.registry import TaskDefinition
-from guidedarm.systems.errors import GuidedArmError, RunFailedError
+from guidedarm.systems.errors import DrakeCheckFailure, GuidedArmError, RunFailedError
 
 # The `failure` of a run stopped by Ctrl-C.
 INTERRUPTED = "interrupted"
@@ -38,11 +38,13 @@ def RunTask(task: TaskDefinition, scenario: Any, context: RunContext) -> dict[st
         metrics = {"success": False, "failure": InterruptedFailure(e)}
     except GuidedArmError:
         raise
-    except Exception as e:  # a bug: keep its traceback beside the summary, not on screen
+    except (Exception, SystemExit) as e:
+        # A bug, or a failed Drake check (pydrake raises it as SystemExit): its traceback
+        # beside the summary, not on screen. Nothing in a task exits on purpose.
         context.write_text(TRACEBACK_FILE, traceback.format_exc())
         first = str(e).strip().splitlines()[0] if str(e).strip() else ""
-        failure = f"internal error {type(e).__name__}: {first} (see {TRACEBACK_FILE})"
-        metrics = {"success": False, "failure": failure}
+        cause = DrakeCheckFailure(e) or f"{type(e).__name__}: {first}"
+        metrics = {"success": False, "failure": f"internal error {cause} (see {TRACEBACK_FILE})"}
     bad = NonFiniteKeys(metrics)
     if bad:
         metrics = _WithoutNonFinite(metrics)

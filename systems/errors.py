@@ -1,5 +1,7 @@
 """Errors that guidedarm reports to the user as one line, naming the cause."""
 
+import re
+
 
 class GuidedArmError(RuntimeError):
     """Base of every expected failure (bad input, unreachable target, lost sensor, ...)."""
@@ -33,3 +35,18 @@ class HardwareFaultError(RunFailedError):
         when = f" at t = {t:.3f} s" if t is not None else ""
         stops = f" (stopping it also failed: {'; '.join(self.stop_errors)})" if stop_errors else ""
         super().__init__(f"hardware fault on {device}{when}: {what}{stops}")
+
+
+_DRAKE_FAILURE = re.compile(r"Failure at (?:.*/)?([^/:]+):(\d+) in (.*?\)): (.*)", re.DOTALL)
+
+
+def DrakeCheckFailure(error: BaseException) -> str | None:
+    """One line for a failed Drake check (pydrake raises it as a SystemExit whose code is
+    "Failure at FILE:LINE in FUNCTION(): condition '...' failed."), naming the function and
+    condition without the build path; None for any other exception."""
+    code = getattr(error, "code", None) if isinstance(error, SystemExit) else None
+    match = _DRAKE_FAILURE.match(code) if isinstance(code, str) else None
+    if match is None:
+        return None
+    file, line, function, condition = match.groups()
+    return f"a Drake check failed in {function} ({file}:{line}): {condition.strip()}"

@@ -669,10 +669,21 @@ def test_a_started_run_always_ends_with_metrics_and_a_failure(tmp_path):
     def refused(scenario, context):
         raise ConfigurationError("no such arm")
 
+    def drake_check(scenario, context):
+        from pydrake.multibody.plant import MultibodyPlant
+
+        plant = MultibodyPlant(0.0)
+        plant.Finalize()
+        plant.SetPositions(plant.CreateDefaultContext(), [1.0])  # pydrake: SystemExit
+
     assert RunTask(_Task(lost), scenario, context)["failure"] == "tof went quiet"
     failure = RunTask(_Task(bug), scenario, context)["failure"]
     assert failure.startswith("internal error ValueError: division by zero (see traceback")
     assert "Traceback" in (tmp_path / "traceback.txt").read_text()
+    assert RunTask(_Task(drake_check), scenario, context)["failure"] == (
+        "internal error a Drake check failed in SetPositions() (multibody_plant.h:2896): "
+        "condition 'q.size() == num_positions()' failed. (see traceback.txt)"
+    )
     assert RunTask(_Task(interrupted), scenario, context)["failure"] == "interrupted"
     metrics = RunTask(_Task(nan_metric), scenario, context)
     assert metrics["error_mm"] == [1.0, None] and "error_mm.[1]" in metrics["failure"]
@@ -844,3 +855,27 @@ def test_public_builders_refuse_bad_arguments_in_one_line():
             call()
         assert error.value.key == key and "\n" not in str(error.value)
     assert MakeMultibodyPlant(station, ["ur10e"], time_step=0.001).time_step() == 0.001
+
+
+def test_a_drake_check_failing_outside_a_run_is_one_line(monkeypatch, capsys):
+    """A command whose Drake call fails a check (pydrake's SystemExit "Failure at ...")
+    exits 1 with one line naming the function and condition, without the build path."""
+    from guidedarm.diagrams.cli import command_list
+    from guidedarm.diagrams.cli.main import main
+
+    def failing(args):
+        raise SystemExit(
+            "Failure at bazel-out/k8-opt/bin/external/drake+/drake/math/rigid_transform.cc:54 "
+            "in GetDeterministicValue(): condition 'is_deterministic()' failed."
+        )
+
+    monkeypatch.setattr(command_list, "list_command", failing)
+    assert main(["list"]) == 1
+    err = capsys.readouterr().err.strip().splitlines()
+    assert err == [
+        "guidedarm: internal error: a Drake check failed in GetDeterministicValue() "
+        "(rigid_transform.cc:54): condition 'is_deterministic()' failed."
+    ]
+    with pytest.raises(SystemExit):  # any other exit passes through
+        monkeypatch.setattr(command_list, "list_command", lambda args: sys.exit(3))
+        main(["list"])

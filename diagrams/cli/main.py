@@ -2,7 +2,8 @@
 
 Exit codes, for every subcommand: 0 done; 1 a run that started failed (its summary.json
 says why); 2 bad input or configuration, refused with one line on stderr (argument errors
-included); 130 interrupted (Ctrl-C or SIGTERM) outside a run; 141 stdout closed early
+included); 1 also for an internal error outside a run (a failed Drake check, one
+line); 130 interrupted (Ctrl-C or SIGTERM) outside a run; 141 stdout closed early
 (e.g. `| head -1`).
 """
 
@@ -18,7 +19,7 @@ import threading
 
 import guidedarm.diagrams.cli as cli_package
 from guidedarm.diagrams.interrupts import InstallInterruptHandlers
-from guidedarm.systems.errors import ConfigurationError, GuidedArmError
+from guidedarm.systems.errors import ConfigurationError, DrakeCheckFailure, GuidedArmError
 from guidedarm.systems.hardware.arm_link import CloseAllArmLinks, ReportStopErrors
 
 EXIT_RUN_FAILED = 1
@@ -65,6 +66,12 @@ def main(argv: list[str] | None = None) -> int:
     except KeyboardInterrupt:
         print("guidedarm: interrupted", file=sys.stderr)
         return EXIT_INTERRUPTED
+    except SystemExit as e:  # a failed Drake check outside a run (a run reports its own)
+        failure = DrakeCheckFailure(e)
+        if failure is None:
+            raise
+        print(f"guidedarm: internal error: {failure}", file=sys.stderr)
+        return EXIT_RUN_FAILED
     except BrokenPipeError:
         # The reader left; send what Python still has to flush into the void, silently.
         os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
