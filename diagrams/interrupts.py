@@ -10,13 +10,17 @@ every simulation loop calls, raises it again.
 
 from __future__ import annotations
 
+import contextlib
 import signal
 import sys
+from collections.abc import Iterator
 from types import FrameType
 from typing import Any
 
 # The names of the signals received and not yet reported ("" for Ctrl-C).
 _PENDING: list[str] = []
+# Inside DeferredInterrupts: signals are only recorded.
+_DEFERRED: list[bool] = []
 
 
 def InstallInterruptHandlers() -> None:
@@ -47,7 +51,20 @@ def _FromInterrupt(error: BaseException | None) -> bool:
 
 def _OnSignal(signum: int, frame: FrameType | None) -> None:
     _PENDING.append("SIGTERM" if signum == signal.SIGTERM else "")
-    raise _Interrupt(_PENDING[-1])
+    if not _DEFERRED:
+        raise _Interrupt(_PENDING[-1])
+
+
+@contextlib.contextmanager
+def DeferredInterrupts() -> Iterator[None]:
+    """Within it, Ctrl-C and SIGTERM are recorded, not raised: for the last steps of a
+    command that must not be cut (a run's summary, the cleanup at exit); they stay pending
+    (RaiseIfInterrupted)."""
+    _DEFERRED.append(True)
+    try:
+        yield
+    finally:
+        _DEFERRED.pop()
 
 
 def RaiseIfInterrupted() -> None:

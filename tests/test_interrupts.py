@@ -51,3 +51,27 @@ def test_an_interrupt_dropped_in_a_finalizer_stops_the_next_progress_report(
         context.progress("step 1")
     assert InterruptedFailure(interrupt.value) == failure
     context.progress("step 2")  # reported: the run may write its summary
+
+
+def test_a_signal_while_interrupts_are_deferred_is_kept_for_later(handlers):
+    """SIGTERM inside DeferredInterrupts (a run's summary being written, the cleanup at
+    exit) raises nothing there; it stays pending until raised or taken."""
+    from guidedarm.diagrams.interrupts import (
+        DeferredInterrupts,
+        RaiseIfInterrupted,
+        TakeInterrupt,
+    )
+
+    with DeferredInterrupts():
+        os.kill(os.getpid(), signal.SIGTERM)
+        for _ in range(1000):  # the handler runs between two of these bytecodes
+            pass
+    with pytest.raises(KeyboardInterrupt, match="SIGTERM"):
+        RaiseIfInterrupted()
+    TakeInterrupt()
+    RaiseIfInterrupted()  # taken: nothing left
+    with pytest.raises(KeyboardInterrupt, match="SIGTERM"):
+        os.kill(os.getpid(), signal.SIGTERM)
+        for _ in range(1000):
+            pass
+    TakeInterrupt()

@@ -20,6 +20,7 @@ import sys
 from pathlib import Path
 from typing import Any
 
+from guidedarm.diagrams.interrupts import DeferredInterrupts, RaiseIfInterrupted, TakeInterrupt
 from guidedarm.diagrams.run_context import (
     MakeMeshcat,
     PrepareOutputDirectory,
@@ -37,7 +38,7 @@ from guidedarm.diagrams.scenario_loading import (
     read_raw_scenario,
     resolve_scenario_path,
 )
-from guidedarm.diagrams.task_run import RunTask
+from guidedarm.diagrams.task_run import InterruptedFailure, RunTask
 from guidedarm.diagrams.tasks.registry import GetTask
 from guidedarm.systems.config_checks import CheckInstance
 from guidedarm.systems.errors import ConfigurationError
@@ -134,12 +135,18 @@ def run_command(args: argparse.Namespace) -> int:
     context.realtime_rate = RealtimeRate(args.realtime, args.meshcat)
     context.title = RunTitle(name, scenario, args.overrides)
     print(f"guidedarm: running '{name}' (task {task.name}) -> {context.out_dir}", flush=True)
-    metrics = RunTask(task, scenario, context)
-    metrics = {"scenario": name, "task": task.name, **metrics, **RunProvenance()}
-    context.write_summary(metrics)
-    _print_summary(metrics, context)
+    try:
+        metrics = RunTask(task, scenario, context)
+    except KeyboardInterrupt as e:  # arrived as RunTask returned: the run still gets a summary
+        metrics = {"success": False, "failure": InterruptedFailure(e)}
+    with DeferredInterrupts():  # the run is over; what it did is written whole
+        metrics = {"scenario": name, "task": task.name, **metrics, **RunProvenance()}
+        context.write_summary(metrics)
+        _print_summary(metrics, context)
     if args.meshcat:
+        RaiseIfInterrupted()  # one that came as the run ended ends the command, not a page
         ServeMeshcat(context.meshcat, args.meshcat_wait)
+    TakeInterrupt()  # one that came after the run: its summary stands
     failure = metrics.get("failure")
     if failure:
         print(f"guidedarm: run failed: {failure}", file=sys.stderr)

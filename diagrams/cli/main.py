@@ -18,7 +18,7 @@ import sys
 import threading
 
 import guidedarm.diagrams.cli as cli_package
-from guidedarm.diagrams.interrupts import InstallInterruptHandlers
+from guidedarm.diagrams.interrupts import DeferredInterrupts, InstallInterruptHandlers
 from guidedarm.systems.errors import ConfigurationError, DrakeCheckFailure, GuidedArmError
 from guidedarm.systems.hardware.arm_link import CloseAllArmLinks, ReportStopErrors
 
@@ -77,10 +77,11 @@ def main(argv: list[str] | None = None) -> int:
         os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
         return EXIT_BROKEN_PIPE
     finally:
-        ReportStopErrors(CloseAllArmLinks(), "at the end of the command")
-        # Drake objects such as Meshcat must be destroyed on the thread that made them; a
-        # reference cycle left to the collector could be freed on any thread of the caller.
-        gc.collect()
+        with DeferredInterrupts():  # a signal now would cut the cleanup with a traceback
+            ReportStopErrors(CloseAllArmLinks(), "at the end of the command")
+            # Drake objects such as Meshcat must be destroyed on the thread that made them;
+            # a reference cycle left to the collector could be freed on any thread.
+            gc.collect()
 
 
 def _name(module_info: pkgutil.ModuleInfo) -> str:
