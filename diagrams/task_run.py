@@ -10,7 +10,12 @@ from typing import Any
 from pydrake.common.yaml import yaml_dump_typed
 
 from guidedarm.diagrams.interrupts import RaiseIfInterrupted, TakeInterrupt
-from guidedarm.diagrams.run_context import RESOLVED_SCENARIO_FILE, NonFiniteKeys, RunContext
+from guidedarm.diagrams.run_context import (
+    RESOLVED_SCENARIO_FILE,
+    SUMMARY_FILE,
+    NonFiniteKeys,
+    RunContext,
+)
 from guidedarm.diagrams.tasks.registry import TaskDefinition
 from guidedarm.systems.errors import DrakeCheckFailure, GuidedArmError, RunFailedError
 
@@ -21,12 +26,15 @@ TRACEBACK_FILE = "traceback.txt"
 
 
 def RunTask(task: TaskDefinition, scenario: Any, context: RunContext) -> dict[str, Any]:
-    """Writes DIR/scenario.yaml (the fully resolved scenario), runs the task and returns its
-    metrics plus `success` and `wall_time_s` (s), with `success` false and `failure` set
-    when the run failed in any way once started: a RunFailedError, Ctrl-C, a non-finite
-    metric (written as null), or a bug (its traceback in DIR/traceback.txt). Any other
-    GuidedArmError (a refusal before any motion, e.g. a ConfigurationError) passes
-    through."""
+    """Removes a previous run's DIR/summary.json and traceback.txt, writes DIR/scenario.yaml
+    (the fully resolved scenario), runs the task and returns its metrics plus `success` and
+    `wall_time_s` (s), with `success` false and `failure` set when the run failed in any
+    way once started: a RunFailedError, Ctrl-C, a non-finite metric (written as null), or a
+    bug (its traceback in DIR/traceback.txt). Any other GuidedArmError (a refusal before
+    any motion, e.g. a ConfigurationError) passes through."""
+    # A previous run's verdict in the same folder must not stand beside this run's files.
+    for stale in (SUMMARY_FILE, TRACEBACK_FILE):
+        (context.out_dir / stale).unlink(missing_ok=True)
     context.write_text(RESOLVED_SCENARIO_FILE, yaml_dump_typed(scenario))
     wall_start = time.perf_counter()
     try:

@@ -879,3 +879,19 @@ def test_a_drake_check_failing_outside_a_run_is_one_line(monkeypatch, capsys):
     with pytest.raises(SystemExit):  # any other exit passes through
         monkeypatch.setattr(command_list, "list_command", lambda args: sys.exit(3))
         main(["list"])
+
+
+def test_a_run_into_a_used_folder_leaves_no_verdict_of_the_previous_run(tmp_path):
+    """A previous run's summary.json and traceback.txt in --out are removed when a run
+    starts: a refused run leaves no old summary beside its scenario.yaml, and a new summary
+    never stands beside an old traceback."""
+    (tmp_path / "summary.json").write_text('{"success": true}')
+    (tmp_path / "traceback.txt").write_text("Traceback of an earlier run")
+    scenario = LoadScenario("ur10e_joint_tour", [])[1]
+
+    def refused(scenario, context):
+        raise ConfigurationError("the link is down")
+
+    with pytest.raises(ConfigurationError):
+        RunTask(_Task(refused), scenario, RunContext(tmp_path))
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["scenario.yaml"]
