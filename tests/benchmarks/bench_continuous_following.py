@@ -65,7 +65,7 @@ def RunOne(path: str, motion: str, estimator: str) -> dict:
     """The summary of one `guidedarm run` (its output folder removed), with its wall time."""
     with tempfile.TemporaryDirectory(prefix="bench_cont_") as out:
         start = time.perf_counter()
-        subprocess.run(
+        run = subprocess.run(
             [
                 GUIDEDARM,
                 "run",
@@ -81,8 +81,12 @@ def RunOne(path: str, motion: str, estimator: str) -> dict:
                 *Overrides(sys.argv),
             ],
             capture_output=True,
+            text=True,
             check=False,
         )
+        if not (Path(out) / "summary.json").is_file():
+            last = (run.stderr.strip().splitlines() or ["no output"])[-1]
+            sys.exit(f"bench_continuous_following: {path} {motion} wrote no summary: {last}")
         summary = json.loads((Path(out) / "summary.json").read_text())
         summary["wall_s"] = round(time.perf_counter() - start, 1)
     summary["rtf"] = summary.get("realtime_factor")
