@@ -7,6 +7,7 @@ error <= 1 deg up to 26 deg tilt (the paper's Tables 2 and 3 report up to 5.9 mm
 from __future__ import annotations
 
 import copy
+import dataclasses
 
 import numpy as np
 import pytest
@@ -100,6 +101,17 @@ def test_no_marker_and_wrong_size(solver, rig):
     assert not estimate.valid and estimate.X_CP is None and estimate.ids == []
     with pytest.raises(ConfigurationError, match="1920 x 1080"):
         solver.estimate(blank[:500])
+
+
+def test_degenerate_camera_gives_no_valid_pose(rig):
+    """Intrinsics inside the accepted ranges for which OpenCV's PnP raises (SQPnP: corners
+    undistorted onto one point): the markers are reported, the pose is not, no exception."""
+    camera = dataclasses.replace(rig.intrinsics, fx=1.0e6, fy=1.0e6, distortion=[100, 0, 0, 0, 0])
+    estimate = MarkerPoseSolver(camera, LoadPanelSpec(DEFAULT_PANEL_FILE)).estimate(
+        rig.Render(LookAt([0.02, -0.01, 0.28], [0.06, 0.0, 0.0]))
+    )
+    assert estimate.ids == [7, 42]
+    assert not estimate.valid and estimate.X_CP is None and estimate.reprojection_error_px == -1
 
 
 def test_unknown_dictionary_is_rejected(rig):
