@@ -64,10 +64,20 @@ systems sensed, estimated and planned.</p>
 
 
 def _Summary(run: Path) -> dict[str, Any]:
+    """The run's summary.json; ConfigurationError naming the file when it cannot be read,
+    is not UTF-8 JSON, or is not a JSON object."""
+    path = run / SUMMARY_FILE
     try:
-        return json.loads((run / SUMMARY_FILE).read_text())
+        summary = json.loads(path.read_text(encoding="utf-8"))
     except json.JSONDecodeError as e:
-        raise ConfigurationError(f"{run / SUMMARY_FILE}: not JSON ({e.msg})") from None
+        raise ConfigurationError(f"{path}: not JSON ({e.msg})") from None
+    except UnicodeDecodeError as e:
+        raise ConfigurationError(f"{path}: not UTF-8 text (byte {e.start})") from None
+    except OSError as e:
+        raise ConfigurationError(f"{path}: cannot read it ({e.strerror})") from None
+    if not isinstance(summary, dict):
+        raise ConfigurationError(f"{path}: not a JSON object of metrics")
+    return summary
 
 
 def _Result(summary: dict[str, Any]) -> str:

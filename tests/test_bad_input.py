@@ -450,7 +450,11 @@ BAD_INPUTS = [
     ("camera-missing", Estimate("{f}/missing.yaml"), "file not found"),
     ("camera-binary", Estimate("{f}/camera_binary.yaml"), "malformed YAML"),
     ("camera-nan-fx", Estimate("{f}/camera_nan_fx.yaml"), "key 'fx': must be a finite"),
-    ("camera-negative-fy", Estimate("{f}/camera_negative_fy.yaml"), "key 'fy': must be > 0"),
+    (
+        "camera-negative-fy",
+        Estimate("{f}/camera_negative_fy.yaml"),
+        "key 'fy': must be in [1, 1e+06]",
+    ),
     ("camera-inf-cy", Estimate("{f}/camera_inf_cy.yaml"), "key 'cy'"),
     ("camera-zero-width", Estimate("{f}/camera_zero_width.yaml"), "key 'width'"),
     ("camera-cx-outside", Estimate("{f}/camera_cx_outside.yaml"), "outside the image"),
@@ -503,6 +507,11 @@ BAD_INPUTS = [
         "compare-negative-seed",
         ["compare-planners", "--random", "1", "--arm", "ur10e", "--seed", "-1"],
         "--seed must be >= 0, got -1",
+    ),
+    (
+        "compare-random-every-problem",
+        ["compare-planners", "--random", "0", "--seed", "-1"],
+        "--random N needs N >= 1, got 0; --random needs --arm ARM; --seed must be >= 0, got -1",
     ),
     (
         "compare-random-unknown-key",

@@ -180,3 +180,20 @@ def test_index_page_shows_the_plots(runs, tmp_path):
     # The "failed" verdicts of the shortened runs are drawn in red text.
     red = np.linalg.norm(image - [198.0, 40.0, 40.0], axis=2) < 60
     assert red.sum() > 50
+
+
+@pytest.mark.parametrize(
+    "content, message",
+    [
+        (b"\x7fELF\x02\x01\x01\x00\xff\xfe", "not UTF-8 text (byte 8)"),
+        (b"[1, 2]", "not a JSON object of metrics"),
+        (b"{", "not JSON"),
+    ],
+)
+def test_unreadable_summary_is_refused_in_one_line(run_cli, tmp_path, content, message):
+    (tmp_path / "r").mkdir()
+    (tmp_path / "r" / "summary.json").write_bytes(content)
+    code, out, err = run_cli("demo-index", tmp_path)
+    assert code == 2 and out == ""
+    assert err.count("\n") == 1 and message in err and "r/summary.json" in err
+    assert not (tmp_path / "index.html").exists()

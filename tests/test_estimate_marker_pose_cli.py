@@ -70,6 +70,11 @@ def _bad_panel(tmp_path, text):
         ("malformed", "malformed YAML"),
         ("unknown_key", "unknown key 'markers[0].sise_m'"),
         ("missing_camera", "file not found"),
+        ("tiny_focal", "key 'fx': must be in [1, 1e+06], got 1e-300"),
+        ("huge_focal", "key 'fx': must be in [1, 1e+06], got 1e+308"),
+        ("huge_distortion", "key 'distortion[0]': must be in [-100, 100], got 1e+308"),
+        ("huge_marker", "must be in [0.001, 10], got 1e+308"),
+        ("far_marker", "the marker is 1e+10 m from the panel origin"),
     ],
 )
 def test_bad_input_is_one_line_and_nonzero(run_cli, files, tmp_path, case, message):
@@ -88,6 +93,16 @@ def test_bad_input_is_one_line_and_nonzero(run_cli, files, tmp_path, case, messa
         panel = _bad_panel(tmp_path, "markers: [{id: 7, sise_m: 0.05}]\n")
     elif case == "missing_camera":
         camera = tmp_path / "nope.yaml"
+    elif case in ("tiny_focal", "huge_focal", "huge_distortion"):
+        value = {"tiny_focal": "fx: 1e-300", "huge_focal": "fx: 1e308"}
+        line = value.get(case, "distortion: [1e308, 0, 0, 0, 0]")
+        camera = tmp_path / "camera.yaml"
+        kept = [t for t in (files / "camera.yaml").read_text().splitlines() if t[:2] not in line]
+        camera.write_text("\n".join([*kept, line]) + "\n")
+    elif case == "huge_marker":
+        panel = _bad_panel(tmp_path, "markers: [{id: 7, size_m: 1.0e308}]\n")
+    elif case == "far_marker":
+        panel = _bad_panel(tmp_path, "markers: [{id: 7, X_PM: {translation: [1.0e10, 0, 0]}}]\n")
     code, out, err = run_cli("estimate-marker-pose", image, "--camera", camera, "--panel", panel)
     assert code == 2
     assert out == ""

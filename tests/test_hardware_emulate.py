@@ -104,3 +104,20 @@ def test_tof_lines_leave_the_emulator_on_the_driver_timing_model():
     # 6: the station's steps lag the host clock a little on the shared CPU).
     assert len(errors) >= 50
     assert errors.min() > -0.002 and abs(np.median(errors)) < 0.003
+
+
+@pytest.mark.parametrize(
+    "args, message",
+    [
+        (
+            ["nachi", "--scenario", "panel_operation", "--arm", "rover_arm"],
+            "arm rover_arm: its model has no frame 'flange'",
+        ),
+        (["nachi", "--scenario", "marker_view"], "task 'marker_view' builds no station"),
+        (["tof", "--scenario", "panel_operation"], "the station has no tof_tools to emulate"),
+    ],
+)
+def test_scenarios_the_emulator_cannot_serve_are_refused_in_one_line(run_cli, args, message):
+    code, out, err = run_cli("emulate", *args, "--duration", "1")
+    assert code == 2 and out == ""
+    assert err.count("\n") == 1 and message in err

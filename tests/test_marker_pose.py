@@ -7,6 +7,7 @@ error <= 1 deg up to 26 deg tilt (the paper's Tables 2 and 3 report up to 5.9 mm
 from __future__ import annotations
 
 import copy
+import dataclasses
 
 import numpy as np
 import pytest
@@ -14,6 +15,9 @@ from pydrake.common.yaml import yaml_load_typed
 from pydrake.systems.framework import DiagramBuilder
 from pydrake.systems.sensors import CameraConfig, ImageRgba8U
 
+from guidedarm.diagrams.campaigns.jobs import ExpandJobs
+from guidedarm.diagrams.cli.command_marker_study import CAMPAIGNS, STUDIES, StudyCampaign
+from guidedarm.diagrams.cli.command_run import LoadScenario
 from guidedarm.diagrams.tasks.panel_assets import WritePanelAssets
 from guidedarm.diagrams.tasks.panel_camera_rig import LookAt, PanelCameraRig
 from guidedarm.diagrams.tasks.panel_files import (
@@ -23,7 +27,11 @@ from guidedarm.diagrams.tasks.panel_files import (
     LoadPanelSpec,
 )
 from guidedarm.systems.errors import ConfigurationError
-from guidedarm.systems.markers.image_degradation import DegradationConfig, DegradeImage
+from guidedarm.systems.markers.image_degradation import (
+    DegradationConfig,
+    DegradeImage,
+    SeededDegradation,
+)
 from guidedarm.systems.markers.marker_pose_estimator import MarkerPoseEstimator
 from guidedarm.systems.markers.marker_pose_estimator_math import MarkerPoseSolver
 
@@ -102,6 +110,17 @@ def test_no_marker_and_wrong_size(solver, rig):
         solver.estimate(blank[:500])
 
 
+def test_degenerate_camera_gives_no_valid_pose(rig):
+    """Intrinsics inside the accepted ranges for which OpenCV's PnP raises (SQPnP: corners
+    undistorted onto one point): the markers are reported, the pose is not, no exception."""
+    camera = dataclasses.replace(rig.intrinsics, fx=1.0e6, fy=1.0e6, distortion=[100, 0, 0, 0, 0])
+    estimate = MarkerPoseSolver(camera, LoadPanelSpec(DEFAULT_PANEL_FILE)).estimate(
+        rig.Render(LookAt([0.02, -0.01, 0.28], [0.06, 0.0, 0.0]))
+    )
+    assert estimate.ids == [7, 42]
+    assert not estimate.valid and estimate.X_CP is None and estimate.reprojection_error_px == -1
+
+
 def test_unknown_dictionary_is_rejected(rig):
     panel = LoadPanelSpec(DEFAULT_PANEL_FILE)
     panel.dictionary = "DICT_NOPE"
@@ -149,14 +168,45 @@ def test_example_files_load_and_assets_regenerate(tmp_path):
 
 @pytest.mark.slow
 def test_tilt_study_reproduces_table_3(run_cli, tmp_path):
-    code, _, err = run_cli("marker-study", "tilt", "--out", tmp_path)
+    code, out, err = run_cli("marker-study", "tilt", "--out", tmp_path)
     assert code == 0, err
+    assert out.splitlines()[-1] == "  failed: 0 of 14 job(s)"
     rows = (tmp_path / "tilt.csv").read_text().splitlines()
     assert rows[0] == "reference_deg,vision_deg,abs_error_deg,rotation_error_deg"
     table = np.array([[float(v) for v in row.split(",")] for row in rows[1:]])
     assert table[:, 0].tolist() == list(range(0, 27, 2))
     assert np.max(table[:, 2]) <= 1.0 and np.max(table[:, 3]) <= 1.0
     assert (tmp_path / "tilt.png").stat().st_size > 10_000
+
+
+@pytest.mark.parametrize("study", STUDIES)
+def test_degraded_study_jobs_take_their_noise_seed_from_random_seed(study, tmp_path):
+    """--noise/--blur/--lighting leave the noise seed to each job's random_seed, so no job
+    of any study conflicts with it (SeededDegradation refuses a different seed)."""
+    degradation = DegradationConfig(noise_std=2.0, blur_sigma_px=0.5, lighting=0.8)
+    for name in CAMPAIGNS[study]:
+        campaign, folder = StudyCampaign(name, degradation)
+        assert folder == f"{name}_noise2_blur0.5_lighting0.8"
+        jobs = ExpandJobs(campaign)
+        seeds = set()
+        for job in jobs:
+            path = tmp_path / f"{job.id}.yaml"
+            path.write_text(job.scenario_yaml)
+            _, scenario, _ = LoadScenario(str(path), [])
+            seeded = SeededDegradation(scenario.degradation, scenario.random_seed)
+            assert (seeded.noise_std, seeded.blur_sigma_px, seeded.lighting) == (2.0, 0.5, 0.8)
+            seeds.add(seeded.seed)
+        assert len(seeds) == len({job.axes.get("random_seed") for job in jobs})
+
+
+@pytest.mark.slow
+def test_study_with_failed_jobs_exits_1_with_a_count(run_cli, tmp_path):
+    # At 1 % of the light no marker is found: every view fails (30 s on 1 worker).
+    code, out, _ = run_cli(
+        "marker-study", "tilt", "--lighting", "0.01", "--workers", "1", "--out", tmp_path
+    )
+    assert code == 1
+    assert out.splitlines()[-1] == "  failed: 14 of 14 job(s)"
 
 
 def test_marker_cover_hides_the_markers(rig, solver):

@@ -18,7 +18,7 @@ from distributed import Client
 from guidedarm.diagrams.campaigns.campaign import ListNamedCampaigns, LoadCampaign
 from guidedarm.diagrams.campaigns.engine import RunJobs
 from guidedarm.diagrams.campaigns.jobs import ExpandJobs
-from guidedarm.diagrams.campaigns.results import ParseCell, ResultsTable
+from guidedarm.diagrams.campaigns.results import EmptyMetrics, ParseCell, ResultsTable
 
 TOUR = "scenario: ur10e_joint_tour\nset: {settle_time: 0.2}\n"
 
@@ -49,6 +49,39 @@ def ReadRows(path: Path) -> list[dict]:
         (TOUR + "random: {seed: 1, count: 2, draws: {max_speed: {normal: [0, 1]}}}\n", "uniform"),
         (TOUR + "repeat: {count: 3}\n", "repeat needs a scenario key"),
         (TOUR + "metrics: coverage\n", "metrics must be a list"),
+        (TOUR + "grid: {max_speed: {linspace: [0.5, 0.6, -3]}}\n", "whole number from 1 to"),
+        (TOUR + "grid: {max_speed: {linspace: [0.5, 0.6, 1.0e+8]}}\n", "got 1e+08"),
+        (
+            TOUR + "grid: {max_speed: {linspace: [0.5, 0.6, 1e12]}}\n",
+            "'1e12' is not a finite number (YAML reads it as text: write 1.0e+12)",
+        ),
+        (TOUR + "grid: {max_speed: {range: [0, .inf, 1]}}\n", "inf is not a finite number"),
+        (TOUR + "grid: {max_speed: [0.5, .nan]}\n", "max_speed[1] must be a finite number"),
+        (
+            TOUR + "grid: {max_speed: {range: [1, 0, 1]}}\n",
+            "range length must be a whole number from 1 to 100000, got 0",
+        ),
+        (
+            TOUR + "grid: {max_speed: {linspace: [1, 2, 1000]}, max_time: {range: [1, 1001, 1]}}\n",
+            "1000000 jobs, more than the 100000",
+        ),
+        (
+            TOUR + "random: {seed: -1, count: 2, draws: {max_speed: {uniform: [0.4, 0.5]}}}\n",
+            "random.seed must be at least 0, got -1",
+        ),
+        (
+            TOUR + "random: {seed: 1, count: 2, draws: {max_speed: {uniform: [.nan, 0.5]}}}\n",
+            "max_speed.uniform[0] must be a finite number, got nan",
+        ),
+        (
+            TOUR + "random: {seed: 1, count: 2, draws: {max_speed: {uniform: [0.6, 0.5]}}}\n",
+            "need low <= high",
+        ),
+        (
+            TOUR + "random: {seed: 1, count: 2, draws: {max_speed: {integers: [0.5, 3]}}}\n",
+            "low and high must be whole numbers",
+        ),
+        (TOUR + "repeat: {key: random_seed, count: 2, start: -1}\n", "repeat.start (a seed)"),
     ],
 )
 def test_bad_campaign_files_are_refused_in_one_line(tmp_path, run_cli, text, message):
@@ -58,6 +91,34 @@ def test_bad_campaign_files_are_refused_in_one_line(tmp_path, run_cli, text, mes
     assert err.count("\n") == 1 and err.startswith("guidedarm: error: ")
     assert message in err
     assert not out.exists()  # refused before anything was written or started
+
+
+@pytest.mark.parametrize(
+    "flags, message",
+    [
+        (["--workers", "0"], "--workers must be at least 1, got 0"),
+        (["--workers", "-1"], "--workers must be at least 1, got -1"),
+        (["--workers", "1", "--scheduler", "tcp://x:1"], "not --scheduler"),
+    ],
+)
+@pytest.mark.parametrize("command", ["sweep", "marker-study"])
+def test_worker_flags_are_checked_alike(tmp_path, run_cli, command, flags, message):
+    target = _Write(tmp_path, TOUR) if command == "sweep" else "press"
+    out = tmp_path / "out"
+    code, _, err = run_cli(command, target, "--out", out, *flags)
+    assert code == 2
+    assert err.count("\n") == 1 and message in err
+    assert not out.exists()
+
+
+def test_metrics_no_successful_job_has_are_named():
+    rows = [
+        {"success": True, "coverage": 0.9, "nosuch": None},
+        {"success": False, "coverage": None, "nosuch": None},
+    ]
+    assert EmptyMetrics(rows, ["coverage", "nosuch"]) == ["nosuch"]
+    assert EmptyMetrics(rows[1:], ["coverage", "nosuch"]) == []  # no success: no evidence
+    assert EmptyMetrics(rows, None) == []
 
 
 def test_expansion_crosses_the_axes_with_seeded_draws(tmp_path):

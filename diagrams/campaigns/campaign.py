@@ -22,11 +22,14 @@ metrics: [coverage, press_error_mm.x]    # dotted keys of the summary; default: 
 ```
 
 Every job is the scenario with `set` and one value of each axis applied, as `--set` would.
+Every number must be finite; counts are whole numbers >= 1, seeds and `repeat.start` whole
+numbers >= 0, bounds ordered (low <= high); a campaign has at most MAX_JOBS (100000) jobs.
 """
 
 from __future__ import annotations
 
 import itertools
+import math
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -51,6 +54,9 @@ CAMPAIGN_KEYS = (
 DISTRIBUTIONS = ("uniform", "integers", "choice")
 # The axis that numbers the random draws.
 DRAW_AXIS = "draw"
+# More jobs than this is a typo (a count off by orders of magnitude), not a campaign: its
+# job list alone would fill the client's memory.
+MAX_JOBS = 100_000
 
 
 class CampaignError(ConfigurationError):
@@ -70,6 +76,9 @@ class RandomDrawsConfig:
     def Validate(self, source: str) -> None:
         if self.count < 1:
             raise CampaignError(f"{source}: random.count must be at least 1, got {self.count}")
+        if self.seed < 0:
+            raise CampaignError(f"{source}: random.seed must be at least 0, got {self.seed}")
+        CheckFiniteNumbers(self.draws, "random.draws", source)
         if not isinstance(self.draws, dict) or not self.draws:
             raise CampaignError(f"{source}: random.draws must map scenario keys to draws")
         for key, spec in self.draws.items():
@@ -93,8 +102,19 @@ class RandomDrawsConfig:
                         f"{source}: random.draws.{key}.{kind}: low and high must be numbers "
                         f"or lists of numbers of one shape, got {args!r}"
                     ) from None
+                whole = np.all(low == np.round(low)) and np.all(high == np.round(high))
+                if kind == "integers" and not whole:
+                    raise CampaignError(
+                        f"{source}: random.draws.{key}.integers: low and high must be whole "
+                        f"numbers, got {args!r}"
+                    )
+                if low.shape != high.shape:
+                    raise CampaignError(
+                        f"{source}: random.draws.{key}.{kind}: low and high must have one "
+                        f"shape, got {args!r}"
+                    )
                 empty = np.any(high < low) or (kind == "integers" and np.any(high <= low))
-                if low.shape != high.shape or empty:
+                if empty:
                     raise CampaignError(
                         f"{source}: random.draws.{key}.{kind}: need low <= high (integers: "
                         "low < high) of one shape"
@@ -135,6 +155,10 @@ class RepeatConfig:
                 f"{source}: repeat needs a scenario key (a seed) and a count >= 1, got "
                 f"key '{self.key}', count {self.count}"
             )
+        if self.start < 0:
+            raise CampaignError(
+                f"{source}: repeat.start (a seed) must be at least 0, got {self.start}"
+            )
 
 
 @dataclass
@@ -165,10 +189,16 @@ class CampaignConfig:
                 f"{source}: the zip lists must have one length, got "
                 + ", ".join(f"{k}: {len(v)}" for k, v in self.zip.items())
             )
+        for block in ("set", "grid", "zip"):
+            CheckFiniteNumbers(getattr(self, block), block, source)
         if self.random is not None:
             self.random.Validate(source)
         if self.repeat is not None:
             self.repeat.Validate(source)
+        if self.JobCount() > MAX_JOBS:
+            raise CampaignError(
+                f"{source}: {self.JobCount()} jobs, more than the {MAX_JOBS} a campaign may have"
+            )
         seen: dict[str, str] = {}
         for block, keys in self.KeysByBlock().items():
             for key in keys:
@@ -181,6 +211,13 @@ class CampaignConfig:
             or not all(isinstance(m, str) and m for m in self.metrics)
         ):
             raise CampaignError(f"{source}: metrics must be a list of summary keys")
+
+    def JobCount(self) -> int:
+        """grid x zip x random draws x repeat, without expanding them."""
+        count = math.prod(len(v) for v in self.grid.values())
+        count *= len(next(iter(self.zip.values()))) if self.zip else 1
+        count *= self.random.count if self.random else 1
+        return count * (self.repeat.count if self.repeat else 1)
 
     def KeysByBlock(self) -> dict[str, list[str]]:
         """The scenario keys each block of the campaign sets."""
@@ -290,23 +327,61 @@ def _Mapping(raw: dict[str, Any], key: str, source: str) -> dict[str, Any]:
 
 def _Values(value: Any, key: str, source: str) -> list[Any]:
     """A grid or zip axis: a list, {linspace: [first, last, count]} or {range: [start, stop,
-    step]}."""
+    step]}; finite numbers, at most MAX_JOBS values."""
     if isinstance(value, list):
         return value
     if isinstance(value, dict) and len(value) == 1:
         (kind, args) = next(iter(value.items()))
-        numbers = isinstance(args, list) and all(
-            isinstance(a, int | float) and not isinstance(a, bool) for a in args
-        )
-        if kind == "linspace" and numbers and len(args) == 3 and int(args[2]) == args[2]:
-            return [round(float(v), 12) for v in np.linspace(args[0], args[1], int(args[2]))]
-        if kind == "range" and numbers and len(args) == 3 and args[2] != 0:
-            values = np.arange(args[0], args[1], args[2])
+        if kind in ("linspace", "range") and isinstance(args, list) and len(args) == 3:
+            for a in args:
+                if isinstance(a, bool) or not isinstance(a, int | float) or not math.isfinite(a):
+                    raise CampaignError(
+                        f"{source}: {key}.{kind}: {a!r} is not a finite number{_TextHint(a)}"
+                    )
+            if kind == "linspace":
+                count = _Count(args[2], f"{key}.linspace count", source)
+                return [round(float(v), 12) for v in np.linspace(args[0], args[1], count)]
+            start, stop, step = args
+            if step == 0:
+                raise CampaignError(f"{source}: {key}.range: step must not be 0")
+            _Count(max(math.ceil((stop - start) / step), 0), f"{key}.range length", source)
+            values = np.arange(start, stop, step)
             return [round(v, 12) if isinstance(v, float) else v for v in values.tolist()]
     raise CampaignError(
         f"{source}: {key} must be a list, {{linspace: [first, last, count]}} or "
         f"{{range: [start, stop, step]}}, got {value!r}"
     )
+
+
+def _TextHint(value: Any) -> str:
+    """Why a number written as `1e12` is text: YAML 1.1 floats need a dot and a signed
+    exponent."""
+    try:
+        return f" (YAML reads it as text: write {float(value):.1e})"
+    except (TypeError, ValueError):
+        return ""
+
+
+def _Count(value: float, what: str, source: str) -> int:
+    """A number of values: a whole number from 1 to MAX_JOBS."""
+    if value != int(value) or not 1 <= value <= MAX_JOBS:
+        raise CampaignError(
+            f"{source}: {what} must be a whole number from 1 to {MAX_JOBS}, got {value:g}"
+        )
+    return int(value)
+
+
+def CheckFiniteNumbers(value: Any, key: str, source: str) -> None:
+    """Refuses (CampaignError naming the key) a NaN or infinite number anywhere in `value`
+    (nested lists and mappings)."""
+    if isinstance(value, dict):
+        for k, v in value.items():
+            CheckFiniteNumbers(v, f"{key}.{k}", source)
+    elif isinstance(value, list):
+        for i, v in enumerate(value):
+            CheckFiniteNumbers(v, f"{key}[{i}]", source)
+    elif isinstance(value, float) and not math.isfinite(value):
+        raise CampaignError(f"{source}: {key} must be a finite number, got {value}")
 
 
 def _Struct(schema: type, raw: dict[str, Any], key: str, source: str) -> Any:

@@ -40,6 +40,16 @@ def CollectMetrics(metrics: dict[str, Any], wanted: list[str] | None) -> dict[st
     return {key: _Lookup(metrics, key) for key in wanted}
 
 
+def EmptyMetrics(rows: Iterable[dict[str, Any]], wanted: list[str] | None) -> list[str]:
+    """The `wanted` metrics no successful row has a value for: names that are in no job's
+    summary (a task declares no list of its metric names, so they are known only after a
+    run). Empty when no job succeeded: then nothing tells a typo from a failure."""
+    done = [r for r in rows if r["success"] is True]
+    if not wanted or not done:
+        return []
+    return [m for m in wanted if all(r.get(m) in (None, "") for r in done)]
+
+
 def RowOf(axes: dict[str, Any], result: dict[str, Any], wanted: list[str] | None) -> dict[str, Any]:
     """The results row of a worker's result (see worker.RunJob)."""
     metrics = result["metrics"]

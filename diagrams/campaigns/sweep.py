@@ -3,6 +3,7 @@ DIR, run the rest on Dask, write DIR/results.csv, DIR/campaign.yaml and DIR/repo
 
 from __future__ import annotations
 
+import os
 import sys
 from collections.abc import Callable
 from dataclasses import dataclass, field
@@ -16,6 +17,7 @@ from guidedarm.diagrams.campaigns.jobs import ExpandJobs, Job
 from guidedarm.diagrams.campaigns.report import WriteReport
 from guidedarm.diagrams.campaigns.results import RESULTS_FILE, ResultsTable
 from guidedarm.diagrams.cli.command_run import PrepareOutputDirectory
+from guidedarm.systems.errors import ConfigurationError
 
 CAMPAIGN_FILE = "campaign.yaml"
 RUNS_DIR = "runs"
@@ -30,6 +32,22 @@ class SweepOptions:
     scheduler: str | None = None
     keep_runs: bool = False
     progress: Callable[[str], None] | None = None
+
+
+def MakeSweepOptions(
+    workers: int | None, scheduler: str | None, keep_runs: bool = False
+) -> SweepOptions:
+    """The options of `--workers N` and `--scheduler ADDRESS` (either, not both; N >= 1;
+    neither: one worker per core). Bad values raise ConfigurationError naming the flag."""
+    if scheduler is not None and workers is not None:
+        raise ConfigurationError("--workers applies to the embedded cluster, not --scheduler")
+    if workers is not None and workers < 1:
+        raise ConfigurationError(f"--workers must be at least 1, got {workers}")
+    return SweepOptions(
+        workers=workers or (None if scheduler else os.cpu_count()),
+        scheduler=scheduler,
+        keep_runs=keep_runs,
+    )
 
 
 @dataclass

@@ -239,14 +239,19 @@ def LoadWaypointsScenario(name: str, overrides: list[str]) -> Any:
 def _CheckModeOptions(args: argparse.Namespace) -> None:
     """Refuses an option the chosen mode (--random or one scenario) does not read."""
     if args.random is not None:
-        if args.arm is None or args.random < 1:
-            raise ConfigurationError("--random N needs N >= 1 and --arm ARM")
+        problems = []
+        if args.random < 1:
+            problems.append(f"--random N needs N >= 1, got {args.random}")
+        if args.arm is None:
+            problems.append("--random needs --arm ARM")
         if args.scenario is not None:
-            raise ConfigurationError(
+            problems.append(
                 "--scenario is not read with --random (the tasks run on the scenario of --arm)"
             )
         if args.seed is not None and args.seed < 0:
-            raise ConfigurationError(f"--seed must be >= 0, got {args.seed}")
+            problems.append(f"--seed must be >= 0, got {args.seed}")
+        if problems:
+            raise ConfigurationError("; ".join(problems))
         return
     for option in ("arm", "seed"):
         if getattr(args, option) is not None:

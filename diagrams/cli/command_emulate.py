@@ -35,6 +35,8 @@ from guidedarm.systems.tof.tof_tool_sensor import ToFToolConfig
 
 DEFAULT_TOF_LATENCY = ToFDriverConfig().latency  # s, as the driver assumes by default
 NO_TARGET_STATUS = 11  # VL6180X "max signal to noise ratio": nothing returned in range
+# The frames of an arm's model the Nachi emulator reads the flange pose from (X_BF).
+NACHI_FRAMES = ("base", "flange")
 
 
 def register(subparsers: argparse._SubParsersAction) -> None:
@@ -128,6 +130,15 @@ def StartEmulators(
             f"--arm {arm}: not an arm of the station {list(station_scenario.arms)}"
         )
     station = MakeStation(station_scenario)
+    plant = station.GetSubsystemByName("plant")
+    instance = plant.GetModelInstanceByName(arm)
+    missing = [f for f in NACHI_FRAMES if not plant.HasFrameNamed(f, instance)]
+    if missing:
+        raise ConfigurationError(
+            f"arm {arm}: its model has no frame {' or '.join(map(repr, missing))}, which the "
+            "Nachi emulator reports the flange pose with (an arm with base and flange frames: "
+            "mz04d, ur10e)"
+        )
     tools = station_scenario.tof_tools
     tofs = {name: ToFEmulator(None) for name in tools}
     taps = tuple(
@@ -183,11 +194,18 @@ def emulate_command(args: argparse.Namespace) -> int:
     CheckArguments(args)
     if args.scenario:
         task, scenario, _ = LoadScenario(args.scenario, args.overrides)
+        if task.station is None and not hasattr(scenario, "station"):
+            raise ConfigurationError(
+                f"--scenario {args.scenario}: task '{task.name}' builds no station (no arm or "
+                "ToF tool to emulate)"
+            )
         station_scenario = task.Station(scenario)
     else:
         station_scenario = DefaultCell()
     if args.tof_latency is not None and not station_scenario.tof_tools:
         raise ConfigurationError("--tof-latency: the station has no tof_tools to emulate")
+    if args.device == "tof" and not station_scenario.tof_tools:
+        raise ConfigurationError("the station has no tof_tools to emulate")
     latency = DEFAULT_TOF_LATENCY if args.tof_latency is None else args.tof_latency
     # `tof` serves no arm: the station's first holds its initial position
     arm = args.arm or ("mz04d" if args.device == "nachi" else next(iter(station_scenario.arms), ""))
@@ -203,8 +221,6 @@ def emulate_command(args: argparse.Namespace) -> int:
     )
     if args.device == "nachi":
         print(f"nachi: {arm} listening on {args.host}:{emulator.port}", flush=True)
-    elif not tofs:
-        raise ConfigurationError("the station has no tof_tools to emulate")
     for name, tof in tofs.items():
         print(f"tof: {name} streaming on {tof.device}", flush=True)
     try:

@@ -9,13 +9,12 @@ when every job has its row (failed jobs included), 1 when some job's workers wer
 from __future__ import annotations
 
 import argparse
-import os
 import sys
 from pathlib import Path
 
 from guidedarm.diagrams.campaigns.campaign import LoadCampaign
-from guidedarm.diagrams.campaigns.sweep import Sweep, SweepOptions
-from guidedarm.systems.errors import ConfigurationError
+from guidedarm.diagrams.campaigns.results import EmptyMetrics
+from guidedarm.diagrams.campaigns.sweep import MakeSweepOptions, Sweep
 
 EXIT_LOST = 1
 EXIT_INTERRUPTED = 130
@@ -40,21 +39,20 @@ def register(subparsers: argparse._SubParsersAction) -> None:
 
 
 def sweep_command(args: argparse.Namespace) -> int:
-    if args.scheduler is not None and args.workers is not None:
-        raise ConfigurationError("--workers applies to the embedded cluster, not --scheduler")
-    if args.workers is not None and args.workers < 1:
-        raise ConfigurationError(f"--workers must be at least 1, got {args.workers}")
+    options = MakeSweepOptions(args.workers, args.scheduler, args.keep_runs)
     campaign = LoadCampaign(args.campaign)
     out_dir = args.out or Path("runs") / campaign.name
-    options = SweepOptions(
-        workers=args.workers or (None if args.scheduler else os.cpu_count()),
-        scheduler=args.scheduler,
-        keep_runs=args.keep_runs,
-    )
     result = Sweep(campaign, out_dir, options)
     rows = result.table.rows
     failed = sum(1 for r in rows if r["success"] is not True)
     print(f"  jobs: {len(result.jobs)}, results: {len(rows)}, failed: {failed}")
+    empty = EmptyMetrics(rows, campaign.metrics)
+    if empty:
+        print(
+            f"guidedarm: metric(s) {', '.join(empty)} in no successful job's summary "
+            "(empty column): compare the names with a run's summary.json",
+            file=sys.stderr,
+        )
     print("wrote:")
     for path in result.written:
         print(f"  {path}")

@@ -26,26 +26,37 @@ import numpy as np
 from pydrake.common.schema import Transform
 from pydrake.math import RigidTransform, RotationMatrix
 
-from guidedarm.systems.config_checks import CheckFields, CheckInstance, Positive
+from guidedarm.systems.config_checks import CheckFields, CheckInstance, InRange, Positive
 from guidedarm.systems.errors import ConfigurationError
 
 # A pose whose corners reproject worse than this (RMS, pixels) is reported invalid: it means
 # a misdetection or a wrong camera file, not image noise (rendered images give ~0.1 px).
 MAX_VALID_REPROJECTION_ERROR_PX = 2.0
+# The ranges in which a pose from PnP means something; outside them OpenCV overflows or
+# fails. Image side (px): up to a 100 megapixel sensor's. Focal length (px): a 1 px focal
+# length is a 90 deg view across 2 px; 1e6 px is a 0.1 deg view of a 2000 px image.
+# Distortion: |k| <= 100 (calibrated lenses give |k| < 10). Marker side: 1 mm to 10 m;
+# a marker's position on the panel within 100 m of P.
+MAX_IMAGE_SIDE_PX = 100_000
+FOCAL_LENGTH_RANGE_PX = (1.0, 1.0e6)
+MAX_DISTORTION = 100.0
+MARKER_SIZE_RANGE_M = (1.0e-3, 10.0)
+MAX_MARKER_OFFSET_M = 100.0
 
 
 @dataclass
 class CameraIntrinsics:
     """Pinhole intrinsics of a camera image (pixels); distortion is OpenCV's k1 k2 p1 p2 k3.
-    The principal point (cx, cy) lies inside the image."""
+    The principal point (cx, cy) lies inside the image; sides, focal lengths and distortion
+    lie in the ranges above (MAX_IMAGE_SIDE_PX, FOCAL_LENGTH_RANGE_PX, MAX_DISTORTION)."""
 
-    width: int = Positive(1920)
-    height: int = Positive(1080)
-    fx: float = Positive(1000.0)
-    fy: float = Positive(1000.0)
+    width: int = InRange(1, MAX_IMAGE_SIDE_PX, 1920)
+    height: int = InRange(1, MAX_IMAGE_SIDE_PX, 1080)
+    fx: float = InRange(*FOCAL_LENGTH_RANGE_PX, 1000.0)
+    fy: float = InRange(*FOCAL_LENGTH_RANGE_PX, 1000.0)
     cx: float = 959.5
     cy: float = 539.5
-    distortion: list[float] = field(default_factory=lambda: [0.0] * 5)
+    distortion: list[float] = InRange(-MAX_DISTORTION, MAX_DISTORTION, factory=lambda: [0.0] * 5)
 
     def Validate(self) -> None:
         """Raises ConfigurationError naming the first bad value."""
@@ -70,11 +81,22 @@ class CameraIntrinsics:
 
 @dataclass
 class MarkerSpec:
-    """One square marker: its dictionary id, black-border side length (m), pose in P."""
+    """One square marker: its dictionary id, black-border side length (m, within
+    MARKER_SIZE_RANGE_M), pose in P (within MAX_MARKER_OFFSET_M of P's origin)."""
 
     id: int = 0
-    size_m: float = Positive(0.05)
+    size_m: float = InRange(*MARKER_SIZE_RANGE_M, 0.05)
     X_PM: Transform = field(default_factory=Transform)
+
+    def Validate(self) -> None:
+        """Raises ConfigurationError naming the first bad value."""
+        CheckFields(self)
+        offset = np.linalg.norm(self.X_PM.GetDeterministicValue().translation())
+        if not offset <= MAX_MARKER_OFFSET_M:
+            raise ConfigurationError(
+                f"X_PM: the marker is {offset:g} m from the panel origin, more than "
+                f"{MAX_MARKER_OFFSET_M:g} m"
+            )
 
 
 @dataclass
@@ -147,10 +169,8 @@ class MarkerPoseSolver:
             raise ConfigurationError(f"marker ids on the panel must be unique, got {ids}")
         dictionary = GetDictionary(panel.dictionary)
         for m in panel.markers:
-            if not (0 <= m.id < dictionary.bytesList.shape[0] and m.size_m > 0):
-                raise ConfigurationError(
-                    f"marker {m.id}: id outside {panel.dictionary} or size_m <= 0"
-                )
+            if not 0 <= m.id < dictionary.bytesList.shape[0]:
+                raise ConfigurationError(f"marker {m.id}: id outside {panel.dictionary}")
         self.intrinsics = intrinsics
         self._K = intrinsics.camera_matrix()
         self._dist = intrinsics.distortion_vector()
@@ -184,6 +204,16 @@ class MarkerPoseSolver:
         if not found:
             return MarkerPoseEstimate(None, [], -1.0, False)
         ids = sorted(found)
+        try:
+            return self._solve(ids, found)
+        except cv2.error:
+            # OpenCV refuses degenerate input (corners it cannot undistort or fit a pose
+            # to) by raising: the markers were seen, their pose cannot be trusted.
+            return MarkerPoseEstimate(None, ids, -1.0, False)
+
+    def _solve(self, ids: list[int], found: dict[int, np.ndarray]) -> MarkerPoseEstimate:
+        """The panel pose from the image corners of the known markers `ids` (see the
+        module docstring); cv2.error passes through."""
         points_P = np.vstack([self._corners_P[i] for i in ids])
         pixels = np.vstack([found[i] for i in ids])
         best = (np.inf, None, None)
