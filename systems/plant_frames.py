@@ -2,7 +2,7 @@
 checks of the plant and frame arguments of public builders."""
 
 from pydrake.multibody.plant import MultibodyPlant
-from pydrake.multibody.tree import Frame
+from pydrake.multibody.tree import Frame, ModelInstanceIndex
 
 from guidedarm.systems.config_checks import CheckInstance, FieldError
 from guidedarm.systems.errors import ConfigurationError
@@ -42,3 +42,11 @@ def CheckFrame(name: str, frame: object, plant: MultibodyPlant) -> None:
     CheckInstance(name, frame, Frame)
     if frame.GetParentPlant() is not plant:
         raise FieldError(name, f"frame '{frame.name()}' belongs to another plant")
+
+
+def CheckModelInstance(name: str, instance: object, plant: MultibodyPlant) -> None:
+    """Checks a model instance argument: a ModelInstanceIndex of `plant`; FieldError naming
+    `name` otherwise."""
+    CheckInstance(name, instance, ModelInstanceIndex)
+    if not int(instance) < plant.num_model_instances():
+        raise FieldError(name, f"no model instance {int(instance)} in the plant")

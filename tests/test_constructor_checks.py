@@ -152,8 +152,8 @@ BAD = {
         "tool_speed",
         "finite",
     ),
-    "intrinsics fx -1": (lambda: Intrinsics(fx=-1.0), "fx", "> 0"),
-    "intrinsics width 0": (lambda: Intrinsics(width=0), "width", "> 0"),
+    "intrinsics fx -1": (lambda: Intrinsics(fx=-1.0), "fx", "must be in [1, 1e+06]"),
+    "intrinsics width 0": (lambda: Intrinsics(width=0), "width", "must be in [1, 100000]"),
     "intrinsics cx nan": (lambda: Intrinsics(cx=NAN), "cx", "finite"),
     "estimator solver None": (lambda: MarkerPoseEstimator(None), "solver", "MarkerPoseSolver"),
 }

@@ -350,51 +350,10 @@ def test_axis_in_tool_is_the_hose_direction_from_the_perpendicular_points():
     assert plain_only.AxisInTool(X_WT, config) is None
 
 
-def test_an_arm_that_cannot_move_fails_following_after_the_stall_time():
-    """The follower on the kinematic station with the arm's command held at the start: the
-    joints never move, so after STALL_TIME the run fails naming the stall (not max_time)."""
-    from pydrake.systems.primitives import ConstantVectorSource
-
-    from guidedarm.diagrams.cli.command_run import LoadScenario
-    from guidedarm.diagrams.tasks.path_following_diagram import MakeKinematicStation
-    from guidedarm.diagrams.tasks.path_following_setup import MakeSetup
-    from guidedarm.systems.path_following.continuous_follower import (
-        STALL_TIME,
-        ContinuousFollower,
-    )
-    from guidedarm.systems.plant_frames import GetScopedFrame
-
-    _, scenario, _ = LoadScenario("path_following", ["motion=continuous", "estimator=ranging"])
-    setup = MakeSetup(scenario)
-    plant = setup.solver.plant
-    tool = GetScopedFrame(plant, setup.station.tof_tools["tof"].tool_frame, "tool")
-    builder = DiagramBuilder()
-    station = builder.AddSystem(MakeKinematicStation(setup.station))
-    held = builder.AddSystem(ConstantVectorSource(setup.q_start))
-    builder.Connect(held.get_output_port(), station.GetInputPort("mz04d.position_commanded"))
-    follower = builder.AddSystem(
-        ContinuousFollower(setup.continuous, plant, tool, setup.grid, "ranging", setup.q_start)
-    )
-    for port in ("ranges", "valid", "measured_at"):
-        builder.Connect(station.GetOutputPort(f"tof.{port}"), follower.GetInputPort(port))
-    builder.Connect(
-        station.GetOutputPort("mz04d.position_measured"),
-        follower.GetInputPort("position_measured"),
-    )
-    simulator = Simulator(builder.Build())
-    context = follower.GetMyContextFromRoot(simulator.get_mutable_context())
-    simulator.AdvanceTo(STALL_TIME - 0.1)
-    assert follower.Loop(context).failure == ""
-    simulator.AdvanceTo(STALL_TIME + 0.1)
-    assert "has not moved for 2 s" in follower.Loop(context).failure
-    assert follower.Stopped(context)
-
-
-@pytest.mark.parametrize("closest, failure", [(0.012, "sensor 3"), (0.016, "")])
-def test_a_reading_within_min_range_of_a_sensor_ends_the_run(closest, failure):
-    """The follower on the kinematic station, its ranges replaced by 40 mm everywhere but
-    sensor 3: 12 mm (below continuous.min_range, 15 mm: the tool is at the hose) ends the
-    run at the first reading naming the sensor; 16 mm does not."""
+def _FollowerOnAHeldArm(ranges: list[float] | None = None):
+    """(simulator, follower, its context): the ranging follower on the kinematic station of
+    paper_path_1 with the arm's command held at the start pose, reading the station's ToF
+    tool, or `ranges` (6, m) in place of its ranges."""
     from pydrake.systems.primitives import ConstantVectorSource
 
     from guidedarm.diagrams.cli.command_run import LoadScenario
@@ -414,16 +373,38 @@ def test_a_reading_within_min_range_of_a_sensor_ends_the_run(closest, failure):
     follower = builder.AddSystem(
         ContinuousFollower(setup.continuous, plant, tool, setup.grid, "ranging", setup.q_start)
     )
-    ranges = builder.AddSystem(ConstantVectorSource([0.04, 0.04, closest, 0.04, 0.04, 0.04]))
-    builder.Connect(ranges.get_output_port(), follower.GetInputPort("ranges"))
-    for port in ("valid", "measured_at"):
-        builder.Connect(station.GetOutputPort(f"tof.{port}"), follower.GetInputPort(port))
+    for port in ("ranges", "valid", "measured_at"):
+        source = station.GetOutputPort(f"tof.{port}")
+        if port == "ranges" and ranges is not None:
+            source = builder.AddSystem(ConstantVectorSource(ranges)).get_output_port()
+        builder.Connect(source, follower.GetInputPort(port))
     builder.Connect(
         station.GetOutputPort("mz04d.position_measured"),
         follower.GetInputPort("position_measured"),
     )
     simulator = Simulator(builder.Build())
-    context = follower.GetMyContextFromRoot(simulator.get_mutable_context())
+    return simulator, follower, follower.GetMyContextFromRoot(simulator.get_mutable_context())
+
+
+def test_an_arm_that_cannot_move_fails_following_after_the_stall_time():
+    """The follower on the kinematic station with the arm's command held at the start: the
+    joints never move, so after STALL_TIME the run fails naming the stall (not max_time)."""
+    from guidedarm.systems.path_following.continuous_follower import STALL_TIME
+
+    simulator, follower, context = _FollowerOnAHeldArm()
+    simulator.AdvanceTo(STALL_TIME - 0.1)
+    assert follower.Loop(context).failure == ""
+    simulator.AdvanceTo(STALL_TIME + 0.1)
+    assert "has not moved for 2 s" in follower.Loop(context).failure
+    assert follower.Stopped(context)
+
+
+@pytest.mark.parametrize("closest, failure", [(0.012, "sensor 3"), (0.016, "")])
+def test_a_reading_within_min_range_of_a_sensor_ends_the_run(closest, failure):
+    """The follower on a held arm, its ranges replaced by 40 mm everywhere but sensor 3:
+    12 mm (below continuous.min_range, 15 mm: the tool is at the hose) ends the run at the
+    first reading naming the sensor; 16 mm does not."""
+    simulator, follower, context = _FollowerOnAHeldArm([0.04, 0.04, closest, 0.04, 0.04, 0.04])
     simulator.AdvanceTo(0.1)
     run = follower.Loop(context)
     if failure:

@@ -42,14 +42,13 @@ from guidedarm.systems.config_checks import (
     CheckFields,
     CheckInstance,
     CheckVector,
-    FieldError,
     InRange,
     NonNegative,
     Positive,
 )
 from guidedarm.systems.errors import ConfigurationError
 from guidedarm.systems.path_following.workspace import WorkspaceConfig
-from guidedarm.systems.plant_frames import CheckFrame, CheckPlant
+from guidedarm.systems.plant_frames import CheckFrame, CheckModelInstance, CheckPlant
 
 
 @dataclass
@@ -119,9 +118,7 @@ class ToolPoseSolver:
         paper's cell) in the arm's base frame B, whose pose in the world is X_WB (default the
         identity)."""
         CheckPlant("plant", plant)
-        CheckInstance("instance", instance, ModelInstanceIndex)
-        if not int(instance) < plant.num_model_instances():
-            raise FieldError("instance", f"no model instance {int(instance)} in the plant")
+        CheckModelInstance("instance", instance, plant)
         CheckFrame("frame", frame, plant)
         CheckInstance("limits", limits, ToolPoseIkConfig)
         CheckInstance("workspace", workspace, (WorkspaceConfig, type(None)))

@@ -24,9 +24,9 @@ from pydrake.math import RollPitchYaw, RotationMatrix
 from pydrake.multibody.plant import MultibodyPlant
 from pydrake.multibody.tree import Frame, JacobianWrtVariable, ModelInstanceIndex
 
-from guidedarm.systems.config_checks import POSITIVE, CheckArgument, CheckInstance, FieldError
+from guidedarm.systems.config_checks import POSITIVE, CheckArgument
 from guidedarm.systems.errors import ConfigurationError, RunFailedError
-from guidedarm.systems.plant_frames import CheckFrame, CheckPlant
+from guidedarm.systems.plant_frames import CheckFrame, CheckModelInstance, CheckPlant
 
 
 class PlanningError(RunFailedError):
@@ -204,9 +204,7 @@ class ArmKinematics:
         min_singular_value: float = 0.01,
     ) -> None:
         CheckPlant("plant", plant)
-        CheckInstance("instance", instance, ModelInstanceIndex)
-        if not int(instance) < plant.num_model_instances():
-            raise FieldError("instance", f"no model instance {int(instance)} in the plant")
+        CheckModelInstance("instance", instance, plant)
         CheckFrame("base_frame", base_frame, plant)
         CheckFrame("tool_frame", tool_frame, plant)
         CheckArgument("min_singular_value", min_singular_value, POSITIVE)
