@@ -197,6 +197,11 @@ class PanelOperationRun:
         self.station = builder.AddNamedSystem(
             "station", MakeStation(station_scenario, self.context.meshcat)
         )
+        plant = self.station.GetSubsystemByName("plant")
+        if not plant.HasModelInstanceNamed(scenario.panel_model):
+            raise ConfigurationError(
+                f"panel_model: no model instance '{scenario.panel_model}' in station.directives"
+            )
         planner = None
         if scenario.operation.motion == "planner":
             planner = _MakePlanner(scenario)
