@@ -149,6 +149,22 @@ def CheckFields(config: Any) -> None:
             raise _Under(name, e) from None
 
 
+def ChangedKey(value: object, default: object, key: str) -> str:
+    """The dotted name of the first field of `value` (a dataclass or a Drake struct) that
+    differs from `default`, or ''."""
+    if dataclasses.is_dataclass(value):
+        names = [f.name for f in dataclasses.fields(value)]
+    elif hasattr(type(value), "__fields__"):
+        names = [f.name for f in type(value).__fields__]
+    else:
+        return "" if np.array_equal(value, default) else key
+    for name in names:
+        changed = ChangedKey(getattr(value, name), getattr(default, name), f"{key}.{name}")
+        if changed:
+            return changed
+    return ""
+
+
 def CheckArgument(name: str, value: Any, bound: Bound) -> None:
     """Checks a number argument of a public builder against `bound`; raises FieldError
     naming the argument (a bool or a non-number is refused too)."""
@@ -330,7 +346,7 @@ def CheckRenderSize(config: CameraConfig, supersampling: int, key: str = "") -> 
     MAX_RENDER_PIXELS; `key` names the supersampling in the message."""
     pixels = config.width * config.height * supersampling**2
     if pixels > MAX_RENDER_PIXELS:
-        by = f" x {key}^2 = {supersampling**2}" if key else ""
+        by = f" x {key}^2 ({supersampling**2})" if key else ""
         raise FieldError(
             "",
             f"renders {config.width} x {config.height}{by} = {pixels:,} pixels, more than "
