@@ -134,10 +134,19 @@ def LoadScenario(name_or_path: str | Path, overrides: list[str]) -> tuple[Any, A
 
 def run_command(args: argparse.Namespace) -> int:
     CheckMeshcatArguments(args)
+    keys = parse_overrides(args.overrides).keys()
     if getattr(args, "path_csv", None) is not None:
+        if "path_csv" in keys:
+            raise ConfigurationError("--path-csv and --set path_csv both given: give one")
         args.overrides.append(f"path_csv={json.dumps(str(args.path_csv.resolve()))}")
     task, scenario, name = LoadScenario(args.scenario, args.overrides)
     CheckSimulationArguments(task, args)
+    hardware_keys = sorted(k for k in keys if k.split(".")[:2] == ["station", "hardware"])
+    if hardware_keys and not args.hardware:
+        raise ConfigurationError(
+            f"--set {hardware_keys[0]} has no effect without --hardware (a simulated run "
+            "reads no driver setting): remove it or add --hardware"
+        )
     meshcat = MakeMeshcat(args.meshcat, args.meshcat_host or "localhost")
     context = RunContext(
         out_dir=PrepareOutputDirectory(args.out or Path("runs") / name), hardware=args.hardware
