@@ -90,6 +90,12 @@ FINITE = Bound()
 POSITIVE = Bound(low=0.0, low_open=True)
 NON_NEGATIVE = Bound(low=0.0)
 UNIT_INTERVAL = Bound(low=0.0, high=1.0)
+# A joint position (rad) beyond two turns either way is no joint of our arms (UR10e joints
+# span +-2 pi); it bounds every joint vector of a scenario.
+MAX_JOINT_POSITION = 4 * math.pi
+# The most pixels a camera renders (width x height, after supersampling): 64 MP, above
+# the 1920 x 1080 x 3^2 = 18.7 MP of the shipped panel camera; beyond, VTK's buffers fail.
+MAX_RENDER_PIXELS = 64_000_000
 
 
 def Positive(default: Any = MISSING, *, factory: Any = MISSING, allow_inf: bool = False) -> Any:
@@ -141,6 +147,22 @@ def CheckFields(config: Any) -> None:
             _CheckValue(value, bound)
         except ConfigurationError as e:
             raise _Under(name, e) from None
+
+
+def ChangedKey(value: object, default: object, key: str) -> str:
+    """The dotted name of the first field of `value` (a dataclass or a Drake struct) that
+    differs from `default`, or ''."""
+    if dataclasses.is_dataclass(value):
+        names = [f.name for f in dataclasses.fields(value)]
+    elif hasattr(type(value), "__fields__"):
+        names = [f.name for f in type(value).__fields__]
+    else:
+        return "" if np.array_equal(value, default) else key
+    for name in names:
+        changed = ChangedKey(getattr(value, name), getattr(default, name), f"{key}.{name}")
+        if changed:
+            return changed
+    return ""
 
 
 def CheckArgument(name: str, value: Any, bound: Bound) -> None:
@@ -312,10 +334,24 @@ def _Under(prefix: str, error: ConfigurationError) -> FieldError:
 
 
 def _CheckCamera(config: CameraConfig) -> None:
+    CheckRenderSize(config, 1)
     try:
         config.MakeCameras()
     except Exception as e:  # Drake lists every problem, one per line
         raise FieldError("", " ".join(str(e).split())) from None
+
+
+def CheckRenderSize(config: CameraConfig, supersampling: int, key: str = "") -> None:
+    """Refuses a camera whose rendered image (width x height x supersampling^2) exceeds
+    MAX_RENDER_PIXELS; `key` names the supersampling in the message."""
+    pixels = config.width * config.height * supersampling**2
+    if pixels > MAX_RENDER_PIXELS:
+        by = f" x {key}^2 ({supersampling**2})" if key else ""
+        raise FieldError(
+            "",
+            f"renders {config.width} x {config.height}{by} = {pixels:,} pixels, more than "
+            f"{MAX_RENDER_PIXELS:,}",
+        )
 
 
 def _CheckPlantConfig(config: MultibodyPlantConfig) -> None:
@@ -339,10 +375,11 @@ def _CheckSimulatorConfig(config: SimulatorConfig) -> None:
 
 
 # Bounds of the numeric fields of Drake's structs used inside our schemas (their floats
-# are finite and their ints >= 0 by the general rules).
+# are finite and their ints >= 0 by the general rules): a plant steps at most 0.1 s (0
+# is continuous), a camera is at most 16384 pixels wide or high.
 DRAKE_BOUNDS: dict[type, dict[str, Bound]] = {
     MultibodyPlantConfig: {
-        "time_step": NON_NEGATIVE,
+        "time_step": Bound(0.0, 0.1),
         "penetration_allowance": POSITIVE,
         "stiction_tolerance": POSITIVE,
         "sap_near_rigid_threshold": NON_NEGATIVE,
@@ -354,8 +391,8 @@ DRAKE_BOUNDS: dict[type, dict[str, Bound]] = {
         "target_realtime_rate": NON_NEGATIVE,
     },
     CameraConfig: {
-        "width": POSITIVE,
-        "height": POSITIVE,
+        "width": Bound(1, 16384),
+        "height": Bound(1, 16384),
         "clipping_near": POSITIVE,
         "clipping_far": POSITIVE,
         "z_near": POSITIVE,

@@ -58,6 +58,7 @@ def files(tmp_path_factory) -> Path:
         "afile": "a file, not a directory\n",
         "malformed.yaml": "task: [joint_tour\n",
         "list.yaml": "- 1\n- 2\n",
+        "huge.csv": "1e308,0,0.1\n0.2,0,0.1\n0.3,0.1,0.1\n",
         "nan_frame.yaml": NAN_FRAME_SCENARIO,
         "nul.csv": "\x00" * 64,
         "camera.yaml": GOOD_CAMERA,
@@ -131,18 +132,18 @@ BAD_INPUTS = [
     # --- joint_tour
     ("joint-tour-nan-speed", Run(JT, "max_speed=.nan"), "key 'max_speed': must be a finite"),
     ("joint-tour-inf-speed", Run(JT, "max_speed=.inf"), "key 'max_speed': must be a finite"),
-    ("joint-tour-zero-speed", Run(JT, "max_speed=0"), "key 'max_speed': must be > 0"),
-    ("joint-tour-tiny-speed", Run(JT, "max_speed=1e-320"), "too small to time the tour"),
+    ("joint-tour-zero-speed", Run(JT, "max_speed=0"), "key 'max_speed': must be in [0.05, 10]"),
+    ("joint-tour-tiny-speed", Run(JT, "max_speed=1e-9"), "must be in [0.05, 10], got 1e-09"),
     ("joint-tour-nan-settle", Run(JT, "settle_time=.nan"), "key 'settle_time'"),
-    ("joint-tour-negative-settle", Run(JT, "settle_time=-1"), "must be >= 0"),
+    ("joint-tour-negative-settle", Run(JT, "settle_time=-1"), "must be in [0, 60]"),
     ("joint-tour-no-waypoints", Run(JT, "waypoints=[]"), "at least one waypoint"),
     ("joint-tour-nan-waypoint", Run(JT, "waypoints=[[.nan,0,0,0,0,0]]"), "waypoints[0][0]"),
-    ("joint-tour-out-of-limits", Run(JT, "waypoints=[[100,0,0,0,0,0]]"), "outside the joint"),
+    ("joint-tour-out-of-limits", Run(JT, "waypoints=[[10,0,0,0,0,0]]"), "outside the joint"),
     ("joint-tour-short-waypoint", Run(JT, "waypoints=[[1,0,0]]"), "has 3 values"),
     ("joint-tour-unknown-arm", Run(JT, "arm=kuka"), "arm 'kuka' is not in station.arms"),
     # --- station.arms, .plant_config, .simulator_config, .visualization, .cameras
     ("arm-nan-kp", Run(JT, "station.arms.ur10e.kp=.nan"), "station.arms.ur10e.kp"),
-    ("arm-negative-kp", Run(JT, "station.arms.ur10e.kp=-5"), "must be > 0"),
+    ("arm-negative-kp", Run(JT, "station.arms.ur10e.kp=-5"), "must be in [1, 1e+06]"),
     ("arm-zero-period", Run(JT, "station.arms.ur10e.control_period=0"), "control_period"),
     (
         "arm-nan-initial",
@@ -541,6 +542,71 @@ BAD_INPUTS = [
     ("picture-not-image", ["picture", "{out}/p.txt"], "must end in an image type"),
     ("picture-under-file", ["picture", "{f}/afile/p.png"], "is a file"),
     ("picture-directory", ["picture", "{f}/a_directory.png"], "is a directory"),
+    # --- numbers beyond what is physical (huge or tiny finite values)
+    ("random-path-huge-length", Run(PF, "path=random_3", "random_path.length=1e308"), "[0.1, 10]"),
+    ("csv-huge-coordinate", Run(PF, flags=("--path-csv", "{f}/huge.csv")), "beyond 5 m"),
+    ("marker-view-supersampling", Run("marker_view", "supersampling=50"), "[1, 8], got 50"),
+    ("marker-view-huge-width", Run("marker_view", "camera.width=100000"), "[1, 16384]"),
+    (
+        "marker-view-pixels",
+        Run("marker_view", "camera.width=5000", "camera.height=5000"),
+        "more than 64,000,000",
+    ),
+    ("arm-huge-kp", Run(JT, "station.arms.ur10e.kp=1e308"), "kp': must be in [1, 1e+06]"),
+    ("arm-tiny-kp", Run(JT, "station.arms.ur10e.kp=1e-300"), "kp': must be in [1, 1e+06]"),
+    ("planner-tiny-step", Run(WP, "planner.time_step=1e-9"), "time_step': must be in [0.0001"),
+    ("plant-huge-step", Run(JT, "station.plant_config.time_step=1e9"), "must be in [0, 0.1]"),
+    ("arm-huge-period", Run(JT, "station.arms.ur10e.control_period=1e9"), "[0.0001, 1]"),
+    ("joint-tour-huge-waypoint", Run(JT, "waypoints=[[1e308,0,0,0,0,0]]"), "waypoints[0][0]"),
+    # --- model directives and instances
+    (
+        "directives-missing-file",
+        Run(
+            JT, "station.directives=[{{add_directives: {{file: package://guidedarm/no.dmd.yaml}}}}]"
+        ),
+        "model directives: error: URI",
+    ),
+    (
+        "directives-unknown-package",
+        Run(JT, "station.directives=[{{add_directives: {{file: package://nopkg/x.yaml}}}}]"),
+        "unknown package 'nopkg'",
+    ),
+    (
+        "directives-plain-path",
+        Run(JT, "station.directives=[{{add_directives: {{file: /etc/passwd}}}}]"),
+        "model directives:",
+    ),
+    ("panel-model-unknown", Run(PO, "panel_model=nosuch"), "no model instance 'nosuch'"),
+    # --- settings a run would not read
+    ("marker-view-hardware", Run("marker_view", flags=("--hardware",)), "--hardware has no"),
+    ("marker-view-realtime", Run("marker_view", flags=("--realtime", "2")), "--realtime has no"),
+    ("marker-view-camera-pose", Run("marker_view", "camera.X_PB.translation=[1,0,0]"), "X_PB"),
+    ("marker-view-camera-fps", Run("marker_view", "camera.fps=5"), "'camera.fps' has no effect"),
+    ("marker-view-camera-depth", Run("marker_view", "camera.depth=true"), "'camera.depth'"),
+    ("marker-view-camera-name", Run("marker_view", "camera.name=x"), "'camera.name'"),
+    ("marker-view-degradation-ss", Run("marker_view", "degradation.supersampling=2"), "top-level"),
+    (
+        "path-csv-twice",
+        Run(PF, "path_csv={f}/huge.csv", flags=("--path-csv", "{f}/huge.csv")),
+        "--path-csv and --set path_csv both given",
+    ),
+    (
+        "hardware-keys-without-hardware",
+        Run(PF, "station.hardware.arms.mz04d={{port: 1}}"),
+        "station.hardware.arms.mz04d has no effect without --hardware",
+    ),
+    (
+        "panel-speed-with-planner",
+        Run(PO, "operation.max_joint_speed=0.5"),
+        "'operation.max_joint_speed' has no effect with operation.motion=planner",
+    ),
+    (
+        "panel-tilt-with-position",
+        Run(PO, "start.position=[0,0,0,0,0,0]", "start.max_tilt_deg=10"),
+        "'start.max_tilt_deg' has no effect with start.position",
+    ),
+    ("describe-defaults-set", ["describe", WP, "--defaults", "--set", "max_time=3"], "--defaults"),
+    ("describe-task-set", ["describe", "waypoints", "--set", "nosuch=1"], "task 'waypoints'"),
 ]
 
 

@@ -30,6 +30,19 @@ def test_override_changes_the_run(tmp_path, run_cli):
     assert fast["sim_time_s"] < 3.0
 
 
+def test_joint_tour_fails_when_the_arm_lags_the_tour(tmp_path, run_cli):
+    # A soft servo (kp = 1/s^2) ends near the start, where the tour ends too: the final
+    # error alone would pass it; the tracking error along the tour fails it.
+    code, _, err = run_cli(
+        "run", "ur10e_joint_tour", "--out", tmp_path, "--set", "station.arms.ur10e.kp=1"
+    )
+    summary = json.loads((tmp_path / "summary.json").read_text())
+    assert code == 1 and summary["success"] is False
+    assert summary["tracking_error_max_rad"] > 0.05
+    assert "max_tracking_error 0.05 rad" in summary["failure"]
+    assert "max_tracking_error" in err
+
+
 def test_show_writes_an_offline_page(tmp_path, run_cli):
     page = tmp_path / "mz04d.html"
     code, _, _ = run_cli("show", "mz04d", "--html", page)

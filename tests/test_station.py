@@ -131,7 +131,7 @@ def test_unknown_arm_and_bad_initial_position_are_configuration_errors():
     with pytest.raises(ConfigurationError, match="initial_position has 2 values"):
         MakeStation(scenario)
     scenario.arms = {"ur10e": ArmConfig(kp=-1.0)}
-    message = r"key 'scenario.arms.ur10e.kp': must be > 0, got -1.0"
+    message = r"key 'scenario.arms.ur10e.kp': must be in \[1, 1e\+06\], got -1.0"
     with pytest.raises(ConfigurationError, match=message):
         MakeStation(scenario)
 

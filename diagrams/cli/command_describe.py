@@ -91,7 +91,12 @@ def register(subparsers: argparse._SubParsersAction) -> None:
 def describe_command(args: argparse.Namespace) -> int:
     tasks = AvailableTasks()
     scenarios = list_named_scenarios()
-    if args.target in tasks and args.target not in scenarios:
+    task_only = args.target in tasks and args.target not in scenarios
+    if args.overrides and (args.defaults or task_only):
+        # The schema's defaults do not read a scenario's --set values.
+        shown = "--defaults" if args.defaults else f"task '{args.target}' (its defaults)"
+        raise ConfigurationError(f"--set has no effect with {shown}: describe a scenario")
+    if task_only:
         task, scenario, name = tasks[args.target], None, None
     elif args.target not in scenarios and not args.target.endswith((".yaml", ".yml")):
         raise ConfigurationError(

@@ -101,6 +101,20 @@ def CheckMeshcatArguments(args: argparse.Namespace) -> None:
         raise ConfigurationError("--meshcat-host must not be empty")
 
 
+def CheckSimulationArguments(task: Any, args: argparse.Namespace) -> None:
+    """Refuses --hardware, --realtime and --meshcat for a task that simulates no station
+    (TaskDefinition.simulates), which would run without reading them."""
+    if task.simulates:
+        return
+    given = {"--hardware": args.hardware, "--realtime": args.realtime is not None}
+    given["--meshcat"] = args.meshcat
+    for flag, value in given.items():
+        if value:
+            raise ConfigurationError(
+                f"{flag} has no effect on task {task.name} (it simulates no station)"
+            )
+
+
 def LoadScenario(name_or_path: str | Path, overrides: list[str]) -> tuple[Any, Any, str]:
     """Returns (task, typed scenario, scenario name) for a scenario and `--set` overrides
     (a list of `key=value` strings), after the task's checks of the scenario: its types and
@@ -121,9 +135,19 @@ def LoadScenario(name_or_path: str | Path, overrides: list[str]) -> tuple[Any, A
 
 def run_command(args: argparse.Namespace) -> int:
     CheckMeshcatArguments(args)
+    keys = parse_overrides(args.overrides).keys()
     if getattr(args, "path_csv", None) is not None:
+        if "path_csv" in keys:
+            raise ConfigurationError("--path-csv and --set path_csv both given: give one")
         args.overrides.append(f"path_csv={json.dumps(str(args.path_csv.resolve()))}")
     task, scenario, name = LoadScenario(args.scenario, args.overrides)
+    CheckSimulationArguments(task, args)
+    hardware_keys = sorted(k for k in keys if k.split(".")[:2] == ["station", "hardware"])
+    if hardware_keys and not args.hardware:
+        raise ConfigurationError(
+            f"--set {hardware_keys[0]} has no effect without --hardware (a simulated run "
+            "reads no driver setting): remove it or add --hardware"
+        )
     meshcat = MakeMeshcat(args.meshcat, args.meshcat_host or "localhost")
     context = RunContext(
         out_dir=PrepareOutputDirectory(args.out or Path("runs") / name), hardware=args.hardware

@@ -1,6 +1,7 @@
 """Scenario schemas of the station, loaded with `yaml_load_typed` (see scenario_loading)."""
 
 import dataclasses
+import math
 from dataclasses import dataclass, field
 
 from pydrake.multibody.parsing import ModelDirective
@@ -10,7 +11,7 @@ from pydrake.systems.sensors import CameraConfig
 from pydrake.visualization import VisualizationConfig
 
 from guidedarm.diagrams.station.hardware_config import HardwareConfig
-from guidedarm.systems.config_checks import Positive
+from guidedarm.systems.config_checks import MAX_JOINT_POSITION, InRange
 from guidedarm.systems.path_following.hose_geometry import HoseConfig
 from guidedarm.systems.tof.tof_tool_sensor import ToFToolConfig
 
@@ -19,17 +20,18 @@ from guidedarm.systems.tof.tof_tool_sensor import ToFToolConfig
 class ArmConfig:
     """One position-controlled arm: the model instance of the same name in `directives`.
 
-    initial_position: joint positions at t = 0 (rad); empty keeps the model's defaults.
-    kp, kd: servo gains of the simulated controller (1/s^2, 1/s); kd <= 0 means critically
-        damped, 2 sqrt(kp).
-    control_period: period at which position commands are sampled and differentiated (s);
-        0.002 s matches UR servoJ at 500 Hz.
+    initial_position: joint positions at t = 0 (rad, each within +-MAX_JOINT_POSITION = 4 pi);
+        empty keeps the model's defaults.
+    kp, kd: servo gains of the simulated controller (1/s^2 in [1, 1e6], 1/s <= 2000); kd <= 0
+        means critically damped, 2 sqrt(kp). Beyond these the 2 ms plant step goes unstable.
+    control_period: period at which position commands are sampled and differentiated (s, in
+        [1e-4, 1]); 0.002 s matches UR servoJ at 500 Hz.
     """
 
-    initial_position: list[float] = field(default_factory=list)
-    kp: float = Positive(1600.0)
-    kd: float = 0.0
-    control_period: float = Positive(0.002)
+    initial_position: list[float] = InRange(-MAX_JOINT_POSITION, MAX_JOINT_POSITION, factory=list)
+    kp: float = InRange(1.0, 1e6, 1600.0)
+    kd: float = InRange(-math.inf, 2000.0, 0.0)
+    control_period: float = InRange(1e-4, 1.0, 0.002)
 
 
 def _default_plant_config() -> MultibodyPlantConfig:

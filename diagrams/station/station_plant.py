@@ -80,8 +80,7 @@ def AddStationModels(
     try:
         ProcessModelDirectives(ModelDirectives(directives=directives), MakeParser(plant))
     except Exception as e:
-        message = str(e).strip().splitlines()[0] if str(e).strip() else type(e).__name__
-        raise ConfigurationError(f"model directives: {message}") from None
+        raise _DirectivesError(e) from None
     if with_hose and scenario.hose is not None:
         RegisterHose(plant, HoseCenterlineInWorld(scenario), scenario.hose)
 
@@ -174,7 +173,10 @@ def _KeepInstances(scenario: StationScenario, names: list[str]) -> list[ModelDir
     """The flattened directives of the named instances; welds to a dropped parent become
     welds to the world at that parent's default pose in the whole station."""
     package_map = MakeParser(MultibodyPlant(0.0)).package_map()
-    flat = FlattenModelDirectives(ModelDirectives(directives=scenario.directives), package_map)
+    try:
+        flat = FlattenModelDirectives(ModelDirectives(directives=scenario.directives), package_map)
+    except Exception as e:
+        raise _DirectivesError(e) from None
     known = {d.add_model.name for d in flat.directives if d.add_model}
     missing = sorted(set(names) - known)
     if missing:
@@ -203,6 +205,13 @@ def _KeepInstances(scenario: StationScenario, names: list[str]) -> list[ModelDir
         elif directive.add_frame and _Instance(directive.add_frame.X_PF.base_frame or "") in names:
             kept.append(directive)
     return kept
+
+
+def _DirectivesError(e: Exception) -> ConfigurationError:
+    """Drake's refusal of a directive (a missing or unparsable file, an unknown package)
+    as one line."""
+    message = str(e).strip().splitlines()[0] if str(e).strip() else type(e).__name__
+    return ConfigurationError(f"model directives: {message}")
 
 
 def _Instance(scoped_name: str) -> str:

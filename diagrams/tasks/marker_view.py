@@ -25,32 +25,67 @@ from guidedarm.diagrams.run_context import RunContext
 from guidedarm.diagrams.tasks.panel_camera_rig import LookAt, PanelCameraRig
 from guidedarm.diagrams.tasks.panel_files import DEFAULT_PANEL_FILE, LoadPanelSpec
 from guidedarm.diagrams.tasks.registry import TaskDefinition
-from guidedarm.systems.config_checks import Positive
-from guidedarm.systems.errors import RunFailedError
+from guidedarm.systems.config_checks import ChangedKey, CheckFields, CheckRenderSize, InRange
+from guidedarm.systems.errors import ConfigurationError, RunFailedError
 from guidedarm.systems.markers.image_degradation import DegradationConfig, SeededDegradation
 from guidedarm.systems.markers.marker_pose_estimator_math import MarkerPoseSolver
+
+# CameraConfig keys marker_view does not read: the view poses the camera (distance_m,
+# angle_deg) and renders one colour image once.
+UNREAD_CAMERA_KEYS = (
+    "name",
+    "X_PB",
+    "X_BC",
+    "X_BD",
+    "fps",
+    "capture_offset",
+    "output_delay",
+    "depth",
+    "label",
+    "show_rgb",
+)
 
 
 @dataclass
 class MarkerViewScenario:
     """One view of the marker panel from a free camera.
 
-    distance_m: camera to the origin of P (the left marker, m).
-    angle_deg: the view's turn about P's y axis (deg).
-    camera: its CameraConfig (pose fields unused).
-    supersampling: the camera is rendered at this many times its resolution.
-    degradation: lighting, blur, noise (its supersampling is the top-level one, its noise
-        seed the scenario's random_seed).
+    distance_m: camera to the origin of P (the left marker, m, in (0, 5]).
+    angle_deg: the view's turn about P's y axis (deg, in (-90, 90): P faces the camera).
+    camera: its CameraConfig: its image size and optics; the keys of UNREAD_CAMERA_KEYS
+        (pose, rate, depth, name, ...) are refused, the view places the camera.
+    supersampling: the camera is rendered at this many times its resolution (1..8, and
+        width x height x supersampling^2 <= MAX_RENDER_PIXELS).
+    degradation: lighting, blur, noise (its supersampling must stay 1: the top-level key
+        sets it; its noise seed is the scenario's random_seed).
     random_seed: the scenario's random seed (the image noise).
     """
 
     task: str = "marker_view"
-    distance_m: float = Positive(0.3)
-    angle_deg: float = 0.0
+    distance_m: float = InRange(0.0, 5.0, 0.3, low_open=True)
+    angle_deg: float = InRange(-90.0, 90.0, 0.0, low_open=True, high_open=True)
     camera: CameraConfig = field(default_factory=CameraConfig)
-    supersampling: int = Positive(3)
+    supersampling: int = InRange(1, 8, 3)
     degradation: DegradationConfig = field(default_factory=DegradationConfig)
     random_seed: int = 0
+
+    def Validate(self) -> None:
+        """Checked at load (CheckConfig): the fields' bounds, the rendered size, and no key
+        the view does not read (UNREAD_CAMERA_KEYS, degradation.supersampling)."""
+        CheckFields(self)
+        default = CameraConfig()
+        for name in UNREAD_CAMERA_KEYS:
+            changed = ChangedKey(getattr(self.camera, name), getattr(default, name), name)
+            if changed:
+                raise ConfigurationError(
+                    f"'camera.{changed}' has no effect on marker_view (the view places and "
+                    "renders one colour image): remove it"
+                )
+        if self.degradation.supersampling != 1:
+            raise ConfigurationError(
+                "set the camera's supersampling (>= 1) with the top-level key 'supersampling'"
+            )
+        CheckRenderSize(self.camera, self.supersampling, "supersampling")
 
 
 def RunMarkerView(scenario: MarkerViewScenario, context: RunContext) -> dict[str, Any]:
@@ -95,4 +130,5 @@ TASK = TaskDefinition(
     scenario_type=MarkerViewScenario,
     run=RunMarkerView,
     description="estimate the marker panel's pose from one free-camera view (markers paper)",
+    simulates=False,
 )

@@ -59,9 +59,11 @@ from guidedarm.diagrams.tasks.panel_operation_report import (
 from guidedarm.diagrams.tasks.planner_builder import MakeAccelerationPlanner
 from guidedarm.diagrams.tasks.registry import TaskDefinition
 from guidedarm.systems.config_checks import (
+    ChangedKey,
     CheckConfig,
     CheckFields,
     CheckInstance,
+    CheckRenderSize,
     InRange,
     NonNegative,
     Positive,
@@ -131,7 +133,8 @@ class PanelOperationScenario:
     panel_file: PANEL.yaml relative to models/.
     panel_model: the panel's model instance in the directives.
     supersampling: the camera renders this many times its resolution, and
-        ImageDegradation averages it back (degradation.supersampling must stay 1).
+        ImageDegradation averages it back (1..8; degradation.supersampling must stay 1;
+        width x height x supersampling^2 <= MAX_RENDER_PIXELS).
     degradation: lighting, blur and noise of the camera image (its noise seed is the
         scenario's random_seed).
     random_seed: the scenario's random seed: the start pose and the image noise each draw
@@ -152,7 +155,7 @@ class PanelOperationScenario:
     tip_frame: str = "rover_gripper::gripper_tip"
     panel_file: str = "panel/panel.yaml"
     panel_model: str = "panel"
-    supersampling: int = Positive(3)
+    supersampling: int = InRange(1, 8, 3)
     degradation: DegradationConfig = field(default_factory=DegradationConfig)
     random_seed: int = 0
     start: StartConfig = field(default_factory=StartConfig)
@@ -174,6 +177,28 @@ class PanelOperationScenario:
             raise ConfigurationError(
                 "set the camera's supersampling (>= 1) with the top-level key 'supersampling'"
             )
+        CheckRenderSize(self.station.cameras[self.camera], self.supersampling, "supersampling")
+        _CheckModeKeys(self)
+
+
+def _CheckModeKeys(scenario: PanelOperationScenario) -> None:
+    """Refuses a key set away from its default that the chosen mode does not read: the
+    random start's keys beside an explicit start.position, and operation.max_joint_speed
+    with operation.motion=planner (the planner's own limits apply)."""
+    start = scenario.start
+    if start.position:
+        changed = ChangedKey(start, StartConfig(position=start.position), "start")
+        if changed:
+            raise ConfigurationError(
+                f"'{changed}' has no effect with start.position given (it shapes the random "
+                "start only): remove it or start.position"
+            )
+    speed = scenario.operation.max_joint_speed
+    if scenario.operation.motion == "planner" and speed != PanelOperationConfig().max_joint_speed:
+        raise ConfigurationError(
+            "'operation.max_joint_speed' has no effect with operation.motion=planner (the "
+            "planner's planner.max_joint_velocity applies): remove it or change motion"
+        )
 
 
 class PanelOperationRun:
@@ -197,6 +222,11 @@ class PanelOperationRun:
         self.station = builder.AddNamedSystem(
             "station", MakeStation(station_scenario, self.context.meshcat)
         )
+        plant = self.station.GetSubsystemByName("plant")
+        if not plant.HasModelInstanceNamed(scenario.panel_model):
+            raise ConfigurationError(
+                f"panel_model: no model instance '{scenario.panel_model}' in station.directives"
+            )
         planner = None
         if scenario.operation.motion == "planner":
             planner = _MakePlanner(scenario)

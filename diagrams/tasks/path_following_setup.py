@@ -32,7 +32,7 @@ from guidedarm.diagrams.station.station_plant import (
     GetArmInstance,
     MakeMultibodyPlant,
 )
-from guidedarm.systems.config_checks import CheckConfig, CheckInstance
+from guidedarm.systems.config_checks import ChangedKey, CheckConfig, CheckInstance
 from guidedarm.systems.errors import ConfigurationError, GuidedArmError
 from guidedarm.systems.path_following.continuous_follower_math import ContinuousConfig
 from guidedarm.systems.path_following.hose_geometry import (
@@ -230,7 +230,7 @@ def _CheckMotionKeys(scenario: PathFollowingScenario) -> None:
     for key, motions in _MOTION_KEYS.items():
         if scenario.motion in motions:
             continue
-        changed = _ChangedKey(_Dotted(scenario, key), _Dotted(defaults, key), key)
+        changed = ChangedKey(_Dotted(scenario, key), _Dotted(defaults, key), key)
         if key == "follower" and changed == "follower.estimator":
             continue
         if changed:
@@ -254,7 +254,7 @@ def _CheckExecutorKeys(scenario: PathFollowingScenario) -> None:
         (f"{prefix}.kp", arm.kp, default_arm.kp),
         (f"{prefix}.kd", arm.kd, default_arm.kd),
     ):
-        changed = _ChangedKey(value, default, key)
+        changed = ChangedKey(value, default, key)
         if changed:
             raise ConfigurationError(
                 f"'{changed}' has no effect with executor=kinematic (it poses the arm where "
@@ -268,22 +268,6 @@ def _Dotted(config: object, key: str) -> object:
     for name in key.split("."):
         config = getattr(config, name)
     return config
-
-
-def _ChangedKey(value: object, default: object, key: str) -> str:
-    """The dotted name of the first field of `value` (a dataclass or a Drake struct) that
-    differs from `default`, or ''."""
-    if dataclasses.is_dataclass(value):
-        names = [f.name for f in dataclasses.fields(value)]
-    elif hasattr(type(value), "__fields__"):
-        names = [f.name for f in type(value).__fields__]
-    else:
-        return "" if np.array_equal(value, default) else key
-    for name in names:
-        changed = _ChangedKey(getattr(value, name), getattr(default, name), f"{key}.{name}")
-        if changed:
-            return changed
-    return ""
 
 
 def _ResolveToF(scenario: PathFollowingScenario, station: StationScenario) -> None:

@@ -26,6 +26,8 @@ class TaskDefinition:
     given on the command line (`--set`) that the scenario it made would not read, where the
     scenario file may hold the same key for another choice (e.g. `random_path` beside a
     named hose).
+    simulates: False for a task that simulates no station (marker_view renders one image):
+    `run` refuses --hardware, --realtime and --meshcat for it, which it would not read.
     """
 
     name: str
@@ -34,6 +36,7 @@ class TaskDefinition:
     description: str
     station: Callable[[Any], Any] | None = None
     check_overrides: Callable[[Any, Collection[str]], None] | None = None
+    simulates: bool = True
 
     def Station(self, scenario: Any) -> Any:
         """The station scenario a run of `scenario` builds (see the class docstring)."""

@@ -11,7 +11,7 @@ z = 0) holds each end, as the metal brackets of Wawrzyniak et al. do.
 
 import itertools
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
@@ -23,7 +23,6 @@ from guidedarm.systems.config_checks import (
     CheckConfig,
     CheckFields,
     InRange,
-    NonNegative,
     Positive,
 )
 from guidedarm.systems.errors import ConfigurationError
@@ -31,6 +30,9 @@ from guidedarm.systems.path_following.workspace import WorkspaceConfig
 
 HOSES_DIR = Path(__file__).resolve().parents[2] / "models" / "hoses"
 MIN_HOSE_LENGTH = 0.10
+# Every coordinate of a hose (m) lies within this of the origin: a few metres around a
+# tabletop arm; farther is no hose the arms reach, and 1e308 overflows the geometry.
+MAX_HOSE_COORDINATE = 5.0
 BRACKET_INSET = 0.05
 _HOSE_COLOR = np.array([0.15, 0.45, 0.85, 1.0])
 _BRACKET_COLOR = np.array([0.55, 0.56, 0.58, 1.0])
@@ -126,11 +128,18 @@ def ReadCenterline(name_or_file: str) -> np.ndarray:
 
 
 def ValidateCenterline(points: np.ndarray, source: str = "centerline") -> np.ndarray:
-    """Checks finiteness, no repeated points and a length of at least MIN_HOSE_LENGTH."""
+    """Checks finiteness, coordinates within MAX_HOSE_COORDINATE (m), no repeated points
+    and a length of at least MIN_HOSE_LENGTH."""
     if len(points) < 2:
         raise ConfigurationError(f"{source}: needs at least 2 points, has {len(points)}")
     if not np.all(np.isfinite(points)):
         raise ConfigurationError(f"{source}: contains non-finite coordinates")
+    if np.any(np.abs(points) > MAX_HOSE_COORDINATE):
+        row = int(np.argmax(np.abs(points).max(axis=1))) + 1
+        raise ConfigurationError(
+            f"{source}: point {row} lies beyond {MAX_HOSE_COORDINATE:g} m of the origin "
+            "(coordinates are in metres, near the robot)"
+        )
     steps = np.linalg.norm(np.diff(points, axis=0), axis=1)
     if np.any(steps < 1e-6):
         raise ConfigurationError(f"{source}: repeated point at row {int(np.argmin(steps)) + 2}")
@@ -214,6 +223,8 @@ class RandomPathConfig:
     the workspace's z range); it starts at an azimuth within start_azimuth_deg of
     start_azimuth_centre_deg. The paths are smooth with curvature below 1 / min_bend_radius.
 
+    Lengths and coordinates lie within MAX_HOSE_COORDINATE (5 m) of the base, the path's
+    length within [MIN_HOSE_LENGTH, 10 m].
     length: the path's length (m).
     min_bend_radius: smallest bend radius of the path (m).
     radius_range: [lo, hi] distance of the hose centre from B's z axis (m).
@@ -224,12 +235,14 @@ class RandomPathConfig:
     start_azimuth_deg: largest deviation of the start azimuth from that centre (deg).
     """
 
-    length: float = Positive(0.6)
-    min_bend_radius: float = Positive(0.10)
-    radius_range: list[float] = NonNegative(factory=lambda: [0.29, 0.43])
-    z_range: list[float] = field(default_factory=lambda: [0.08, 0.20])
+    length: float = InRange(MIN_HOSE_LENGTH, 2 * MAX_HOSE_COORDINATE, 0.6)
+    min_bend_radius: float = InRange(0.0, MAX_HOSE_COORDINATE, 0.10, low_open=True)
+    radius_range: list[float] = InRange(0.0, MAX_HOSE_COORDINATE, factory=lambda: [0.29, 0.43])
+    z_range: list[float] = InRange(
+        -MAX_HOSE_COORDINATE, MAX_HOSE_COORDINATE, factory=lambda: [0.08, 0.20]
+    )
     max_slope_deg: float = InRange(0.0, 90.0, 35.0, low_open=True)
-    margin: float = NonNegative(0.10)
+    margin: float = InRange(0.0, MAX_HOSE_COORDINATE, 0.10)
     start_azimuth_centre_deg: float = 0.0
     start_azimuth_deg: float = InRange(0.0, 180.0, math.degrees(0.6))
 

@@ -56,7 +56,7 @@ class PlannerConfig:
         elementary task starts once the TCP is within the tolerances and slower than
         rest_speed, i.e. practically at rest as boundary condition (3) asks.
     rest_speed: the TCP speed below which it counts as at rest (m/s).
-    time_step: planner period (s), 0.002 s = 500 Hz as UR servoJ.
+    time_step: planner period (s, in [1e-4, 0.1]), 0.002 s = 500 Hz as UR servoJ.
     min_singular_value: the paper's mode stops with an error when the smallest singular
         value of J_g falls below it (m or rad per rad).
     blend_length: TCP path length (m) over which sigma of (19) goes from 0 to 1 once the
@@ -107,7 +107,7 @@ class PlannerConfig:
     robust_recovery_rate: float = Positive(3.0)
     stop_at_waypoints: bool = False
     rest_speed: float = Positive(0.001)
-    time_step: float = Positive(0.002)
+    time_step: float = InRange(1e-4, 0.1, 0.002)
     min_singular_value: float = Positive(0.01)
     blend_length: float = Positive(0.05)
     damping_threshold: float = Positive(0.03)
