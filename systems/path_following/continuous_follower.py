@@ -227,6 +227,7 @@ class ContinuousFollower(LeafSystem):
         if not estimate.IsDetected():
             S_W = None
         detected, errors = self._grid.Detect(ranges, valid)
+        range_list, valid_list = ranges.tolist(), valid.tolist()
         # One array from floats (RECORD_FIELDS): numpy's per-piece overhead counts.
         S = S_W if S_W is not None else p_WO
         record = np.array(
@@ -242,8 +243,8 @@ class ContinuousFollower(LeafSystem):
                 reference.recoveries,
                 float(reference.mode == DONE),
                 0.0,
-                *ranges.tolist(),
-                *valid.tolist(),
+                *range_list,
+                *valid_list,
             ],
             float,
         )
@@ -260,7 +261,7 @@ class ContinuousFollower(LeafSystem):
             grid=np.concatenate((detected, errors), axis=None).astype(float),
         )
         closest, sensor = min(
-            ((r, k) for k, (r, v) in enumerate(zip(ranges.tolist(), valid, strict=True)) if v),
+            ((r, k) for k, (r, v) in enumerate(zip(range_list, valid_list, strict=True)) if v),
             default=(math.inf, 0),
         )
         if closest < self._config.min_range:
