@@ -25,9 +25,13 @@ from guidedarm.diagrams.run_context import RunContext
 from guidedarm.diagrams.tasks.panel_camera_rig import LookAt, PanelCameraRig
 from guidedarm.diagrams.tasks.panel_files import DEFAULT_PANEL_FILE, LoadPanelSpec
 from guidedarm.diagrams.tasks.registry import TaskDefinition
-from guidedarm.systems.config_checks import ChangedKey, CheckFields, CheckRenderSize, InRange
+from guidedarm.systems.config_checks import ChangedKey, CheckFields, InRange
 from guidedarm.systems.errors import ConfigurationError, RunFailedError
-from guidedarm.systems.markers.image_degradation import DegradationConfig, SeededDegradation
+from guidedarm.systems.markers.image_degradation import (
+    CheckRenderedSupersampling,
+    DegradationConfig,
+    SeededDegradation,
+)
 from guidedarm.systems.markers.marker_pose_estimator_math import MarkerPoseSolver
 
 # CameraConfig keys marker_view does not read: the view poses the camera (distance_m,
@@ -81,11 +85,7 @@ class MarkerViewScenario:
                     f"'camera.{changed}' has no effect on marker_view (the view places and "
                     "renders one colour image): remove it"
                 )
-        if self.degradation.supersampling != 1:
-            raise ConfigurationError(
-                "set the camera's supersampling (>= 1) with the top-level key 'supersampling'"
-            )
-        CheckRenderSize(self.camera, self.supersampling, "supersampling")
+        CheckRenderedSupersampling(self.degradation, self.camera, self.supersampling)
 
 
 def RunMarkerView(scenario: MarkerViewScenario, context: RunContext) -> dict[str, Any]:

@@ -63,13 +63,16 @@ from guidedarm.systems.config_checks import (
     CheckConfig,
     CheckFields,
     CheckInstance,
-    CheckRenderSize,
     InRange,
     NonNegative,
     Positive,
 )
 from guidedarm.systems.errors import ConfigurationError
-from guidedarm.systems.markers.image_degradation import DegradationConfig, SeededDegradation
+from guidedarm.systems.markers.image_degradation import (
+    CheckRenderedSupersampling,
+    DegradationConfig,
+    SeededDegradation,
+)
 from guidedarm.systems.markers.panel_operation_math import (
     PanelOperationConfig,
     PlannerFrames,
@@ -173,11 +176,9 @@ class PanelOperationScenario:
             raise ConfigurationError(f"arm '{self.arm}' is not in station.arms")
         if self.camera not in self.station.cameras:
             raise ConfigurationError(f"camera '{self.camera}' is not in station.cameras")
-        if self.degradation.supersampling != 1:
-            raise ConfigurationError(
-                "set the camera's supersampling (>= 1) with the top-level key 'supersampling'"
-            )
-        CheckRenderSize(self.station.cameras[self.camera], self.supersampling, "supersampling")
+        CheckRenderedSupersampling(
+            self.degradation, self.station.cameras[self.camera], self.supersampling
+        )
         _CheckModeKeys(self)
 
 

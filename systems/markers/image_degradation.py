@@ -20,9 +20,15 @@ import cv2
 import numpy as np
 from pydrake.common.value import AbstractValue
 from pydrake.systems.framework import Context, LeafSystem
-from pydrake.systems.sensors import ImageRgba8U
+from pydrake.systems.sensors import CameraConfig, ImageRgba8U
 
-from guidedarm.systems.config_checks import CheckFields, CheckInstance, NonNegative, Positive
+from guidedarm.systems.config_checks import (
+    CheckFields,
+    CheckInstance,
+    CheckRenderSize,
+    NonNegative,
+    Positive,
+)
 from guidedarm.systems.errors import ConfigurationError
 
 
@@ -47,6 +53,19 @@ class DegradationConfig:
     def Validate(self) -> None:
         """Raises ConfigurationError naming the first bad parameter."""
         CheckFields(self)
+
+
+def CheckRenderedSupersampling(
+    degradation: DegradationConfig, camera: CameraConfig, supersampling: int
+) -> None:
+    """For a task whose top-level `supersampling` renders `camera` (and sets the
+    degradation's): refuses a degradation.supersampling of its own, and a rendered image
+    beyond MAX_RENDER_PIXELS (config_checks.CheckRenderSize)."""
+    if degradation.supersampling != 1:
+        raise ConfigurationError(
+            "set the camera's supersampling (>= 1) with the top-level key 'supersampling'"
+        )
+    CheckRenderSize(camera, supersampling, "supersampling")
 
 
 def SeededDegradation(config: DegradationConfig, random_seed: int) -> DegradationConfig:
