@@ -50,7 +50,7 @@ def sweep_command(args: argparse.Namespace) -> int:
     if empty:
         print(
             f"guidedarm: metric(s) {', '.join(empty)} in no successful job's summary "
-            "(empty column): compare the names with a run's summary.json",
+            "(empty column): the task reports them only in some configurations",
             file=sys.stderr,
         )
     print("wrote:")
