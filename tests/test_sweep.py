@@ -342,3 +342,16 @@ def test_a_job_that_breaks_outside_its_task_is_a_lost_row_run_again(tmp_path):
     assert row["success"] is False and row["failure"].startswith("engine: NotADirectoryError")
     assert ResultsTable(tmp_path / "results.csv", ["max_speed"]).DoneIds() == set()
 
+
+@pytest.mark.slow
+def test_a_campaign_whose_every_job_fails_exits_1_with_the_count(tmp_path, run_cli):
+    text = TOUR.replace("settle_time: 0.2", "settle_time: 0.2, max_final_error: 1.0e-15")
+    campaign = _Write(tmp_path, text + "metrics: [final_error_rad]\n")
+    out = tmp_path / "out"
+    code, stdout, err = run_cli("sweep", campaign, "--out", out, "--workers", "1")
+    assert code == 1, err
+    assert "failed: 1" in stdout and "guidedarm: all 1 job(s) failed, the first: " in err
+    assert "Traceback" not in err
+    (row,) = ReadRows(out / "results.csv")
+    assert row["success"] is False and row["final_error_rad"] > 1e-15
+    assert "success 0 / 1 (0.0 %)" in (out / "report.html").read_text()
