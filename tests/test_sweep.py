@@ -355,3 +355,32 @@ def test_a_campaign_whose_every_job_fails_exits_1_with_the_count(tmp_path, run_c
     (row,) = ReadRows(out / "results.csv")
     assert row["success"] is False and row["final_error_rad"] > 1e-15
     assert "success 0 / 1 (0.0 %)" in (out / "report.html").read_text()
+
+
+@pytest.mark.slow
+def test_sigterm_ends_the_campaign_with_its_report_and_no_worker_left(tmp_path):
+    """SIGTERM to the command alone (as `kill` or a service manager sends it), three times:
+    the first stops the jobs, the others do not cut the cluster's shutdown or the report."""
+    campaign = _Write(tmp_path, TOUR + "grid: {max_speed: [2.0, 2.2, 2.4, 2.6, 2.8, 3.0]}\n")
+    out = tmp_path / "out"
+    command = [sys.executable, "-m", "guidedarm.diagrams.cli.main", "sweep", str(campaign)]
+    command += ["--out", str(out), "--workers", "2"]
+    process = subprocess.Popen(command, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    table = out / "results.csv"
+    deadline = time.monotonic() + 90
+    while not (table.exists() and ReadRows(table)) and time.monotonic() < deadline:
+        time.sleep(0.1)
+    children = psutil.Process(process.pid).children(recursive=True)
+    assert len(children) >= 2  # the two workers (and multiprocessing's helpers)
+    for _ in range(3):
+        process.send_signal(signal.SIGTERM)
+        time.sleep(0.2)
+    stdout, err = process.communicate(timeout=60)
+    assert process.returncode == 130, err
+    assert "Traceback" not in err and "interrupted; run the same command again" in err
+    assert "report.html" in stdout
+    rows = ReadRows(table)
+    assert 1 <= len(rows) < 6
+    assert f"{len(rows)} of 6 jobs done" in (out / "report.html").read_text()
+    _, alive = psutil.wait_procs(children, timeout=10)
+    assert not alive, [p.cmdline() for p in alive]

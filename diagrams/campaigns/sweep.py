@@ -17,6 +17,7 @@ from guidedarm.diagrams.campaigns.jobs import ExpandJobs, Job
 from guidedarm.diagrams.campaigns.report import WriteReport
 from guidedarm.diagrams.campaigns.results import RESULTS_FILE, ResultsTable
 from guidedarm.diagrams.cli.command_run import PrepareOutputDirectory
+from guidedarm.diagrams.interrupts import DeferredInterrupts
 from guidedarm.diagrams.tasks.registry import GetTask
 from guidedarm.systems.errors import ConfigurationError
 
@@ -94,14 +95,17 @@ def Sweep(
         file=sys.stderr,
         flush=True,
     )
-    if pending:
-        runs_dir = out_dir / RUNS_DIR if options.keep_runs else None
-        with OpenClient(options.workers, options.scheduler) as client:
-            result.outcome = RunJobs(
-                client, pending, table, campaign.metrics, runs_dir, options.progress
-            )
-        if not result.outcome.interrupted:
-            table.Order([job.id for job in jobs])
-    task = GetTask(jobs[0].task)
-    result.written.append(WriteReport(out_dir, campaign, table, len(jobs), task))
+    # Ctrl-C or SIGTERM stops the jobs only (RunJobs); the cluster's start and shutdown
+    # and the report are not cut, so no worker process outlives the command.
+    with DeferredInterrupts():
+        if pending:
+            runs_dir = out_dir / RUNS_DIR if options.keep_runs else None
+            with OpenClient(options.workers, options.scheduler) as client:
+                result.outcome = RunJobs(
+                    client, pending, table, campaign.metrics, runs_dir, options.progress
+                )
+            if not result.outcome.interrupted:
+                table.Order([job.id for job in jobs])
+        task = GetTask(jobs[0].task)
+        result.written.append(WriteReport(out_dir, campaign, table, len(jobs), task))
     return result
