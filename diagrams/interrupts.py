@@ -19,7 +19,8 @@ from typing import Any
 
 # The names of the signals received and not yet reported ("" for Ctrl-C).
 _PENDING: list[str] = []
-# Inside DeferredInterrupts: signals are only recorded.
+# Innermost last: True inside DeferredInterrupts (signals are only recorded), False inside
+# InterruptsAllowed.
 _DEFERRED: list[bool] = []
 
 
@@ -51,7 +52,7 @@ def _FromInterrupt(error: BaseException | None) -> bool:
 
 def _OnSignal(signum: int, frame: FrameType | None) -> None:
     _PENDING.append("SIGTERM" if signum == signal.SIGTERM else "")
-    if not _DEFERRED:
+    if not _DEFERRED or not _DEFERRED[-1]:
         raise _Interrupt(_PENDING[-1])
 
 
@@ -62,6 +63,19 @@ def DeferredInterrupts() -> Iterator[None]:
     (RaiseIfInterrupted)."""
     _DEFERRED.append(True)
     try:
+        yield
+    finally:
+        _DEFERRED.pop()
+
+
+@contextlib.contextmanager
+def InterruptsAllowed() -> Iterator[None]:
+    """Within DeferredInterrupts, a part that Ctrl-C and SIGTERM stop at once (e.g. a
+    campaign's jobs, while the cluster's start and shutdown around them are not cut); one
+    recorded before it is raised on entry."""
+    _DEFERRED.append(False)
+    try:
+        RaiseIfInterrupted()
         yield
     finally:
         _DEFERRED.pop()

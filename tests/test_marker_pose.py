@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import copy
 import dataclasses
+import json
 
 import numpy as np
 import pytest
@@ -26,6 +27,7 @@ from guidedarm.diagrams.tasks.panel_files import (
     LoadCameraIntrinsics,
     LoadPanelSpec,
 )
+from guidedarm.diagrams.tasks.registry import GetTask, NumericMetricNames
 from guidedarm.systems.errors import ConfigurationError
 from guidedarm.systems.markers.image_degradation import (
     DegradationConfig,
@@ -164,6 +166,14 @@ def test_example_files_load_and_assets_regenerate(tmp_path):
     for path in WritePanelAssets(DEFAULT_PANEL_FILE, tmp_path):
         committed = DEFAULT_PANEL_FILE.parent / path.name
         assert committed.read_bytes() == path.read_bytes(), f"{path.name} is stale"
+
+
+def test_marker_view_summary_carries_exactly_its_declared_metrics(run_cli, tmp_path):
+    code, _, err = run_cli("run", "marker_view", "--out", tmp_path, "--set", "supersampling=1")
+    assert code == 0, err
+    summary = json.loads((tmp_path / "summary.json").read_text())
+    assert summary["abs_error_mm"] < 5.0
+    assert NumericMetricNames(summary) == set(GetTask("marker_view").KnownMetrics())
 
 
 @pytest.mark.slow

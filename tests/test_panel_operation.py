@@ -61,7 +61,7 @@ def test_markers_covered_after_base_position(tmp_path, policy):
     result = run.Run(run.SampleStart(1))
     lost = result["measurements"][-1]
     assert lost["point"] == "switch_point" and not lost["valid"]
-    assert result["marker_loss"] == policy
+    assert result["marker_loss"] == policy and result["lost_measurements"] == 1
     if policy == "abort":
         assert result["failure"] == (
             "markers lost at the 'switch_point' point: aborted before pressing "

@@ -5,6 +5,8 @@ import json
 
 import pytest
 
+from guidedarm.diagrams.tasks.registry import GetTask, NumericMetricNames
+
 # Keys that describe how and when a run was made, not what it did.
 PROVENANCE = {"scenario", "command", "wall_time_s"}
 # Measured computing times differ from run to run.
@@ -44,4 +46,11 @@ def test_resolved_scenario_repeats_the_run(tmp_path, run_cli, name, overrides):
     assert code == 0, err
     again = _Summary(second)
     assert again == _Summary(first)
+    # The summary carries the numbers its task declares: all of them, except the
+    # path-following repeatability figures, which need repeat_random_seed.
+    summary = json.loads((first / "summary.json").read_text())
+    declared = set(GetTask(name).KnownMetrics())
+    if name == "path_following":
+        declared -= {"repeatability_mean_mm", "repeatability_max_mm"}
+    assert NumericMetricNames(summary) == declared
     assert again.get("steps", again.get("switch_pressed")) is not None

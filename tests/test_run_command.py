@@ -7,6 +7,8 @@ import json
 import cv2
 import numpy as np
 
+from guidedarm.diagrams.tasks.registry import GetTask, NumericMetricNames
+
 
 def test_joint_tour_writes_summary_plot_and_replay(tmp_path, run_cli):
     code, out, _ = run_cli("run", "ur10e_joint_tour", "--out", tmp_path)
@@ -17,6 +19,7 @@ def test_joint_tour_writes_summary_plot_and_replay(tmp_path, run_cli):
     # The servo tracks the smooth tour closely and ends on the last waypoint.
     assert summary["tracking_error_max_rad"] < 0.01
     assert summary["final_error_rad"] < 1e-4
+    assert NumericMetricNames(summary) == set(GetTask("joint_tour").KnownMetrics())
     replay = (tmp_path / "replay.html").read_text()
     assert "<html" in replay.lower() and len(replay) > 100_000
     assert (tmp_path / "joints.png").stat().st_size > 10_000

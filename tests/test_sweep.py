@@ -19,6 +19,8 @@ from guidedarm.diagrams.campaigns.campaign import ListNamedCampaigns, LoadCampai
 from guidedarm.diagrams.campaigns.engine import RunJobs
 from guidedarm.diagrams.campaigns.jobs import ExpandJobs
 from guidedarm.diagrams.campaigns.results import EmptyMetrics, ParseCell, ResultsTable
+from guidedarm.diagrams.cli.command_marker_study import CAMPAIGNS
+from guidedarm.diagrams.tasks.registry import AvailableTasks, NumericMetricNames
 
 TOUR = "scenario: ur10e_joint_tour\nset: {settle_time: 0.2}\n"
 
@@ -82,6 +84,18 @@ def ReadRows(path: Path) -> list[dict]:
             "low and high must be whole numbers",
         ),
         (TOUR + "repeat: {key: random_seed, count: 2, start: -1}\n", "repeat.start (a seed)"),
+        (
+            TOUR + "metrics: [tracking_error_max_rad, coverage]\n",
+            "metric 'coverage' is not a numeric metric of task 'joint_tour' (known: "
+            "final_error_rad, sim_time_s, tracking_error_max_rad, wall_time_s)",
+        ),
+        (TOUR + "metrics: [task]\n", "metric 'task' is not a numeric metric"),  # text
+        (TOUR + "metrics: [sim_time_s, sim_time_s]\n", "metric 'sim_time_s' is listed twice"),
+        (TOUR + "grid: {draw: [1]}\n", "grid key 'draw' is the column that numbers"),
+        (
+            TOUR + "grid: {station.hardware.arms.ur10e.gain: [500.0, 600.0]}\n",
+            "has no effect in a campaign (its jobs run in simulation",
+        ),
     ],
 )
 def test_bad_campaign_files_are_refused_in_one_line(tmp_path, run_cli, text, message):
@@ -109,6 +123,41 @@ def test_worker_flags_are_checked_alike(tmp_path, run_cli, command, flags, messa
     assert code == 2
     assert err.count("\n") == 1 and message in err
     assert not out.exists()
+
+
+def test_marker_study_checks_every_campaign_before_the_first_runs(tmp_path, run_cli, monkeypatch):
+    # The distance study's second campaign names a metric marker_view does not report.
+    bad = _Write(tmp_path, "scenario: marker_view\nmetrics: [vision_mm, coverage]\n")
+    monkeypatch.setitem(CAMPAIGNS, "distance", ("marker_distance_straight", str(bad)))
+    out = tmp_path / "out"
+    code, _, err = run_cli("marker-study", "distance", "--out", out, "--workers", "1")
+    assert code == 2 and err.count("\n") == 1
+    assert f"{bad}: metric 'coverage' is not a numeric metric of task 'marker_view'" in err
+    assert "(known: abs_angle_error_deg, abs_error_mm, ids.#, " in err
+    assert not out.exists()  # the first campaign did not run
+
+
+def test_every_task_declares_its_numeric_metrics():
+    """Each task's metrics are compared with a real run's summary.json by a test of its
+    own module: joint_tour test_run_command, waypoints test_waypoints_task, marker_view
+    test_marker_pose, path_following and panel_operation test_resolved_scenario."""
+    tasks = AvailableTasks()
+    assert sorted(tasks) == [
+        "joint_tour",
+        "marker_view",
+        "panel_operation",
+        "path_following",
+        "waypoints",
+    ]
+    for task in tasks.values():
+        assert task.metrics and len(set(task.metrics)) == len(task.metrics)
+        assert all(task.HasMetric(m.replace("#", "0")) for m in task.metrics)
+    panel = tasks["panel_operation"]
+    assert panel.HasMetric("measurements.0.distance_mm") and panel.HasMetric("press_tip_W_mm.2")
+    assert not panel.HasMetric("press_error_mm")  # a mapping, not a number
+    assert not panel.HasMetric("measurements.first.distance_mm")
+    assert not panel.HasMetric("marker_loss")  # text
+    assert NumericMetricNames({"a": [{"b": 1, "c": "x"}], "d": True, "e": 2.5}) == {"a.#.b", "e"}
 
 
 def test_metrics_no_successful_job_has_are_named():
@@ -292,3 +341,46 @@ def test_a_job_that_breaks_outside_its_task_is_a_lost_row_run_again(tmp_path):
     (row,) = ReadRows(tmp_path / "results.csv")
     assert row["success"] is False and row["failure"].startswith("engine: NotADirectoryError")
     assert ResultsTable(tmp_path / "results.csv", ["max_speed"]).DoneIds() == set()
+
+
+@pytest.mark.slow
+def test_a_campaign_whose_every_job_fails_exits_1_with_the_count(tmp_path, run_cli):
+    text = TOUR.replace("settle_time: 0.2", "settle_time: 0.2, max_final_error: 1.0e-15")
+    campaign = _Write(tmp_path, text + "metrics: [final_error_rad]\n")
+    out = tmp_path / "out"
+    code, stdout, err = run_cli("sweep", campaign, "--out", out, "--workers", "1")
+    assert code == 1, err
+    assert "failed: 1" in stdout and "guidedarm: all 1 job(s) failed, the first: " in err
+    assert "Traceback" not in err
+    (row,) = ReadRows(out / "results.csv")
+    assert row["success"] is False and row["final_error_rad"] > 1e-15
+    assert "success 0 / 1 (0.0 %)" in (out / "report.html").read_text()
+
+
+@pytest.mark.slow
+def test_sigterm_ends_the_campaign_with_its_report_and_no_worker_left(tmp_path):
+    """SIGTERM to the command alone (as `kill` or a service manager sends it), three times:
+    the first stops the jobs, the others do not cut the cluster's shutdown or the report."""
+    campaign = _Write(tmp_path, TOUR + "grid: {max_speed: [2.0, 2.2, 2.4, 2.6, 2.8, 3.0]}\n")
+    out = tmp_path / "out"
+    command = [sys.executable, "-m", "guidedarm.diagrams.cli.main", "sweep", str(campaign)]
+    command += ["--out", str(out), "--workers", "2"]
+    process = subprocess.Popen(command, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    table = out / "results.csv"
+    deadline = time.monotonic() + 90
+    while not (table.exists() and ReadRows(table)) and time.monotonic() < deadline:
+        time.sleep(0.1)
+    children = psutil.Process(process.pid).children(recursive=True)
+    assert len(children) >= 2  # the two workers (and multiprocessing's helpers)
+    for _ in range(3):
+        process.send_signal(signal.SIGTERM)
+        time.sleep(0.2)
+    stdout, err = process.communicate(timeout=60)
+    assert process.returncode == 130, err
+    assert "Traceback" not in err and "interrupted; run the same command again" in err
+    assert "report.html" in stdout
+    rows = ReadRows(table)
+    assert 1 <= len(rows) < 6
+    assert f"{len(rows)} of 6 jobs done" in (out / "report.html").read_text()
+    _, alive = psutil.wait_procs(children, timeout=10)
+    assert not alive, [p.cmdline() for p in alive]

@@ -9,6 +9,7 @@ import pytest
 from guidedarm.diagrams.cli.command_compare_planners import ComparePlanners, TableRow
 from guidedarm.diagrams.cli.command_run import LoadScenario
 from guidedarm.diagrams.cli.main import main
+from guidedarm.diagrams.tasks.registry import GetTask, NumericMetricNames
 from guidedarm.diagrams.tasks.waypoints import MakePlannerSetup, TrajectoryMetrics
 from guidedarm.systems.planning.acceleration_planner_math import RunPlanning
 from guidedarm.systems.planning.planner_baselines import TrapezoidProfile
@@ -28,6 +29,7 @@ def test_guidedarm_run_ur10e_waypoints_through_the_station(tmp_path):
     assert main(["run", "ur10e_waypoints", "--out", str(tmp_path)]) == 0
     summary = json.loads((tmp_path / "summary.json").read_text())
     assert summary.keys() >= SUMMARY_KEYS
+    assert NumericMetricNames(summary) == set(GetTask("waypoints").KnownMetrics())
     assert summary["failure"] is None and summary["success"] is True
     # the robust mode's braking approach and per-joint saturation: 4.52 s where the paper's law
     # takes 5.41 s

@@ -18,7 +18,8 @@ random:                          # `count` seeded draws (crossed with grid and z
     other.key: {integers: [low, high]}   # high excluded
     third.key: {choice: [a, b, c]}
 repeat: {key: random_seed, count: 4, start: 0}  # key = start, start + 1, ... (crossed)
-metrics: [coverage, press_error_mm.x]    # dotted keys of the summary; default: every scalar
+metrics: [coverage, press_error_mm.x]    # numeric metrics the task declares (dotted keys
+                                         # of its summary); default: every scalar
 ```
 
 Every job is the scenario with `set` and one value of each axis applied, as `--set` would.
@@ -202,6 +203,16 @@ class CampaignConfig:
         seen: dict[str, str] = {}
         for block, keys in self.KeysByBlock().items():
             for key in keys:
+                if key == DRAW_AXIS:
+                    raise CampaignError(
+                        f"{source}: {block} key '{DRAW_AXIS}' is the column that numbers the "
+                        "random draws, not a scenario key"
+                    )
+                if key.split(".")[:2] == ["station", "hardware"]:
+                    raise CampaignError(
+                        f"{source}: {block} key '{key}' has no effect in a campaign (its jobs "
+                        "run in simulation, which reads no driver setting): remove it"
+                    )
                 if key in seen:
                     raise CampaignError(f"{source}: key '{key}' is in both {seen[key]} and {block}")
                 seen[key] = block
@@ -211,6 +222,9 @@ class CampaignConfig:
             or not all(isinstance(m, str) and m for m in self.metrics)
         ):
             raise CampaignError(f"{source}: metrics must be a list of summary keys")
+        twice = sorted({m for m in self.metrics or [] if self.metrics.count(m) > 1})
+        if twice:
+            raise CampaignError(f"{source}: metric '{twice[0]}' is listed twice")
 
     def JobCount(self) -> int:
         """grid x zip x random draws x repeat, without expanding them."""

@@ -25,7 +25,7 @@ from distributed import Client, LocalCluster, as_completed
 from guidedarm.diagrams.campaigns.jobs import DescribeAxes, Job
 from guidedarm.diagrams.campaigns.results import LOST_PREFIX, ResultsTable, RowOf
 from guidedarm.diagrams.campaigns.worker import RunJob
-from guidedarm.diagrams.interrupts import TakeInterrupt
+from guidedarm.diagrams.interrupts import InterruptsAllowed, TakeInterrupt
 from guidedarm.diagrams.task_run import INTERRUPTED
 from guidedarm.systems.errors import ConfigurationError
 
@@ -98,31 +98,35 @@ def RunJobs(
 ) -> Outcome:
     """Submits `jobs` (in order) and adds each one's row to `table` as it finishes. A job
     whose workers were all lost gets a row with failure `engine: ...`. Ctrl-C stops
-    collecting: rows already written stay, the rest are not started again."""
+    collecting (also one recorded before the call, inside DeferredInterrupts): rows already
+    written stay, the rest are cancelled."""
     by_key = {_Key(job): job for job in jobs}
-    futures = [
-        client.submit(RunJob, job, str(runs_dir) if runs_dir else None, key=key)
-        for key, job in by_key.items()
-    ]
     meter = ProgressMeter(len(jobs), progress)
     outcome = Outcome()
     seen: set[str] = set()
+    futures = []
     try:
-        for future, result in as_completed(futures, with_results=True, raise_errors=False):
-            job = by_key[future.key]
-            if job.id in seen:
-                continue
-            if future.status == "error":
-                result = _LostResult(job, future.exception())
-            elif result["metrics"].get("failure") == INTERRUPTED:  # SIGINT on its worker
-                result = _LostResult(job, KeyboardInterrupt("the job was interrupted"))
-            outcome.lost += str(result["metrics"].get("failure") or "").startswith(LOST_PREFIX)
-            seen.add(job.id)
-            row = RowOf(job.axes, result, metrics)
-            table.Add(row)
-            outcome.ran += 1
-            outcome.failed += not row["success"]
-            meter.Done(job, row)
+        with InterruptsAllowed():
+            futures = [
+                client.submit(RunJob, job, str(runs_dir) if runs_dir else None, key=key)
+                for key, job in by_key.items()
+            ]
+            for future, result in as_completed(futures, with_results=True, raise_errors=False):
+                job = by_key[future.key]
+                if job.id in seen:
+                    continue
+                if future.status == "error":
+                    result = _LostResult(job, future.exception())
+                elif result["metrics"].get("failure") == INTERRUPTED:  # SIGINT on its worker
+                    result = _LostResult(job, KeyboardInterrupt("the job was interrupted"))
+                failure = str(result["metrics"].get("failure") or "")
+                outcome.lost += failure.startswith(LOST_PREFIX)
+                seen.add(job.id)
+                row = RowOf(job.axes, result, metrics)
+                table.Add(row)
+                outcome.ran += 1
+                outcome.failed += not row["success"]
+                meter.Done(job, row)
     except KeyboardInterrupt:
         TakeInterrupt()
         outcome.interrupted = True

@@ -16,6 +16,7 @@ from pydrake.common.yaml import yaml_dump_typed
 
 from guidedarm.diagrams.campaigns.campaign import DRAW_AXIS, CampaignConfig, CampaignError
 from guidedarm.diagrams.cli.command_run import LoadScenario
+from guidedarm.diagrams.tasks.registry import TaskDefinition
 from guidedarm.systems.errors import ConfigurationError
 
 ID_LENGTH = 16
@@ -41,7 +42,8 @@ def JobId(scenario_yaml: str) -> str:
 def ExpandJobs(campaign: CampaignConfig) -> list[Job]:
     """Every job of the campaign, each scenario loaded and checked against its task's
     schema; refuses (CampaignError, one line) an unknown scenario, a key the scenario
-    lacks, a value of the wrong type, or two jobs that resolve to one scenario."""
+    lacks, a value of the wrong type, a metric its task does not declare (CheckMetrics), or
+    two jobs that resolve to one scenario."""
     jobs: list[Job] = []
     by_id: dict[str, Job] = {}
     for index, axes in enumerate(campaign.AxisPoints()):
@@ -51,6 +53,13 @@ def ExpandJobs(campaign: CampaignConfig) -> list[Job]:
         except ConfigurationError as e:
             where = f" (job {DescribeAxes(axes)})" if axes else ""
             raise CampaignError(f"{campaign.source}{where}: {e}") from None
+        if index == 0:
+            CheckMetrics(campaign, task)
+        elif task.name != jobs[0].task:
+            raise CampaignError(
+                f"{campaign.source}: job {DescribeAxes(axes)} runs task '{task.name}', the "
+                f"others '{jobs[0].task}': a campaign runs one task"
+            )
         text = yaml_dump_typed(scenario)
         job = Job(JobId(text), index, axes, text, task.name)
         if job.id in by_id:
@@ -61,6 +70,17 @@ def ExpandJobs(campaign: CampaignConfig) -> list[Job]:
         by_id[job.id] = job
         jobs.append(job)
     return jobs
+
+
+def CheckMetrics(campaign: CampaignConfig, task: TaskDefinition) -> None:
+    """Refuses (CampaignError) a metric of the campaign that is not one of the numbers its
+    task's summary carries (TaskDefinition.metrics): a misspelt name or a text field."""
+    for metric in campaign.metrics or []:
+        if not task.HasMetric(metric):
+            raise CampaignError(
+                f"{campaign.source}: metric '{metric}' is not a numeric metric of task "
+                f"'{task.name}' (known: {', '.join(task.KnownMetrics())})"
+            )
 
 
 def DescribeAxes(axes: dict[str, Any]) -> str:

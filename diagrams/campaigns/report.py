@@ -1,6 +1,8 @@
 """DIR/report.html: a campaign's success rate, its plots and its table, in one offline page.
 
-Plots (inline SVG): every numeric metric against every axis with more than one value;
+Plots (inline SVG): every column that is one of the task's numeric metrics
+(TaskDefinition.metrics, the names a campaign's `metrics` are checked against) against
+every axis with more than one value;
 numeric axes on a linear scale, other axes (text, lists) as categories. Success rate
 overall and per value of each axis.
 """
@@ -17,22 +19,27 @@ from typing import Any
 from guidedarm.diagrams.campaigns.campaign import CampaignConfig
 from guidedarm.diagrams.campaigns.results import FormatCell, ResultsTable
 from guidedarm.diagrams.plots import plt
+from guidedarm.diagrams.tasks.registry import TaskDefinition
 
 REPORT_FILE = "report.html"
 MAX_PLOTS = 60
 
 
 def WriteReport(
-    out_dir: Path, campaign: CampaignConfig, table: ResultsTable, total_jobs: int
+    out_dir: Path,
+    campaign: CampaignConfig,
+    table: ResultsTable,
+    total_jobs: int,
+    task: TaskDefinition,
 ) -> Path:
-    """Writes DIR/report.html from the rows of `table`; returns its path."""
+    """Writes DIR/report.html from the rows of `table` (jobs of `task`); returns its path."""
     rows = table.rows
     axes = [a for a in campaign.AxisNames() if len({_Key(r.get(a)) for r in rows}) > 1]
     metrics = [
         c
         for c in table.columns
         if c not in campaign.AxisNames()
-        and c not in ("failure", "job_id", "worker")
+        and task.HasMetric(c)
         and any(_Number(r.get(c)) is not None for r in rows)
     ]
     succeeded = sum(1 for r in rows if r.get("success") is True)

@@ -41,9 +41,9 @@ def CollectMetrics(metrics: dict[str, Any], wanted: list[str] | None) -> dict[st
 
 
 def EmptyMetrics(rows: Iterable[dict[str, Any]], wanted: list[str] | None) -> list[str]:
-    """The `wanted` metrics no successful row has a value for: names that are in no job's
-    summary (a task declares no list of its metric names, so they are known only after a
-    run). Empty when no job succeeded: then nothing tells a typo from a failure."""
+    """The `wanted` metrics no successful row has a value for: metrics the task reports only
+    in some configurations (the names were checked at load, jobs.CheckMetrics). Empty when
+    no job succeeded."""
     done = [r for r in rows if r["success"] is True]
     if not wanted or not done:
         return []

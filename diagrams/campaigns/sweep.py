@@ -17,6 +17,8 @@ from guidedarm.diagrams.campaigns.jobs import ExpandJobs, Job
 from guidedarm.diagrams.campaigns.report import WriteReport
 from guidedarm.diagrams.campaigns.results import RESULTS_FILE, ResultsTable
 from guidedarm.diagrams.cli.command_run import PrepareOutputDirectory
+from guidedarm.diagrams.interrupts import DeferredInterrupts
+from guidedarm.diagrams.tasks.registry import GetTask
 from guidedarm.systems.errors import ConfigurationError
 
 CAMPAIGN_FILE = "campaign.yaml"
@@ -60,10 +62,16 @@ class SweepResult:
     written: list[Path] = field(default_factory=list)
 
 
-def Sweep(campaign: CampaignConfig, out_dir: Path, options: SweepOptions) -> SweepResult:
-    """Runs the jobs of `campaign` not yet done in `out_dir`. Bad input (the campaign, a
-    job's scenario, DIR, an unreachable scheduler) is refused before any job starts."""
-    jobs = ExpandJobs(campaign)
+def Sweep(
+    campaign: CampaignConfig,
+    out_dir: Path,
+    options: SweepOptions,
+    jobs: list[Job] | None = None,
+) -> SweepResult:
+    """Runs the jobs of `campaign` (`jobs`: ExpandJobs(campaign) done already) not yet done
+    in `out_dir`. Bad input (the campaign, a job's scenario, DIR, an unreachable scheduler)
+    is refused before any job starts."""
+    jobs = ExpandJobs(campaign) if jobs is None else jobs
     out_dir = PrepareOutputDirectory(out_dir)
     table = ResultsTable(out_dir / RESULTS_FILE, campaign.AxisNames())
     ids = {job.id for job in jobs}
@@ -87,13 +95,17 @@ def Sweep(campaign: CampaignConfig, out_dir: Path, options: SweepOptions) -> Swe
         file=sys.stderr,
         flush=True,
     )
-    if pending:
-        runs_dir = out_dir / RUNS_DIR if options.keep_runs else None
-        with OpenClient(options.workers, options.scheduler) as client:
-            result.outcome = RunJobs(
-                client, pending, table, campaign.metrics, runs_dir, options.progress
-            )
-        if not result.outcome.interrupted:
-            table.Order([job.id for job in jobs])
-    result.written.append(WriteReport(out_dir, campaign, table, len(jobs)))
+    # Ctrl-C or SIGTERM stops the jobs only (RunJobs); the cluster's start and shutdown
+    # and the report are not cut, so no worker process outlives the command.
+    with DeferredInterrupts():
+        if pending:
+            runs_dir = out_dir / RUNS_DIR if options.keep_runs else None
+            with OpenClient(options.workers, options.scheduler) as client:
+                result.outcome = RunJobs(
+                    client, pending, table, campaign.metrics, runs_dir, options.progress
+                )
+            if not result.outcome.interrupted:
+                table.Order([job.id for job in jobs])
+        task = GetTask(jobs[0].task)
+        result.written.append(WriteReport(out_dir, campaign, table, len(jobs), task))
     return result

@@ -26,6 +26,7 @@ from pathlib import Path
 from typing import Any
 
 from guidedarm.diagrams.campaigns.campaign import CampaignConfig, LoadCampaign
+from guidedarm.diagrams.campaigns.jobs import ExpandJobs
 from guidedarm.diagrams.campaigns.sweep import MakeSweepOptions, Sweep
 from guidedarm.diagrams.run_context import RunContext
 from guidedarm.systems.config_checks import FieldError
@@ -71,11 +72,13 @@ def study_command(args: argparse.Namespace) -> int:
         degradation.Validate()
     except FieldError as e:
         raise ConfigurationError(f"{DEGRADATION_FLAGS.get(e.key, e.key)}: {e.why}") from None
+    # Every campaign of the study is checked before the first one runs.
+    studied = [StudyCampaign(name, degradation) for name in CAMPAIGNS[args.study]]
+    checked = [(campaign, folder, ExpandJobs(campaign)) for campaign, folder in studied]
     context = RunContext(out_dir=args.out or Path("runs") / "marker_study")
     results = []
-    for name in CAMPAIGNS[args.study]:
-        campaign, folder = StudyCampaign(name, degradation)
-        result = Sweep(campaign, context.out_dir / folder, options)
+    for campaign, folder, jobs in checked:
+        result = Sweep(campaign, context.out_dir / folder, options, jobs)
         if result.outcome.interrupted:
             return EXIT_INTERRUPTED
         context.written += result.written
@@ -104,7 +107,8 @@ def study_command(args: argparse.Namespace) -> int:
 def _UnexpectedFailure(row: dict[str, Any]) -> bool:
     """A job that failed, except an `abort` policy run stopping at the covered markers
     (the result Table 6 asks for)."""
-    return row["success"] is not True and row.get("marker_loss") != "abort"
+    aborted = row.get("operation.on_marker_loss") == "abort" and bool(row.get("lost_measurements"))
+    return row["success"] is not True and not aborted
 
 
 def StudyCampaign(name: str, degradation: DegradationConfig) -> tuple[CampaignConfig, str]:

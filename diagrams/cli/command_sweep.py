@@ -2,8 +2,9 @@
 
 Runs every job of a campaign (diagrams/campaigns/NAME.yaml or a campaign file) on Dask and
 writes DIR/results.csv, DIR/campaign.yaml and DIR/report.html (docs/campaigns.md). Exit 0
-when every job has its row (failed jobs included), 1 when some job's workers were lost,
-2 for bad input (before any job starts), 130 when interrupted (rerun to finish).
+when every job has its row (failed jobs included) and some job succeeded, 1 when some
+job's workers were lost or every job failed, 2 for bad input (before any job starts),
+130 when interrupted (rerun to finish).
 """
 
 from __future__ import annotations
@@ -17,6 +18,7 @@ from guidedarm.diagrams.campaigns.results import EmptyMetrics
 from guidedarm.diagrams.campaigns.sweep import MakeSweepOptions, Sweep
 
 EXIT_LOST = 1
+EXIT_ALL_FAILED = 1
 EXIT_INTERRUPTED = 130
 
 
@@ -50,7 +52,7 @@ def sweep_command(args: argparse.Namespace) -> int:
     if empty:
         print(
             f"guidedarm: metric(s) {', '.join(empty)} in no successful job's summary "
-            "(empty column): compare the names with a run's summary.json",
+            "(empty column): the task reports them only in some configurations",
             file=sys.stderr,
         )
     print("wrote:")
@@ -62,4 +64,10 @@ def sweep_command(args: argparse.Namespace) -> int:
     if result.outcome.lost:
         print(f"guidedarm: {result.outcome.lost} job(s) lost their workers", file=sys.stderr)
         return EXIT_LOST
+    if rows and failed == len(rows):
+        print(
+            f"guidedarm: all {failed} job(s) failed, the first: {rows[0]['failure'][:200]}",
+            file=sys.stderr,
+        )
+        return EXIT_ALL_FAILED
     return 0

@@ -172,9 +172,13 @@ def RunJointTour(scenario: JointTourScenario, context: RunContext) -> dict[str, 
     }
 
 
+# The numbers of RunJointTour's summary (TaskDefinition.metrics).
+JOINT_TOUR_METRICS = ("sim_time_s", "tracking_error_max_rad", "final_error_rad")
+
 TASK = TaskDefinition(
     name="joint_tour",
     scenario_type=JointTourScenario,
     run=RunJointTour,
     description="move one arm through joint-space waypoints (station smoke test)",
+    metrics=JOINT_TOUR_METRICS,
 )

@@ -125,10 +125,26 @@ def RunMarkerView(scenario: MarkerViewScenario, context: RunContext) -> dict[str
     }
 
 
+# The numbers of RunMarkerView's summary (TaskDefinition.metrics); `ids.#` are the ids of
+# the markers found.
+MARKER_VIEW_METRICS = (
+    "reference_mm",
+    "vision_mm",
+    "abs_error_mm",
+    "rel_error_pct",
+    "reference_deg",
+    "vision_deg",
+    "abs_angle_error_deg",
+    "rotation_error_deg",
+    "reprojection_error_px",
+    "ids.#",
+)
+
 TASK = TaskDefinition(
     name="marker_view",
     scenario_type=MarkerViewScenario,
     run=RunMarkerView,
     description="estimate the marker panel's pose from one free-camera view (markers paper)",
     simulates=False,
+    metrics=MARKER_VIEW_METRICS,
 )

@@ -23,6 +23,7 @@ systems/markers/marker_pose_estimator_math.py):
                       (the parked rover's) frame, as in the paper's Tables 5 and 6;
   measurements        one record per image analysed (point, validity, ids, distance, the
                       estimated p_CP and its true error estimate_error_mm);
+  lost_measurements   how many images showed no marker (0 if they always did);
   marker_loss         what the sequencer did when markers were not visible ("abort" or
                       "continue" with the last valid estimate), None if they always were.
 With `cover_markers_after_base` a cover slides in front of the markers once the base
@@ -53,6 +54,7 @@ from guidedarm.diagrams.tasks.panel_files import (
 )
 from guidedarm.diagrams.tasks.panel_operation_builder import AddPanelOperation
 from guidedarm.diagrams.tasks.panel_operation_report import (
+    PANEL_OPERATION_METRICS,
     PanelOperationMetrics,
     PlotPanelOperation,
 )
@@ -390,4 +392,5 @@ TASK = TaskDefinition(
     scenario_type=PanelOperationScenario,
     run=RunPanelOperation,
     description="rover arm presses a panel switch guided by markers (Annusewicz-Mistal et al.)",
+    metrics=PANEL_OPERATION_METRICS,
 )

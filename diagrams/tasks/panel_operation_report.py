@@ -41,6 +41,30 @@ def PlotPanelOperation(run: PanelOperationRun, state: SequencerState, context: C
     run.context.save_figure(figure, "tip_distance")
 
 
+# The numbers of PanelOperationMetrics's summary (TaskDefinition.metrics); a measurement
+# record's distance_mm, p_CP_mm and estimate_error_mm exist when its estimate was valid.
+PANEL_OPERATION_METRICS = (
+    "switch",
+    "switch_pressed",
+    "switch_travel_mm.#",
+    "base_position_error_mm",
+    "base_camera_distance_mm",
+    "press_error_mm.x",
+    "press_error_mm.y",
+    "press_error_mm.z",
+    "press_tip_W_mm.#",
+    "press_target_W_mm.#",
+    "measurements.#.t_s",
+    "measurements.#.ids.#",
+    "measurements.#.reprojection_error_px",
+    "measurements.#.distance_mm",
+    "measurements.#.p_CP_mm.#",
+    "measurements.#.estimate_error_mm",
+    "lost_measurements",
+    "sim_time_s",
+)
+
+
 def PanelOperationMetrics(
     run: PanelOperationRun,
     state: SequencerState,
@@ -100,6 +124,7 @@ def PanelOperationMetrics(
         "press_tip_W_mm": press_tip,
         "press_target_W_mm": [_mm(v) for v in target_W.translation()],
         "measurements": state.measurements,
+        "lost_measurements": len(lost),
         "marker_loss": scenario.operation.on_marker_loss if lost else None,
         "failure": failure,
         "sim_time_s": round(context.get_time(), 3),

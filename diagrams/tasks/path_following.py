@@ -18,6 +18,7 @@ from guidedarm.diagrams.run_context import RunContext
 from guidedarm.diagrams.station.scenario import StationScenario
 from guidedarm.diagrams.tasks.path_following_execution import Execute, Execution
 from guidedarm.diagrams.tasks.path_following_report import (
+    GROUND_TRUTH_METRICS,
     DetectedPath,
     Metrics,
     PlotDetectedPath,
@@ -209,6 +210,17 @@ def CheckOverrides(scenario: PathFollowingScenario, keys: Collection[str]) -> No
                 )
 
 
+# The numbers of RunPathFollowing's summary (TaskDefinition.metrics); the repeatability
+# figures only with repeat_random_seed.
+PATH_FOLLOWING_METRICS = (
+    *GROUND_TRUTH_METRICS,
+    "collisions",
+    "sim_time_s",
+    "realtime_factor",
+    "repeatability_mean_mm",
+    "repeatability_max_mm",
+)
+
 TASK = TaskDefinition(
     name="path_following",
     scenario_type=PathFollowingScenario,
@@ -216,4 +228,5 @@ TASK = TaskDefinition(
     description="follow a hose with the six-sensor ToF tool (Wawrzyniak et al.) on any arm",
     station=lambda scenario: MakeSetup(scenario).station,
     check_overrides=CheckOverrides,
+    metrics=PATH_FOLLOWING_METRICS,
 )

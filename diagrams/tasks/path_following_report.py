@@ -95,6 +95,22 @@ class CenterlineMatch:
         return float(np.mean(covered))
 
 
+# The numbers of Metrics (the last three not with continuous motion).
+GROUND_TRUTH_METRICS = (
+    "steps",
+    "coverage",
+    "tracking_error_mean_mm",
+    "tracking_error_max_mm",
+    "detected_path_error_mean_mm",
+    "detected_path_error_max_mm",
+    "average_speed_mm_s",
+    "lost_steps",
+    "recoveries",
+    "ik_time_median_ms",
+    "ik_time_p99_ms",
+)
+
+
 def Metrics(records: np.ndarray, centerline: np.ndarray, continuous: bool = False) -> dict:
     """The summary's ground-truth metrics (mm) of one run. `steps` counts the follower's
     steps (continuous: its readings); an error without a point to measure is None.

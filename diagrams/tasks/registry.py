@@ -12,6 +12,11 @@ import guidedarm.diagrams.tasks as tasks_package
 from guidedarm.diagrams.run_context import RunContext
 from guidedarm.systems.errors import ConfigurationError
 
+# A list's elements in a metric's dotted name: `waypoint_distance_m.#`.
+LIST_INDEX = "#"
+# What RunTask adds to every task's metrics: the run's wall-clock time (s).
+RUN_METRICS = ("wall_time_s",)
+
 
 @dataclass(frozen=True)
 class TaskDefinition:
@@ -28,6 +33,9 @@ class TaskDefinition:
     named hose).
     simulates: False for a task that simulates no station (marker_view renders one image):
     `run` refuses --hardware, --realtime and --meshcat for it, which it would not read.
+    metrics: the dotted names of every number its summary.json can carry (a list's
+    elements as `name.#`; RUN_METRICS are added to every task's): what a campaign may
+    collect and its report plots. tests/test_sweep.py compares them with real runs.
     """
 
     name: str
@@ -37,10 +45,45 @@ class TaskDefinition:
     station: Callable[[Any], Any] | None = None
     check_overrides: Callable[[Any, Collection[str]], None] | None = None
     simulates: bool = True
+    metrics: tuple[str, ...] = ()
 
     def Station(self, scenario: Any) -> Any:
         """The station scenario a run of `scenario` builds (see the class docstring)."""
         return self.station(scenario) if self.station else scenario.station
+
+    def KnownMetrics(self) -> list[str]:
+        """The metric names of its summary, RUN_METRICS included, sorted."""
+        return sorted({*self.metrics, *RUN_METRICS})
+
+    def HasMetric(self, dotted: str) -> bool:
+        """Whether `dotted` (a list index as digits, e.g. `press_tip_W_mm.0`) names one
+        of its numeric metrics."""
+        parts = dotted.split(".")
+
+        def Matches(known: list[str]) -> bool:
+            return len(known) == len(parts) and all(
+                k == p or (k == LIST_INDEX and p.isdigit())
+                for k, p in zip(known, parts, strict=True)
+            )
+
+        return any(Matches(name.split(".")) for name in self.KnownMetrics())
+
+
+def NumericMetricNames(summary: Any, prefix: str = "") -> set[str]:
+    """The dotted names of the numbers in a summary (booleans are not numbers), list
+    indices written LIST_INDEX: what TaskDefinition.metrics declares."""
+    if isinstance(summary, dict):
+        items = [(str(k), v) for k, v in summary.items()]
+    elif isinstance(summary, list):
+        items = [(LIST_INDEX, v) for v in summary]
+    elif isinstance(summary, int | float) and not isinstance(summary, bool):
+        return {prefix}
+    else:
+        return set()
+    names: set[str] = set()
+    for key, value in items:
+        names |= NumericMetricNames(value, f"{prefix}.{key}" if prefix else key)
+    return names
 
 
 def AvailableTasks() -> dict[str, TaskDefinition]:

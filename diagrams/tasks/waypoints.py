@@ -217,6 +217,25 @@ def RunWaypoints(scenario: WaypointsScenario, context: RunContext) -> dict[str, 
     return {"sim_time_s": round(t_end, 4), **metrics, "failure": failure}
 
 
+# The numbers of RunWaypoints's summary (TaskDefinition.metrics): TrajectoryMetrics's and
+# the simulated time; the tracking errors need the measured joints.
+WAYPOINTS_METRICS = (
+    "sim_time_s",
+    "T_s",
+    "qd_max",
+    "qd_min",
+    "qdd_max",
+    "qdd_min",
+    "final_error_m",
+    "c_min",
+    "waypoint_distance_m.#",
+    "qdd_step_max",
+    "braking_steps",
+    "tracking_error_max_rad",
+    "tcp_tracking_error_max_m",
+)
+
+
 def TrajectoryMetrics(
     setup: PlannerSetup, trajectory: PlannedTrajectory, measured: np.ndarray | None = None
 ) -> dict[str, Any]:
@@ -311,4 +330,5 @@ TASK = TaskDefinition(
     scenario_type=WaypointsScenario,
     run=RunWaypoints,
     description="TCP through waypoints with the acceleration-level planner (Pająk)",
+    metrics=WAYPOINTS_METRICS,
 )
