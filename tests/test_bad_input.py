@@ -78,6 +78,13 @@ def files(tmp_path_factory) -> Path:
             "  position: [0.03, -0.05, 0.012]\n  on_travel_m: 0.02",
         ),
         "not_an_image.png": "hello",
+        "duplicate_key.yaml": NAN_FRAME_SCENARIO.replace(".nan", "0").replace(
+            "arms: {ur10e: {}}", "arms: {ur10e: {kp: 400, kp: 900}}"
+        )
+        + "waypoints: []\n",
+        "camera_duplicate_key.yaml": GOOD_CAMERA + "fx: 60.0\n",
+        "panel_duplicate_key.yaml": "dictionary: DICT_4X4_50\n" + GOOD_PANEL,
+        "campaign_duplicate_key.yaml": "scenario: duplicate_key.yaml\n",
     }
     for name, text in texts.items():
         (root / name).write_text(text)
@@ -119,9 +126,50 @@ BAD_INPUTS = [
     ("binary-yaml", Run("{f}/binary.yaml"), "malformed YAML"),
     ("yaml-not-a-mapping", Run("{f}/list.yaml"), "the top level must be a mapping"),
     ("nan-in-directive-transform", Run("{f}/nan_frame.yaml"), "directives[1].add_frame.X_PF"),
+    (
+        "duplicate-key",
+        Run("{f}/duplicate_key.yaml"),
+        "duplicate_key.yaml: key 'waypoints' appears twice (lines 3 and 11)",
+    ),
+    (
+        "duplicate-key-describe",
+        ["describe", "{f}/duplicate_key.yaml"],
+        "duplicate_key.yaml: key 'waypoints' appears twice (lines 3 and 11)",
+    ),
+    (
+        "duplicate-key-despite-set",
+        Run("{f}/duplicate_key.yaml", "waypoints=[[0,0,0,0,0,0]]"),
+        "key 'waypoints' appears twice",
+    ),
+    (
+        "duplicate-key-emulate",
+        ["emulate", "nachi", "--scenario", "{f}/duplicate_key.yaml", "--port", "0"],
+        "key 'waypoints' appears twice",
+    ),
+    (
+        "duplicate-key-compare-planners",
+        ["compare-planners", "--scenario", "{f}/duplicate_key.yaml"],
+        "key 'waypoints' appears twice",
+    ),
+    (
+        "duplicate-key-sweep-scenario",
+        ["sweep", "{f}/campaign_duplicate_key.yaml", "--out", "{out}"],
+        "key 'waypoints' appears twice",
+    ),
     # --- --set syntax and types
     ("set-without-equals", Run(JT, "max_speed"), "--set expects key=value"),
     ("set-bad-yaml", Run(JT, "waypoints=[[1,"), "cannot parse value"),
+    ("set-twice", Run(JT, "max_speed=1", "max_speed=2"), "--set max_speed given twice (1, 2)"),
+    (
+        "set-key-and-its-part",
+        Run(JT, "station.arms.ur10e.kp=400", "station.arms={{ur10e: {{kd: 20}}}}"),
+        "--set station.arms.ur10e.kp and --set station.arms both given",
+    ),
+    (
+        "set-value-duplicate-key",
+        Run(JT, "station.arms={{ur10e: {{kp: 1}}, ur10e: {{kp: 2}}}}"),
+        "--set station.arms: key 'ur10e' appears twice",
+    ),
     ("unknown-key", Run(JT, "speed=1"), "unknown key 'speed'"),
     ("wrong-type-string", Run(JT, "max_speed=fast"), "key 'max_speed': expected a number"),
     ("wrong-type-list", Run(JT, "max_speed=[1]"), "key 'max_speed': expected a number"),
@@ -462,6 +510,16 @@ BAD_INPUTS = [
     ("camera-distortion", Estimate("{f}/camera_distortion.yaml"), "distortion needs 5"),
     ("camera-wrong-type", Estimate("{f}/camera_wrong_type.yaml"), "expected a number"),
     ("camera-unknown-key", Estimate("{f}/camera_unknown_key.yaml"), "unknown key 'skew'"),
+    (
+        "camera-duplicate-key",
+        Estimate("{f}/camera_duplicate_key.yaml"),
+        "camera_duplicate_key.yaml: key 'fx' appears twice (lines 3 and 7)",
+    ),
+    (
+        "panel-duplicate-key",
+        Estimate("{f}/camera.yaml", "{f}/panel_duplicate_key.yaml"),
+        "panel_duplicate_key.yaml: key 'dictionary' appears twice (lines 1 and",
+    ),
     (
         "panel-negative-size",
         Estimate("{f}/camera.yaml", "{f}/panel_negative_size.yaml"),

@@ -82,6 +82,15 @@ def ReadRows(path: Path) -> list[dict]:
             "low and high must be whole numbers",
         ),
         (TOUR + "repeat: {key: random_seed, count: 2, start: -1}\n", "repeat.start (a seed)"),
+        (
+            TOUR + "grid: {max_speed: [1.0]}\nrepeat: {count: 2}\ngrid: {max_time: [3.0]}\n",
+            "campaign.yaml: key 'grid' appears twice (lines 3 and 5)",
+        ),
+        (TOUR + "set: {max_time: 3.0}\n", "key 'set' appears twice (lines 2 and 3)"),
+        (
+            TOUR + "grid:\n  max_speed: [1.0]\n  max_time: [3.0]\n  max_speed: [2.0]\n",
+            "key 'grid.max_speed' appears twice (lines 4 and 6)",
+        ),
     ],
 )
 def test_bad_campaign_files_are_refused_in_one_line(tmp_path, run_cli, text, message):

@@ -24,6 +24,7 @@ import numpy as np
 from pydrake.math import RigidTransform
 from pydrake.multibody.plant import MultibodyPlant
 
+from guidedarm.diagrams.scenario_loading import load_typed, read_raw_scenario
 from guidedarm.diagrams.station.scenario import ArmConfig, StationScenario
 from guidedarm.diagrams.station.station_plant import (
     ArmAndAttachments,
@@ -38,7 +39,6 @@ from guidedarm.systems.path_following.continuous_follower_math import Continuous
 from guidedarm.systems.path_following.hose_geometry import (
     CheckSelfClearance,
     HoseConfig,
-    LoadHoseWorkspace,
     RandomSmoothPath,
     ReadCenterline,
     ResolveCenterlinePath,
@@ -298,6 +298,16 @@ def _Workspace(scenario: PathFollowingScenario) -> WorkspaceConfig:
     if not scenario.path_csv and scenario.path.startswith("random_"):
         return WorkspaceConfig()
     return LoadHoseWorkspace(scenario.path_csv or scenario.path) or WorkspaceConfig()
+
+
+def LoadHoseWorkspace(name_or_file: str) -> WorkspaceConfig | None:
+    """The workspace a hose was laid out for (its sidecar NAME.yaml beside NAME.csv, a
+    WorkspaceConfig, read like a scenario file: read_raw_scenario, load_typed), or None
+    when it has none."""
+    sidecar = ResolveCenterlinePath(name_or_file).with_suffix(".yaml")
+    if not sidecar.is_file():
+        return None
+    return load_typed(WorkspaceConfig, read_raw_scenario(sidecar), str(sidecar))
 
 
 def _LoadHose(scenario, workspace, solver, mount, q_home, out_dir) -> tuple[np.ndarray, str]:
