@@ -659,6 +659,26 @@ BAD_INPUTS = [
         "'operation.max_joint_speed' has no effect with operation.motion=planner",
     ),
     (
+        "panel-joint-moves-ignore-planner",
+        Run(PO, "operation.motion=joint_trajectory", "planner.max_joint_velocity=[0.4]"),
+        "'planner.max_joint_velocity' has no effect with operation.motion=joint_trajectory",
+    ),
+    (
+        "panel-joint-moves-ignore-planner-parameters",
+        Run(PO, "operation.motion=joint_trajectory", "planner.parameters.gain_p=3"),
+        "'planner.parameters.gain_p' has no effect with operation.motion=joint_trajectory",
+    ),
+    (
+        "panel-ignores-hardware-section",
+        Run(PO, "station.hardware.arms.rover_arm={{port: 1}}", flags=("--hardware",)),
+        "'station.hardware.arms' has no effect on panel_operation",
+    ),
+    (
+        "kinematic-ignores-cameras",
+        Run(PF, "executor=kinematic", "station.cameras={{top: {{width: 64, height: 48}}}}"),
+        "'station.cameras' has no effect with executor=kinematic",
+    ),
+    (
         "panel-tilt-with-position",
         Run(PO, "start.position=[0,0,0,0,0,0]", "start.max_tilt_deg=10"),
         "'start.max_tilt_deg' has no effect with start.position",

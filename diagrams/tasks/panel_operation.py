@@ -110,17 +110,21 @@ class PanelPlannerConfig:
     """The acceleration-level planner of operation.motion "planner" (MakeAccelerationPlanner
     on the station's own models of the arm and gripper; its TCP is the scenario's tip frame).
 
-    base_frame: the planner's base B (scoped frame name).
+    base_frame: the planner's base B (scoped frame name; empty: `<arm>::base`).
     max_joint_velocity, max_joint_acceleration: symmetric limits, one value or one per
-        joint (rad/s, rad/s^2).
+        joint (rad/s, rad/s^2): modest, for the rover arm's DC/harmonic-drive joints.
     parameters: the law's gains and settings (the robust mode by default: facing the panel
-        the tip is at Z-Y-X pitch -90 deg, the Euler singularity of the paper's law).
+        the tip is at Z-Y-X pitch -90 deg, the Euler singularity of the paper's law). A
+        move ends within 0.1 mm and 0.1 mrad of its target (PlannerConfig's own default is
+        1 mm and 1 mrad): the sequencer measures and presses where the planner ends.
     """
 
     base_frame: str = ""
     max_joint_velocity: list[float] = Positive(factory=lambda: [0.5])
     max_joint_acceleration: list[float] = Positive(factory=lambda: [1.5])
-    parameters: PlannerConfig = field(default_factory=PlannerConfig)
+    parameters: PlannerConfig = field(
+        default_factory=lambda: PlannerConfig(position_tolerance=1e-4, orientation_tolerance=1e-4)
+    )
 
 
 @dataclass
@@ -184,8 +188,23 @@ class PanelOperationScenario:
 
 def _CheckModeKeys(scenario: PanelOperationScenario) -> None:
     """Refuses a key set away from its default that the chosen mode does not read: the
-    random start's keys beside an explicit start.position, and operation.max_joint_speed
-    with operation.motion=planner (the planner's own limits apply)."""
+    random start's keys beside an explicit start.position, operation.max_joint_speed
+    with operation.motion=planner (the planner's own limits apply), `planner` with
+    operation.motion=joint_trajectory, and station.hardware (the task refuses --hardware,
+    RunPanelOperation)."""
+    changed = ChangedKey(scenario.station.hardware, StationScenario().hardware, "station.hardware")
+    if changed:
+        raise ConfigurationError(
+            f"'{changed}' has no effect on panel_operation (it cannot run "
+            "with --hardware): remove it"
+        )
+    if scenario.operation.motion != "planner":
+        changed = ChangedKey(scenario.planner, PanelPlannerConfig(), "planner")
+        if changed:
+            raise ConfigurationError(
+                f"'{changed}' has no effect with operation.motion={scenario.operation.motion} "
+                "(it is read only with operation.motion=planner): remove it or change motion"
+            )
     start = scenario.start
     if start.position:
         changed = ChangedKey(start, StartConfig(position=start.position), "start")
@@ -356,7 +375,7 @@ def _MakePlanner(scenario: PanelOperationScenario) -> tuple[AccelerationPlanner,
     planner = MakeAccelerationPlanner(
         scenario.station,
         scenario.arm,
-        config.base_frame,
+        PlannerBaseFrame(scenario),
         scenario.tip_frame,
         None,
         config.parameters,
@@ -366,6 +385,11 @@ def _MakePlanner(scenario: PanelOperationScenario) -> tuple[AccelerationPlanner,
     kinematics = planner.planning.kinematics
     X_WB = kinematics.base_frame.CalcPoseInWorld(kinematics.plant.CreateDefaultContext())
     return planner, PlannerFrames(X_WB, RigidTransform())
+
+
+def PlannerBaseFrame(scenario: PanelOperationScenario) -> str:
+    """The planner's base frame: planner.base_frame, or the arm's `<arm>::base`."""
+    return scenario.planner.base_frame or f"{scenario.arm}::base"
 
 
 def RunPanelOperation(scenario: PanelOperationScenario, context: RunContext) -> dict[str, Any]:

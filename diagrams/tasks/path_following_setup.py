@@ -241,9 +241,10 @@ def _CheckMotionKeys(scenario: PathFollowingScenario) -> None:
 
 
 def _CheckExecutorKeys(scenario: PathFollowingScenario) -> None:
-    """Refuses, with executor=kinematic, a servo gain, plant or visualization setting set
-    away from its default: the kinematic station poses the arm where it is commanded (no
-    servo, no dynamics, nothing drawn in Meshcat) and reads none of them."""
+    """Refuses, with executor=kinematic, a servo gain, plant, visualization or camera
+    setting set away from its default: the kinematic station poses the arm where it is
+    commanded (no servo, no dynamics, nothing drawn in Meshcat, no camera rendered) and
+    reads none of them."""
     if scenario.executor != "kinematic":
         return
     arm, default_arm = scenario.station.arms[scenario.arm], ArmConfig()
@@ -251,6 +252,7 @@ def _CheckExecutorKeys(scenario: PathFollowingScenario) -> None:
     for key, value, default in (
         ("station.plant_config", scenario.station.plant_config, StationScenario().plant_config),
         ("station.visualization", scenario.station.visualization, StationScenario().visualization),
+        ("station.cameras", scenario.station.cameras, StationScenario().cameras),
         (f"{prefix}.kp", arm.kp, default_arm.kp),
         (f"{prefix}.kd", arm.kd, default_arm.kd),
     ):
@@ -258,7 +260,7 @@ def _CheckExecutorKeys(scenario: PathFollowingScenario) -> None:
         if changed:
             raise ConfigurationError(
                 f"'{changed}' has no effect with executor=kinematic (it poses the arm where "
-                "it is commanded: no servo, no dynamics, no Meshcat): remove it or use "
+                "it is commanded: no servo, no dynamics, no Meshcat, no camera): remove it or use "
                 "executor=station"
             )
 
