@@ -688,16 +688,53 @@ BAD_INPUTS = [
 ]
 
 
-@pytest.mark.parametrize("args, message", [pytest.param(a, m, id=i) for i, a, m in BAD_INPUTS])
-def test_bad_input_is_refused_in_one_line(run_cli, files, tmp_path, args, message):
+# Refused only while the run builds its diagram (after `running`, DIR/scenario.yaml
+# written), still with exit 2 and one line: checks inside the builders (station, hose,
+# panel, planner) that no pre-run hook (TaskDefinition.CheckRun) repeats yet.
+REFUSED_WHILE_BUILDING = {
+    "joint-tour-out-of-limits",
+    "joint-tour-short-waypoint",
+    "arm-initial-out-of-limits",
+    "visualization-lcm",
+    "camera-fps-ignored",
+    "hose-centerline-ignored",
+    "tof-seed-ignored",
+    "waypoints-limit-count",
+    "path-random-negative",
+    "path-unknown",
+    "path-csv-missing",
+    "path-csv-binary",
+    "path-csv-header-order",
+    "path-csv-nul",
+    "path-csv-directory",
+    "path-csv-folded",
+    "csv-huge-coordinate",
+    "panel-switch-range",
+    "panel-file-missing",
+    "panel-model-unknown",
+    "view-seed-conflict",
+    "directives-missing-file",
+    "directives-unknown-package",
+    "directives-plain-path",
+}
+
+
+@pytest.mark.parametrize(
+    "args, message, before_the_run",
+    [pytest.param(a, m, i not in REFUSED_WHILE_BUILDING, id=i) for i, a, m in BAD_INPUTS],
+)
+def test_bad_input_is_refused_in_one_line(run_cli, files, tmp_path, args, message, before_the_run):
     out = tmp_path / "out"
-    code, _, err = run_cli(*[a.format(f=files, out=out) for a in args])
+    code, stdout, err = run_cli(*[a.format(f=files, out=out) for a in args])
     lines = err.strip().splitlines()
     assert code == 2, err
     assert len(lines) == 1, err
     assert message in lines[0]
     assert lines[0].startswith("guidedarm: error: ")
     assert not (out / "summary.json").exists()
+    if before_the_run:  # never announced as running, nothing written to --out
+        assert "running" not in stdout
+        assert not out.exists() or not any(out.iterdir()), list(out.iterdir())
 
 
 def _ScalarKeys(config, prefix=""):
@@ -1048,3 +1085,13 @@ def test_a_run_into_a_used_folder_leaves_no_verdict_of_the_previous_run(tmp_path
     with pytest.raises(ConfigurationError):
         RunTask(_Task(refused), scenario, RunContext(tmp_path))
     assert sorted(p.name for p in tmp_path.iterdir()) == ["scenario.yaml"]
+
+
+def test_run_task_refuses_a_flag_the_scenario_cannot_run_with_before_writing(tmp_path):
+    """RunTask (a campaign job, a script) applies the task's CheckRun as `guidedarm run`
+    does: the kinematic executor against hardware is refused with DIR left empty."""
+    task, scenario, _ = LoadScenario(PF, ["executor=kinematic"])
+    context = RunContext(out_dir=tmp_path / "out", hardware=True, quiet=True)
+    with pytest.raises(ConfigurationError, match="executor=kinematic cannot run with --hardware"):
+        RunTask(task, scenario, context)
+    assert list((tmp_path / "out").iterdir()) == []

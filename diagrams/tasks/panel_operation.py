@@ -57,7 +57,7 @@ from guidedarm.diagrams.tasks.panel_operation_report import (
     PlotPanelOperation,
 )
 from guidedarm.diagrams.tasks.planner_builder import MakeAccelerationPlanner
-from guidedarm.diagrams.tasks.registry import TaskDefinition
+from guidedarm.diagrams.tasks.registry import RunFlags, TaskDefinition
 from guidedarm.systems.config_checks import (
     ChangedKey,
     CheckConfig,
@@ -191,14 +191,16 @@ def _CheckModeKeys(scenario: PanelOperationScenario) -> None:
     random start's keys beside an explicit start.position, operation.max_joint_speed
     with operation.motion=planner (the planner's own limits apply), `planner` with
     operation.motion=joint_trajectory, and station.hardware (the task refuses --hardware,
-    RunPanelOperation)."""
+    CheckRun)."""
     changed = ChangedKey(scenario.station.hardware, StationScenario().hardware, "station.hardware")
     if changed:
         raise ConfigurationError(
             f"'{changed}' has no effect on panel_operation (it cannot run "
             "with --hardware): remove it"
         )
-    if scenario.operation.motion != "planner":
+    if scenario.operation.motion == "planner":
+        CheckModeFields(scenario.planner.parameters, "planner.parameters")
+    else:
         changed = ChangedKey(scenario.planner, PanelPlannerConfig(), "planner")
         if changed:
             raise ConfigurationError(
@@ -371,7 +373,6 @@ def _replace_camera(station: StationScenario, name: str, camera, k: int) -> Stat
 def _MakePlanner(scenario: PanelOperationScenario) -> tuple[AccelerationPlanner, PlannerFrames]:
     """The task-driven AccelerationPlanner (MakeAccelerationPlanner) and its frames."""
     config = scenario.planner
-    CheckModeFields(config.parameters, "planner.parameters")
     planner = MakeAccelerationPlanner(
         scenario.station,
         scenario.arm,
@@ -392,13 +393,18 @@ def PlannerBaseFrame(scenario: PanelOperationScenario) -> str:
     return scenario.planner.base_frame or f"{scenario.arm}::base"
 
 
-def RunPanelOperation(scenario: PanelOperationScenario, context: RunContext) -> dict[str, Any]:
-    """Builds the diagram, picks the start and simulates one operation."""
-    if context.hardware:
+def CheckRun(scenario: PanelOperationScenario, flags: RunFlags) -> None:
+    """Refuses --hardware (before the run): the task's station, success and metrics come
+    from the simulation."""
+    if flags.hardware:
         raise ConfigurationError(
             "panel_operation cannot run with --hardware: its station, success and metrics "
             "come from the simulated panel and rover (switch travel, true camera pose)"
         )
+
+
+def RunPanelOperation(scenario: PanelOperationScenario, context: RunContext) -> dict[str, Any]:
+    """Builds the diagram, picks the start and simulates one operation."""
     run = PanelOperationRun(scenario, context)
     start = scenario.start
     q_start = (
@@ -414,4 +420,5 @@ TASK = TaskDefinition(
     scenario_type=PanelOperationScenario,
     run=RunPanelOperation,
     description="rover arm presses a panel switch guided by markers (Annusewicz-Mistal et al.)",
+    check_run=CheckRun,
 )
