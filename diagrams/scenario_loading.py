@@ -7,6 +7,10 @@ Drake's YAML tags such as `!Rpy`) to apply the command-line overrides and find t
 The typed result then goes through systems/config_checks.py (finite numbers, declared
 bounds, each config's Validate()) before anything is built from it.
 
+A key given twice is refused wherever user YAML comes in (RefuseDuplicateKeys): in a file
+(scenario, campaign, camera, panel, hose workspace), in a `--set` value, and as two `--set`
+items for one key or for a key and a part of it. YAML readers keep the last value silently.
+
 Numbers may be written in exponent notation (`1e-3`, `1.5e1`): YAML 1.1 reads those as
 strings; a float field accepts them and `yaml_load_typed` converts them, as Drake's own
 loading of a scenario file does.
@@ -23,7 +27,8 @@ from collections.abc import Iterable
 from pathlib import Path
 from typing import Any, TypeVar
 
-from pydrake.common.yaml import yaml_dump, yaml_load_data, yaml_load_file, yaml_load_typed
+import yaml
+from pydrake.common.yaml import yaml_dump, yaml_load_data, yaml_load_typed
 
 from guidedarm.systems.config_checks import CheckConfig, FieldError
 from guidedarm.systems.errors import ConfigurationError
@@ -76,24 +81,49 @@ def AddOverridesArgument(parser: argparse.ArgumentParser, help: str) -> None:
 
 def parse_overrides(items: list[str]) -> dict[str, Any]:
     """Parses a list of `key=value` strings (FieldError naming `overrides` for anything
-    else, e.g. one string); values are read as YAML scalars or flow collections."""
+    else, e.g. one string); values are read as YAML scalars or flow collections. A key
+    given twice, or beside a part of it (`a` and `a.b`), is refused: one of the values
+    would be dropped silently."""
     if isinstance(items, str) or not isinstance(items, list | tuple):
         raise FieldError("overrides", f"expected a list of 'key=value' strings, got {items!r}")
     for i, item in enumerate(items):
         if not isinstance(item, str):
             raise FieldError(f"overrides[{i}]", f"expected a 'key=value' string, got {item!r}")
     overrides: dict[str, Any] = {}
+    given: dict[str, list[str]] = {}
     for item in items:
         key, sep, value = item.partition("=")
         if not sep or not re.fullmatch(r"[A-Za-z_][\w]*(\.[A-Za-z_][\w]*)*", key):
             raise ScenarioError(f"--set expects key=value (dotted keys allowed), got '{item}'")
+        text = f"value: {value}"
         try:
-            overrides[key] = yaml_load_data(f"value: {value}")["value"]
+            overrides[key] = yaml_load_data(text)["value"]
         except Exception as e:  # the YAML parser's own message is the useful part
             raise ScenarioError(
                 f"--set {key}: cannot parse value '{value}': {_first_line(e)}"
             ) from None
+        RefuseDuplicateKeys(value, f"--set {key}", lines=False)
+        given.setdefault(key, []).append(value)
+    _RefuseRepeatedOverrides(given)
     return overrides
+
+
+def _RefuseRepeatedOverrides(given: dict[str, list[str]]) -> None:
+    """Refuses a --set key given more than once, and a key given beside a part of it
+    (`a` and `a.b`: `a` replaces the part given before it and merges with one after)."""
+    for key, values in given.items():
+        if len(values) > 1:
+            raise ScenarioError(
+                f"--set {key} given {_Times(len(values))} ({', '.join(values)}): give it once"
+            )
+    keys = list(given)
+    for i, first in enumerate(keys):
+        for second in keys[i + 1 :]:
+            if first.startswith(f"{second}.") or second.startswith(f"{first}."):
+                raise ScenarioError(
+                    f"--set {first} and --set {second} both given: set the whole value or "
+                    "its parts, not both"
+                )
 
 
 def apply_overrides(raw: dict[str, Any], overrides: dict[str, Any]) -> dict[str, Any]:
@@ -112,14 +142,71 @@ def apply_overrides(raw: dict[str, Any], overrides: dict[str, Any]) -> dict[str,
 
 
 def read_raw_scenario(path: Path) -> dict[str, Any]:
-    """Reads a scenario file without a schema; fails with a one-line message if malformed."""
+    """Reads a YAML file of mappings (a scenario, campaign, camera, panel or hose workspace
+    file) without a schema; fails with a one-line message if it is malformed or gives a
+    key twice (RefuseDuplicateKeys)."""
     try:
-        raw = yaml_load_file(str(path))
+        text = Path(path).read_text()
+        raw = yaml_load_data(text)
     except Exception as e:
         raise ScenarioError(f"{path}: malformed YAML: {_first_line(e)}") from None
+    RefuseDuplicateKeys(text, str(path))
     if not isinstance(raw, dict):
         raise ScenarioError(f"{path}: the top level must be a mapping of scenario keys")
     return raw
+
+
+def RefuseDuplicateKeys(text: str, source: str, lines: bool = True) -> None:
+    """Refuses (ScenarioError) YAML `text` that gives one key twice in a mapping, naming
+    `source`, the key's dotted path and (with `lines`) the 1-based lines it is on: YAML
+    readers (PyYAML, and Drake's on top of it) keep the last value without a word. The
+    text must parse (read it first)."""
+    duplicate = _FindDuplicateKey(yaml.compose(text, Loader=yaml.SafeLoader), "", set())
+    if duplicate is None:
+        return
+    key, where = duplicate
+    text = f"{source}: key '{key}' appears {_Times(len(where))}"
+    if lines:
+        numbers = [str(n) for n in where]
+        text += (
+            f" (line {numbers[0]})"
+            if len(set(numbers)) == 1
+            else f" (lines {', '.join(numbers[:-1])} and {numbers[-1]})"
+        )
+    raise ScenarioError(text)
+
+
+def _FindDuplicateKey(node: Any, key: str, seen: set[int]) -> tuple[str, list[int]] | None:
+    """The dotted path and lines of the first key given twice in one mapping under the
+    composed YAML `node` (a mapping's own keys before those of its values), or None."""
+    if node is None or id(node) in seen:  # an alias of a node already walked
+        return None
+    seen.add(id(node))
+    if isinstance(node, yaml.SequenceNode):
+        children = [(f"{key}[{i}]", item) for i, item in enumerate(node.value)]
+    elif isinstance(node, yaml.MappingNode):
+        where: dict[str, list[int]] = {}
+        children = []
+        for name_node, value in node.value:
+            name = str(name_node.value) if isinstance(name_node, yaml.ScalarNode) else ""
+            if name_node.tag == "tag:yaml.org,2002:merge":
+                continue
+            where.setdefault(name, []).append(name_node.start_mark.line + 1)
+            children.append((_join(key, name), value))
+        for name, found in where.items():
+            if len(found) > 1:
+                return _join(key, name), found
+    else:
+        return None
+    for child_key, child in children:
+        duplicate = _FindDuplicateKey(child, child_key, seen)
+        if duplicate is not None:
+            return duplicate
+    return None
+
+
+def _Times(count: int) -> str:
+    return "twice" if count == 2 else f"{count} times"
 
 
 # Keys a scenario no longer has, and what replaced them: a scenario has one `random_seed`

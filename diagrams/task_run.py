@@ -16,7 +16,7 @@ from guidedarm.diagrams.run_context import (
     NonFiniteKeys,
     RunContext,
 )
-from guidedarm.diagrams.tasks.registry import TaskDefinition
+from guidedarm.diagrams.tasks.registry import RunFlags, TaskDefinition
 from guidedarm.systems.errors import DrakeCheckFailure, GuidedArmError, RunFailedError
 
 # The `failure` of a run stopped by Ctrl-C.
@@ -31,7 +31,9 @@ def RunTask(task: TaskDefinition, scenario: Any, context: RunContext) -> dict[st
     `wall_time_s` (s), with `success` false and `failure` set when the run failed in any
     way once started: a RunFailedError, Ctrl-C, a non-finite metric (written as null), or a
     bug (its traceback in DIR/traceback.txt). Any other GuidedArmError (a refusal before
-    any motion, e.g. a ConfigurationError) passes through."""
+    any motion, e.g. a ConfigurationError) passes through; the task's CheckRun for the
+    context's --hardware and live Meshcat refuses before anything is written."""
+    task.CheckRun(scenario, RunFlags(hardware=context.hardware, live=context.live))
     # A previous run's verdict in the same folder must not stand beside this run's files.
     for stale in (SUMMARY_FILE, TRACEBACK_FILE):
         (context.out_dir / stale).unlink(missing_ok=True)

@@ -78,6 +78,13 @@ def files(tmp_path_factory) -> Path:
             "  position: [0.03, -0.05, 0.012]\n  on_travel_m: 0.02",
         ),
         "not_an_image.png": "hello",
+        "duplicate_key.yaml": NAN_FRAME_SCENARIO.replace(".nan", "0").replace(
+            "arms: {ur10e: {}}", "arms: {ur10e: {kp: 400, kp: 900}}"
+        )
+        + "waypoints: []\n",
+        "camera_duplicate_key.yaml": GOOD_CAMERA + "fx: 60.0\n",
+        "panel_duplicate_key.yaml": "dictionary: DICT_4X4_50\n" + GOOD_PANEL,
+        "campaign_duplicate_key.yaml": "scenario: duplicate_key.yaml\n",
     }
     for name, text in texts.items():
         (root / name).write_text(text)
@@ -119,9 +126,50 @@ BAD_INPUTS = [
     ("binary-yaml", Run("{f}/binary.yaml"), "malformed YAML"),
     ("yaml-not-a-mapping", Run("{f}/list.yaml"), "the top level must be a mapping"),
     ("nan-in-directive-transform", Run("{f}/nan_frame.yaml"), "directives[1].add_frame.X_PF"),
+    (
+        "duplicate-key",
+        Run("{f}/duplicate_key.yaml"),
+        "duplicate_key.yaml: key 'waypoints' appears twice (lines 3 and 11)",
+    ),
+    (
+        "duplicate-key-describe",
+        ["describe", "{f}/duplicate_key.yaml"],
+        "duplicate_key.yaml: key 'waypoints' appears twice (lines 3 and 11)",
+    ),
+    (
+        "duplicate-key-despite-set",
+        Run("{f}/duplicate_key.yaml", "waypoints=[[0,0,0,0,0,0]]"),
+        "key 'waypoints' appears twice",
+    ),
+    (
+        "duplicate-key-emulate",
+        ["emulate", "nachi", "--scenario", "{f}/duplicate_key.yaml", "--port", "0"],
+        "key 'waypoints' appears twice",
+    ),
+    (
+        "duplicate-key-compare-planners",
+        ["compare-planners", "--scenario", "{f}/duplicate_key.yaml"],
+        "key 'waypoints' appears twice",
+    ),
+    (
+        "duplicate-key-sweep-scenario",
+        ["sweep", "{f}/campaign_duplicate_key.yaml", "--out", "{out}"],
+        "key 'waypoints' appears twice",
+    ),
     # --- --set syntax and types
     ("set-without-equals", Run(JT, "max_speed"), "--set expects key=value"),
     ("set-bad-yaml", Run(JT, "waypoints=[[1,"), "cannot parse value"),
+    ("set-twice", Run(JT, "max_speed=1", "max_speed=2"), "--set max_speed given twice (1, 2)"),
+    (
+        "set-key-and-its-part",
+        Run(JT, "station.arms.ur10e.kp=400", "station.arms={{ur10e: {{kd: 20}}}}"),
+        "--set station.arms.ur10e.kp and --set station.arms both given",
+    ),
+    (
+        "set-value-duplicate-key",
+        Run(JT, "station.arms={{ur10e: {{kp: 1}}, ur10e: {{kp: 2}}}}"),
+        "--set station.arms: key 'ur10e' appears twice",
+    ),
     ("unknown-key", Run(JT, "speed=1"), "unknown key 'speed'"),
     ("wrong-type-string", Run(JT, "max_speed=fast"), "key 'max_speed': expected a number"),
     ("wrong-type-list", Run(JT, "max_speed=[1]"), "key 'max_speed': expected a number"),
@@ -463,6 +511,16 @@ BAD_INPUTS = [
     ("camera-wrong-type", Estimate("{f}/camera_wrong_type.yaml"), "expected a number"),
     ("camera-unknown-key", Estimate("{f}/camera_unknown_key.yaml"), "unknown key 'skew'"),
     (
+        "camera-duplicate-key",
+        Estimate("{f}/camera_duplicate_key.yaml"),
+        "camera_duplicate_key.yaml: key 'fx' appears twice (lines 3 and 7)",
+    ),
+    (
+        "panel-duplicate-key",
+        Estimate("{f}/camera.yaml", "{f}/panel_duplicate_key.yaml"),
+        "panel_duplicate_key.yaml: key 'dictionary' appears twice (lines 1 and",
+    ),
+    (
         "panel-negative-size",
         Estimate("{f}/camera.yaml", "{f}/panel_negative_size.yaml"),
         "markers[0].size_m",
@@ -601,6 +659,26 @@ BAD_INPUTS = [
         "'operation.max_joint_speed' has no effect with operation.motion=planner",
     ),
     (
+        "panel-joint-moves-ignore-planner",
+        Run(PO, "operation.motion=joint_trajectory", "planner.max_joint_velocity=[0.4]"),
+        "'planner.max_joint_velocity' has no effect with operation.motion=joint_trajectory",
+    ),
+    (
+        "panel-joint-moves-ignore-planner-parameters",
+        Run(PO, "operation.motion=joint_trajectory", "planner.parameters.gain_p=3"),
+        "'planner.parameters.gain_p' has no effect with operation.motion=joint_trajectory",
+    ),
+    (
+        "panel-ignores-hardware-section",
+        Run(PO, "station.hardware.arms.rover_arm={{port: 1}}", flags=("--hardware",)),
+        "'station.hardware.arms' has no effect on panel_operation",
+    ),
+    (
+        "kinematic-ignores-cameras",
+        Run(PF, "executor=kinematic", "station.cameras={{top: {{width: 64, height: 48}}}}"),
+        "'station.cameras' has no effect with executor=kinematic",
+    ),
+    (
         "panel-tilt-with-position",
         Run(PO, "start.position=[0,0,0,0,0,0]", "start.max_tilt_deg=10"),
         "'start.max_tilt_deg' has no effect with start.position",
@@ -610,16 +688,53 @@ BAD_INPUTS = [
 ]
 
 
-@pytest.mark.parametrize("args, message", [pytest.param(a, m, id=i) for i, a, m in BAD_INPUTS])
-def test_bad_input_is_refused_in_one_line(run_cli, files, tmp_path, args, message):
+# Refused only while the run builds its diagram (after `running`, DIR/scenario.yaml
+# written), still with exit 2 and one line: checks inside the builders (station, hose,
+# panel, planner) that no pre-run hook (TaskDefinition.CheckRun) repeats yet.
+REFUSED_WHILE_BUILDING = {
+    "joint-tour-out-of-limits",
+    "joint-tour-short-waypoint",
+    "arm-initial-out-of-limits",
+    "visualization-lcm",
+    "camera-fps-ignored",
+    "hose-centerline-ignored",
+    "tof-seed-ignored",
+    "waypoints-limit-count",
+    "path-random-negative",
+    "path-unknown",
+    "path-csv-missing",
+    "path-csv-binary",
+    "path-csv-header-order",
+    "path-csv-nul",
+    "path-csv-directory",
+    "path-csv-folded",
+    "csv-huge-coordinate",
+    "panel-switch-range",
+    "panel-file-missing",
+    "panel-model-unknown",
+    "view-seed-conflict",
+    "directives-missing-file",
+    "directives-unknown-package",
+    "directives-plain-path",
+}
+
+
+@pytest.mark.parametrize(
+    "args, message, before_the_run",
+    [pytest.param(a, m, i not in REFUSED_WHILE_BUILDING, id=i) for i, a, m in BAD_INPUTS],
+)
+def test_bad_input_is_refused_in_one_line(run_cli, files, tmp_path, args, message, before_the_run):
     out = tmp_path / "out"
-    code, _, err = run_cli(*[a.format(f=files, out=out) for a in args])
+    code, stdout, err = run_cli(*[a.format(f=files, out=out) for a in args])
     lines = err.strip().splitlines()
     assert code == 2, err
     assert len(lines) == 1, err
     assert message in lines[0]
     assert lines[0].startswith("guidedarm: error: ")
     assert not (out / "summary.json").exists()
+    if before_the_run:  # never announced as running, nothing written to --out
+        assert "running" not in stdout
+        assert not out.exists() or not any(out.iterdir()), list(out.iterdir())
 
 
 def _ScalarKeys(config, prefix=""):
@@ -970,3 +1085,13 @@ def test_a_run_into_a_used_folder_leaves_no_verdict_of_the_previous_run(tmp_path
     with pytest.raises(ConfigurationError):
         RunTask(_Task(refused), scenario, RunContext(tmp_path))
     assert sorted(p.name for p in tmp_path.iterdir()) == ["scenario.yaml"]
+
+
+def test_run_task_refuses_a_flag_the_scenario_cannot_run_with_before_writing(tmp_path):
+    """RunTask (a campaign job, a script) applies the task's CheckRun as `guidedarm run`
+    does: the kinematic executor against hardware is refused with DIR left empty."""
+    task, scenario, _ = LoadScenario(PF, ["executor=kinematic"])
+    context = RunContext(out_dir=tmp_path / "out", hardware=True, quiet=True)
+    with pytest.raises(ConfigurationError, match="executor=kinematic cannot run with --hardware"):
+        RunTask(task, scenario, context)
+    assert list((tmp_path / "out").iterdir()) == []

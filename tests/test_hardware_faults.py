@@ -140,23 +140,35 @@ def cell(q_start, tmp_path):
 class Run:
     """`guidedarm run path_following --hardware` against the cell, outputs to files."""
 
-    def __init__(self, cell: Cell, out: Path, tof_device: str, *overrides: str) -> None:
+    def __init__(
+        self,
+        cell: Cell,
+        out: Path,
+        tof_device: str,
+        *overrides: str,
+        acceleration_limits: str = "[10, 10, 10, 10, 10, 10]",
+    ) -> None:
+        """overrides: `key=value` settings replacing the cell's defaults of the same key
+        (`guidedarm run` refuses a key set twice)."""
         self.out = out
         out.mkdir()
         arm = (
             f"{{driver: nachi_tcp, port: {cell.port}, watchdog: {WATCHDOG}, "
-            "stale_after: 0.05, acceleration_limits: [10, 10, 10, 10, 10, 10]}"
+            f"stale_after: 0.05, acceleration_limits: {acceleration_limits}}}"
         )
-        settings = [
-            "station.arms.mz04d.control_period=0.01",
-            "max_time=30",
-            f"station.hardware.arms.mz04d={arm}",
-            f"station.hardware.tof_tools.tof={{device: {tof_device}, watchdog: {WATCHDOG}}}",
-            *overrides,
-        ]
+        settings = dict(
+            s.split("=", 1)
+            for s in [
+                "station.arms.mz04d.control_period=0.01",
+                "max_time=30",
+                f"station.hardware.arms.mz04d={arm}",
+                f"station.hardware.tof_tools.tof={{device: {tof_device}, watchdog: {WATCHDOG}}}",
+                *overrides,
+            ]
+        )
         command = [*CLI, "run", "path_following", "--hardware", "--out", str(out / "run")]
-        for setting in settings:
-            command += ["--set", setting]
+        for key, value in settings.items():
+            command += ["--set", f"{key}={value}"]
         self._stdout, self._stderr = (out / "stdout").open("w"), (out / "stderr").open("w")
         self.process = subprocess.Popen(command, stdout=self._stdout, stderr=self._stderr)
 
@@ -306,8 +318,8 @@ def test_tof_silent_while_following_continuously_stops_the_arm(cell, tmp_path):
 
 def test_refused_command_is_not_sent_and_ends_the_run(cell, tmp_path):
     # The follower accelerates its joints at up to 5 rad/s^2; the guard allows 0.05.
-    limits = "station.hardware.arms.mz04d.acceleration_limits=[0.05, 0.05, 0.05, 0.05, 0.05, 0.05]"
-    run = Run(cell, tmp_path / "out", cell.tof_device, limits)
+    limits = "[0.05, 0.05, 0.05, 0.05, 0.05, 0.05]"
+    run = Run(cell, tmp_path / "out", cell.tof_device, acceleration_limits=limits)
     deadline = time.monotonic() + 60.0
     while cell.State() != "STOPPED":  # the refusal stops the arm: the fault's moment
         assert run.process.poll() is None, run.Output()

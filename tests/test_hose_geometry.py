@@ -4,12 +4,12 @@ import numpy as np
 import pytest
 from pydrake.multibody.plant import MultibodyPlant
 
+from guidedarm.diagrams.tasks.path_following_setup import LoadHoseWorkspace
 from guidedarm.systems.errors import ConfigurationError
 from guidedarm.systems.path_following.hose_geometry import (
     ArcLength,
     CheckSelfClearance,
     HoseConfig,
-    LoadHoseWorkspace,
     MinBendRadius,
     RandomPathConfig,
     RandomSmoothPath,
@@ -47,6 +47,10 @@ def test_path_4_raises_the_x_wall(tmp_path):
     assert workspace.y == [-0.6, 0.7] and workspace.x == [-0.55, 0.55]
     (tmp_path / "mine.yaml").write_text("y: [0.7, -0.6]\n")
     with pytest.raises(ConfigurationError, match=r"y must be \[lower, upper\] with lower < upper"):
+        LoadHoseWorkspace(str(tmp_path / "mine.csv"))
+    (tmp_path / "mine.yaml").write_text("y: [-0.6, 0.7]\nx: [-0.5, 0.5]\ny: [-0.5, 0.5]\n")
+    duplicate = r"mine\.yaml: key 'y' appears twice \(lines 1 and 3\)"
+    with pytest.raises(ConfigurationError, match=duplicate):
         LoadHoseWorkspace(str(tmp_path / "mine.csv"))
 
 

@@ -7,7 +7,11 @@ import pytest
 
 from guidedarm.diagrams.cli.command_run import LoadScenario
 from guidedarm.diagrams.run_context import RunContext
-from guidedarm.diagrams.tasks.panel_operation import PanelOperationRun
+from guidedarm.diagrams.tasks.panel_operation import (
+    PanelOperationRun,
+    PanelPlannerConfig,
+    PlannerBaseFrame,
+)
 
 
 def _run(tmp_path, overrides):
@@ -115,3 +119,17 @@ def test_bad_scenario_values_are_one_line(run_cli, tmp_path, override, message):
     assert code == 2
     lines = err.strip().splitlines()
     assert len(lines) == 1 and message in lines[0], err
+
+
+def test_the_shipped_scenario_loads_with_either_motion():
+    """The shipped file sets no planner key (the planner's defaults are the panel's), so
+    `--set operation.motion=joint_trajectory` loads it; the planner's base defaults to the
+    arm's base and its moves end within 0.1 mm and 0.1 mrad (the sequencer presses where a
+    move ends)."""
+    for motion in ("planner", "joint_trajectory"):
+        _, scenario, _ = LoadScenario("panel_operation", [f"operation.motion={motion}"])
+        assert scenario.operation.motion == motion
+        assert scenario.planner == PanelPlannerConfig()
+    assert PanelPlannerConfig().parameters.position_tolerance == 1e-4
+    assert PanelPlannerConfig().parameters.orientation_tolerance == 1e-4
+    assert PlannerBaseFrame(scenario) == "rover_arm::base"

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import re
+
 import pytest
 
 from guidedarm.diagrams.cli.command_run import LoadScenario
@@ -55,10 +57,26 @@ def test_good_scenario_loads_typed(tmp_path):
         (GOOD.replace("task: joint_tour", "task: juggling"), "unknown task 'juggling'"),
         (GOOD.replace("task: joint_tour\n", ""), "missing key 'task'"),
         ("task: [joint_tour\n", "malformed YAML"),
+        (GOOD + "arm: ur10e\n", "key 'arm' appears twice (lines 2 and 16)"),
+        (GOOD + "arm: ur10e\narm: ur10e\n", "key 'arm' appears 3 times (lines 2, 16 and 17)"),
+        (GOOD.replace("kp: 900", "kp: 900, kp: 400"), "'station.arms.ur10e.kp' appears twice"),
+        (
+            GOOD.replace(
+                "translation: [0, 0, 2]", "translation: [0, 0, 2]\n        base_frame: a"
+            ).replace("rotation:", "base_frame: b\n        rotation:"),
+            "key 'station.cameras.top.X_PB.base_frame' appears twice (lines 15 and 16)",
+        ),
+        (
+            GOOD.replace(
+                "  - add_directives: {file: package://guidedarm/directives/ur10e.dmd.yaml}",
+                "  - add_directives: {file: a.yaml, file: b.yaml}",
+            ),
+            "key 'station.directives[0].add_directives.file' appears twice (line 6)",
+        ),
     ],
 )
 def test_bad_scenario_names_the_cause(tmp_path, text, expected):
-    with pytest.raises(ConfigurationError, match=expected.replace("[", r"\[").replace(".", r"\.")):
+    with pytest.raises(ConfigurationError, match=re.escape(expected)):
         LoadScenario(write(tmp_path, text), [])
 
 
@@ -78,6 +96,29 @@ def test_override_syntax_errors():
     assert parse_overrides(["limits=velocity,acceleration"]) == {"limits": "velocity,acceleration"}
     with pytest.raises(ScenarioError, match="key=value"):
         parse_overrides(["limits"])
+
+
+@pytest.mark.parametrize(
+    "items, message",
+    [
+        (["max_speed=1", "max_speed=1"], "--set max_speed given twice (1, 1): give it once"),
+        (["a.b=1", "c=2", "a.b=3", "a.b=4"], "--set a.b given 3 times (1, 3, 4): give it once"),
+        (["a.b.c=1", "a={b: {}}"], "--set a.b.c and --set a both given"),
+        (["a={b: {}}", "a.b.c=1"], "--set a and --set a.b.c both given"),
+        (["a={b: 1, b: 2}"], "--set a: key 'b' appears twice"),
+        (["a=[{b: 1}, {c: [{d: 1, d: 1}]}]"], "--set a: key '[1].c[0].d' appears twice"),
+    ],
+)
+def test_a_key_set_twice_is_refused(items, message):
+    """--set KEY twice, or a key beside a part of it, would keep one value silently (the
+    last, or the part merged into the whole in one order and lost in the other)."""
+    with pytest.raises(ScenarioError) as refused:
+        parse_overrides(items)
+    assert str(refused.value) == message or str(refused.value).startswith(message)
+
+
+def test_keys_of_one_prefix_that_do_not_overlap_are_accepted():
+    assert parse_overrides(["a.b=1", "a.bc=2", "ab=3"]) == {"a.b": 1, "a.bc": 2, "ab": 3}
 
 
 def test_unknown_named_scenario_lists_the_known_ones():

@@ -96,6 +96,15 @@ def ReadRows(path: Path) -> list[dict]:
             TOUR + "grid: {station.hardware.arms.ur10e.gain: [500.0, 600.0]}\n",
             "has no effect in a campaign (its jobs run in simulation",
         ),
+        (
+            TOUR + "grid: {max_speed: [1.0]}\nrepeat: {count: 2}\ngrid: {max_time: [3.0]}\n",
+            "campaign.yaml: key 'grid' appears twice (lines 3 and 5)",
+        ),
+        (TOUR + "set: {max_time: 3.0}\n", "key 'set' appears twice (lines 2 and 3)"),
+        (
+            TOUR + "grid:\n  max_speed: [1.0]\n  max_time: [3.0]\n  max_speed: [2.0]\n",
+            "key 'grid.max_speed' appears twice (lines 4 and 6)",
+        ),
     ],
 )
 def test_bad_campaign_files_are_refused_in_one_line(tmp_path, run_cli, text, message):

@@ -39,7 +39,7 @@ from guidedarm.diagrams.scenario_loading import (
     resolve_scenario_path,
 )
 from guidedarm.diagrams.task_run import InterruptedFailure, RunTask
-from guidedarm.diagrams.tasks.registry import GetTask
+from guidedarm.diagrams.tasks.registry import GetTask, RunFlags
 from guidedarm.systems.config_checks import CheckInstance
 from guidedarm.systems.errors import ConfigurationError
 
@@ -101,20 +101,6 @@ def CheckMeshcatArguments(args: argparse.Namespace) -> None:
         raise ConfigurationError("--meshcat-host must not be empty")
 
 
-def CheckSimulationArguments(task: Any, args: argparse.Namespace) -> None:
-    """Refuses --hardware, --realtime and --meshcat for a task that simulates no station
-    (TaskDefinition.simulates), which would run without reading them."""
-    if task.simulates:
-        return
-    given = {"--hardware": args.hardware, "--realtime": args.realtime is not None}
-    given["--meshcat"] = args.meshcat
-    for flag, value in given.items():
-        if value:
-            raise ConfigurationError(
-                f"{flag} has no effect on task {task.name} (it simulates no station)"
-            )
-
-
 def LoadScenario(name_or_path: str | Path, overrides: list[str]) -> tuple[Any, Any, str]:
     """Returns (task, typed scenario, scenario name) for a scenario and `--set` overrides
     (a list of `key=value` strings), after the task's checks of the scenario: its types and
@@ -141,7 +127,8 @@ def run_command(args: argparse.Namespace) -> int:
             raise ConfigurationError("--path-csv and --set path_csv both given: give one")
         args.overrides.append(f"path_csv={json.dumps(str(args.path_csv.resolve()))}")
     task, scenario, name = LoadScenario(args.scenario, args.overrides)
-    CheckSimulationArguments(task, args)
+    flags = RunFlags(args.hardware, live=args.meshcat, realtime=args.realtime is not None)
+    task.CheckRun(scenario, flags)
     hardware_keys = sorted(k for k in keys if k.split(".")[:2] == ["station", "hardware"])
     if hardware_keys and not args.hardware:
         raise ConfigurationError(

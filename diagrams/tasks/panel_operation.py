@@ -59,7 +59,7 @@ from guidedarm.diagrams.tasks.panel_operation_report import (
     PlotPanelOperation,
 )
 from guidedarm.diagrams.tasks.planner_builder import MakeAccelerationPlanner
-from guidedarm.diagrams.tasks.registry import TaskDefinition
+from guidedarm.diagrams.tasks.registry import RunFlags, TaskDefinition
 from guidedarm.systems.config_checks import (
     ChangedKey,
     CheckConfig,
@@ -112,17 +112,21 @@ class PanelPlannerConfig:
     """The acceleration-level planner of operation.motion "planner" (MakeAccelerationPlanner
     on the station's own models of the arm and gripper; its TCP is the scenario's tip frame).
 
-    base_frame: the planner's base B (scoped frame name).
+    base_frame: the planner's base B (scoped frame name; empty: `<arm>::base`).
     max_joint_velocity, max_joint_acceleration: symmetric limits, one value or one per
-        joint (rad/s, rad/s^2).
+        joint (rad/s, rad/s^2): modest, for the rover arm's DC/harmonic-drive joints.
     parameters: the law's gains and settings (the robust mode by default: facing the panel
-        the tip is at Z-Y-X pitch -90 deg, the Euler singularity of the paper's law).
+        the tip is at Z-Y-X pitch -90 deg, the Euler singularity of the paper's law). A
+        move ends within 0.1 mm and 0.1 mrad of its target (PlannerConfig's own default is
+        1 mm and 1 mrad): the sequencer measures and presses where the planner ends.
     """
 
     base_frame: str = ""
     max_joint_velocity: list[float] = Positive(factory=lambda: [0.5])
     max_joint_acceleration: list[float] = Positive(factory=lambda: [1.5])
-    parameters: PlannerConfig = field(default_factory=PlannerConfig)
+    parameters: PlannerConfig = field(
+        default_factory=lambda: PlannerConfig(position_tolerance=1e-4, orientation_tolerance=1e-4)
+    )
 
 
 @dataclass
@@ -186,8 +190,25 @@ class PanelOperationScenario:
 
 def _CheckModeKeys(scenario: PanelOperationScenario) -> None:
     """Refuses a key set away from its default that the chosen mode does not read: the
-    random start's keys beside an explicit start.position, and operation.max_joint_speed
-    with operation.motion=planner (the planner's own limits apply)."""
+    random start's keys beside an explicit start.position, operation.max_joint_speed
+    with operation.motion=planner (the planner's own limits apply), `planner` with
+    operation.motion=joint_trajectory, and station.hardware (the task refuses --hardware,
+    CheckRun)."""
+    changed = ChangedKey(scenario.station.hardware, StationScenario().hardware, "station.hardware")
+    if changed:
+        raise ConfigurationError(
+            f"'{changed}' has no effect on panel_operation (it cannot run "
+            "with --hardware): remove it"
+        )
+    if scenario.operation.motion == "planner":
+        CheckModeFields(scenario.planner.parameters, "planner.parameters")
+    else:
+        changed = ChangedKey(scenario.planner, PanelPlannerConfig(), "planner")
+        if changed:
+            raise ConfigurationError(
+                f"'{changed}' has no effect with operation.motion={scenario.operation.motion} "
+                "(it is read only with operation.motion=planner): remove it or change motion"
+            )
     start = scenario.start
     if start.position:
         changed = ChangedKey(start, StartConfig(position=start.position), "start")
@@ -354,11 +375,10 @@ def _replace_camera(station: StationScenario, name: str, camera, k: int) -> Stat
 def _MakePlanner(scenario: PanelOperationScenario) -> tuple[AccelerationPlanner, PlannerFrames]:
     """The task-driven AccelerationPlanner (MakeAccelerationPlanner) and its frames."""
     config = scenario.planner
-    CheckModeFields(config.parameters, "planner.parameters")
     planner = MakeAccelerationPlanner(
         scenario.station,
         scenario.arm,
-        config.base_frame,
+        PlannerBaseFrame(scenario),
         scenario.tip_frame,
         None,
         config.parameters,
@@ -370,13 +390,23 @@ def _MakePlanner(scenario: PanelOperationScenario) -> tuple[AccelerationPlanner,
     return planner, PlannerFrames(X_WB, RigidTransform())
 
 
-def RunPanelOperation(scenario: PanelOperationScenario, context: RunContext) -> dict[str, Any]:
-    """Builds the diagram, picks the start and simulates one operation."""
-    if context.hardware:
+def PlannerBaseFrame(scenario: PanelOperationScenario) -> str:
+    """The planner's base frame: planner.base_frame, or the arm's `<arm>::base`."""
+    return scenario.planner.base_frame or f"{scenario.arm}::base"
+
+
+def CheckRun(scenario: PanelOperationScenario, flags: RunFlags) -> None:
+    """Refuses --hardware (before the run): the task's station, success and metrics come
+    from the simulation."""
+    if flags.hardware:
         raise ConfigurationError(
             "panel_operation cannot run with --hardware: its station, success and metrics "
             "come from the simulated panel and rover (switch travel, true camera pose)"
         )
+
+
+def RunPanelOperation(scenario: PanelOperationScenario, context: RunContext) -> dict[str, Any]:
+    """Builds the diagram, picks the start and simulates one operation."""
     run = PanelOperationRun(scenario, context)
     start = scenario.start
     q_start = (
@@ -393,4 +423,5 @@ TASK = TaskDefinition(
     run=RunPanelOperation,
     description="rover arm presses a panel switch guided by markers (Annusewicz-Mistal et al.)",
     metrics=PANEL_OPERATION_METRICS,
+    check_run=CheckRun,
 )

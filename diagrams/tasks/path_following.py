@@ -26,7 +26,7 @@ from guidedarm.diagrams.tasks.path_following_report import (
     SpeedAndErrorAlongPath,
 )
 from guidedarm.diagrams.tasks.path_following_setup import CheckScenarioRules, MakeSetup, Setup
-from guidedarm.diagrams.tasks.registry import TaskDefinition
+from guidedarm.diagrams.tasks.registry import RunFlags, TaskDefinition
 from guidedarm.systems.config_checks import CheckFields, InRange, Positive
 from guidedarm.systems.errors import ConfigurationError
 from guidedarm.systems.path_following.continuous_follower_math import ContinuousConfig
@@ -104,39 +104,6 @@ def Run(
 
 def RunPathFollowing(scenario: PathFollowingScenario, context: RunContext) -> dict[str, Any]:
     """Runs the follower (twice with repeat_random_seed) and returns the summary metrics."""
-    if scenario.executor == "kinematic" and context.hardware:
-        raise ConfigurationError(
-            "executor=kinematic cannot run with --hardware: it poses a model and drives no "
-            "arm (use executor=station)"
-        )
-    if scenario.executor == "kinematic" and context.live:
-        raise ConfigurationError(
-            "executor=kinematic cannot be watched with --meshcat: it draws nothing in Meshcat "
-            "(use executor=station)"
-        )
-    link = scenario.station.hardware.arms.get(scenario.arm)
-    if (
-        scenario.motion == "continuous"
-        and context.hardware
-        and link
-        and link.command_mode == "move"
-    ):
-        raise ConfigurationError(
-            f"motion=continuous streams a target every servo period: station.hardware.arms."
-            f"{scenario.arm}.command_mode must be 'stream', not 'move'"
-        )
-    control_period = scenario.station.arms[scenario.arm].control_period
-    if (
-        scenario.motion == "continuous"
-        and context.hardware
-        and scenario.continuous.servo_period != control_period
-    ):
-        raise ConfigurationError(
-            f"with --hardware, continuous.servo_period ({scenario.continuous.servo_period} s) "
-            f"must equal station.arms.{scenario.arm}.control_period ({control_period} s): the "
-            "driver streams each command it samples, and a command held over two samples "
-            "reads as a velocity step"
-        )
     repeat_seed = scenario.repeat_random_seed
     execution, setup = Run(scenario, context, scenario.random_seed)
     centerline = setup.centerline
@@ -191,6 +158,41 @@ def RunPathFollowing(scenario: PathFollowingScenario, context: RunContext) -> di
     return summary
 
 
+def CheckRun(scenario: PathFollowingScenario, flags: RunFlags) -> None:
+    """Refuses (before the run) what the scenario cannot do with the run's flags: the
+    kinematic executor with --hardware (it drives no arm) or a live --meshcat page (it draws
+    nothing during the run), and against hardware the continuous motion with a `move`
+    driver or a servo period other than the arm's control period."""
+    if scenario.executor == "kinematic" and flags.hardware:
+        raise ConfigurationError(
+            "executor=kinematic cannot run with --hardware: it poses a model and drives no "
+            "arm (use executor=station)"
+        )
+    if scenario.executor == "kinematic" and flags.live:
+        raise ConfigurationError(
+            "executor=kinematic cannot be watched with --meshcat: it draws nothing in Meshcat "
+            "(use executor=station)"
+        )
+    link = scenario.station.hardware.arms.get(scenario.arm)
+    if scenario.motion == "continuous" and flags.hardware and link and link.command_mode == "move":
+        raise ConfigurationError(
+            f"motion=continuous streams a target every servo period: station.hardware.arms."
+            f"{scenario.arm}.command_mode must be 'stream', not 'move'"
+        )
+    control_period = scenario.station.arms[scenario.arm].control_period
+    if (
+        scenario.motion == "continuous"
+        and flags.hardware
+        and scenario.continuous.servo_period != control_period
+    ):
+        raise ConfigurationError(
+            f"with --hardware, continuous.servo_period ({scenario.continuous.servo_period} s) "
+            f"must equal station.arms.{scenario.arm}.control_period ({control_period} s): the "
+            "driver streams each command it samples, and a command held over two samples "
+            "reads as a velocity step"
+        )
+
+
 def CheckOverrides(scenario: PathFollowingScenario, keys: Collection[str]) -> None:
     """Refuses `--set path` beside a path_csv (which overrides it), and `--set random_path.*`
     when the hose is not random_<seed> (a scenario file may keep its arm's random_path
@@ -229,4 +231,5 @@ TASK = TaskDefinition(
     station=lambda scenario: MakeSetup(scenario).station,
     check_overrides=CheckOverrides,
     metrics=PATH_FOLLOWING_METRICS,
+    check_run=CheckRun,
 )

@@ -24,6 +24,7 @@ import numpy as np
 from pydrake.math import RigidTransform
 from pydrake.multibody.plant import MultibodyPlant
 
+from guidedarm.diagrams.scenario_loading import load_typed, read_raw_scenario
 from guidedarm.diagrams.station.scenario import ArmConfig, StationScenario
 from guidedarm.diagrams.station.station_plant import (
     ArmAndAttachments,
@@ -38,7 +39,6 @@ from guidedarm.systems.path_following.continuous_follower_math import Continuous
 from guidedarm.systems.path_following.hose_geometry import (
     CheckSelfClearance,
     HoseConfig,
-    LoadHoseWorkspace,
     RandomSmoothPath,
     ReadCenterline,
     ResolveCenterlinePath,
@@ -241,9 +241,10 @@ def _CheckMotionKeys(scenario: PathFollowingScenario) -> None:
 
 
 def _CheckExecutorKeys(scenario: PathFollowingScenario) -> None:
-    """Refuses, with executor=kinematic, a servo gain, plant or visualization setting set
-    away from its default: the kinematic station poses the arm where it is commanded (no
-    servo, no dynamics, nothing drawn in Meshcat) and reads none of them."""
+    """Refuses, with executor=kinematic, a servo gain, plant, visualization or camera
+    setting set away from its default: the kinematic station poses the arm where it is
+    commanded (no servo, no dynamics, nothing drawn in Meshcat, no camera rendered) and
+    reads none of them."""
     if scenario.executor != "kinematic":
         return
     arm, default_arm = scenario.station.arms[scenario.arm], ArmConfig()
@@ -251,6 +252,7 @@ def _CheckExecutorKeys(scenario: PathFollowingScenario) -> None:
     for key, value, default in (
         ("station.plant_config", scenario.station.plant_config, StationScenario().plant_config),
         ("station.visualization", scenario.station.visualization, StationScenario().visualization),
+        ("station.cameras", scenario.station.cameras, StationScenario().cameras),
         (f"{prefix}.kp", arm.kp, default_arm.kp),
         (f"{prefix}.kd", arm.kd, default_arm.kd),
     ):
@@ -258,7 +260,7 @@ def _CheckExecutorKeys(scenario: PathFollowingScenario) -> None:
         if changed:
             raise ConfigurationError(
                 f"'{changed}' has no effect with executor=kinematic (it poses the arm where "
-                "it is commanded: no servo, no dynamics, no Meshcat): remove it or use "
+                "it is commanded: no servo, no dynamics, no Meshcat, no camera): remove it or use "
                 "executor=station"
             )
 
@@ -298,6 +300,16 @@ def _Workspace(scenario: PathFollowingScenario) -> WorkspaceConfig:
     if not scenario.path_csv and scenario.path.startswith("random_"):
         return WorkspaceConfig()
     return LoadHoseWorkspace(scenario.path_csv or scenario.path) or WorkspaceConfig()
+
+
+def LoadHoseWorkspace(name_or_file: str) -> WorkspaceConfig | None:
+    """The workspace a hose was laid out for (its sidecar NAME.yaml beside NAME.csv, a
+    WorkspaceConfig, read like a scenario file: read_raw_scenario, load_typed), or None
+    when it has none."""
+    sidecar = ResolveCenterlinePath(name_or_file).with_suffix(".yaml")
+    if not sidecar.is_file():
+        return None
+    return load_typed(WorkspaceConfig, read_raw_scenario(sidecar), str(sidecar))
 
 
 def _LoadHose(scenario, workspace, solver, mount, q_home, out_dir) -> tuple[np.ndarray, str]:

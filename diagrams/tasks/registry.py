@@ -19,6 +19,16 @@ RUN_METRICS = ("wall_time_s",)
 
 
 @dataclass(frozen=True)
+class RunFlags:
+    """The command-line flags of a run that a task may refuse: hardware (--hardware),
+    live (--meshcat: a page served during the run), realtime (--realtime given)."""
+
+    hardware: bool = False
+    live: bool = False
+    realtime: bool = False
+
+
+@dataclass(frozen=True)
 class TaskDefinition:
     """A task: its scenario schema (a dataclass with a `task: str` field) and its runner.
 
@@ -32,7 +42,10 @@ class TaskDefinition:
     scenario file may hold the same key for another choice (e.g. `random_path` beside a
     named hose).
     simulates: False for a task that simulates no station (marker_view renders one image):
-    `run` refuses --hardware, --realtime and --meshcat for it, which it would not read.
+    CheckRun refuses --hardware, --realtime and --meshcat for it, which it would not read.
+    check_run(scenario, flags), when given, refuses (ConfigurationError) a scenario the
+    task cannot run with these RunFlags (e.g. path following's kinematic executor with
+    --hardware); CheckRun calls it before anything of the run is written.
     metrics: the dotted names of every number its summary.json can carry (a list's
     elements as `name.#`; RUN_METRICS are added to every task's): what a campaign may
     collect and its report plots. tests/test_sweep.py compares them with real runs.
@@ -46,6 +59,22 @@ class TaskDefinition:
     check_overrides: Callable[[Any, Collection[str]], None] | None = None
     simulates: bool = True
     metrics: tuple[str, ...] = ()
+    check_run: Callable[[Any, RunFlags], None] | None = None
+
+    def CheckRun(self, scenario: Any, flags: RunFlags) -> None:
+        """Refuses (ConfigurationError, one line) running `scenario` with `flags`: a flag a
+        task that simulates no station would not read, then the task's check_run. Called
+        by `guidedarm run` before it announces the run, and by RunTask before it writes."""
+        if not self.simulates:
+            given = {"--hardware": flags.hardware, "--realtime": flags.realtime}
+            given["--meshcat"] = flags.live
+            for flag, value in given.items():
+                if value:
+                    raise ConfigurationError(
+                        f"{flag} has no effect on task {self.name} (it simulates no station)"
+                    )
+        if self.check_run is not None:
+            self.check_run(scenario, flags)
 
     def Station(self, scenario: Any) -> Any:
         """The station scenario a run of `scenario` builds (see the class docstring)."""

@@ -20,7 +20,6 @@ from pydrake.math import RigidTransform, RotationMatrix
 from pydrake.multibody.plant import CoulombFriction, MultibodyPlant
 
 from guidedarm.systems.config_checks import (
-    CheckConfig,
     CheckFields,
     InRange,
     Positive,
@@ -74,22 +73,6 @@ def ResolveCenterlinePath(name_or_file: str) -> Path:
         known = ", ".join(sorted(p.stem for p in HOSES_DIR.glob("*.csv")))
         raise ConfigurationError(f"unknown hose path '{name_or_file}' (known: {known})")
     return named
-
-
-def LoadHoseWorkspace(name_or_file: str) -> WorkspaceConfig | None:
-    """The workspace a hose was laid out for (its sidecar NAME.yaml beside NAME.csv, a
-    WorkspaceConfig), or None when it has none."""
-    from pydrake.common.yaml import yaml_load_typed
-
-    sidecar = ResolveCenterlinePath(name_or_file).with_suffix(".yaml")
-    if not sidecar.is_file():
-        return None
-    try:
-        workspace = yaml_load_typed(schema=WorkspaceConfig, filename=str(sidecar))
-        CheckConfig(workspace)
-    except Exception as e:
-        raise ConfigurationError(f"{sidecar}: {str(e).splitlines()[0]}") from None
-    return workspace
 
 
 def ReadCenterline(name_or_file: str) -> np.ndarray:
