@@ -216,6 +216,13 @@ BAD_INPUTS = [
     ("camera-nan-focal", Run(PO, "station.cameras.camera.focal.x=.nan"), "focal.x"),
     ("camera-clipping", Run(JT, "station.cameras.top.clipping_near=-1"), "clipping_near"),
     ("camera-fps-ignored", Run(PO, "station.cameras.camera.fps=5"), "fps cannot be set"),
+    ("camera-depth-range-ignored", Run(PO, "station.cameras.camera.z_far=2.0"), "z_far cannot"),
+    ("camera-renamed", Run(PO, "station.cameras.camera.name=other"), "name cannot be set"),
+    (
+        "camera-background-ignored",
+        Run(PO, "station.cameras.camera.background.rgba=[1.0,0.0,0.0,1.0]"),
+        "background.rgba cannot be set",
+    ),
     # --- station.hardware, .hose, .tof_tools
     ("driver-port-range", Run(PF, "station.hardware.arms.mz04d.port=70000"), "[0, 65535]"),
     ("driver-negative-port", Run(PF, "station.hardware.arms.mz04d.port=-1"), "port'"),
@@ -642,6 +649,18 @@ BAD_INPUTS = [
     ("marker-view-camera-fps", Run("marker_view", "camera.fps=5"), "'camera.fps' has no effect"),
     ("marker-view-camera-depth", Run("marker_view", "camera.depth=true"), "'camera.depth'"),
     ("marker-view-camera-name", Run("marker_view", "camera.name=x"), "'camera.name'"),
+    ("marker-view-camera-z-far", Run("marker_view", "camera.z_far=0.2"), "'camera.z_far'"),
+    ("marker-view-camera-lcm", Run("marker_view", "camera.lcm_bus=x"), "'camera.lcm_bus'"),
+    (
+        "marker-view-camera-renderer",
+        Run("marker_view", "camera.renderer_name=other"),
+        "'camera.renderer_name'",
+    ),
+    (
+        "marker-view-camera-background",
+        Run("marker_view", "camera.background.rgba=[1.0,0.0,0.0,1.0]"),
+        "'camera.background.rgba'",
+    ),
     ("marker-view-degradation-ss", Run("marker_view", "degradation.supersampling=2"), "top-level"),
     (
         "path-csv-twice",
@@ -695,8 +714,6 @@ REFUSED_WHILE_BUILDING = {
     "joint-tour-out-of-limits",
     "joint-tour-short-waypoint",
     "arm-initial-out-of-limits",
-    "visualization-lcm",
-    "camera-fps-ignored",
     "hose-centerline-ignored",
     "tof-seed-ignored",
     "waypoints-limit-count",

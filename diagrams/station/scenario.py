@@ -11,7 +11,13 @@ from pydrake.systems.sensors import CameraConfig
 from pydrake.visualization import VisualizationConfig
 
 from guidedarm.diagrams.station.hardware_config import HardwareConfig
-from guidedarm.systems.config_checks import MAX_JOINT_POSITION, InRange
+from guidedarm.systems.config_checks import (
+    MAX_JOINT_POSITION,
+    ChangedKey,
+    CheckFields,
+    FieldError,
+    InRange,
+)
 from guidedarm.systems.path_following.hose_geometry import HoseConfig
 from guidedarm.systems.tof.tof_tool_sensor import ToFToolConfig
 
@@ -55,6 +61,43 @@ def _default_visualization() -> VisualizationConfig:
     )
 
 
+# The name of the renderer that every camera of guidedarm renders with (VTK, its default
+# parameters).
+RENDERER_NAME = "vtk"
+# CameraConfig fields no camera of the station reads: it renders colour images on demand
+# with RENDERER_NAME's engine (its own background) and publishes nothing.
+UNSUPPORTED_CAMERA_FIELDS = (
+    "fps",
+    "capture_offset",
+    "output_delay",
+    "rgb",
+    "depth",
+    "label",
+    "show_rgb",
+    "do_compress",
+    "lcm_bus",
+    "z_near",
+    "z_far",
+    "X_BD",
+    "background",
+    "renderer_class",
+)
+
+
+def UnreadCameraKey(config: CameraConfig, fields: tuple[str, ...]) -> str:
+    """The dotted name of the first of `fields` whose value differs from CameraConfig's
+    default, or renderer_name when it names another renderer than RENDERER_NAME; ''
+    when none does."""
+    default = CameraConfig()
+    for name in fields:
+        changed = ChangedKey(getattr(config, name), getattr(default, name), name)
+        if changed:
+            return changed
+    if config.renderer_name not in (default.renderer_name, RENDERER_NAME):
+        return "renderer_name"
+    return ""
+
+
 @dataclass
 class StationScenario:
     """Everything the station needs: models, arms, cameras, plant and visualisation.
@@ -81,6 +124,26 @@ class StationScenario:
     hardware: HardwareConfig = field(default_factory=HardwareConfig)
     hose: HoseConfig | None = None
     tof_tools: dict[str, ToFToolConfig] = field(default_factory=dict)
+
+    def Validate(self) -> None:
+        """Checked at load (CheckConfig): the fields, then no camera field the station does
+        not read (UNSUPPORTED_CAMERA_FIELDS, a `name` other than the camera's key) and no
+        LCM bus for the visualization (Meshcat only)."""
+        CheckFields(self)
+        for key, camera in self.cameras.items():
+            unread = UnreadCameraKey(camera, UNSUPPORTED_CAMERA_FIELDS)
+            if not unread and camera.name not in (CameraConfig().name, key):
+                unread = "name"
+            if unread:
+                raise FieldError(
+                    f"cameras.{key}.{unread}",
+                    "the station renders colour images on demand with its own VTK renderer "
+                    f"and names each camera by its key; {unread} cannot be set",
+                )
+        if self.visualization.lcm_bus != VisualizationConfig().lcm_bus:
+            raise FieldError(
+                "visualization.lcm_bus", "the station visualizes in Meshcat only; it cannot be set"
+            )
 
     def ToFTool(self, name: str) -> ToFToolConfig:
         """tof_tools[name] with its target_radius resolved: 0 means the station hose's

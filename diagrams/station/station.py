@@ -20,6 +20,8 @@ the sim/hardware contract.
 
 from __future__ import annotations
 
+import copy
+
 import numpy as np
 from pydrake.geometry import MakeRenderEngineVtk, Meshcat, RenderEngineVtkParams, SceneGraph
 from pydrake.lcm import DrakeLcm
@@ -34,10 +36,10 @@ from pydrake.systems.primitives import (
     StateInterpolatorWithDiscreteDerivative,
 )
 from pydrake.systems.sensors import CameraConfig, RgbdSensor
-from pydrake.visualization import ApplyVisualizationConfig, VisualizationConfig
+from pydrake.visualization import ApplyVisualizationConfig
 
 from guidedarm.diagrams.station.hardware_station import MakeHardwareStation
-from guidedarm.diagrams.station.scenario import ArmConfig, StationScenario
+from guidedarm.diagrams.station.scenario import RENDERER_NAME, ArmConfig, StationScenario
 from guidedarm.diagrams.station.station_plant import (
     AddStationModels,
     ArmAndAttachments,
@@ -48,21 +50,6 @@ from guidedarm.diagrams.station.station_plant import (
 from guidedarm.systems.config_checks import CheckConfig, CheckInstance
 from guidedarm.systems.errors import ConfigurationError
 from guidedarm.systems.tof.tof_tool_sensor import TOF_PORTS, ToFToolSensor
-
-RENDERER_NAME = "vtk"
-# CameraConfig fields the station does not honour: it renders colour images on demand with
-# its own VTK renderer and publishes nothing; a value other than the default is refused.
-UNSUPPORTED_CAMERA_FIELDS = (
-    "fps",
-    "capture_offset",
-    "output_delay",
-    "rgb",
-    "depth",
-    "label",
-    "show_rgb",
-    "do_compress",
-    "lcm_bus",
-)
 
 
 def MakeStation(
@@ -112,12 +99,8 @@ def AddMeshcatVisualization(
     scene_graph: SceneGraph,
 ) -> None:
     """Draws `scene_graph` (of the builder) with `plant`'s geometry in `meshcat` as
-    scenario.visualization says (nothing without a Meshcat). Raises ConfigurationError for
-    an LCM bus: stations visualize in Meshcat only."""
-    if scenario.visualization.lcm_bus != VisualizationConfig().lcm_bus:
-        raise ConfigurationError(
-            "visualization.lcm_bus: the station visualizes in Meshcat only; lcm_bus cannot be set"
-        )
+    scenario.visualization says (nothing without a Meshcat; StationScenario.Validate
+    refuses an LCM bus)."""
     if meshcat is not None:
         # Meshcat only: on a null LCM bus ApplyVisualizationConfig adds no DrakeVisualizer,
         # whose LCM messages (for Meldis, which nothing here runs) cost 0.03 CPU s per
@@ -198,17 +181,7 @@ def _AddCamera(
     name: str,
     config: CameraConfig,
 ) -> None:
-    default = CameraConfig()
-    unsupported = [
-        f for f in UNSUPPORTED_CAMERA_FIELDS if getattr(config, f) != getattr(default, f)
-    ]
-    if config.renderer_name not in (default.renderer_name, RENDERER_NAME):
-        unsupported.append("renderer_name")
-    if unsupported:
-        raise ConfigurationError(
-            f"cameras.{name}.{unsupported[0]}: the station renders colour images on demand "
-            f"with its own renderer; {unsupported[0]} cannot be set"
-        )
+    config = copy.deepcopy(config)  # the scenario's own is left as given
     config.renderer_name = RENDERER_NAME
     color, depth = config.MakeCameras()
     base = config.X_PB.base_frame or "world"

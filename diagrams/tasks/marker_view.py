@@ -22,10 +22,11 @@ import numpy as np
 from pydrake.systems.sensors import CameraConfig
 
 from guidedarm.diagrams.run_context import RunContext
+from guidedarm.diagrams.station.scenario import UNSUPPORTED_CAMERA_FIELDS, UnreadCameraKey
 from guidedarm.diagrams.tasks.panel_camera_rig import LookAt, PanelCameraRig
 from guidedarm.diagrams.tasks.panel_files import DEFAULT_PANEL_FILE, LoadPanelSpec
 from guidedarm.diagrams.tasks.registry import TaskDefinition
-from guidedarm.systems.config_checks import ChangedKey, CheckFields, InRange
+from guidedarm.systems.config_checks import CheckFields, InRange
 from guidedarm.systems.errors import ConfigurationError, RunFailedError
 from guidedarm.systems.markers.image_degradation import (
     CheckRenderedSupersampling,
@@ -34,20 +35,9 @@ from guidedarm.systems.markers.image_degradation import (
 )
 from guidedarm.systems.markers.marker_pose_estimator_math import MarkerPoseSolver
 
-# CameraConfig keys marker_view does not read: the view poses the camera (distance_m,
-# angle_deg) and renders one colour image once.
-UNREAD_CAMERA_KEYS = (
-    "name",
-    "X_PB",
-    "X_BC",
-    "X_BD",
-    "fps",
-    "capture_offset",
-    "output_delay",
-    "depth",
-    "label",
-    "show_rgb",
-)
+# CameraConfig keys marker_view does not read: the station's, and the camera's pose and name
+# (the view places the camera by distance_m and angle_deg and renders one colour image).
+UNREAD_CAMERA_KEYS = (*UNSUPPORTED_CAMERA_FIELDS, "name", "X_PB", "X_BC")
 
 
 @dataclass
@@ -77,14 +67,12 @@ class MarkerViewScenario:
         """Checked at load (CheckConfig): the fields' bounds, the rendered size, and no key
         the view does not read (UNREAD_CAMERA_KEYS, degradation.supersampling)."""
         CheckFields(self)
-        default = CameraConfig()
-        for name in UNREAD_CAMERA_KEYS:
-            changed = ChangedKey(getattr(self.camera, name), getattr(default, name), name)
-            if changed:
-                raise ConfigurationError(
-                    f"'camera.{changed}' has no effect on marker_view (the view places and "
-                    "renders one colour image): remove it"
-                )
+        changed = UnreadCameraKey(self.camera, UNREAD_CAMERA_KEYS)
+        if changed:
+            raise ConfigurationError(
+                f"'camera.{changed}' has no effect on marker_view (the view places and "
+                "renders one colour image): remove it"
+            )
         CheckRenderedSupersampling(self.degradation, self.camera, self.supersampling)
 
 

@@ -21,7 +21,7 @@ from pydrake.systems.framework import DiagramBuilder
 from pydrake.systems.sensors import CameraConfig
 
 from guidedarm.diagrams.station.model_paths import MakeParser
-from guidedarm.diagrams.station.station import RENDERER_NAME
+from guidedarm.diagrams.station.scenario import RENDERER_NAME
 from guidedarm.diagrams.tasks.panel_assets import COVER_CLOSED_M
 from guidedarm.diagrams.tasks.panel_files import (
     MODELS_PANEL_DIR,
