@@ -64,10 +64,10 @@ def _default_visualization() -> VisualizationConfig:
 # The name of the renderer that every camera of guidedarm renders with (VTK, its default
 # parameters).
 RENDERER_NAME = "vtk"
-# CameraConfig fields no camera of the station reads: it renders colour images on demand
-# with RENDERER_NAME's engine (its own background) and publishes nothing.
+# CameraConfig fields no camera of the station reads: the simulated station renders colour
+# images on demand with RENDERER_NAME's engine (its own background) and publishes nothing;
+# the hardware station grabs width x height colour frames at `fps`.
 UNSUPPORTED_CAMERA_FIELDS = (
-    "fps",
     "capture_offset",
     "output_delay",
     "rgb",
@@ -144,6 +144,17 @@ class StationScenario:
             raise FieldError(
                 "visualization.lcm_bus", "the station visualizes in Meshcat only; it cannot be set"
             )
+
+    def CheckSimulated(self) -> None:
+        """Refuses what only the hardware station reads, for a simulated run: a camera's
+        `fps` (the simulated camera renders on demand)."""
+        for key, camera in self.cameras.items():
+            if UnreadCameraKey(camera, ("fps",)):
+                raise FieldError(
+                    f"cameras.{key}.fps",
+                    "the simulated station renders colour images on demand (only --hardware "
+                    "grabs frames at fps); fps cannot be set",
+                )
 
     def ToFTool(self, name: str) -> ToFToolConfig:
         """tof_tools[name] with its target_radius resolved: 0 means the station hose's

@@ -62,6 +62,7 @@ def MakeStation(
     CheckInstance("hardware", hardware, bool)
     if hardware:
         return MakeHardwareStation(scenario, meshcat)
+    scenario.CheckSimulated()
     builder = DiagramBuilder()
     plant, scene_graph = AddMultibodyPlant(scenario.plant_config, builder)
     AddStationModels(scenario, plant)

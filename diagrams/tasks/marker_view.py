@@ -37,7 +37,7 @@ from guidedarm.systems.markers.marker_pose_estimator_math import MarkerPoseSolve
 
 # CameraConfig keys marker_view does not read: the station's, and the camera's pose and name
 # (the view places the camera by distance_m and angle_deg and renders one colour image).
-UNREAD_CAMERA_KEYS = (*UNSUPPORTED_CAMERA_FIELDS, "name", "X_PB", "X_BC")
+UNREAD_CAMERA_KEYS = (*UNSUPPORTED_CAMERA_FIELDS, "fps", "name", "X_PB", "X_BC")
 
 
 @dataclass

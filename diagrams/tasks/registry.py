@@ -10,6 +10,8 @@ from typing import Any
 
 import guidedarm.diagrams.tasks as tasks_package
 from guidedarm.diagrams.run_context import RunContext
+from guidedarm.diagrams.station.scenario import StationScenario
+from guidedarm.systems.config_checks import FieldError
 from guidedarm.systems.errors import ConfigurationError
 
 # A list's elements in a metric's dotted name: `waypoint_distance_m.#`.
@@ -63,7 +65,8 @@ class TaskDefinition:
 
     def CheckRun(self, scenario: Any, flags: RunFlags) -> None:
         """Refuses (ConfigurationError, one line) running `scenario` with `flags`: a flag a
-        task that simulates no station would not read, then the task's check_run. Called
+        task that simulates no station would not read, what only the hardware station
+        reads in a simulated run (StationScenario.CheckSimulated), then the task's check_run. Called
         by `guidedarm run` before it announces the run, and by RunTask before it writes."""
         if not self.simulates:
             given = {"--hardware": flags.hardware, "--realtime": flags.realtime}
@@ -73,6 +76,12 @@ class TaskDefinition:
                     raise ConfigurationError(
                         f"{flag} has no effect on task {self.name} (it simulates no station)"
                     )
+        station = getattr(scenario, "station", None)
+        if isinstance(station, StationScenario) and not flags.hardware:
+            try:
+                station.CheckSimulated()
+            except FieldError as e:
+                raise FieldError(f"station.{e.key}", e.why) from None
         if self.check_run is not None:
             self.check_run(scenario, flags)
 
