@@ -2,16 +2,20 @@
 
 from __future__ import annotations
 
+import time
+
 import numpy as np
 import pytest
-from hardware_doubles import ScriptedArmLink
+from hardware_doubles import FreezingNachiController, ScriptedArmLink
 from pydrake.multibody.plant import MultibodyPlant
 from pydrake.systems.analysis import Simulator
 from pydrake.systems.framework import DiagramBuilder, EventStatus
 from pydrake.systems.primitives import TrajectorySource
 from pydrake.trajectories import PiecewisePolynomial
 
+from guidedarm.diagrams.cli.command_run import LoadScenario
 from guidedarm.diagrams.station.model_paths import MakeParser
+from guidedarm.diagrams.tasks.waypoints import MakePlannerSetup
 from guidedarm.systems.errors import ConfigurationError, HardwareFaultError
 from guidedarm.systems.hardware.arm_driver import ArmDriver
 from guidedarm.systems.hardware.command_guard import (
@@ -19,6 +23,7 @@ from guidedarm.systems.hardware.command_guard import (
     CommandRefusedError,
     JointLimits,
 )
+from guidedarm.systems.hardware.nachi_link import NachiLink
 
 DT = 0.002
 ACCELERATION = [20.0, 20.0, 25.0, 30.0, 30.0, 40.0]
@@ -145,3 +150,60 @@ def test_skipped_periods_do_not_inflate_the_implied_velocity(limits):
     assert driver.stale_skips == 5
     assert len(sent) == 50 - 5
     assert np.max(np.diff(sent)) == pytest.approx(5.0 * (0.060**2 - 0.048**2))
+
+
+def test_a_planner_initialized_from_the_driver_starts_where_the_arm_is():
+    """The waypoints planner reads `state_estimated` in its initialization event, in the
+    same pass as the driver's: it must see the arm as measured (the UR10e at the paper's
+    q(0), served over a real socket), not the driver's unset state. With zeros it
+    commanded shoulder_pan 1.57 rad away, refused at t = 0 (157 rad/s)."""
+    _, scenario, _ = LoadScenario("ur10e_waypoints", [])
+    setup = MakePlannerSetup(scenario)
+    q0 = np.asarray(scenario.station.arms["ur10e"].initial_position)
+    controller = FreezingNachiController(q0)
+    link = NachiLink("ur10e", "127.0.0.1", controller.port, poll_period=0.01)
+    try:
+        builder = DiagramBuilder()
+        limits = JointLimits.FromPlant(setup.plant, setup.planning.kinematics.instance, [5.0] * 6)
+        driver = builder.AddSystem(ArmDriver(link, limits, 0.01, watchdog=0.5, stale_after=0.05))
+        planner = builder.AddSystem(setup.planner)
+        builder.Connect(driver.GetOutputPort("state_estimated"), planner.get_input_port())
+        builder.Connect(planner.GetOutputPort("position_commanded"), driver.get_input_port())
+        simulator = Simulator(builder.Build())
+        simulator.set_target_realtime_rate(1.0)
+        simulator.Initialize()
+        commanded = planner.GetOutputPort("position_commanded").Eval(
+            planner.GetMyContextFromRoot(simulator.get_context())
+        )
+        np.testing.assert_allclose(commanded, q0, atol=1e-6)  # the link's 1e-6 deg format
+        simulator.AdvanceTo(0.1)  # ten commands pass the guard and reach the controller
+        assert controller.logic.moves >= 5
+    finally:
+        link.close()
+        controller.close()
+
+
+def test_a_link_without_measurements_is_refused_when_the_station_is_built():
+    """A controller that accepts RESET and answers nothing after it: the driver is not
+    built (a ConfigurationError, the run refused before any motion) within its watchdog."""
+    controller = FreezingNachiController(np.zeros(6), answers=1)
+    link = NachiLink("mz04d", "127.0.0.1", controller.port, poll_period=0.01)
+    try:
+        start = time.monotonic()
+        with pytest.raises(
+            ConfigurationError,
+            match=r"^mz04d: connected, but no measurement within the watchdog 0\.1 s$",
+        ):
+            ArmDriver(link, _Ur10eLimits(), 0.01, watchdog=0.1, stale_after=0.02)
+        assert time.monotonic() - start < 0.3
+        assert [line for _, line in controller.received_frozen][:1] == ["READ_JOINTS"]
+    finally:
+        link.close()
+        controller.close()
+
+
+def _Ur10eLimits() -> JointLimits:
+    plant = MultibodyPlant(0.0)
+    (instance,) = MakeParser(plant).AddModelsFromUrl("package://guidedarm/ur10e/ur10e.urdf")
+    plant.Finalize()
+    return JointLimits.FromPlant(plant, instance, [10.0] * 6)

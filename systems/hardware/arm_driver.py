@@ -22,7 +22,7 @@ import numpy as np
 from pydrake.systems.framework import BasicVector, Context, DiscreteValues, LeafSystem
 
 from guidedarm.systems.config_checks import POSITIVE, CheckArgument
-from guidedarm.systems.errors import HardwareFaultError
+from guidedarm.systems.errors import ConfigurationError, HardwareFaultError
 from guidedarm.systems.hardware.arm_link import ArmLink, DescribeError, JointSample, StopArm
 from guidedarm.systems.hardware.command_guard import CheckCommand, CommandRefusedError, JointLimits
 
@@ -61,8 +61,15 @@ class ArmDriver(LeafSystem):
         self._n = n
         # State: measured q, v; the last sent command q, its implied v, when it was sent
         # (context time) and the interval before it, so that skipped periods do not inflate
-        # the implied velocity and acceleration.
-        self._state = self.DeclareDiscreteState(4 * n + 2)
+        # the implied velocity and acceleration. Its default is the arm as measured now:
+        # systems that read the measurement in their own initialization event (the
+        # waypoints planner starts where the arm is) see the state before this driver's
+        # initialization event has run, which would otherwise be zeros.
+        sample = self._FirstSample()
+        if sample is None:
+            reason = self._link.fault() or f"no measurement within the watchdog {watchdog} s"
+            raise ConfigurationError(f"{link.name}: connected, but {reason}")
+        self._state = self.DeclareDiscreteState(_InitialState(sample, -period, period))
         self.DeclareVectorInputPort("position_commanded", n)
         self.DeclareVectorOutputPort("position_measured", n, self._CalcSlice(0, n))
         self.DeclareVectorOutputPort("velocity_estimated", n, self._CalcSlice(n, 2 * n))
@@ -76,21 +83,24 @@ class ArmDriver(LeafSystem):
 
         return calc
 
-    def _Initialize(self, context: Context, state: DiscreteValues) -> None:
+    def _FirstSample(self) -> JointSample | None:
+        """The link's latest sample, waiting for one at most the watchdog (None if none
+        came or the link reported a fault)."""
         deadline = time.monotonic() + self._watchdog
         sample = self._link.latest()
         while sample is None and time.monotonic() < deadline and not self._link.fault():
             time.sleep(0.001)
             sample = self._link.latest()
+        return sample
+
+    def _Initialize(self, context: Context, state: DiscreteValues) -> None:
+        sample = self._FirstSample()
         if sample is None:
             reason = self._link.fault() or f"no measurement within the watchdog {self._watchdog} s"
             self._Fail(context, reason)
-        zeros = np.zeros(self._n)
-        t = context.get_time() - self._period  # as if the current position had been sent
-        state.set_value(
-            self._state,
-            np.concatenate([sample.q, sample.v, sample.q, zeros, [t, self._period]]),
-        )
+        # as if the current position had been sent one period ago
+        t = context.get_time() - self._period
+        state.set_value(self._state, _InitialState(sample, t, self._period))
 
     def _Update(self, context: Context, state: DiscreteValues) -> None:
         n = self._n
@@ -128,3 +138,11 @@ class ArmDriver(LeafSystem):
         stop_errors = [stop_error] if stop_error else []
         what = what if stop_errors else f"{what}; arm stopped"
         raise HardwareFaultError(self._link.name, what, context.get_time(), stop_errors)
+
+
+def _InitialState(sample: JointSample, t_sent: float, period: float) -> np.ndarray:
+    """The driver's state for an arm at rest where `sample` measured it: measured q, v;
+    q sent at context time `t_sent` (s) with zero velocity, `period` (s) after the one
+    before."""
+    zeros = np.zeros_like(sample.q)
+    return np.concatenate([sample.q, sample.v, sample.q, zeros, [t_sent, period]])
