@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import re
 import time
 
 import numpy as np
@@ -21,6 +22,7 @@ from guidedarm.systems.hardware.arm_driver import ArmDriver
 from guidedarm.systems.hardware.command_guard import (
     CheckCommand,
     CommandRefusedError,
+    ImplausibleMeasurement,
     JointLimits,
 )
 from guidedarm.systems.hardware.nachi_link import NachiLink
@@ -83,6 +85,74 @@ def test_nan_command_is_refused(limits):
     q[3] = np.nan
     with pytest.raises(CommandRefusedError, match="finite"):
         CheckCommand(limits, q, np.zeros(6), np.zeros(6), DT)
+
+
+@pytest.mark.parametrize(
+    "q_offset, v, message",
+    [
+        (
+            [3.2, 0, 0, 0, 0, 0],
+            0.0,
+            r"joint joint1 at 3\.2 rad, outside its range \[-2\.967, 2\.967\]",
+        ),
+        ([2.98, 0, 0, 0, 0, 0], 0.0, None),  # 0.013 rad past the limit: an encoder's reading
+        ([0, 0, 0, 0, 0, 0], 1.51 * np.deg2rad(450), r"joint joint1 moving at 11\.86 rad/s"),
+        ([0, 0, 0, 0, 0, 0], 1.49 * np.deg2rad(450), None),
+        ([0, 0, np.nan, 0, 0, 0], 0.0, "measurement not finite"),
+        ([0, 0, 0, 0, 0], 0.0, "measurement has 5 joint positions and 6 velocities, the arm 6"),
+    ],
+)
+def test_a_measurement_the_arm_cannot_produce_is_named(limits, q_offset, v, message):
+    q = np.asarray(q_offset, float)
+    velocities = np.zeros(6)
+    velocities[0] = v
+    problem = ImplausibleMeasurement(limits, q, velocities)
+    if message is None:
+        assert problem is None
+    else:
+        assert re.search(message, problem), problem
+
+
+@pytest.mark.parametrize(
+    "offset, message",
+    [
+        # joint4 reads 20 deg away from one sample to the next: 35 rad/s over the 10 ms
+        (
+            [0, 0, 0, 0.35, 0, 0],
+            r"measured joint joint4 moving at \d+(\.\d+)? rad/s, beyond 1\.5 x its limit 9\.599",
+        ),
+        ([-3.0, 0, 0, 0, 0, 0], r"measured joint joint1 at -3 rad, outside its range"),
+    ],
+)
+def test_a_corrupted_measurement_stops_the_arm_before_another_command(offset, message):
+    """The controller's reply is corrupted (a jump, a joint beyond its range) while the
+    driver streams over a real socket: STOP is the next request after the bad reply, the
+    run fails naming the joint."""
+    q0 = np.array([0.0, np.pi / 2, 0.0, 0.0, -np.pi / 2, 0.0])
+    controller = FreezingNachiController(q0)
+    link = NachiLink("mz04d", "127.0.0.1", controller.port, poll_period=0.01)
+    plant = MultibodyPlant(0.0)
+    (instance,) = MakeParser(plant).AddModelsFromUrl("package://guidedarm/mz04d/mz04d.urdf")
+    plant.Finalize()
+    driver = ArmDriver(link, JointLimits.FromPlant(plant, instance, ACCELERATION), 0.01, 0.5, 0.05)
+    simulator = Simulator(driver)
+    driver.get_input_port().FixValue(simulator.get_mutable_context(), q0)
+    simulator.set_target_realtime_rate(1.0)
+    try:
+        simulator.AdvanceTo(0.2)
+        moves = controller.logic.moves
+        assert moves >= 10
+        controller.measurement_offset = np.array(offset)
+        with pytest.raises(
+            HardwareFaultError, match=r"on mz04d at t = 0\.\d+ s: " + message
+        ) as fault:
+            simulator.AdvanceTo(1.0)
+        assert controller.logic.stopped
+        # Within a few periods of the corruption, not after the 0.5 s watchdog.
+        assert fault.value.t < 0.2 + 0.05, fault.value
+    finally:
+        link.close()
+        controller.close()
 
 
 def _Simulate(link, limits, command, t_final, watchdog=0.1):
