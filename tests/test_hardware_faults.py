@@ -13,12 +13,14 @@ hardware) are one line and exit 2.
 
 from __future__ import annotations
 
+import contextlib
 import json
 import re
 import signal
 import socket
 import subprocess
 import sys
+import threading
 import time
 from pathlib import Path
 
@@ -36,6 +38,7 @@ from guidedarm.diagrams.tasks.path_following import MakeSetup
 from guidedarm.systems.errors import HardwareFaultError
 from guidedarm.systems.hardware.arm_driver import ArmDriver
 from guidedarm.systems.hardware.command_guard import JointLimits
+from guidedarm.systems.hardware.line_socket import LineSocket
 from guidedarm.systems.hardware.nachi_link import NachiLink
 
 WATCHDOG = 0.5  # s, arm and ToF tool: the emulator shares the 2 cores with the run
@@ -81,6 +84,71 @@ def test_frozen_controller_is_sent_stop_within_watchdog_plus_a_period():
     # No target followed the STOP.
     after = [line for t, line in controller.received_frozen if t > stops[0]]
     assert not [line for line in after if line.startswith(("SET_TARGET", "MOVE"))]
+
+
+class ScriptedNachiController:
+    """A controller on 127.0.0.1 that answers RESET, SERVO and STOP with OK and READ_JOINTS
+    with the arm at rest on the host clock, except that its `fault_at`-th reply to
+    READ_JOINTS is sent twice (`duplicate`) or replaced by an OK (`swap`: the JOINTS
+    reply lost, an OK in its place). It records the request lines."""
+
+    def __init__(self, fault: str, fault_at: int = 5) -> None:
+        self._server = socket.create_server(("127.0.0.1", 0))
+        self.port = self._server.getsockname()[1]
+        self.requests: list[str] = []
+        self._fault, self._fault_at = fault, fault_at
+        threading.Thread(target=self._Serve, daemon=True).start()
+
+    def _Serve(self) -> None:
+        connection, _ = self._server.accept()
+        start, reads = time.monotonic(), 0
+        lines = LineSocket(connection)
+        with connection, contextlib.suppress(OSError):
+            while True:
+                line = lines.ReadLine()
+                self.requests.append(line)
+                if line != "READ_JOINTS":
+                    lines.WriteLines("OK")
+                    continue
+                reads += 1
+                joints = f"JOINTS {time.monotonic() - start:.4f} 0 90 0 0 -90 0"
+                if reads != self._fault_at:
+                    lines.WriteLines(joints)
+                elif self._fault == "duplicate":
+                    lines.WriteLines(joints, joints)
+                else:
+                    lines.WriteLines("OK")
+
+    def close(self) -> None:
+        self._server.close()
+
+
+@pytest.mark.parametrize(
+    "fault, message",
+    [
+        ("duplicate", r"a reply without a request: 'JOINTS \d+\.\d{4} 0 90 0 0 -90 0'"),
+        ("swap", r"'OK' answered READ_JOINTS"),
+    ],
+)
+def test_replies_out_of_step_fault_the_link_and_stop_is_unconfirmed(fault, message):
+    """One reply too many or one of the wrong kind: every later reply could answer an
+    earlier request (a stale JOINTS taken as new, an old OK as the STOP's), so the link
+    faults at once; STOP is still sent, and reported unconfirmed."""
+    controller = ScriptedNachiController(fault)
+    link = NachiLink("mz04d", "127.0.0.1", controller.port, poll_period=0.005)
+    try:
+        deadline = time.monotonic() + 2.0
+        while link.fault() is None and time.monotonic() < deadline:
+            link.send_position(np.deg2rad([0, 90, 0, 0, -90, 0]), 0.005)
+            time.sleep(0.005)
+        assert re.fullmatch("replies out of step with requests: " + message, link.fault() or "")
+        with pytest.raises(ConnectionError, match="STOP sent, unconfirmed: replies out of step"):
+            link.stop()
+        time.sleep(0.05)
+        assert controller.requests[-1] == "STOP"
+    finally:
+        link.close()
+        controller.close()
 
 
 @pytest.fixture(scope="module")

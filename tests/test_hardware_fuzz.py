@@ -252,3 +252,12 @@ def test_rtde_double_survives_any_bytes_and_serves_the_next_request(data):
 
     packets = rtde.SplitPackets(bytearray(_Exchange(serve, stream)))
     assert packets[-1] == rtde.Packet(rtde.REQUEST_PROTOCOL_VERSION, b"\x01")
+
+
+@FUZZ
+@given(word=st.sampled_from(WORDS), data=BYTES)
+def test_replies_out_of_step_never_raises_and_accepts_ng(word, data):
+    request = _Text(word).split()[0]
+    line = _Text(data)
+    nachi.RepliesOutOfStep(request, line)  # any text: a bool, no exception
+    assert not nachi.RepliesOutOfStep(request, "NG " + line)
