@@ -372,6 +372,26 @@ def test_tof_silent_while_following_continuously_stops_the_arm(cell, tmp_path):
     assert cell.State() == "STOPPED"
 
 
+def test_sigterm_while_streaming_stops_the_arm_before_the_report(cell, tmp_path):
+    """SIGTERM while the arm follows continuously: STOP goes out at once, not after the
+    seconds the interrupted run's figures and replay take (the emulator's streaming
+    timeout, 0.5 s, would otherwise have latched TIMEOUT first); the summary says why."""
+    run = Run(cell, tmp_path / "out", cell.tof_device, *CONTINUOUS)
+    run.WaitUntilStreaming(cell, moves=60)
+    signal_time = time.monotonic()
+    run.process.send_signal(signal.SIGTERM)
+    while (state := cell.State()) == "SERVO" and time.monotonic() - signal_time < 5.0:
+        time.sleep(0.01)
+    stopped_after = time.monotonic() - signal_time
+    run.Wait()
+    output = run.Output()
+    print(f"\nSIGTERM while streaming: {state} after {stopped_after:.3f} s")
+    assert state == "STOPPED" and stopped_after < WATCHDOG, (state, stopped_after)
+    assert run.process.returncode == 1, output
+    assert run.Failure() == "interrupted by SIGTERM"
+    assert "Traceback" not in output
+
+
 def test_refused_command_is_not_sent_and_ends_the_run(cell, tmp_path):
     # The follower accelerates its joints at up to 5 rad/s^2; the guard allows 0.05.
     limits = "station.hardware.arms.mz04d.acceleration_limits=[0.05, 0.05, 0.05, 0.05, 0.05, 0.05]"
