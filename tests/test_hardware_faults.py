@@ -35,7 +35,7 @@ from pydrake.systems.primitives import ConstantVectorSource
 from guidedarm.diagrams.cli.command_run import LoadScenario
 from guidedarm.diagrams.station.model_paths import MakeParser
 from guidedarm.diagrams.tasks.path_following import MakeSetup
-from guidedarm.systems.errors import HardwareFaultError
+from guidedarm.systems.errors import ConfigurationError, HardwareFaultError
 from guidedarm.systems.hardware.arm_driver import ArmDriver
 from guidedarm.systems.hardware.command_guard import JointLimits
 from guidedarm.systems.hardware.line_socket import LineSocket
@@ -452,6 +452,12 @@ def _RunRefused(*args: str) -> subprocess.CompletedProcess:
             + ["station.hardware.arms.mz04d={driver: nachi_tcp, gain: 1000}"],
             "'station.hardware.arms.mz04d.gain': applies to the ur_rtde driver only",
         ),
+        (  # a DNS label longer than 63 characters: not a connection error of the socket
+            ["run", "path_following", "--hardware", "--set"]
+            + [f"station.hardware.arms.mz04d={{driver: nachi_tcp, host: {'a' * 64}.cell}}"],
+            f"'station.hardware.arms.mz04d.host': '{'a' * 64}.cell' is not a host name or "
+            "address (encoding with 'idna' codec failed (UnicodeError: label empty or too long))",
+        ),
     ],
 )
 def test_refusals_before_a_run_are_one_line(args, message, tmp_path):
@@ -489,3 +495,8 @@ def test_an_arm_away_from_the_start_pose_is_refused_before_any_command(q_start, 
         assert cell.Moves() == 0
     finally:
         cell.Close()
+
+
+def test_a_link_to_a_host_name_idna_refuses_is_a_refusal():
+    with pytest.raises(ConfigurationError, match=r"^mz04d: cannot reach a{64}\.cell:48000: "):
+        NachiLink("mz04d", "a" * 64 + ".cell", 48000)

@@ -94,7 +94,7 @@ class NachiLink:
         self._stop_timeout = stop_timeout
         try:
             connection = socket.create_connection((host, port), timeout=connect_timeout)
-        except (OSError, OverflowError) as e:
+        except (OSError, OverflowError, ValueError) as e:  # ValueError: a name IDNA refuses
             raise ConfigurationError(f"{name}: cannot reach {host}:{port}: {e}") from None
         connection.setsockopt(socket.IPPROTO_TCP, socket.TCP_NODELAY, 1)
         # Reads block (close() shuts the socket down); sends give up after SEND_TIMEOUT.
