@@ -15,6 +15,7 @@ from __future__ import annotations
 
 import contextlib
 import json
+import os
 import re
 import signal
 import socket
@@ -22,6 +23,7 @@ import subprocess
 import sys
 import threading
 import time
+import tty
 from pathlib import Path
 
 import numpy as np
@@ -40,6 +42,9 @@ from guidedarm.systems.hardware.arm_driver import ArmDriver
 from guidedarm.systems.hardware.command_guard import JointLimits
 from guidedarm.systems.hardware.line_socket import LineSocket
 from guidedarm.systems.hardware.nachi_link import NachiLink
+from guidedarm.systems.hardware.tof_driver import ToFDriver
+from guidedarm.systems.hardware.tof_protocol import FormatTofLine, ToFLineCollector
+from guidedarm.systems.hardware.tof_transports import SerialTransport
 
 WATCHDOG = 0.5  # s, arm and ToF tool: the emulator shares the 2 cores with the run
 CLI = [sys.executable, "-m", "guidedarm.diagrams.cli.main"]
@@ -500,3 +505,40 @@ def test_an_arm_away_from_the_start_pose_is_refused_before_any_command(q_start, 
 def test_a_link_to_a_host_name_idna_refuses_is_a_refusal():
     with pytest.raises(ConfigurationError, match=r"^mz04d: cannot reach a{64}\.cell:48000: "):
         NachiLink("mz04d", "a" * 64 + ".cell", 48000)
+
+
+def test_a_tof_tool_resending_its_last_line_trips_the_watchdog():
+    """The tool's firmware stuck resending one line over a real pty: the line is well
+    formed, but its sequence number does not advance; the readings are stale, so the ToF
+    watchdog stops the arms as for a silent tool, counting the resent lines."""
+    master, slave = os.openpty()
+    tty.setraw(slave)
+    collector = ToFLineCollector()
+    transport = SerialTransport(collector, os.ttyname(slave), 115200)
+    driver = ToFDriver(collector, period=0.02, watchdog=0.2)
+    simulator = Simulator(driver)
+    simulator.set_target_realtime_rate(1.0)
+    line = (FormatTofLine(7, np.full(6, 40), np.zeros(6, int)) + "\r\n").encode()
+    stop = threading.Event()
+
+    def resend() -> None:
+        while not stop.wait(0.02):
+            os.write(master, line)
+
+    writer = threading.Thread(target=resend, daemon=True)
+    writer.start()
+    try:
+        with pytest.raises(
+            HardwareFaultError,
+            match=r"on tof at t = 0\.\d+ s: no valid line for 0\.2\d* s \(watchdog 0\.2 s, "
+            r"\d+ lines rejected\); arms stopped$",
+        ):
+            simulator.AdvanceTo(2.0)
+        assert simulator.get_context().get_time() < 0.4
+        assert collector.accepted == 1 and collector.rejected >= 5
+    finally:
+        stop.set()
+        writer.join()
+        transport.close()
+        os.close(master)
+        os.close(slave)
