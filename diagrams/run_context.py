@@ -26,9 +26,10 @@ from typing import Any
 from pydrake.geometry import Meshcat, MeshcatParams
 from pydrake.systems.analysis import Simulator
 
-from guidedarm.diagrams.interrupts import RaiseIfInterrupted, TakeInterrupt
+from guidedarm.diagrams.interrupts import DeferredInterrupts, RaiseIfInterrupted, TakeInterrupt
 from guidedarm.diagrams.station.hardware_config import ListenHostProblem
 from guidedarm.systems.errors import ConfigurationError, GuidedArmError
+from guidedarm.systems.hardware.arm_link import ReportStopErrors, StopAllArms
 
 REPLAY_FILE = "replay.html"
 SUMMARY_FILE = "summary.json"
@@ -237,12 +238,19 @@ def AdvanceWithProgress(
     """
     context.pace(simulator, t_final)
     t = simulator.get_context().get_time()
-    while t < t_final:
-        status = simulator.AdvanceTo(min(t + chunk_s, t_final))
-        t = simulator.get_context().get_time()
-        context.progress(describe or (lambda t=t: f"simulated {t:.2f} / {t_final:.2f} s"))
-        if status.reason() != status.ReturnReason.kReachedBoundaryTime:
-            break
+    try:
+        while t < t_final:
+            status = simulator.AdvanceTo(min(t + chunk_s, t_final))
+            t = simulator.get_context().get_time()
+            context.progress(describe or (lambda t=t: f"simulated {t:.2f} / {t_final:.2f} s"))
+            if status.reason() != status.ReturnReason.kReachedBoundaryTime:
+                break
+    except KeyboardInterrupt:
+        # Ctrl-C or SIGTERM: hardware arms are told to stop now, not after the report of
+        # the interrupted run (seconds of figures and replay) at the end of the command.
+        with DeferredInterrupts():
+            ReportStopErrors(StopAllArms(), "after the interrupt")
+        raise
     return t
 
 

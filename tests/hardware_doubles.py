@@ -83,13 +83,16 @@ class FreezingNachiController:
     """A Nachi controller on 127.0.0.1 (NachiControllerLogic, the arm exactly where it is
     commanded, the controller clock the host's) that can `freeze`: from then on it receives
     and records request lines with their arrival times but answers none, as a controller
-    whose task hangs while its TCP stack still accepts bytes."""
+    whose task hangs while its TCP stack still accepts bytes; it freezes by itself after
+    answering `answers` lines. `measurement_offset` corrupts the joints it reports."""
 
-    def __init__(self, q0: np.ndarray) -> None:
+    def __init__(self, q0: np.ndarray, answers: float = np.inf) -> None:
         self.logic = NachiControllerLogic(np.full(6, -np.pi), np.full(6, np.pi), q0)
         self._server = socket.create_server(("127.0.0.1", 0))
         self.port = self._server.getsockname()[1]
         self.frozen = False
+        self._answers = answers
+        self.measurement_offset = np.zeros(6)  # rad, added to the joints it reports
         # host time (time.monotonic(), s) the last joint measurement (a READ_JOINTS reply) was sent
         self.last_measurement = 0.0
         self.received_frozen: list[tuple[float, str]] = []
@@ -103,11 +106,14 @@ class FreezingNachiController:
         with connection, contextlib.suppress(OSError):
             while True:
                 line = lines.ReadLine()
+                self.frozen = self.frozen or self._answers <= 0
+                self._answers -= 1
                 if self.frozen:
                     self.received_frozen.append((time.monotonic(), line))
                     continue
                 q = self.logic.commanded
                 self.logic.Measure(time.monotonic() - start, q, np.zeros(3), np.zeros(3))
+                self.logic.measured = q + self.measurement_offset
                 replies = self.logic.Handle(line)
                 # The driver's watchdog runs from its newest measurement: the reply to a
                 # target (OK) refreshes nothing. Stamped before the write, which the link

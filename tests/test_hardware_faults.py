@@ -13,13 +13,17 @@ hardware) are one line and exit 2.
 
 from __future__ import annotations
 
+import contextlib
 import json
+import os
 import re
 import signal
 import socket
 import subprocess
 import sys
+import threading
 import time
+import tty
 from pathlib import Path
 
 import numpy as np
@@ -33,10 +37,14 @@ from pydrake.systems.primitives import ConstantVectorSource
 from guidedarm.diagrams.cli.command_run import LoadScenario
 from guidedarm.diagrams.station.model_paths import MakeParser
 from guidedarm.diagrams.tasks.path_following import MakeSetup
-from guidedarm.systems.errors import HardwareFaultError
+from guidedarm.systems.errors import ConfigurationError, HardwareFaultError
 from guidedarm.systems.hardware.arm_driver import ArmDriver
 from guidedarm.systems.hardware.command_guard import JointLimits
+from guidedarm.systems.hardware.line_socket import LineSocket
 from guidedarm.systems.hardware.nachi_link import NachiLink
+from guidedarm.systems.hardware.tof_driver import ToFDriver
+from guidedarm.systems.hardware.tof_protocol import FormatTofLine, ToFLineCollector
+from guidedarm.systems.hardware.tof_transports import SerialTransport
 
 WATCHDOG = 0.5  # s, arm and ToF tool: the emulator shares the 2 cores with the run
 CLI = [sys.executable, "-m", "guidedarm.diagrams.cli.main"]
@@ -81,6 +89,71 @@ def test_frozen_controller_is_sent_stop_within_watchdog_plus_a_period():
     # No target followed the STOP.
     after = [line for t, line in controller.received_frozen if t > stops[0]]
     assert not [line for line in after if line.startswith(("SET_TARGET", "MOVE"))]
+
+
+class ScriptedNachiController:
+    """A controller on 127.0.0.1 that answers RESET, SERVO and STOP with OK and READ_JOINTS
+    with the arm at rest on the host clock, except that its `fault_at`-th reply to
+    READ_JOINTS is sent twice (`duplicate`) or replaced by an OK (`swap`: the JOINTS
+    reply lost, an OK in its place). It records the request lines."""
+
+    def __init__(self, fault: str, fault_at: int = 5) -> None:
+        self._server = socket.create_server(("127.0.0.1", 0))
+        self.port = self._server.getsockname()[1]
+        self.requests: list[str] = []
+        self._fault, self._fault_at = fault, fault_at
+        threading.Thread(target=self._Serve, daemon=True).start()
+
+    def _Serve(self) -> None:
+        connection, _ = self._server.accept()
+        start, reads = time.monotonic(), 0
+        lines = LineSocket(connection)
+        with connection, contextlib.suppress(OSError):
+            while True:
+                line = lines.ReadLine()
+                self.requests.append(line)
+                if line != "READ_JOINTS":
+                    lines.WriteLines("OK")
+                    continue
+                reads += 1
+                joints = f"JOINTS {time.monotonic() - start:.4f} 0 90 0 0 -90 0"
+                if reads != self._fault_at:
+                    lines.WriteLines(joints)
+                elif self._fault == "duplicate":
+                    lines.WriteLines(joints, joints)
+                else:
+                    lines.WriteLines("OK")
+
+    def close(self) -> None:
+        self._server.close()
+
+
+@pytest.mark.parametrize(
+    "fault, message",
+    [
+        ("duplicate", r"a reply without a request: 'JOINTS \d+\.\d{4} 0 90 0 0 -90 0'"),
+        ("swap", r"'OK' answered READ_JOINTS"),
+    ],
+)
+def test_replies_out_of_step_fault_the_link_and_stop_is_unconfirmed(fault, message):
+    """One reply too many or one of the wrong kind: every later reply could answer an
+    earlier request (a stale JOINTS taken as new, an old OK as the STOP's), so the link
+    faults at once; STOP is still sent, and reported unconfirmed."""
+    controller = ScriptedNachiController(fault)
+    link = NachiLink("mz04d", "127.0.0.1", controller.port, poll_period=0.005)
+    try:
+        deadline = time.monotonic() + 2.0
+        while link.fault() is None and time.monotonic() < deadline:
+            link.send_position(np.deg2rad([0, 90, 0, 0, -90, 0]), 0.005)
+            time.sleep(0.005)
+        assert re.fullmatch("replies out of step with requests: " + message, link.fault() or "")
+        with pytest.raises(ConnectionError, match="STOP sent, unconfirmed: replies out of step"):
+            link.stop()
+        time.sleep(0.05)
+        assert controller.requests[-1] == "STOP"
+    finally:
+        link.close()
+        controller.close()
 
 
 @pytest.fixture(scope="module")
@@ -316,6 +389,26 @@ def test_tof_silent_while_following_continuously_stops_the_arm(cell, tmp_path):
     assert cell.State() == "STOPPED"
 
 
+def test_sigterm_while_streaming_stops_the_arm_before_the_report(cell, tmp_path):
+    """SIGTERM while the arm follows continuously: STOP goes out at once, not after the
+    seconds the interrupted run's figures and replay take (the emulator's streaming
+    timeout, 0.5 s, would otherwise have latched TIMEOUT first); the summary says why."""
+    run = Run(cell, tmp_path / "out", cell.tof_device, *CONTINUOUS)
+    run.WaitUntilStreaming(cell, moves=60)
+    signal_time = time.monotonic()
+    run.process.send_signal(signal.SIGTERM)
+    while (state := cell.State()) == "SERVO" and time.monotonic() - signal_time < 5.0:
+        time.sleep(0.01)
+    stopped_after = time.monotonic() - signal_time
+    run.Wait()
+    output = run.Output()
+    print(f"\nSIGTERM while streaming: {state} after {stopped_after:.3f} s")
+    assert state == "STOPPED" and stopped_after < WATCHDOG, (state, stopped_after)
+    assert run.process.returncode == 1, output
+    assert run.Failure() == "interrupted by SIGTERM"
+    assert "Traceback" not in output
+
+
 def test_refused_command_is_not_sent_and_ends_the_run(cell, tmp_path):
     # The follower accelerates its joints at up to 5 rad/s^2; the guard allows 0.05.
     limits = "[0.05, 0.05, 0.05, 0.05, 0.05, 0.05]"
@@ -376,6 +469,12 @@ def _RunRefused(*args: str) -> subprocess.CompletedProcess:
             + ["station.hardware.arms.mz04d={driver: nachi_tcp, gain: 1000}"],
             "'station.hardware.arms.mz04d.gain': applies to the ur_rtde driver only",
         ),
+        (  # a DNS label longer than 63 characters: not a connection error of the socket
+            ["run", "path_following", "--hardware", "--set"]
+            + [f"station.hardware.arms.mz04d={{driver: nachi_tcp, host: {'a' * 64}.cell}}"],
+            f"'station.hardware.arms.mz04d.host': '{'a' * 64}.cell' is not a host name or "
+            "address (encoding with 'idna' codec failed (UnicodeError: label empty or too long))",
+        ),
     ],
 )
 def test_refusals_before_a_run_are_one_line(args, message, tmp_path):
@@ -413,3 +512,45 @@ def test_an_arm_away_from_the_start_pose_is_refused_before_any_command(q_start, 
         assert cell.Moves() == 0
     finally:
         cell.Close()
+
+
+def test_a_link_to_a_host_name_idna_refuses_is_a_refusal():
+    with pytest.raises(ConfigurationError, match=r"^mz04d: cannot reach a{64}\.cell:48000: "):
+        NachiLink("mz04d", "a" * 64 + ".cell", 48000)
+
+
+def test_a_tof_tool_resending_its_last_line_trips_the_watchdog():
+    """The tool's firmware stuck resending one line over a real pty: the line is well
+    formed, but its sequence number does not advance; the readings are stale, so the ToF
+    watchdog stops the arms as for a silent tool, counting the resent lines."""
+    master, slave = os.openpty()
+    tty.setraw(slave)
+    collector = ToFLineCollector()
+    transport = SerialTransport(collector, os.ttyname(slave), 115200)
+    driver = ToFDriver(collector, period=0.02, watchdog=0.2)
+    simulator = Simulator(driver)
+    simulator.set_target_realtime_rate(1.0)
+    line = (FormatTofLine(7, np.full(6, 40), np.zeros(6, int)) + "\r\n").encode()
+    stop = threading.Event()
+
+    def resend() -> None:
+        while not stop.wait(0.02):
+            os.write(master, line)
+
+    writer = threading.Thread(target=resend, daemon=True)
+    writer.start()
+    try:
+        with pytest.raises(
+            HardwareFaultError,
+            match=r"on tof at t = 0\.\d+ s: no valid line for 0\.2\d* s \(watchdog 0\.2 s, "
+            r"\d+ lines rejected\); arms stopped$",
+        ):
+            simulator.AdvanceTo(2.0)
+        assert simulator.get_context().get_time() < 0.4
+        assert collector.accepted == 1 and collector.rejected >= 5
+    finally:
+        stop.set()
+        writer.join()
+        transport.close()
+        os.close(master)
+        os.close(slave)

@@ -182,9 +182,10 @@ def test_tof_parser_raises_only_its_line_error(data):
         assert reading.ranges.shape == (6,) and 0 <= reading.seq <= 65535
 
 
+# A good line with a sequence number to give: the stream numbers its lines in order (a
+# line that does not advance the number is stale).
 GOOD_LINE = st.builds(
-    lambda seq, ranges, status: FormatTofLine(seq, np.array(ranges), np.array(status)).encode(),
-    st.integers(0, 65535),
+    lambda ranges, status: lambda seq: FormatTofLine(seq, np.array(ranges), np.array(status)),
     st.lists(st.integers(0, 255), min_size=6, max_size=6),
     st.lists(st.sampled_from([0, 6, 7, 11]), min_size=6, max_size=6),
 )
@@ -198,7 +199,10 @@ GARBAGE_LINE = BYTES.map(lambda b: b.replace(b"\n", b"").replace(b"$", b"")[: MA
     st.lists(st.integers(1, 40), min_size=1, max_size=20),
 )
 def test_tof_collector_keeps_good_lines_between_garbage_however_chunked(lines, chunk_sizes):
-    stream = b"".join((good if is_good else garbage) + b"\r\n" for is_good, good, garbage in lines)
+    stream = b"".join(
+        (good(seq).encode() if is_good else garbage) + b"\r\n"
+        for seq, (is_good, good, garbage) in enumerate(lines)
+    )
     collector = ToFLineCollector()
     position, k = 0, 0
     while position < len(stream):
@@ -252,3 +256,25 @@ def test_rtde_double_survives_any_bytes_and_serves_the_next_request(data):
 
     packets = rtde.SplitPackets(bytearray(_Exchange(serve, stream)))
     assert packets[-1] == rtde.Packet(rtde.REQUEST_PROTOCOL_VERSION, b"\x01")
+
+
+@FUZZ
+@given(word=st.sampled_from(WORDS), data=BYTES)
+def test_replies_out_of_step_never_raises_and_accepts_ng(word, data):
+    request = _Text(word).split()[0]
+    line = _Text(data)
+    nachi.RepliesOutOfStep(request, line)  # any text: a bool, no exception
+    assert not nachi.RepliesOutOfStep(request, "NG " + line)
+
+
+def test_tof_lines_that_repeat_or_go_back_are_stale():
+    collector = ToFLineCollector()
+    ranges, status = np.full(6, 40), np.zeros(6, int)
+    accepted = []
+    for seq in [65534, 65535, 65535, 0, 65530, 0, 1, 5, 4, 40000]:
+        before = collector.accepted
+        collector.Feed((FormatTofLine(seq, ranges, status) + "\r\n").encode())
+        accepted.append(collector.accepted > before)
+    # the repeat, 6 behind, the repeat of 0, 1 behind: stale; a wrap and a restart are new
+    assert accepted == [True, True, False, True, False, False, True, True, False, True]
+    assert collector.rejected == 4 and collector.latest()[0].seq == 40000

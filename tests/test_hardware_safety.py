@@ -2,23 +2,30 @@
 
 from __future__ import annotations
 
+import re
+import time
+
 import numpy as np
 import pytest
-from hardware_doubles import ScriptedArmLink
+from hardware_doubles import FreezingNachiController, ScriptedArmLink
 from pydrake.multibody.plant import MultibodyPlant
 from pydrake.systems.analysis import Simulator
 from pydrake.systems.framework import DiagramBuilder, EventStatus
 from pydrake.systems.primitives import TrajectorySource
 from pydrake.trajectories import PiecewisePolynomial
 
+from guidedarm.diagrams.cli.command_run import LoadScenario
 from guidedarm.diagrams.station.model_paths import MakeParser
+from guidedarm.diagrams.tasks.waypoints import MakePlannerSetup
 from guidedarm.systems.errors import ConfigurationError, HardwareFaultError
 from guidedarm.systems.hardware.arm_driver import ArmDriver
 from guidedarm.systems.hardware.command_guard import (
     CheckCommand,
     CommandRefusedError,
+    ImplausibleMeasurement,
     JointLimits,
 )
+from guidedarm.systems.hardware.nachi_link import NachiLink
 
 DT = 0.002
 ACCELERATION = [20.0, 20.0, 25.0, 30.0, 30.0, 40.0]
@@ -78,6 +85,74 @@ def test_nan_command_is_refused(limits):
     q[3] = np.nan
     with pytest.raises(CommandRefusedError, match="finite"):
         CheckCommand(limits, q, np.zeros(6), np.zeros(6), DT)
+
+
+@pytest.mark.parametrize(
+    "q_offset, v, message",
+    [
+        (
+            [3.2, 0, 0, 0, 0, 0],
+            0.0,
+            r"joint joint1 at 3\.2 rad, outside its range \[-2\.967, 2\.967\]",
+        ),
+        ([2.98, 0, 0, 0, 0, 0], 0.0, None),  # 0.013 rad past the limit: an encoder's reading
+        ([0, 0, 0, 0, 0, 0], 1.51 * np.deg2rad(450), r"joint joint1 moving at 11\.86 rad/s"),
+        ([0, 0, 0, 0, 0, 0], 1.49 * np.deg2rad(450), None),
+        ([0, 0, np.nan, 0, 0, 0], 0.0, "measurement not finite"),
+        ([0, 0, 0, 0, 0], 0.0, "measurement has 5 joint positions and 6 velocities, the arm 6"),
+    ],
+)
+def test_a_measurement_the_arm_cannot_produce_is_named(limits, q_offset, v, message):
+    q = np.asarray(q_offset, float)
+    velocities = np.zeros(6)
+    velocities[0] = v
+    problem = ImplausibleMeasurement(limits, q, velocities)
+    if message is None:
+        assert problem is None
+    else:
+        assert re.search(message, problem), problem
+
+
+@pytest.mark.parametrize(
+    "offset, message",
+    [
+        # joint4 reads 20 deg away from one sample to the next: 35 rad/s over the 10 ms
+        (
+            [0, 0, 0, 0.35, 0, 0],
+            r"measured joint joint4 moving at \d+(\.\d+)? rad/s, beyond 1\.5 x its limit 9\.599",
+        ),
+        ([-3.0, 0, 0, 0, 0, 0], r"measured joint joint1 at -3 rad, outside its range"),
+    ],
+)
+def test_a_corrupted_measurement_stops_the_arm_before_another_command(offset, message):
+    """The controller's reply is corrupted (a jump, a joint beyond its range) while the
+    driver streams over a real socket: STOP is the next request after the bad reply, the
+    run fails naming the joint."""
+    q0 = np.array([0.0, np.pi / 2, 0.0, 0.0, -np.pi / 2, 0.0])
+    controller = FreezingNachiController(q0)
+    link = NachiLink("mz04d", "127.0.0.1", controller.port, poll_period=0.01)
+    plant = MultibodyPlant(0.0)
+    (instance,) = MakeParser(plant).AddModelsFromUrl("package://guidedarm/mz04d/mz04d.urdf")
+    plant.Finalize()
+    driver = ArmDriver(link, JointLimits.FromPlant(plant, instance, ACCELERATION), 0.01, 0.5, 0.05)
+    simulator = Simulator(driver)
+    driver.get_input_port().FixValue(simulator.get_mutable_context(), q0)
+    simulator.set_target_realtime_rate(1.0)
+    try:
+        simulator.AdvanceTo(0.2)
+        moves = controller.logic.moves
+        assert moves >= 10
+        controller.measurement_offset = np.array(offset)
+        with pytest.raises(
+            HardwareFaultError, match=r"on mz04d at t = 0\.\d+ s: " + message
+        ) as fault:
+            simulator.AdvanceTo(1.0)
+        assert controller.logic.stopped
+        # Within a few periods of the corruption, not after the 0.5 s watchdog.
+        assert fault.value.t < 0.2 + 0.05, fault.value
+    finally:
+        link.close()
+        controller.close()
 
 
 def _Simulate(link, limits, command, t_final, watchdog=0.1):
@@ -145,3 +220,60 @@ def test_skipped_periods_do_not_inflate_the_implied_velocity(limits):
     assert driver.stale_skips == 5
     assert len(sent) == 50 - 5
     assert np.max(np.diff(sent)) == pytest.approx(5.0 * (0.060**2 - 0.048**2))
+
+
+def test_a_planner_initialized_from_the_driver_starts_where_the_arm_is():
+    """The waypoints planner reads `state_estimated` in its initialization event, in the
+    same pass as the driver's: it must see the arm as measured (the UR10e at the paper's
+    q(0), served over a real socket), not the driver's unset state. With zeros it
+    commanded shoulder_pan 1.57 rad away, refused at t = 0 (157 rad/s)."""
+    _, scenario, _ = LoadScenario("ur10e_waypoints", [])
+    setup = MakePlannerSetup(scenario)
+    q0 = np.asarray(scenario.station.arms["ur10e"].initial_position)
+    controller = FreezingNachiController(q0)
+    link = NachiLink("ur10e", "127.0.0.1", controller.port, poll_period=0.01)
+    try:
+        builder = DiagramBuilder()
+        limits = JointLimits.FromPlant(setup.plant, setup.planning.kinematics.instance, [5.0] * 6)
+        driver = builder.AddSystem(ArmDriver(link, limits, 0.01, watchdog=0.5, stale_after=0.05))
+        planner = builder.AddSystem(setup.planner)
+        builder.Connect(driver.GetOutputPort("state_estimated"), planner.get_input_port())
+        builder.Connect(planner.GetOutputPort("position_commanded"), driver.get_input_port())
+        simulator = Simulator(builder.Build())
+        simulator.set_target_realtime_rate(1.0)
+        simulator.Initialize()
+        commanded = planner.GetOutputPort("position_commanded").Eval(
+            planner.GetMyContextFromRoot(simulator.get_context())
+        )
+        np.testing.assert_allclose(commanded, q0, atol=1e-6)  # the link's 1e-6 deg format
+        simulator.AdvanceTo(0.1)  # ten commands pass the guard and reach the controller
+        assert controller.logic.moves >= 5
+    finally:
+        link.close()
+        controller.close()
+
+
+def test_a_link_without_measurements_is_refused_when_the_station_is_built():
+    """A controller that accepts RESET and answers nothing after it: the driver is not
+    built (a ConfigurationError, the run refused before any motion) within its watchdog."""
+    controller = FreezingNachiController(np.zeros(6), answers=1)
+    link = NachiLink("mz04d", "127.0.0.1", controller.port, poll_period=0.01)
+    try:
+        start = time.monotonic()
+        with pytest.raises(
+            ConfigurationError,
+            match=r"^mz04d: connected, but no measurement within the watchdog 0\.1 s$",
+        ):
+            ArmDriver(link, _Ur10eLimits(), 0.01, watchdog=0.1, stale_after=0.02)
+        assert time.monotonic() - start < 0.3
+        assert [line for _, line in controller.received_frozen][:1] == ["READ_JOINTS"]
+    finally:
+        link.close()
+        controller.close()
+
+
+def _Ur10eLimits() -> JointLimits:
+    plant = MultibodyPlant(0.0)
+    (instance,) = MakeParser(plant).AddModelsFromUrl("package://guidedarm/ur10e/ur10e.urdf")
+    plant.Finalize()
+    return JointLimits.FromPlant(plant, instance, [10.0] * 6)

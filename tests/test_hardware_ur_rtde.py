@@ -100,6 +100,24 @@ def test_quiet_link_stops_the_robot_and_fails_the_run():
         StopServer(process)
 
 
+def test_timestamps_running_backwards_are_stale_and_trip_the_watchdog():
+    """The controller keeps streaming, its `timestamp` running backwards after 0.3 s: its
+    samples are not new (they were taken as new while they differed from the last one), so
+    no command follows them and the watchdog stops the robot."""
+    process, _, control, link = _Connect("--backwards-after", "0.3")
+    try:
+        start = time.monotonic()
+        with pytest.raises(
+            HardwareFaultError, match=r"ur10e at .*: link quiet for 0\.1\d* s \(watchdog 0.1 s\)"
+        ):
+            _RunDriver(link, 5.0)
+        assert time.monotonic() - start < 1.5
+        assert control.Count("servoStop") == 1
+    finally:
+        link.close()
+        StopServer(process)
+
+
 def test_double_rejects_malformed_packets_and_keeps_serving():
     process, port = StartServer(
         "guidedarm.systems.hardware.rtde_double", "--port", "0", stderr=subprocess.PIPE

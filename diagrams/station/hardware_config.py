@@ -56,6 +56,17 @@ def _CheckText(key: str, value: str) -> None:
         raise FieldError(key, "must not be empty")
 
 
+def _CheckHost(key: str, host: str) -> None:
+    """A host name or address that name resolution can be asked about: not empty, and each
+    dot-separated label of a name 1..63 characters (IDNA; longer labels made the socket
+    library raise UnicodeError, not a connection error)."""
+    _CheckText(key, host)
+    try:
+        host.encode("idna")
+    except UnicodeError as e:
+        raise FieldError(key, f"'{host}' is not a host name or address ({e})") from None
+
+
 @dataclass
 class ArmDriverConfig:
     """One arm's controller link.
@@ -93,7 +104,7 @@ class ArmDriverConfig:
         """Raises ConfigurationError naming the first bad field."""
         CheckFields(self)
         _CheckChoice("driver", self.driver, ARM_DRIVERS)
-        _CheckText("host", self.host)
+        _CheckHost("host", self.host)
         _CheckChoice("command_mode", self.command_mode, COMMAND_MODES)
         if self.driver == "ur_rtde" and self.command_mode != "stream":
             raise FieldError("command_mode", "ur_rtde streams servoJ targets: only 'stream'")

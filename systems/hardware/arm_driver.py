@@ -7,6 +7,8 @@ joint positions, with these safety rules:
 - a sample older than `watchdog` (host seconds) means the link is lost: the arm is stopped
   and the run fails;
 - a sample older than `stale_after` is not acted on: no command is sent from it;
+- a sample that cannot be the arm's (ImplausibleMeasurement: not finite, beyond the joint
+  range, faster than the joint can move) stops the arm and fails the run;
 - every command passes CheckCommand (position, velocity, acceleration limits) before it is
   sent; a refused command stops the arm and fails the run.
 Every failure is a HardwareFaultError naming the link, the fault and the diagram time; the
@@ -22,9 +24,14 @@ import numpy as np
 from pydrake.systems.framework import BasicVector, Context, DiscreteValues, LeafSystem
 
 from guidedarm.systems.config_checks import POSITIVE, CheckArgument
-from guidedarm.systems.errors import HardwareFaultError
+from guidedarm.systems.errors import ConfigurationError, HardwareFaultError
 from guidedarm.systems.hardware.arm_link import ArmLink, DescribeError, JointSample, StopArm
-from guidedarm.systems.hardware.command_guard import CheckCommand, CommandRefusedError, JointLimits
+from guidedarm.systems.hardware.command_guard import (
+    CheckCommand,
+    CommandRefusedError,
+    ImplausibleMeasurement,
+    JointLimits,
+)
 
 
 def SampleAge(sample: JointSample | None, now: float) -> float:
@@ -61,8 +68,14 @@ class ArmDriver(LeafSystem):
         self._n = n
         # State: measured q, v; the last sent command q, its implied v, when it was sent
         # (context time) and the interval before it, so that skipped periods do not inflate
-        # the implied velocity and acceleration.
-        self._state = self.DeclareDiscreteState(4 * n + 2)
+        # the implied velocity and acceleration. Its default is the arm as measured now:
+        # systems that read the measurement in their own initialization event (the
+        # waypoints planner starts where the arm is) see the state before this driver's
+        # initialization event has run, which would otherwise be zeros.
+        sample, problem = self._FirstSample()
+        if problem is not None:
+            raise ConfigurationError(f"{link.name}: connected, but {problem}")
+        self._state = self.DeclareDiscreteState(_InitialState(sample, -period, period))
         self.DeclareVectorInputPort("position_commanded", n)
         self.DeclareVectorOutputPort("position_measured", n, self._CalcSlice(0, n))
         self.DeclareVectorOutputPort("velocity_estimated", n, self._CalcSlice(n, 2 * n))
@@ -76,21 +89,28 @@ class ArmDriver(LeafSystem):
 
         return calc
 
-    def _Initialize(self, context: Context, state: DiscreteValues) -> None:
+    def _FirstSample(self) -> tuple[JointSample | None, str | None]:
+        """The link's latest sample, waiting at most the watchdog for one, and why it
+        cannot be used (None when it can): none came, the link reported a fault, or it
+        cannot be the arm's."""
         deadline = time.monotonic() + self._watchdog
         sample = self._link.latest()
         while sample is None and time.monotonic() < deadline and not self._link.fault():
             time.sleep(0.001)
             sample = self._link.latest()
         if sample is None:
-            reason = self._link.fault() or f"no measurement within the watchdog {self._watchdog} s"
-            self._Fail(context, reason)
-        zeros = np.zeros(self._n)
-        t = context.get_time() - self._period  # as if the current position had been sent
-        state.set_value(
-            self._state,
-            np.concatenate([sample.q, sample.v, sample.q, zeros, [t, self._period]]),
-        )
+            return None, (
+                self._link.fault() or f"no measurement within the watchdog {self._watchdog} s"
+            )
+        return sample, ImplausibleMeasurement(self._limits, sample.q, sample.v)
+
+    def _Initialize(self, context: Context, state: DiscreteValues) -> None:
+        sample, problem = self._FirstSample()
+        if problem is not None:
+            self._Fail(context, problem)
+        # as if the current position had been sent one period ago
+        t = context.get_time() - self._period
+        state.set_value(self._state, _InitialState(sample, t, self._period))
 
     def _Update(self, context: Context, state: DiscreteValues) -> None:
         n = self._n
@@ -102,6 +122,9 @@ class ArmDriver(LeafSystem):
         age = SampleAge(sample, time.monotonic())
         if age > self._watchdog:
             self._Fail(context, f"link quiet for {age:.3f} s (watchdog {self._watchdog} s)")
+        implausible = ImplausibleMeasurement(self._limits, sample.q, sample.v)
+        if implausible:
+            self._Fail(context, implausible)
         x[: 2 * n] = np.concatenate([sample.q, sample.v])
         if age > self._stale_after:
             self.stale_skips += 1
@@ -128,3 +151,11 @@ class ArmDriver(LeafSystem):
         stop_errors = [stop_error] if stop_error else []
         what = what if stop_errors else f"{what}; arm stopped"
         raise HardwareFaultError(self._link.name, what, context.get_time(), stop_errors)
+
+
+def _InitialState(sample: JointSample, t_sent: float, period: float) -> np.ndarray:
+    """The driver's state for an arm at rest where `sample` measured it: measured q, v;
+    q sent at context time `t_sent` (s) with zero velocity, `period` (s) after the one
+    before."""
+    zeros = np.zeros_like(sample.q)
+    return np.concatenate([sample.q, sample.v, sample.q, zeros, [t_sent, period]])

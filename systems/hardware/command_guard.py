@@ -1,5 +1,6 @@
-"""Joint limits of an arm (from its MultibodyPlant) and the check every streamed command
-passes before it reaches the robot.
+"""Joint limits of an arm (from its MultibodyPlant), the check every streamed command
+passes before it reaches the robot, and the check every joint measurement passes before it
+is acted on.
 
 A command q_k sent dt_k seconds after q_{k-1} implies the velocity v_k = (q_k - q_{k-1}) / dt_k
 (at the middle of that interval) and the acceleration a_k = (v_k - v_{k-1}) / ((dt_k +
@@ -16,6 +17,13 @@ from pydrake.multibody.plant import MultibodyPlant
 from pydrake.multibody.tree import ModelInstanceIndex
 
 from guidedarm.systems.errors import ConfigurationError, GuidedArmError
+
+# A measurement beyond the model's limits by more than these is not the arm's: a real arm
+# stops within its position limits (encoders may read slightly past a limit it rests on)
+# and never moves faster than its velocity limit (a controller's or the link's velocity
+# estimate may overshoot it a little).
+MEASURED_POSITION_TOLERANCE = 0.02  # rad
+MEASURED_VELOCITY_FACTOR = 1.5
 
 
 class CommandRefusedError(GuidedArmError):
@@ -101,3 +109,32 @@ def CheckCommand(
                 f"{value[i]:.4g} {relation} limit {limit[i]:.4g}"
             )
     return v
+
+
+def ImplausibleMeasurement(limits: JointLimits, q: np.ndarray, v: np.ndarray) -> str | None:
+    """Why joint positions q (rad) and velocities v (rad/s) measured by an arm's controller
+    cannot be the arm's (a corrupted or misrouted reply, a jump, a controller clock that
+    does not advance with the arm), or None: not one finite value per joint, a position
+    beyond the model's range by more than MEASURED_POSITION_TOLERANCE, or a speed beyond
+    MEASURED_VELOCITY_FACTOR times the joint's velocity limit."""
+    n = limits.lower.size
+    if q.shape != (n,) or v.shape != (n,):
+        return f"measurement has {q.size} joint positions and {v.size} velocities, the arm {n}"
+    if not (np.all(np.isfinite(q)) and np.all(np.isfinite(v))):
+        return "measurement not finite"
+    tolerance = MEASURED_POSITION_TOLERANCE
+    outside = (q < limits.lower - tolerance) | (q > limits.upper + tolerance)
+    if np.any(outside):
+        i = int(np.argmax(outside))
+        return (
+            f"measured joint {limits.names[i]} at {q[i]:.4g} rad, outside its range "
+            f"[{limits.lower[i]:.4g}, {limits.upper[i]:.4g}] rad"
+        )
+    too_fast = np.abs(v) > MEASURED_VELOCITY_FACTOR * limits.velocity
+    if np.any(too_fast):
+        i = int(np.argmax(too_fast))
+        return (
+            f"measured joint {limits.names[i]} moving at {v[i]:.4g} rad/s, beyond "
+            f"{MEASURED_VELOCITY_FACTOR:g} x its limit {limits.velocity[i]:.4g} rad/s"
+        )
+    return None

@@ -12,7 +12,11 @@ poll thread it waits for its replies without a
 deadline of its own: the ArmDriver's watchdog judges a link that went quiet.
 
 Velocities are differences of successive joint readings over the controller's clock.
-Malformed reply lines are printed, counted in `rejected_lines`, and skipped. A controller
+Malformed reply lines are printed, counted in `rejected_lines`, and skipped. A reply line
+without a pending request, or a well-formed reply to another kind of request (`OK` to
+READ_JOINTS), means the controller and the link no longer agree which reply answers which
+request (a duplicated or dropped reply): every later reply could be taken for an earlier
+request's, so the link faults, and a STOP after that is sent but cannot be confirmed. A controller
 that refuses a target or a move (`NG ...`, e.g. after a STOP from its pendant) or a lost
 connection is a fault: streaming ends and the ArmDriver fails the run. `stop` waits at most
 `stop_timeout` for the controller's OK. Connecting sends RESET: starting a run is the
@@ -86,10 +90,11 @@ class NachiLink:
         self.rejected_lines = 0
         self._fault: str | None = None
         self._dead: str | None = None  # why nothing more can be sent or received
+        self._out_of_step: str | None = None  # why replies can no longer be matched
         self._stop_timeout = stop_timeout
         try:
             connection = socket.create_connection((host, port), timeout=connect_timeout)
-        except (OSError, OverflowError) as e:
+        except (OSError, OverflowError, ValueError) as e:  # ValueError: a name IDNA refuses
             raise ConfigurationError(f"{name}: cannot reach {host}:{port}: {e}") from None
         connection.setsockopt(socket.IPPROTO_TCP, socket.TCP_NODELAY, 1)
         # Reads block (close() shuts the socket down); sends give up after SEND_TIMEOUT.
@@ -153,11 +158,23 @@ class NachiLink:
                 try:
                     reply = self._pending_replies.popleft()
                 except IndexError:
-                    self._Reject(f"unrequested line {line[:80]!r}")
+                    self._OutOfStep(f"a reply without a request: {nachi.Quote(line)}")
                     continue
-                reply.Resolve(line)
+                if self._out_of_step is None and nachi.RepliesOutOfStep(reply.word, line):
+                    self._OutOfStep(f"{nachi.Quote(line)} answered {reply.word}")
+                if self._out_of_step is not None:
+                    reply.Resolve(None, self._out_of_step)
+                else:
+                    reply.Resolve(line)
         except OSError as e:
             self._Lost("link closed" if self._closing.is_set() else f"connection lost: {e}")
+
+    def _OutOfStep(self, what: str) -> None:
+        """Replies can no longer be matched to requests: the link faults (once)."""
+        if self._out_of_step is None:
+            self._out_of_step = f"replies out of step with requests: {what}"
+            self._fault = self._fault or self._out_of_step
+            print(f"{self.name}: {self._out_of_step}", flush=True)
 
     def _Lost(self, reason: str) -> None:
         """Marks the link dead: every pending and later request fails with `reason`."""
@@ -246,10 +263,13 @@ class NachiLink:
 
     def stop(self) -> None:
         """Sends STOP at once (no target follows it) and waits `stop_timeout` for its OK.
-        A STOP left unanswered marks the link dead: stopping again fails at once."""
+        A STOP left unanswered marks the link dead: stopping again fails at once. With
+        replies out of step, no reply can confirm it: the STOP is sent, then this raises."""
         with self._send_lock:
             self._stopped = True
             (reply,) = self._SendLocked([nachi.STOP])
+        if self._out_of_step is not None:
+            raise ConnectionError("STOP sent, unconfirmed: replies out of step with requests")
         try:
             line = reply.Wait(self._stop_timeout)
         except TimeoutError as e:

@@ -29,6 +29,11 @@ ERRORS = "ERRORS"
 SERVO = "SERVO"
 MAX_SERVO_INTERVAL = 1.0  # s; a SERVO interval must lie in (0, MAX_SERVO_INTERVAL]
 
+# The word each request's reply starts with (besides `NG`, which may answer any request).
+REPLY_WORDS = {READ_JOINTS: "JOINTS", READ_POSE: "POSE", STATUS: "STATUS", ERRORS: "ERRORS"}
+REPLY_WORD_DEFAULT = "OK"  # SET_TARGET, MOVE, SERVO, STOP, RESET
+NG = "NG"
+
 # Error codes of `NG <code> <text>` replies.
 E_UNKNOWN = "E01"
 E_MALFORMED = "E02"
@@ -142,3 +147,14 @@ def CheckOk(line: str) -> None:
     """Client side: raises NachiProtocolError unless the reply is OK."""
     if line.strip() != "OK":
         raise NachiProtocolError(f"controller refused: {Quote(line, 120)}")
+
+
+def RepliesOutOfStep(request_word: str, line: str) -> bool:
+    """Client side: whether `line` is a well-formed reply word that answers another kind of
+    request than `request_word` (e.g. `OK` to READ_JOINTS, `JOINTS` to SERVO): the
+    controller and the client no longer agree which reply belongs to which request. A line
+    that starts with no reply word at all is malformed, not out of step."""
+    word = line.split(" ", 1)[0]
+    known = {*REPLY_WORDS.values(), REPLY_WORD_DEFAULT, NG}
+    expected = REPLY_WORDS.get(request_word, REPLY_WORD_DEFAULT)
+    return word in known and word not in (expected, NG)

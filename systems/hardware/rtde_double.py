@@ -4,8 +4,9 @@ data packages of a fixed joint configuration at the recipe's frequency.
 Run it as its own process (the vendor client holds the Python GIL while it connects):
     python -m guidedarm.systems.hardware.rtde_double --port 30004 --q 0 -1.57 ... [--quiet-after S]
 It prints `listening HOST PORT` once bound. `--quiet-after` stops the data stream after S
-seconds of streaming (the link stays open), for watchdog tests. Malformed client packets are
-answered with a text message, counted, and printed on stderr.
+seconds of streaming (the link stays open), for watchdog tests; `--backwards-after` keeps
+streaming after S seconds with the `timestamp` running backwards (stale samples).
+Malformed client packets are answered with a text message, counted, and printed on stderr.
 """
 
 from __future__ import annotations
@@ -26,10 +27,17 @@ MAX_FREQUENCY = 500.0  # Hz; an output recipe asking for more (or NaN) is refuse
 class RtdeDoubleSession:
     """One client connection: answers requests, streams data packages once started."""
 
-    def __init__(self, connection: socket.socket, q: list[float], quiet_after: float) -> None:
+    def __init__(
+        self,
+        connection: socket.socket,
+        q: list[float],
+        quiet_after: float,
+        backwards_after: float = float("inf"),
+    ) -> None:
         self._connection = connection
         self._q = q
         self._quiet_after = quiet_after
+        self._backwards_after = backwards_after
         self._recipe: struct.Struct | None = None
         self._names: list[str] = []
         self._period = 0.002
@@ -90,6 +98,8 @@ class RtdeDoubleSession:
             self._Reject(f"unexpected RTDE packet type {packet.type} ({len(packet.payload)} B)")
 
     def _SendData(self, t: float) -> None:
+        if t > self._backwards_after:
+            t = 2 * self._backwards_after - t
         values = {"timestamp": t, "actual_q": self._q, "target_q": self._q}
         row = [values.get(n, _Zero(rtde.OUTPUT_TYPES[n])) for n in self._names]
         self._Send(rtde.EncodeDataPackage(1, self._recipe, row))
@@ -115,6 +125,7 @@ def main(argv: list[str] | None = None) -> None:
     parser.add_argument("--port", type=int, default=30004)
     parser.add_argument("--q", type=float, nargs=6, default=[0.0] * 6, help="joints (rad)")
     parser.add_argument("--quiet-after", type=float, default=float("inf"))
+    parser.add_argument("--backwards-after", type=float, default=float("inf"))
     args = parser.parse_args(argv)
     server = socket.socket()
     server.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
@@ -125,7 +136,7 @@ def main(argv: list[str] | None = None) -> None:
         connection, _ = server.accept()
         connection.setsockopt(socket.IPPROTO_TCP, socket.TCP_NODELAY, 1)
         with contextlib.suppress(ConnectionError, OSError):
-            RtdeDoubleSession(connection, args.q, args.quiet_after).Run()
+            RtdeDoubleSession(connection, args.q, args.quiet_after, args.backwards_after).Run()
         connection.close()
 
 

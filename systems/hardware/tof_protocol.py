@@ -3,8 +3,9 @@
     $TOF,<seq>,<r1>,<s1>,<r2>,<s2>,<r3>,<s3>,<r4>,<s4>,<r5>,<s5>,<r6>,<s6>*<CS>\\r\\n
 
 r: range in mm (0..255, the sensor's 8-bit result); s: the VL6180X RESULT__RANGE_STATUS
-error code (0 = valid); seq: 0..65535, wraps; CS: two hex digits, XOR of the characters
-between `$` and `*` (NMEA style). `ToFLineCollector` turns a byte stream, however it is
+error code (0 = valid); seq: 0..65535, wraps (a line whose seq repeats or lies just behind
+the newest is stale and rejected); CS: two hex digits, XOR of the characters between `$` and
+`*` (NMEA style). `ToFLineCollector` turns a byte stream, however it is
 fragmented (serial reads, BLE notifications of <= 20 bytes), into readings; any other bytes
 (binary noise, NUL, non-ASCII, overlong lines) are rejected with a message and counted.
 """
@@ -22,6 +23,11 @@ from guidedarm.systems.errors import GuidedArmError
 
 NUM_SENSORS = 6
 MAX_LINE = 128
+SEQ_MODULUS = 65536
+# A line up to this many sequence numbers behind the newest held is an old line delivered
+# late (a replayed buffer) and is rejected; a larger step back is the tool restarting its
+# count, and its line is new.
+SEQ_BEHIND = 256
 
 # VL6180X range error codes (datasheet, RESULT__RANGE_STATUS bits 7:4).
 RANGE_STATUS = {
@@ -114,9 +120,22 @@ def ParseTofLine(line: str) -> ToFReading:
     return ToFReading(numbers[0], 1e-3 * ranges, status)
 
 
+def SequenceProblem(seq: int, previous: int) -> str | None:
+    """Why a line numbered `seq` is not newer than the line numbered `previous` (both
+    0..65535, wrapping), or None: it repeats it, or it is up to SEQ_BEHIND lines behind."""
+    step = (seq - previous) % SEQ_MODULUS
+    if step == 0:
+        return f"sequence number {seq} repeats the previous line's (stale data)"
+    if step >= SEQ_MODULUS - SEQ_BEHIND:
+        return f"sequence number {seq} is behind the newest line's {previous} (stale data)"
+    return None
+
+
 class ToFLineCollector:
     """Assembles lines from byte chunks; keeps the newest reading and its host time, and
-    counts (and prints) rejected lines."""
+    counts (and prints) rejected lines. A line whose sequence number repeats the newest
+    reading's or lies just behind it (SequenceProblem) is stale and rejected: a tool that
+    resends the same line must not look alive to the driver's watchdog."""
 
     def __init__(self, name: str = "tof") -> None:
         self.name = name
@@ -152,6 +171,10 @@ class ToFLineCollector:
             reading = ParseTofLine(line)
         except ToFLineError as e:
             self._Reject(str(e))
+            return
+        stale = self._latest and SequenceProblem(reading.seq, self._latest[0].seq)
+        if stale:
+            self._Reject(stale)
             return
         with self._lock:
             self._latest = (reading, time.monotonic())

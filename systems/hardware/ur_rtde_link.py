@@ -4,7 +4,7 @@ The vendor API is reached through two small protocols of ours, so each side can 
 `RtdeReceive` (the subset of rtde_receive.RTDEReceiveInterface we use) is tested against a
 loopback RTDE double speaking the wire protocol; `RtdeControl` (servoJ, servoStop of
 rtde_control.RTDEControlInterface) against a recording fake. A poll thread copies each new
-controller sample (a new RTDE `timestamp`) into LatestSample with the host time it arrived;
+controller sample (a later RTDE `timestamp`) into LatestSample with the host time it arrived;
 an error of the vendor interface in that thread is the link's fault. A servoJ or servoStop
 the controller does not accept raises, so the ArmDriver stops the arm and fails the run.
 The control script's watchdog is the streaming timeout, as the Nachi controller's: set to
@@ -18,6 +18,7 @@ be reached is a ConfigurationError (one line, naming the host and the vendor's m
 from __future__ import annotations
 
 import contextlib
+import math
 import os
 import sys
 import tempfile
@@ -93,14 +94,16 @@ class UrRtdeLink:
         RegisterArmLink(self)
 
     def _Poll(self) -> None:
-        last_timestamp = None
+        last_timestamp = -math.inf
         try:
             while not self._closing.wait(self._poll_period):
                 if not self._receive.isConnected():
                     self._fault = "RTDE connection lost"
                     return
                 timestamp = self._receive.getTimestamp()
-                if timestamp != last_timestamp:
+                # Only a later controller time is a new sample: a timestamp that repeats,
+                # runs backwards or is not a number (NaN != NaN) comes with stale data.
+                if timestamp > last_timestamp:
                     last_timestamp = timestamp
                     self._latest.put(self._receive.getActualQ(), self._receive.getActualQd())
         except Exception as e:  # the vendor raises RuntimeError; any error ends the stream
