@@ -554,3 +554,33 @@ def test_a_tof_tool_resending_its_last_line_trips_the_watchdog():
         transport.close()
         os.close(master)
         os.close(slave)
+
+
+def test_a_joint_tour_arm_away_from_its_start_is_refused_before_any_command(tmp_path):
+    """joint_tour streams its trajectory from the scenario's start: a UR10e (served by the
+    Nachi emulator) 0.1 rad away on joint 1 is refused in one line, exit 2, no summary."""
+    moved = "[-1.4708, -1.5708, -2.356194, -0.785398, 1.5708, 0.785398]"
+    emulator = subprocess.Popen(
+        [*CLI, "emulate", "nachi", "--port", "0", "--scenario", "ur10e_joint_tour"]
+        + ["--arm", "ur10e", "--set", f"station.arms.ur10e.initial_position={moved}"],
+        stdout=subprocess.PIPE,
+        text=True,
+    )
+    try:
+        port = int(emulator.stdout.readline().split(":")[-1])
+        link = f"{{driver: nachi_tcp, port: {port}, acceleration_limits: [5, 5, 5, 5, 5, 5]}}"
+        result = _RunRefused(
+            "run", "ur10e_joint_tour", "--hardware", "--out", str(tmp_path / "run"),
+            "--set", f"station.hardware.arms.ur10e={link}",
+        )  # fmt: skip
+        errors = [line for line in result.stderr.splitlines() if line.startswith("guidedarm:")]
+        assert result.returncode == 2, result.stderr
+        assert errors == [
+            "guidedarm: error: ur10e is not at the task's start pose: joint 1 is +0.1000 rad "
+            "from it (tolerance 0.0001 rad); bring the arm there first (an emulator: start it "
+            "with --scenario and the run's --set options)"
+        ], result.stderr
+        assert not (tmp_path / "run" / "summary.json").exists()
+    finally:
+        emulator.send_signal(signal.SIGINT)
+        emulator.wait(timeout=30)

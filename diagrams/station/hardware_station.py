@@ -42,6 +42,28 @@ from guidedarm.systems.tof.tof_tool_sensor import TOF_PORTS, MakeDetectionGrid
 TOF_POLLS_PER_PERIOD = 4
 
 
+# How far (rad) a hardware arm's joints may be from a task's start pose when a run begins:
+# the first streamed command moves it there within one control period, which the command
+# guard's acceleration limits allow only for jumps of about 1e-3 rad.
+START_TOLERANCE = 1e-4
+
+
+def CheckArmAtStart(arm: str, q_start: np.ndarray, q_measured: np.ndarray) -> None:
+    """Raises ConfigurationError, before any command is sent, unless the measured joints of
+    `arm` (rad) are within START_TOLERANCE of the task's start pose q_start (rad): a task
+    streams from that pose, and its first command would jump from anywhere else (a jump
+    the arm driver's command guard refuses)."""
+    offset = np.asarray(q_measured, float) - np.asarray(q_start, float)
+    worst = int(np.argmax(np.abs(offset)))
+    if abs(offset[worst]) > START_TOLERANCE:
+        raise ConfigurationError(
+            f"{arm} is not at the task's start pose: joint {worst + 1} is "
+            f"{offset[worst]:+.4f} rad from it (tolerance {START_TOLERANCE} rad); bring the "
+            "arm there first (an emulator: start it with --scenario and the run's --set "
+            "options)"
+        )
+
+
 def MakeHardwareStation(scenario: StationScenario, meshcat: Meshcat | None = None) -> Diagram:
     """Builds the hardware station of `scenario`; connects to every configured device."""
     hardware = scenario.hardware

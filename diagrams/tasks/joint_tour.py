@@ -18,6 +18,7 @@ from pydrake.trajectories import PiecewisePolynomial
 from guidedarm.diagrams.overlays.joint_tour_overlays import AddJointTourOverlays
 from guidedarm.diagrams.plots import PlotJointSeries
 from guidedarm.diagrams.run_context import AdvanceWithProgress, RunContext
+from guidedarm.diagrams.station.hardware_station import CheckArmAtStart
 from guidedarm.diagrams.station.scenario import StationScenario
 from guidedarm.diagrams.station.station import MakeStation
 from guidedarm.diagrams.station.station_plant import (
@@ -139,6 +140,10 @@ def RunJointTour(scenario: JointTourScenario, context: RunContext) -> dict[str, 
     simulator = Simulator(diagram)
     ApplySimulatorConfig(scenario.station.simulator_config, simulator)
     simulator.Initialize()
+    if context.hardware:
+        position = station.GetOutputPort(f"{scenario.arm}.position_measured")
+        root = simulator.get_context()
+        CheckArmAtStart(scenario.arm, start, position.Eval(station.GetMyContextFromRoot(root)))
     context.start_recording()
     t_end = AdvanceWithProgress(simulator, trajectory.end_time() + scenario.settle_time, context)
     context.write_replay()

@@ -25,6 +25,7 @@ from pydrake.systems.framework import Diagram, DiagramBuilder
 from pydrake.systems.primitives import LogVectorOutput
 
 from guidedarm.diagrams.run_context import AdvanceWithProgress, RunContext
+from guidedarm.diagrams.station.hardware_station import CheckArmAtStart
 from guidedarm.diagrams.station.station import MakeStation
 from guidedarm.diagrams.task_run import InterruptedFailure
 from guidedarm.diagrams.tasks.path_following_diagram import (
@@ -37,14 +38,10 @@ from guidedarm.diagrams.tasks.path_following_replay import (
     DrawReplay,
 )
 from guidedarm.diagrams.tasks.path_following_setup import Setup
-from guidedarm.systems.errors import ConfigurationError, RunFailedError
+from guidedarm.systems.errors import RunFailedError
 
 # Joint samples for the contact check (s): the tool moves 1 mm between two at 50 mm/s.
 SAMPLE_PERIOD = 0.02
-# How far (rad) a hardware arm's joints may be from the start pose when a run begins: the
-# first streamed command moves it there within one control period, which the command
-# guard's acceleration limits allow only for jumps of about 1e-3 rad.
-START_TOLERANCE = 1e-4
 
 
 @dataclass
@@ -102,7 +99,7 @@ def _Simulate(setup: Setup, station: Diagram, context: RunContext, drawing: str)
     simulator.Initialize()
     if context.hardware:
         position = station.GetOutputPort(f"{setup.arm}.position_measured")
-        CheckArmAtStart(setup, position.Eval(station.GetMyContextFromRoot(root)))
+        CheckArmAtStart(setup.arm, setup.q_start, position.Eval(station.GetMyContextFromRoot(root)))
     if drawn_in_loop:
         context.start_recording()
     start = time.perf_counter()
@@ -141,22 +138,6 @@ def _Simulate(setup: Setup, station: Diagram, context: RunContext, drawing: str)
         wall_time=wall_time,
         aborted=fault is not None,
     )
-
-
-def CheckArmAtStart(setup: Setup, q_measured: np.ndarray) -> None:
-    """Raises ConfigurationError, before any command is sent, unless the measured joints
-    (rad) are within START_TOLERANCE of the task's start pose: the follower streams from
-    that pose, and its first command would jump from anywhere else (a jump the arm
-    driver's command guard refuses)."""
-    offset = np.asarray(q_measured, float) - setup.q_start
-    worst = int(np.argmax(np.abs(offset)))
-    if abs(offset[worst]) > START_TOLERANCE:
-        raise ConfigurationError(
-            f"{setup.arm} is not at the task's start pose: joint {worst + 1} is "
-            f"{offset[worst]:+.4f} rad from it (tolerance {START_TOLERANCE} rad); bring the "
-            "arm there first (an emulator: start it with --scenario and the run's --set "
-            "options)"
-        )
 
 
 def _Drawing(executor: str, context: RunContext) -> str:
