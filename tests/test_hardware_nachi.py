@@ -188,7 +188,7 @@ def test_stop_from_the_pendant_fails_the_run_and_a_new_run_resets_it(
     assert emulator.logic.State() == state and emulator.logic.moves > moves
 
 
-def test_malformed_replies_are_counted_and_the_link_keeps_reading():
+def test_malformed_replies_are_counted_and_the_link_keeps_reading(capsys):
     server = socket.create_server(("127.0.0.1", 0))
     replies = [  # OK: to RESET; then malformed, binary and non-ASCII replies to READ_JOINTS
         "OK",
@@ -214,6 +214,9 @@ def test_malformed_replies_are_counted_and_the_link_keeps_reading():
     np.testing.assert_allclose(link.latest().q, np.deg2rad([1, 2, 3, 4, 5, 6]))
     assert time.monotonic() - link.latest().host_time < 0.02
     link.close()
+    # Only the 1st, 10th, 100th, ... rejection is printed.
+    printed = [line for line in capsys.readouterr().out.splitlines() if "rejected reply" in line]
+    assert len(printed) == 1 and printed[0].startswith("mz04d: rejected reply #1: ")
     server.close()
 
 

@@ -12,7 +12,8 @@ poll thread it waits for its replies without a
 deadline of its own: the ArmDriver's watchdog judges a link that went quiet.
 
 Velocities are differences of successive joint readings over the controller's clock.
-Malformed reply lines are printed, counted in `rejected_lines`, and skipped. A reply line
+Malformed reply lines are counted in `rejected_lines` and skipped; the 1st, 10th, 100th, ...
+are printed. A reply line
 without a pending request, or a well-formed reply to another kind of request (`OK` to
 READ_JOINTS), means the controller and the link no longer agree which reply answers which
 request (a duplicated or dropped reply): every later reply could be taken for an earlier
@@ -232,7 +233,10 @@ class NachiLink:
 
     def _Reject(self, why: str) -> None:
         self.rejected_lines += 1
-        print(f"{self.name}: rejected reply #{self.rejected_lines}: {why}", flush=True)
+        # The 1st, 10th, 100th, ... only: a controller sending nothing but bad replies
+        # (hundreds a second) would otherwise flood the run's output until the watchdog.
+        if str(self.rejected_lines).rstrip("0") == "1":  # a power of ten
+            print(f"{self.name}: rejected reply #{self.rejected_lines}: {why}", flush=True)
 
     def _Measured(self, reply: str) -> None:
         t, q = nachi.ParseJoints(reply)
