@@ -1,4 +1,5 @@
-"""LF-terminated text lines over a TCP socket, with a bound on line length."""
+"""LF-terminated text lines over a TCP socket, with a bound on line length, and the report
+of lines a protocol rejects."""
 
 from __future__ import annotations
 
@@ -46,3 +47,11 @@ class LineSocket:
         """Sends the lines, each followed by LF; characters outside ASCII are escaped."""
         text = "".join(f"{line}\n" for line in lines)
         self.connection.sendall(text.encode("ascii", "backslashreplace"))
+
+
+def PrintRejectedLine(link: str, what: str, count: int, why: str) -> None:
+    """Prints the count-th line `link` rejected (`what`: "line", "reply") and why, for the
+    1st, 10th, 100th, ... only: a device sending nothing but bad lines (hundreds a second)
+    would otherwise flood the run's output until its watchdog stops the run."""
+    if str(count).rstrip("0") == "1":  # a power of ten
+        print(f"{link}: rejected {what} #{count}: {why}", flush=True)

@@ -42,7 +42,7 @@ from guidedarm.systems.hardware.arm_link import (
     RegisterArmLink,
     UnregisterArmLink,
 )
-from guidedarm.systems.hardware.line_socket import LineSocket
+from guidedarm.systems.hardware.line_socket import LineSocket, PrintRejectedLine
 
 COMMAND_MODES = ("stream", "move")
 WAIT_SLICE = 0.05  # s; how often a wait for a reply checks whether the link died or closes
@@ -233,10 +233,7 @@ class NachiLink:
 
     def _Reject(self, why: str) -> None:
         self.rejected_lines += 1
-        # The 1st, 10th, 100th, ... only: a controller sending nothing but bad replies
-        # (hundreds a second) would otherwise flood the run's output until the watchdog.
-        if str(self.rejected_lines).rstrip("0") == "1":  # a power of ten
-            print(f"{self.name}: rejected reply #{self.rejected_lines}: {why}", flush=True)
+        PrintRejectedLine(self.name, "reply", self.rejected_lines, why)
 
     def _Measured(self, reply: str) -> None:
         t, q = nachi.ParseJoints(reply)

@@ -20,6 +20,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from guidedarm.systems.errors import GuidedArmError
+from guidedarm.systems.hardware.line_socket import PrintRejectedLine
 
 NUM_SENSORS = 6
 MAX_LINE = 128
@@ -133,9 +134,10 @@ def SequenceProblem(seq: int, previous: int) -> str | None:
 
 class ToFLineCollector:
     """Assembles lines from byte chunks; keeps the newest reading and its host time, and
-    counts (and prints) rejected lines. A line whose sequence number repeats the newest
-    reading's or lies just behind it (SequenceProblem) is stale and rejected: a tool that
-    resends the same line must not look alive to the driver's watchdog."""
+    counts rejected lines (printing the 1st, 10th, 100th, ...). A line whose sequence
+    number repeats the newest reading's or lies just behind it (SequenceProblem) is stale
+    and rejected: a tool that resends the same line must not look alive to the driver's
+    watchdog."""
 
     def __init__(self, name: str = "tof") -> None:
         self.name = name
@@ -164,7 +166,7 @@ class ToFLineCollector:
 
     def _Reject(self, why: str) -> None:
         self.rejected += 1
-        print(f"{self.name}: rejected line #{self.rejected}: {why}", flush=True)
+        PrintRejectedLine(self.name, "line", self.rejected, why)
 
     def _Accept(self, line: str) -> None:
         try:
