@@ -234,7 +234,11 @@ def test_ur10e_waypoints_on_the_emulator_tracks_within_the_limit(tmp_path):
     )
     try:
         port = int(emulator.stdout.readline().split(":")[-1])
-        link = f"{{driver: nachi_tcp, port: {port}, acceleration_limits: [5, 5, 5, 5, 5, 5]}}"
+        # The watchdog at 0.5 s, as above: the emulator shares the CPU with the suite.
+        link = (
+            f"{{driver: nachi_tcp, port: {port}, watchdog: 0.5, stale_after: 0.05, "
+            "acceleration_limits: [5, 5, 5, 5, 5, 5]}"
+        )
         run = subprocess.run(
             [sys.executable, "-m", "guidedarm.diagrams.cli.main", "run", "ur10e_waypoints"]
             + ["--hardware", "--out", str(tmp_path)]
@@ -244,8 +248,8 @@ def test_ur10e_waypoints_on_the_emulator_tracks_within_the_limit(tmp_path):
             timeout=300,
         )
         summary = _Summary(tmp_path)
-        assert run.returncode == 0 and summary["success"] is True, run.stderr
-        assert 0.01 <= summary["tracking_delay_s"] <= 0.08
+        assert run.returncode == 0 and summary["success"] is True, (run.stderr, summary)
+        assert 0.01 <= summary["tracking_delay_s"] < 0.1
         assert summary["tcp_tracking_error_max_m"] < 0.01
         assert summary["T_s"] == pytest.approx(4.52, abs=0.05)
     finally:

@@ -6,7 +6,6 @@ commanded trajectory (what the planner produces) and the measured tracking error
 simulated arm.
 """
 
-import math
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -24,6 +23,7 @@ from guidedarm.diagrams.station.station import MakeStation
 from guidedarm.diagrams.tasks.planner_builder import MakeAccelerationPlanner, SymmetricLimit
 from guidedarm.diagrams.tasks.planner_plots import PlotScaling, PlotTcpPath
 from guidedarm.diagrams.tasks.registry import TaskDefinition
+from guidedarm.diagrams.tasks.tracking import DelayedTrackingError, SampledCommands
 from guidedarm.systems.config_checks import (
     CheckConfig,
     CheckFields,
@@ -60,9 +60,9 @@ class WaypointsScenario:
     planner: the planner's gains and settings. max_time: the run fails if the task has not
         ended by then (s); settle_time: simulated after the end (s).
     max_tracking_error: the run fails if the measured TCP is ever farther than this from
-        the commanded one (m), the measured arm taken at the delay (0..MAX_TRACKING_DELAY,
-        reported as tracking_delay_s) that fits it best: the planner's success alone says
-        nothing of the arm.
+        the commanded one (m), at the delay (tracking.MAX_TRACKING_DELAY at most, reported
+        as tracking_delay_s) that fits the measurement best: the planner's success alone
+        says nothing of the arm.
     """
 
     task: str = "waypoints"
@@ -220,12 +220,6 @@ def RunWaypoints(scenario: WaypointsScenario, context: RunContext) -> dict[str, 
     return {"sim_time_s": round(t_end, 4), **metrics, "failure": failure}
 
 
-# The longest lag (s) of the measured arm behind its commands that the tracking error
-# allows for: a hardware stream's transport and the controller's own interpolation delay
-# the measured path (about 30 ms against the Nachi emulator) without moving it off the
-# commanded one. The simulated station's stiff servo lags about one plant step.
-MAX_TRACKING_DELAY = 0.1
-
 # The numbers of RunWaypoints's summary (TaskDefinition.metrics): TrajectoryMetrics's and
 # the simulated time; the tracking errors need the measured joints.
 WAYPOINTS_METRICS = (
@@ -270,26 +264,16 @@ def TrajectoryMetrics(
     }
     if measured is not None and measured.size:
         count = min(len(measured), len(trajectory.q))
+        times = trajectory.times[:count]
         tcp_measured = np.array([kinematics.Position(q) for q in measured[:count]])
-        dt = float(np.median(np.diff(trajectory.times))) if count > 1 else 1.0
-        shift, tcp_error = BestDelay(tcp[:count, :3], tcp_measured[:, :3], MAX_TRACKING_DELAY / dt)
-        joint_error = np.abs(measured[shift:count] - trajectory.q[: count - shift])
-        metrics["tracking_error_max_rad"] = float(joint_error.max())
+        delay, tcp_error = DelayedTrackingError(
+            times, SampledCommands(times, tcp[:count, :3]), tcp_measured[:, :3]
+        )
+        joint_error = SampledCommands(times, trajectory.q[:count])(times - delay) - measured[:count]
+        metrics["tracking_error_max_rad"] = float(np.abs(joint_error).max())
         metrics["tcp_tracking_error_max_m"] = tcp_error
-        metrics["tracking_delay_s"] = round(shift * dt, 4)
+        metrics["tracking_delay_s"] = delay
     return metrics
-
-
-def BestDelay(commanded: np.ndarray, measured: np.ndarray, max_shift: float) -> tuple[int, float]:
-    """(s, e): the shift s (samples, 0 <= s <= max_shift) that minimises the worst distance
-    e (m) between measured[k + s] and commanded[k] over the k both have: positions (N x 3,
-    m) sampled together, the measured ones lagging by an unknown transport delay."""
-    best = (0, math.inf)
-    for s in range(min(int(max_shift), len(commanded) - 1) + 1):
-        worst = float(np.linalg.norm(measured[s:] - commanded[: len(commanded) - s], axis=1).max())
-        if worst < best[1]:
-            best = (s, worst)
-    return best
 
 
 def PlotTcpPathsOfJoints(
