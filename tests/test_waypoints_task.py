@@ -10,6 +10,11 @@ from guidedarm.diagrams.cli.command_compare_planners import ComparePlanners, Tab
 from guidedarm.diagrams.cli.command_run import LoadScenario
 from guidedarm.diagrams.cli.main import main
 from guidedarm.diagrams.tasks.registry import GetTask, NumericMetricNames
+from guidedarm.diagrams.tasks.tracking import (
+    MAX_TRACKING_DELAY,
+    DelayedTrackingError,
+    SampledCommands,
+)
 from guidedarm.diagrams.tasks.waypoints import MakePlannerSetup, TrajectoryMetrics
 from guidedarm.systems.planning.acceleration_planner_math import RunPlanning
 from guidedarm.systems.planning.planner_baselines import TrapezoidProfile
@@ -115,3 +120,16 @@ def test_compare_planners_table(capsys):
     assert toppra["T_s"] - 0.01 <= ruckig["T_s"] < planner["T_s"]
     assert max(toppra["waypoint_deviation_mm"] + ruckig["waypoint_deviation_mm"]) < 1.0
     assert all(d < 50 for d in movej["waypoint_deviation_mm"] + planner["waypoint_deviation_mm"])
+
+
+@pytest.mark.parametrize("lag, expected", [(0.0, 0.0), (0.03, 0.03), (0.25, 0.1)])
+def test_delayed_tracking_error_finds_the_lag_of_a_delayed_arm(lag, expected):
+    """A joint at 1 rad/s amplitude measured `lag` s behind its command: the delay found is
+    the lag (up to MAX_TRACKING_DELAY), and the error at it is the lag's leftover only."""
+    times = np.arange(0.0, 3.0, 0.002)
+    command = SampledCommands(times, np.sin(times)[:, None])
+    measured = command(times - lag)
+    delay, error = DelayedTrackingError(times, command, measured, norm=np.inf)
+    assert delay == pytest.approx(expected, abs=1e-9)
+    assert error == pytest.approx(np.abs(measured - command(times - delay)).max())
+    assert (error < 1e-12) == (lag <= MAX_TRACKING_DELAY)
