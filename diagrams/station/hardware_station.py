@@ -11,7 +11,7 @@ from __future__ import annotations
 import numpy as np
 from pydrake.geometry import Meshcat, MeshcatVisualizer, SceneGraph
 from pydrake.multibody.plant import MultibodyPlant
-from pydrake.systems.framework import Diagram, DiagramBuilder, OutputPort
+from pydrake.systems.framework import Context, Diagram, DiagramBuilder, OutputPort
 from pydrake.systems.primitives import ConstantVectorSource, MatrixGain, Multiplexer
 from pydrake.systems.rendering import MultibodyPositionToGeometryPose
 
@@ -48,11 +48,14 @@ TOF_POLLS_PER_PERIOD = 4
 START_TOLERANCE = 1e-4
 
 
-def CheckArmAtStart(arm: str, q_start: np.ndarray, q_measured: np.ndarray) -> None:
-    """Raises ConfigurationError, before any command is sent, unless the measured joints of
-    `arm` (rad) are within START_TOLERANCE of the task's start pose q_start (rad): a task
-    streams from that pose, and its first command would jump from anywhere else (a jump
-    the arm driver's command guard refuses)."""
+def CheckArmAtStart(station: Diagram, root: Context, arm: str, q_start: np.ndarray) -> None:
+    """Raises ConfigurationError, before any command is sent, unless the joints of `arm`
+    measured by the (hardware) `station` in the diagram's context `root` are within
+    START_TOLERANCE of the task's start pose q_start (rad): a task streams from that pose,
+    and its first command would jump from anywhere else (a jump the arm driver's command
+    guard refuses)."""
+    port = station.GetOutputPort(f"{arm}.position_measured")
+    q_measured = port.Eval(station.GetMyContextFromRoot(root))
     offset = np.asarray(q_measured, float) - np.asarray(q_start, float)
     worst = int(np.argmax(np.abs(offset)))
     if abs(offset[worst]) > START_TOLERANCE:

@@ -143,9 +143,7 @@ def RunJointTour(scenario: JointTourScenario, context: RunContext) -> dict[str, 
     ApplySimulatorConfig(scenario.station.simulator_config, simulator)
     simulator.Initialize()
     if context.hardware:
-        position = station.GetOutputPort(f"{scenario.arm}.position_measured")
-        root = simulator.get_context()
-        CheckArmAtStart(scenario.arm, start, position.Eval(station.GetMyContextFromRoot(root)))
+        CheckArmAtStart(station, simulator.get_context(), scenario.arm, start)
     context.start_recording()
     t_end = AdvanceWithProgress(simulator, trajectory.end_time() + scenario.settle_time, context)
     context.write_replay()

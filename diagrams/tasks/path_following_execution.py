@@ -98,8 +98,7 @@ def _Simulate(setup: Setup, station: Diagram, context: RunContext, drawing: str)
     follower_context = follower.GetMyContextFromRoot(root)
     simulator.Initialize()
     if context.hardware:
-        position = station.GetOutputPort(f"{setup.arm}.position_measured")
-        CheckArmAtStart(setup.arm, setup.q_start, position.Eval(station.GetMyContextFromRoot(root)))
+        CheckArmAtStart(station, root, setup.arm, setup.q_start)
     if drawn_in_loop:
         context.start_recording()
     start = time.perf_counter()
