@@ -13,15 +13,15 @@ deadline of its own: the ArmDriver's watchdog judges a link that went quiet.
 
 Velocities are differences of successive joint readings over the controller's clock.
 Malformed reply lines are counted in `rejected_lines` and skipped; the 1st, 10th, 100th, ...
-are printed. A reply line
-without a pending request, or a well-formed reply to another kind of request (`OK` to
-READ_JOINTS), means the controller and the link no longer agree which reply answers which
-request (a duplicated or dropped reply): every later reply could be taken for an earlier
-request's, so the link faults, and a STOP after that is sent but cannot be confirmed. A controller
-that refuses a target or a move (`NG ...`, e.g. after a STOP from its pendant) or a lost
-connection is a fault: streaming ends and the ArmDriver fails the run. `stop` waits at most
-`stop_timeout` for the controller's OK. Connecting sends RESET: starting a run is the
-deliberate act that clears an earlier STOP (or a streaming timeout).
+are printed. A reply line without a pending request, or a well-formed reply to another kind
+of request (`OK` to READ_JOINTS), means the controller and the link no longer agree which
+reply answers which request (a duplicated or dropped reply): every later reply could be
+taken for an earlier request's, so the link faults, and a STOP after that is sent but
+cannot be confirmed. A controller that refuses a target or a move (`NG ...`, e.g. after a
+STOP from its pendant) or a lost connection is a fault: streaming ends and the ArmDriver
+fails the run. `stop` waits at most `stop_timeout` for the controller's OK. Connecting sends
+RESET: starting a run is the deliberate act that clears an earlier STOP (or a streaming
+timeout).
 """
 
 from __future__ import annotations
