@@ -155,7 +155,14 @@ def _OpenArmLink(name: str, config: ArmDriverConfig, period: float) -> ArmLink:
             name, config.host, config.lookahead_time, config.gain, config.servo_timeout
         )
     port = config.port or nachi_protocol.DEFAULT_PORT
-    return NachiLink(name, config.host, port, poll_period=period, command_mode=config.command_mode)
+    return NachiLink(
+        name,
+        config.host,
+        port,
+        poll_period=period,
+        command_mode=config.command_mode,
+        lockstep_wait=config.watchdog if config.lockstep else None,
+    )
 
 
 def _DrawMeasured(
