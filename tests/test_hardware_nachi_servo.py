@@ -17,7 +17,7 @@ import numpy as np
 import pytest
 from hardware_doubles import Mz04dScenario
 from pydrake.systems.analysis import Simulator
-from pydrake.systems.framework import DiagramBuilder
+from pydrake.systems.framework import DiagramBuilder, EventStatus
 from pydrake.systems.primitives import TrajectorySource
 from pydrake.trajectories import PiecewisePolynomial
 
@@ -238,46 +238,71 @@ print(emulator.logic.State(), emulator.logic.error_count, flush=True)
 """
 
 
-def test_streamed_sinusoid_is_followed_within_the_limits(tmp_path):
-    # The emulator is a process of its own (as `guidedarm emulate nachi --lockstep`) that
-    # records the simulated arm at every servo tick.
-    script, out = tmp_path / "emulator.py", tmp_path / "rows.npy"
+def StreamSinusoid(directory: Path, lockstep: bool) -> tuple[np.ndarray, np.ndarray, str]:
+    """Streams the sinusoid from this process's hardware station to an emulator process of
+    its own (as `guidedarm emulate nachi`, with `lockstep`) that records the simulated arm
+    at every servo tick (Recorder rows); returns those rows, the (diagram time, host time)
+    of every step of the streaming simulator, and the emulator's `<state> <errors>` after
+    the run's end stopped the arm."""
+    script, out = directory / "emulator.py", directory / "rows.npy"
     tests = str(Path(__file__).parent)
-    source = RECORDING_EMULATOR.format(tests=tests, timeout=0.5, out=str(out), lockstep=True)
+    source = RECORDING_EMULATOR.format(tests=tests, timeout=0.5, out=str(out), lockstep=lockstep)
     script.write_text(source)
     process = subprocess.Popen(
         [sys.executable, str(script)], stdin=subprocess.PIPE, stdout=subprocess.PIPE, text=True
     )
+    clock = []
+
+    def monitor(context) -> EventStatus:
+        clock.append((context.get_time(), time.monotonic()))
+        return EventStatus.DidNothing()
+
     try:
         port = int(process.stdout.readline().split()[2])
-        simulator = StreamingDiagram(port, lockstep=True)
+        simulator = StreamingDiagram(port, lockstep)
+        simulator.set_monitor(monitor)
         simulator.AdvanceTo(DURATION + 0.3)
         assert StopAllArms() == []  # as a run's end: the arm brakes, STOPPED latched
         process.stdin.write("save\n")
         process.stdin.flush()
-        state, errors = process.stdout.readline().split()
+        status = process.stdout.readline().strip()
     finally:
         process.kill()
         process.wait(timeout=5)
-    assert state == "STOPPED" and errors == "0"
-    rows = np.load(out)
+    return np.load(out), np.array(clock), status
+
+
+def SinusoidFit(t: np.ndarray, q: np.ndarray) -> tuple[float, float, float, float]:
+    """The delay (s) that best explains the joints q (N x 6, rad) measured at stream times
+    t (N, s) as the delayed sinusoid, the largest and RMS error at that delay and the
+    largest without delay (rad)."""
+    errors = {d: np.abs(q.T - Sinusoid(t - d)) for d in np.arange(0.0, 0.06, 0.001)}
+    delay = min(errors, key=lambda d: np.max(errors[d]))
+    worst, rms = np.max(errors[delay]), np.sqrt(np.mean(errors[delay] ** 2))
+    return delay, worst, rms, np.max(errors[0.0])
+
+
+def PrintFit(title: str, delay: float, worst: float, rms: float, undelayed: float) -> None:
+    print(
+        f"\n{title} (|v| <= 1.26 rad/s): {delay * 1e3:.0f} ms behind, error max "
+        f"{worst * 1e3:.1f} mrad, rms {rms * 1e3:.2f} mrad (undelayed max "
+        f"{undelayed * 1e3:.1f} mrad)"
+    )
+
+
+def test_streamed_sinusoid_is_followed_within_the_limits(tmp_path):
+    rows, _, status = StreamSinusoid(tmp_path, lockstep=True)
+    assert status == "STOPPED 0"
     q, v, commanded = rows[:, 2:8], rows[:, 8:14], rows[:, 14:20]
     # In lockstep the controller received the target of diagram time 0 at the controller
     # time of the first SERVO, and every later one as far after it as the stream says.
     servo_times = rows[:, 20]
     first_servo = np.min(servo_times[np.isfinite(servo_times)])
     during = (rows[:, 1] >= first_servo) & (rows[:, 1] <= first_servo + DURATION + 0.3)
-    # The delay that best explains the measured joints: the targets' interval (the
-    # controller interpolates towards each target over it) and the servo.
-    t = rows[during, 1] - first_servo
-    errors = {d: np.abs(q[during].T - Sinusoid(t - d)) for d in np.arange(0.0, 0.06, 0.001)}
-    delay = min(errors, key=lambda d: np.max(errors[d]))
-    worst, rms = np.max(errors[delay]), np.sqrt(np.mean(errors[delay] ** 2))
-    print(
-        f"\nstreamed sinusoid (|v| <= 1.26 rad/s): {delay * 1e3:.0f} ms behind, error max "
-        f"{worst * 1e3:.1f} mrad, rms {rms * 1e3:.2f} mrad (undelayed max "
-        f"{np.max(errors[0.0]) * 1e3:.1f} mrad)"
-    )
+    # The delay: the targets' interval (the controller interpolates towards each target
+    # over it) and the servo.
+    delay, worst, rms, undelayed = SinusoidFit(rows[during, 1] - first_servo, q[during])
+    PrintFit("streamed sinusoid, lockstep", delay, worst, rms, undelayed)
     # In lockstep no target is late: 10 ms (one interval) behind, max 6.3 mrad, rms 2.9
     # mrad at 1.26 rad/s in every run, loaded or not. On the host clock (wall-clock mode,
     # tests/benchmarks/bench_emulator_realtime.py) late targets make the reference wait and
