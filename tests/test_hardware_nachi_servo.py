@@ -7,6 +7,7 @@ OS schedules the two processes)."""
 from __future__ import annotations
 
 import signal
+import socket
 import subprocess
 import sys
 import threading
@@ -166,8 +167,8 @@ class Recorder:
         return rows[:, 0], rows[:, 1], rows[:, 2:8], rows[:, 8:14], rows[:, 14:20]
 
 
-@pytest.fixture
-def emulator():
+def _RecordingEmulator(lockstep: bool):
+    """An in-process NachiEmulator of the MZ04D with a Recorder (`recorder`), running."""
     station = MakeStation(Mz04dScenario())
     recorders = []
 
@@ -182,6 +183,7 @@ def emulator():
         observers=(observe,),
         servo_acceleration=ACCELERATION,
         servo_timeout=SERVO_TIMEOUT,
+        lockstep=lockstep,
     )
     recorders.append(Recorder(station, emulator.logic))
     emulator.recorder = recorders[0]
@@ -190,6 +192,56 @@ def emulator():
     yield emulator
     emulator.Close()
     thread.join(timeout=2.0)
+
+
+@pytest.fixture
+def emulator():
+    yield from _RecordingEmulator(lockstep=False)
+
+
+@pytest.fixture
+def lockstep_emulator():
+    yield from _RecordingEmulator(lockstep=True)
+
+
+def test_lockstep_advances_the_controller_by_the_targets_intervals_only(lockstep_emulator):
+    """In lockstep each SERVO moves the controller's clock by its interval, however long
+    the client takes between targets (0.2 s here, twice the streaming timeout: nothing
+    times out while time stands still); the arm follows the targets on that clock; STOP
+    hands the clock back to real time and the arm brakes."""
+    logic = lockstep_emulator.logic
+    with socket.create_connection(("127.0.0.1", lockstep_emulator.port)) as connection:
+        replies = connection.makefile("r")
+
+        def Request(*lines: str) -> list[str]:
+            connection.sendall("".join(f"{line}\n" for line in lines).encode())
+            return [replies.readline().strip() for _ in lines]
+
+        def ControllerTime() -> float:
+            return nachi.ParseJoints(Request(nachi.READ_JOINTS)[0])[0]
+
+        start = ControllerTime()
+        q = HOME.copy()
+        times = []
+        for k in range(20):
+            q[0] = HOME[0] + 0.01 * k  # 1 rad/s
+            assert Request(_Servo(q)) == ["OK"]
+            times.append(ControllerTime())
+            if k in (5, 6):
+                time.sleep(0.2)
+        # (the first from the real-time clock's last step before it)
+        assert times[0] >= start + PERIOD
+        np.testing.assert_allclose(np.diff(times), PERIOD, atol=1e-4)
+        assert logic.State() == "SERVO" and logic.timeouts == 0
+        # The servo loop accelerating at 10 rad/s^2 behind the 1 rad/s ramp: where it is
+        # after 19 intervals, the same in every run; the pauses moved nothing.
+        assert logic.commanded[0] - HOME[0] == pytest.approx(0.161516, abs=1e-6)
+        assert Request(nachi.STOP) == ["OK"]
+        stopped = ControllerTime()
+        deadline = time.monotonic() + 5.0
+        while logic.standstill_time is None and time.monotonic() < deadline:
+            time.sleep(0.01)
+        assert logic.State() == "STOPPED" and ControllerTime() > stopped + 0.05
 
 
 def StreamingDiagram(port: int, lockstep: bool = False):
