@@ -14,6 +14,7 @@ import sys
 import threading
 import time
 import tty
+from collections.abc import Callable
 
 import numpy as np
 
@@ -21,6 +22,18 @@ from guidedarm.systems.hardware import nachi_protocol as nachi
 from guidedarm.systems.hardware.arm_link import JointSample
 from guidedarm.systems.hardware.line_socket import LineSocket
 from guidedarm.systems.hardware.nachi_emulator import NachiControllerLogic
+
+# s; how long a test waits for something that must happen: a bound for a loaded machine,
+# not a timing (the tests' verdicts never depend on how long it takes within it).
+LOADED_MACHINE_BOUND = 5.0
+
+
+def WaitUntil(condition: Callable[[], bool], timeout: float = LOADED_MACHINE_BOUND) -> bool:
+    """Polls `condition` every millisecond until it holds or `timeout` s passed; returns it."""
+    deadline = time.monotonic() + timeout
+    while not condition() and time.monotonic() < deadline:
+        time.sleep(0.001)
+    return condition()
 
 
 class RecordingRtdeControl:
