@@ -35,7 +35,7 @@ test: $(STAMP)
 # core busy; a round is clean when it passes with nothing skipped. Not part of `make test`
 # (a round takes about 3 minutes on 2 cores).
 N ?= 10
-STRESS_FILES ?= tests/test_hardware_*.py tests/test_tof_timing.py tests/test_interrupts.py
+STRESS_FILES ?= tests/test_hardware_*.py tests/test_live_view.py tests/test_interrupts.py
 test-stress: $(STAMP)
 	@$(BIN)/python -c 'while True: pass' & hog=$$!; \
 	trap 'kill $$hog 2>/dev/null' EXIT INT TERM; \
