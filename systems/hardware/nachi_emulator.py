@@ -353,7 +353,7 @@ class NachiEmulator:
 
     def _Pace(
         self, t: float, rate: float, origin: tuple[float, float] | None
-    ) -> tuple[float, float] | None:
+    ) -> tuple[float, float]:
         """Waits until host time reaches t (s) at `rate` from `origin` (simulated, host time;
         None: from now, the host clock taking over after a lockstep stream); returns the
         origin."""
