@@ -167,12 +167,13 @@ def test_continuous_following_on_the_emulators_matches_simulation(tmp_path):
 
 
 # Hardware minus simulated figures allowed (mm), and the relative speed difference. The
-# two runs cannot share a clock: the readings are taken at other instants of the motion,
-# the arm follows the stream one interval (8 ms) plus the link behind, and CPU contention
-# delays targets and readings now and then, so the tool passes a given hose point at other
-# poses. Over 8 successful runs (docs/hardware.md) the largest differences were -0.26,
-# -1.68, +1.26 and +9.06 mm (maxima are single readings), and the speed -3 % to +21 %; the
-# tolerances are 1.3-4 times those.
+# two runs cannot share a clock: the readings are taken at other instants of the motion
+# (the ToF driver stamps each line on its arrival, host clock), and the arm follows the
+# stream one interval (8 ms) behind, so the tool passes a given hose point at other poses.
+# Over 8 successful runs in real time (docs/hardware.md) the largest differences were
+# -0.26, -1.68, +1.26 and +9.06 mm (maxima are single readings), and the speed -3 % to
+# +21 %; the tolerances are 1.3-4 times those. In lockstep: -0.11, -1.97, +0.17, -0.63 mm
+# and +3 % in 3 runs at load averages of 9-14.
 HIL_TOLERANCES = {
     "detected_path_error_mean_mm": 1.0,
     "detected_path_error_max_mm": 5.0,
