@@ -121,7 +121,7 @@ def test_a_measurement_the_arm_cannot_produce_is_named(limits, q_offset, v, mess
         # rad/s over the 5-10 ms
         (
             [0, 0, 0, 0.175, 0, 0],
-            r"measured joint joint4 moving at \d+(\.\d+)? rad/s, beyond 1\.5 x its limit 9\.599",
+            r"measured joint joint4 moving at -?\d+(\.\d+)? rad/s, beyond 1\.5 x its limit 9\.599",
         ),
         ([-3.0, 0, 0, 0, 0, 0], r"measured joint joint1 at -3 rad, outside its range"),
     ],
