@@ -445,8 +445,8 @@ def _RunRefused(*args: str) -> subprocess.CompletedProcess:
                 "station.hardware.arms.ur10e={driver: ur_rtde, host: 127.0.0.9, "
                 "acceleration_limits: [5, 5, 5, 5, 5, 5]}",
             ],
-            "ur10e: cannot connect to the UR controller at 127.0.0.9: connect: Connection "
-            "refused; Error: Could not connect to: 127.0.0.9 at 30004, verify the IP",
+            "ur10e: cannot connect to the UR controller at 127.0.0.9: RTDE 127.0.0.9:30004: "
+            "[Errno 111] Connection refused",
         ),
         (["emulate", "nachi", "--port", "70000"], "--port: 70000 is not a TCP port (0..65535)"),
         (["emulate", "nachi", "--port", "-1"], "--port: -1 is not a TCP port (0..65535)"),

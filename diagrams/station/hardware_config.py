@@ -91,8 +91,8 @@ class ArmDriverConfig:
     driver: str = "ur_rtde"
     host: str = "127.0.0.1"
     port: int = InRange(0, 65535, 0)
-    watchdog: float = Positive(0.1)
-    stale_after: float = Positive(0.02)
+    watchdog: float = Positive(0.5)
+    stale_after: float = Positive(0.05)
     acceleration_limits: list[float] = Positive(factory=list)
     command_mode: str = "stream"
     servo_timeout: float = Positive(0.1)

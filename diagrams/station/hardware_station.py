@@ -15,14 +15,18 @@ from pydrake.systems.framework import Context, Diagram, DiagramBuilder, OutputPo
 from pydrake.systems.primitives import ConstantVectorSource, MatrixGain, Multiplexer
 from pydrake.systems.rendering import MultibodyPositionToGeometryPose
 
-from guidedarm.diagrams.station.hardware_config import ArmDriverConfig, HardwareConfig
+from guidedarm.diagrams.station.hardware_config import ArmDriverConfig
+from guidedarm.diagrams.station.link_checks import (
+    CheckHardwareEntries,
+    ProveCamera,
+    ProveToFTool,
+)
 from guidedarm.diagrams.station.scenario import StationScenario
 from guidedarm.diagrams.station.station_plant import (
     AddStationModels,
     GetArmInstance,
     SetInitialPositions,
 )
-from guidedarm.systems.config_checks import CheckConfig
 from guidedarm.systems.errors import ConfigurationError
 from guidedarm.systems.hardware import nachi_protocol
 from guidedarm.systems.hardware.arm_driver import ArmDriver
@@ -70,7 +74,7 @@ def CheckArmAtStart(station: Diagram, root: Context, arm: str, q_start: np.ndarr
 def MakeHardwareStation(scenario: StationScenario, meshcat: Meshcat | None = None) -> Diagram:
     """Builds the hardware station of `scenario`; connects to every configured device."""
     hardware = scenario.hardware
-    _CheckCovered(scenario, hardware)
+    CheckHardwareEntries(scenario, hardware)
     builder = DiagramBuilder()
     scene_graph = builder.AddNamedSystem("scene_graph", SceneGraph())
     plant = MultibodyPlant(0.0)
@@ -78,6 +82,42 @@ def MakeHardwareStation(scenario: StationScenario, meshcat: Meshcat | None = Non
     AddStationModels(scenario, plant)
     plant.Finalize()
     SetInitialPositions(scenario, plant)
+    # The sensors prove themselves first: an arm connection sends RESET (docs/hardware.md).
+    for name, camera in scenario.cameras.items():
+        config = hardware.cameras[name]
+        grabber = FrameGrabber(config.source)
+        ProveCamera(name, grabber, camera.width, camera.height, config.watchdog)
+        system = OpenCvCamera(
+            grabber,
+            camera.width,
+            camera.height,
+            1.0 / camera.fps,
+            config.watchdog,
+        )
+        builder.AddNamedSystem(f"{name}.opencv_camera", system)
+        builder.ExportOutput(system.get_output_port(), f"{name}.rgb_image")
+    for name in scenario.tof_tools:
+        tool = scenario.ToFTool(name)
+        config = hardware.tof_tools[name]
+        collector = ToFLineCollector(name)
+        if config.transport == "serial":
+            SerialTransport(collector, config.device, config.baudrate)
+        else:
+            BleTransport(collector, config.device)
+        ProveToFTool(collector, config.device, config.watchdog)
+        grid = MakeDetectionGrid(plant, tool)
+        latency = tool.ranging_time / 2 + config.latency
+        system = ToFDriver(
+            collector,
+            tool.period / TOF_POLLS_PER_PERIOD,
+            config.watchdog,
+            tool.max_range,
+            grid,
+            latency=latency,
+        )
+        builder.AddNamedSystem(f"{name}.driver", system)
+        for port in TOF_PORTS:
+            builder.ExportOutput(system.GetOutputPort(port), f"{name}.{port}")
     measured: dict[str, OutputPort] = {}
     for name, arm in scenario.arms.items():
         config = hardware.arms[name]
@@ -100,53 +140,11 @@ def MakeHardwareStation(scenario: StationScenario, meshcat: Meshcat | None = Non
         for port in ("position_measured", "velocity_estimated", "state_estimated"):
             builder.ExportOutput(driver.GetOutputPort(port), f"{name}.{port}")
         measured[name] = driver.GetOutputPort("position_measured")
-    for name, camera in scenario.cameras.items():
-        config = hardware.cameras[name]
-        system = OpenCvCamera(
-            FrameGrabber(config.source),
-            camera.width,
-            camera.height,
-            1.0 / camera.fps,
-            config.watchdog,
-        )
-        builder.AddNamedSystem(f"{name}.opencv_camera", system)
-        builder.ExportOutput(system.get_output_port(), f"{name}.rgb_image")
-    for name in scenario.tof_tools:
-        tool = scenario.ToFTool(name)
-        config = hardware.tof_tools[name]
-        collector = ToFLineCollector(name)
-        if config.transport == "serial":
-            SerialTransport(collector, config.device, config.baudrate)
-        else:
-            BleTransport(collector, config.device)
-        grid = MakeDetectionGrid(plant, tool)
-        latency = tool.ranging_time / 2 + config.latency
-        system = ToFDriver(
-            collector,
-            tool.period / TOF_POLLS_PER_PERIOD,
-            config.watchdog,
-            tool.max_range,
-            grid,
-            latency=latency,
-        )
-        builder.AddNamedSystem(f"{name}.driver", system)
-        for port in TOF_PORTS:
-            builder.ExportOutput(system.GetOutputPort(port), f"{name}.{port}")
     if meshcat is not None:
         _DrawMeasured(builder, plant, scene_graph, measured, meshcat)
     diagram = builder.Build()
     diagram.set_name("hardware_station")
     return diagram
-
-
-def _CheckCovered(scenario: StationScenario, hardware: HardwareConfig) -> None:
-    """Every arm, camera and ToF tool of the scenario needs a valid driver entry: fail
-    before connecting."""
-    for section in ("arms", "cameras", "tof_tools"):
-        missing = sorted(set(getattr(scenario, section)) - set(getattr(hardware, section)))
-        if missing:
-            raise ConfigurationError(f"hardware.{section}: no driver for {missing}")
-    CheckConfig(hardware, "hardware")
 
 
 def _OpenArmLink(name: str, config: ArmDriverConfig, period: float) -> ArmLink:

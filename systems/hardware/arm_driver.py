@@ -64,6 +64,7 @@ class ArmDriver(LeafSystem):
         self._watchdog = watchdog
         self._stale_after = stale_after
         self.stale_skips = 0
+        self._stale_streak = 0  # periods skipped since the last command sent
         n = limits.lower.size
         self._n = n
         # State: measured q, v; the last sent command q, its implied v, when it was sent
@@ -117,7 +118,7 @@ class ArmDriver(LeafSystem):
         x = context.get_discrete_state(self._state).value().copy()
         fault = self._link.fault()
         if fault is not None:
-            self._Fail(context, fault)
+            self._Fail(context, fault + self._StaleStreakHint())
         sample = self._link.latest()
         age = SampleAge(sample, time.monotonic())
         if age > self._watchdog:
@@ -128,7 +129,9 @@ class ArmDriver(LeafSystem):
         x[: 2 * n] = np.concatenate([sample.q, sample.v])
         if age > self._stale_after:
             self.stale_skips += 1
+            self._stale_streak += 1
         else:
+            self._stale_streak = 0
             q_command = self.get_input_port().Eval(context)
             t_sent, dt_sent = x[-2:]
             dt = context.get_time() - t_sent
@@ -144,6 +147,20 @@ class ArmDriver(LeafSystem):
                 self._Fail(context, f"command not sent: {DescribeError(e)}")
             x[2 * n :] = np.concatenate([q_command, v, [context.get_time(), dt]])
         state.set_value(self._state, x)
+
+    def _StaleStreakHint(self) -> str:
+        """What to change when the link faults after the driver sent nothing for several
+        periods because every measurement was stale: a controller that stops the arm when
+        the stream pauses (a Nachi SERVO or UR servoJ timeout) refuses the next target."""
+        if self._stale_streak < 2:
+            return ""
+        return (
+            f" (no command sent for the last {self._stale_streak} periods, "
+            f"{self._stale_streak * self._period:.3f} s: every measurement was older than "
+            f"stale_after {self._stale_after} s; raise station.hardware.arms.{self._link.name}"
+            f".stale_after, at most the watchdog {self._watchdog} s, or the controller's "
+            "streaming timeout)"
+        )
 
     def _Fail(self, context: Context, what: str) -> NoReturn:
         """Stops the arm and raises the fault with the stop's error beside it."""

@@ -13,6 +13,12 @@ frozen, cut off) has the controller stop the robot by itself.
 
 Connecting is part of building the station, before any motion: a controller that cannot
 be reached is a ConfigurationError (one line, naming the host and the vendor's message).
+The vendor constructors have no deadline of their own (against a server that accepts the
+connection and never answers they wait for minutes, holding the GIL), so `ProbeUrController`
+first checks, each within `connect_timeout`, every port they use (ur_rtde hard-codes them):
+RTDE 30004 answers the protocol version and controller version requests, the dashboard
+server 29999 sends its welcome line and answers `PolyscopeVersion`, the script port 30003
+accepts a connection.
 """
 
 from __future__ import annotations
@@ -20,6 +26,8 @@ from __future__ import annotations
 import contextlib
 import math
 import os
+import socket
+import struct
 import sys
 import tempfile
 import threading
@@ -28,6 +36,7 @@ from typing import Protocol
 import numpy as np
 
 from guidedarm.systems.errors import ConfigurationError
+from guidedarm.systems.hardware import rtde_protocol as rtde
 from guidedarm.systems.hardware.arm_link import (
     DescribeError,
     JointSample,
@@ -37,6 +46,11 @@ from guidedarm.systems.hardware.arm_link import (
 )
 
 RTDE_FREQUENCY = 500.0  # Hz, e-Series controllers
+# The controller ports ur_rtde 1.6.5 connects to (fixed in the library).
+RTDE_PORT = 30004
+DASHBOARD_PORT = 29999
+SCRIPT_PORT = 30003
+CONNECT_TIMEOUT = 2.0  # s, for each port of ProbeUrController
 SERVO_STOP_DECELERATION = 10.0  # rad/s^2, the vendor's default for servoStop
 
 
@@ -134,12 +148,78 @@ class UrRtdeLink:
                 release()
 
 
+def _ReadExactly(connection: socket.socket, size: int) -> bytes:
+    data = b""
+    while len(data) < size:
+        chunk = connection.recv(size - len(data))
+        if not chunk:
+            raise ConnectionError("the controller closed the connection")
+        data += chunk
+    return data
+
+
+def _RtdeRequest(connection: socket.socket, packet_type: int, payload: bytes) -> bytes:
+    """Sends one RTDE request and returns the payload of its reply (same type)."""
+    connection.sendall(rtde.EncodePacket(packet_type, payload))
+    while True:
+        size, reply_type = rtde.HEADER.unpack(_ReadExactly(connection, rtde.HEADER.size))
+        body = _ReadExactly(connection, max(0, size - rtde.HEADER.size))
+        if reply_type == packet_type:
+            return body
+
+
+def _ProbeRtde(connection: socket.socket) -> str:
+    accepted = _RtdeRequest(
+        connection, rtde.REQUEST_PROTOCOL_VERSION, struct.pack(">H", rtde.PROTOCOL_VERSION)
+    )
+    if accepted[:1] != b"\x01":
+        raise ConnectionError(f"RTDE protocol version {rtde.PROTOCOL_VERSION} refused")
+    version = struct.unpack(">IIII", _RtdeRequest(connection, rtde.GET_URCONTROL_VERSION, b""))
+    return ".".join(map(str, version))
+
+
+def _ProbeDashboard(connection: socket.socket) -> str:
+    reader = connection.makefile("rb")
+    reader.readline()  # the welcome line
+    connection.sendall(b"PolyscopeVersion\n")
+    return reader.readline().decode("ascii", "replace").strip()
+
+
+def ProbeUrController(host: str, timeout: float = CONNECT_TIMEOUT) -> dict[str, str]:
+    """Checks, each within `timeout` s, that the ports ur_rtde uses at `host` answer (see
+    the module docstring); returns what they said, or raises ConnectionError naming the
+    port that did not."""
+    said = {}
+    probes = (
+        ("RTDE", RTDE_PORT, _ProbeRtde),
+        ("dashboard server", DASHBOARD_PORT, _ProbeDashboard),
+        ("script port", SCRIPT_PORT, None),
+    )
+    for what, port, probe in probes:
+        try:
+            with socket.create_connection((host, port), timeout=timeout) as connection:
+                said[what] = probe(connection) if probe else "open"
+        except TimeoutError:
+            raise ConnectionError(f"{what} {host}:{port}: no answer within {timeout} s") from None
+        except (OSError, struct.error, ValueError) as e:  # a timeout is an OSError
+            raise ConnectionError(f"{what} {host}:{port}: {DescribeError(e)}") from None
+    return said
+
+
 def OpenUrRtde(
     name: str, host: str, lookahead_time: float, gain: float, servo_timeout: float
 ) -> UrRtdeLink:
-    """Connects both vendor interfaces to the controller at `host` (RTDE port 30004)."""
+    """Connects both vendor interfaces to the controller at `host` (RTDE port 30004),
+    after ProbeUrController."""
     import rtde_control
     import rtde_receive
+
+    try:
+        ProbeUrController(host)
+    except ConnectionError as e:
+        raise ConfigurationError(
+            f"{name}: cannot connect to the UR controller at {host}: {e}"
+        ) from None
 
     variables = ["timestamp", "actual_q", "actual_qd"]
     receive = control = None
