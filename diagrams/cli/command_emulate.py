@@ -1,9 +1,10 @@
-"""`guidedarm emulate nachi|tof`: emulated devices served from a Drake simulation of a station.
+"""`guidedarm emulate nachi|tof|ur`: emulated devices served from a Drake simulation of a station.
 
 `nachi` serves the Nachi User Task line protocol (docs/nachi_protocol.md) for an arm of the
 station on TCP; every ToF tool of the station is streamed as well, each on its own
 pseudo-terminal. `tof` streams the ToF tools only, the arm holding its initial position.
 Without --scenario the station is the Wawrzyniak et al. cell (MZ04D, gripper, ToF tool `tof`).
+`ur` (a UR controller for the ur_rtde client) is diagrams/cli/emulate_ur.py's.
 """
 
 from __future__ import annotations
@@ -15,6 +16,7 @@ from pydrake.multibody.parsing import LoadModelDirectives
 from pydrake.systems.framework import Context
 
 from guidedarm.diagrams.cli.command_run import LoadScenario
+from guidedarm.diagrams.cli.emulate_ur import EmulateUr
 from guidedarm.diagrams.station.hardware_config import (
     CheckPort,
     ListenHostProblem,
@@ -41,11 +43,13 @@ NACHI_FRAMES = ("base", "flange")
 
 def register(subparsers: argparse._SubParsersAction) -> None:
     parser = subparsers.add_parser("emulate", help="serve emulated hardware from a simulation")
-    parser.add_argument("device", choices=["nachi", "tof"])
+    parser.add_argument("device", choices=["nachi", "tof", "ur"])
     parser.add_argument("--scenario", help="scenario name or YAML whose `station` to simulate")
     parser.add_argument("--set", dest="overrides", action="append", default=[], metavar="K=V")
-    parser.add_argument("--arm", help="the arm served over TCP (nachi; default mz04d)")
-    parser.add_argument("--host", help="the address nachi listens on (default 127.0.0.1)")
+    parser.add_argument("--arm", help="the arm served (nachi: default mz04d; ur: ur10e)")
+    parser.add_argument(
+        "--host", help="the address nachi or ur listens on (default 127.0.0.1; ur: any 127.x.y.z)"
+    )
     parser.add_argument(
         "--port", type=int, help=f"TCP port of `nachi` (default {DEFAULT_PORT}; 0 = any free)"
     )
@@ -191,6 +195,8 @@ def CheckArguments(args: argparse.Namespace) -> None:
 
 
 def emulate_command(args: argparse.Namespace) -> int:
+    if args.device == "ur":
+        return EmulateUr(args)
     CheckArguments(args)
     if args.scenario:
         task, scenario, _ = LoadScenario(args.scenario, args.overrides)
