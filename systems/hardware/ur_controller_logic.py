@@ -71,7 +71,6 @@ class UrControllerLogic:
         self.outputs = {"output_int_register_0": 0}
         self.running = False
         self.executing = False
-        self.pending_servo: tuple[np.ndarray, float] | None = None
         self.watchdog_period = np.inf  # s; 1 / the client's setWatchdog frequency
         self.last_kick = 0.0  # controller time input_int_register_0 was last written
         self.stop_reason = ""
@@ -87,10 +86,6 @@ class UrControllerLogic:
             self.inputs.update(values)
             if "input_int_register_0" in values:
                 self.last_kick = self.time
-                if values["input_int_register_0"] == SERVOJ:
-                    q = [self.inputs.get(f"input_double_register_{i}", 0.0) for i in range(6)]
-                    interval = self.inputs.get("input_double_register_8", 0.002)
-                    self.pending_servo = (np.array(q, float), float(interval))
 
     def StartProgram(self, text: str) -> str:
         """A program received on the script port; returns what the controller did."""
@@ -158,10 +153,13 @@ class UrControllerLogic:
         """One pass of the control script's main loop."""
         cmd = int(self.inputs.get("input_int_register_0", NO_CMD))
         if cmd in REALTIME_COMMANDS:
-            if cmd == SERVOJ and self.pending_servo is not None:
-                self._Servo(*self.pending_servo)
-                self.pending_servo = None
-            elif cmd != SERVOJ:
+            if cmd == SERVOJ:
+                # The script reads the registers at every cycle: a target that another
+                # command overwrote before this cycle is never seen, as on the controller.
+                q = [self.inputs.get(f"input_double_register_{i}", 0.0) for i in range(6)]
+                if self.tracker is None or np.any(self.tracker.target != q):
+                    self._Servo(np.array(q), self.inputs.get("input_double_register_8", 0.002))
+            else:
                 self.unsupported += 1
             self.outputs["output_int_register_0"] = READY
         elif cmd == NO_CMD:
@@ -199,7 +197,7 @@ class UrControllerLogic:
         q = np.clip(q, self.lower, self.upper)
         if self.tracker is None or self.tracker.braking:
             self.tracker = ServoTracker(self.commanded, self.velocity, self.acceleration, self.time)
-        self.tracker.SetTarget(q, max(interval, 1e-4), self.time)
+        self.tracker.SetTarget(q, max(float(interval), 1e-4), self.time)
         self.servo_targets += 1
 
     def _Brake(self) -> None:
@@ -207,7 +205,6 @@ class UrControllerLogic:
             self.tracker.Brake()
         else:
             self.commanded = self.measured.copy()
-        self.pending_servo = None
 
     # --- what the controller publishes -------------------------------------------------
 

@@ -8,7 +8,8 @@ controller sample (a later RTDE `timestamp`) into LatestSample with the host tim
 an error of the vendor interface in that thread is the link's fault. A servoJ or servoStop
 the controller does not accept raises, so the ArmDriver stops the arm and fails the run.
 The control script's watchdog is the streaming timeout, as the Nachi controller's: set to
-1 / `servo_timeout` Hz and kicked with every servoJ, so a PC that stops streaming (dead,
+1 / `servo_timeout` Hz and fed by every servoJ (it watches input_int_register_0, which
+each servoJ writes), so a PC that stops streaming (dead,
 frozen, cut off) has the controller stop the robot by itself.
 
 Connecting is part of building the station, before any motion: a controller that cannot
@@ -51,6 +52,8 @@ RTDE_PORT = 30004
 DASHBOARD_PORT = 29999
 SCRIPT_PORT = 30003
 CONNECT_TIMEOUT = 2.0  # s, for each port of ProbeUrController
+RUNTIME_PLAYING = 2  # RTDE runtime_state of a running program
+CLOSE_TIMEOUT = 1.0  # s, for disconnecting both vendor interfaces
 SERVO_STOP_DECELERATION = 10.0  # rad/s^2, the vendor's default for servoStop
 
 
@@ -58,6 +61,7 @@ class RtdeReceive(Protocol):
     def getActualQ(self) -> list[float]: ...
     def getActualQd(self) -> list[float]: ...
     def getTimestamp(self) -> float: ...
+    def getRuntimeState(self) -> int: ...
     def isConnected(self) -> bool: ...
     def disconnect(self) -> None: ...
 
@@ -74,7 +78,6 @@ class RtdeControl(Protocol):
     ) -> bool: ...
     def servoStop(self, a: float) -> bool: ...
     def setWatchdog(self, min_frequency: float) -> bool: ...
-    def kickWatchdog(self) -> bool: ...
     def stopScript(self) -> None: ...
 
 
@@ -91,6 +94,7 @@ class UrRtdeLink:
         gain: float = 300.0,
         poll_period: float = 0.0005,
         servo_timeout: float = 0.1,
+        stop_timeout: float = 0.25,
     ) -> None:
         if not control.setWatchdog(1.0 / servo_timeout):
             raise ConfigurationError(f"{name}: the UR controller refused its watchdog")
@@ -100,6 +104,7 @@ class UrRtdeLink:
         self._lookahead_time = lookahead_time
         self._gain = gain
         self._poll_period = poll_period
+        self._stop_timeout = stop_timeout
         self._fault: str | None = None
         self._latest = LatestSample()
         self._closing = threading.Event()
@@ -131,21 +136,66 @@ class UrRtdeLink:
 
     def send_position(self, q: np.ndarray, period: float) -> None:
         q = [float(x) for x in q]
+        # No kickWatchdog after it: each servoJ writes input_int_register_0, which is what
+        # the watchdog watches, and a kick (NO_CMD in that register) sent right after could
+        # overwrite the servoJ before the control script's next cycle reads it.
         if not self._control.servoJ(q, 0.0, 0.0, period, self._lookahead_time, self._gain):
+            if self._receive.getRuntimeState() != RUNTIME_PLAYING:
+                raise RuntimeError(
+                    "servoJ not accepted: the control program has stopped (its watchdog: no "
+                    "servoJ within servo_timeout, or a stop from the pendant or dashboard)"
+                )
             raise RuntimeError("servoJ not accepted by the controller")
-        self._control.kickWatchdog()
 
     def stop(self) -> None:
-        if not self._control.servoStop(SERVO_STOP_DECELERATION):
+        """servoStop, confirmed by the controller within `stop_timeout` s: the vendor call
+        waits up to 300 s for a controller that stopped answering (it releases the GIL,
+        so it waits in a thread of its own, left behind if it does not return)."""
+        stopped = _CallWithin(
+            lambda: self._control.servoStop(SERVO_STOP_DECELERATION), self._stop_timeout
+        )
+        if stopped is None:
+            raise TimeoutError(f"servoStop unconfirmed within {self._stop_timeout} s")
+        # The client refuses every command once the program has stopped (its watchdog,
+        # a stop from the pendant or the dashboard): the controller stopped the arm then.
+        if not stopped and self._receive.getRuntimeState() == RUNTIME_PLAYING:
             raise RuntimeError("servoStop not accepted by the controller")
 
     def close(self) -> None:
+        """Ends the poll thread, then disconnects and ends the control script, giving the
+        vendor calls (each of which can wait minutes on a dead controller) 1 s together."""
         self._closing.set()
         UnregisterArmLink(self)
         self._thread.join(timeout=1.0)
-        for release in (self._receive.disconnect, self._control.stopScript):
-            with contextlib.suppress(Exception):  # closing a dead vendor interface
-                release()
+
+        def release() -> None:
+            for call in (self._receive.disconnect, self._control.stopScript):
+                with contextlib.suppress(Exception):  # closing a dead vendor interface
+                    call()
+
+        _CallWithin(release, CLOSE_TIMEOUT)
+
+
+def _CallWithin(call, timeout: float):
+    """call()'s result if it returns within `timeout` s, else None (the call goes on in its
+    daemon thread); an exception it raises is raised here."""
+    result: list = []
+
+    def run() -> None:
+        try:
+            result.append((call(), None))
+        except Exception as e:  # handed to the caller
+            result.append((None, e))
+
+    thread = threading.Thread(target=run, name="ur-rtde-call", daemon=True)
+    thread.start()
+    thread.join(timeout)
+    if not result:
+        return None
+    value, error = result[0]
+    if error is not None:
+        raise error
+    return value
 
 
 def _ReadExactly(connection: socket.socket, size: int) -> bytes:
@@ -221,7 +271,7 @@ def OpenUrRtde(
             f"{name}: cannot connect to the UR controller at {host}: {e}"
         ) from None
 
-    variables = ["timestamp", "actual_q", "actual_qd"]
+    variables = ["timestamp", "actual_q", "actual_qd", "runtime_state"]
     receive = control = None
     with CapturedStderr() as vendor:
         try:

@@ -1,0 +1,211 @@
+"""`guidedarm emulate ur`: the UR controller emulator's register protocol (without a
+simulation), and the real ur_rtde client driving the UR10e tasks through it: success,
+tracking, and a killed, frozen or dashboard-stopped controller ending the run with a
+summary naming the arm."""
+
+from __future__ import annotations
+
+import json
+import re
+import signal
+import socket
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+import pytest
+from test_hardware_link_checks import FreeLoopbackHost
+
+from guidedarm.systems.hardware.ur_controller_logic import (
+    DONE,
+    PLAYING,
+    READY,
+    SERVOJ,
+    SET_WATCHDOG,
+    STOPPED,
+    UrControllerLogic,
+)
+
+CLI = [sys.executable, "-m", "guidedarm.diagrams.cli.main"]
+WATCHDOG = 0.5  # s, the arm driver's default
+DT = 0.002  # s, the controller's step
+
+
+def _Logic() -> UrControllerLogic:
+    n = 6
+    return UrControllerLogic(
+        np.full(n, -6.0), np.full(n, 6.0), np.zeros(n), np.full(n, 2.0), np.full(n, 10.0)
+    )
+
+
+def _Run(logic: UrControllerLogic, t0: float, seconds: float) -> float:
+    """Steps the logic with the arm exactly where it is commanded; returns the end time."""
+    t = t0
+    for _ in range(round(seconds / DT)):
+        t += DT
+        logic.Step(t, logic.commanded, np.zeros(6))
+    return t
+
+
+def _ServoJ(q, interval: float) -> dict:
+    registers = {f"input_double_register_{i}": value for i, value in enumerate(q)}
+    return {"input_int_register_0": SERVOJ, **registers, "input_double_register_8": interval}
+
+
+def test_the_control_script_protocol_tracks_servoj_and_its_watchdog_stops_the_program():
+    logic = _Logic()
+    assert logic.StartProgram("def other():\n  movej([0,0,0,0,0,0])\n").startswith(
+        "program refused"
+    )
+    assert logic.Output("runtime_state") == STOPPED
+    logic.StartProgram("def rtde_control():\n  # the control script\n")
+    assert logic.Output("runtime_state") == PLAYING
+    assert logic.Output("output_int_register_0") == READY
+    # setWatchdog(10 Hz): a command the client waits for (done), then NO_CMD (ready).
+    logic.WriteInputs({"input_int_register_0": SET_WATCHDOG, "input_double_register_0": 10.0})
+    t = _Run(logic, 0.0, DT)
+    assert logic.Output("output_int_register_0") == DONE
+    logic.WriteInputs({"input_int_register_0": 0})
+    t = _Run(logic, t, DT)
+    assert logic.Output("output_int_register_0") == READY
+    # A stream of 50 targets 0.5 mrad apart on joint 1 (0.25 rad/s), one per step: tracked.
+    for k in range(1, 51):
+        logic.WriteInputs(_ServoJ([0.0005 * k, 0, 0, 0, 0, 0], DT))
+        t = _Run(logic, t, DT)
+    t = _Run(logic, t, 0.05)  # the stream stops; the watchdog (0.1 s) has not yet expired
+    assert logic.Output("runtime_state") == PLAYING
+    assert logic.commanded[0] == pytest.approx(0.025, abs=2e-3)  # the servo loop settles
+    assert logic.servo_targets == 50
+    t = _Run(logic, t, 0.06)  # 0.11 s since the last write
+    assert logic.Output("runtime_state") == STOPPED
+    assert "RTDE watchdog: input_int_register_0 not written for 0.1" in logic.stop_reason
+
+
+def test_the_dashboard_answers_ur_rtde_and_stop_ends_the_program():
+    logic = _Logic()
+    logic.StartProgram("def rtde_control():\n")
+    assert logic.Dashboard("PolyscopeVersion\n").startswith("URSoftware 5.15.0.0")
+    assert logic.Dashboard("is in remote control") == "true"
+    assert logic.Dashboard("running") == "Program running: true"
+    assert logic.Dashboard("stop") == "Stopped"
+    assert logic.Output("runtime_state") == STOPPED
+    assert logic.Dashboard("no such request") == "could not understand: 'no such request'"
+
+
+class UrCell:
+    """`guidedarm emulate ur --scenario SCENARIO` on a loopback address of its own."""
+
+    def __init__(self, scenario: str) -> None:
+        self.host = FreeLoopbackHost()
+        self.process = subprocess.Popen(
+            [*CLI, "emulate", "ur", "--scenario", scenario, "--host", self.host],
+            stdout=subprocess.PIPE,
+            stderr=subprocess.STDOUT,
+            text=True,
+        )
+        line = self.process.stdout.readline()
+        assert line.startswith(f"ur: ur10e listening on {self.host}"), line
+
+    def Dashboard(self, request: str) -> str:
+        with socket.create_connection((self.host, 29999), timeout=5) as connection:
+            reader = connection.makefile("r")
+            reader.readline()
+            connection.sendall(f"{request}\n".encode())
+            return reader.readline().strip()
+
+    def Close(self) -> str:
+        if self.process.poll() is None:
+            self.process.send_signal(signal.SIGCONT)
+            self.process.send_signal(signal.SIGINT)
+        output, _ = self.process.communicate(timeout=30)
+        return output
+
+
+def _StartRun(cell: UrCell, scenario: str, out: Path) -> subprocess.Popen:
+    """The scenario's own driver settings (their defaults: watchdog 0.5 s), the host set."""
+    command = [*CLI, "run", scenario, "--hardware", "--out", str(out)]
+    command += ["--set", f"station.hardware.arms.ur10e.host={cell.host}"]
+    return subprocess.Popen(command, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize(
+    "scenario, checks",
+    [
+        # the simulated tour: tracking 0 at 0 delay; the planner's run ends at T = 4.52 s
+        ("ur10e_joint_tour", {"final_error_rad": 1e-3}),
+        ("ur10e_waypoints", {"T_s": 4.52}),
+    ],
+)
+def test_ur10e_tasks_through_the_real_ur_rtde_client(scenario, checks, tmp_path):
+    """The run's verdict and tracking are the task's own (max_tracking_error, 0.05 rad for
+    the tour, 10 mm for the planner), at the delay the task fits (the link, the servo loop:
+    a few ms)."""
+    cell = UrCell(scenario)
+    try:
+        run = _StartRun(cell, scenario, tmp_path / "run")
+        output, _ = run.communicate(timeout=300)
+    finally:
+        emulator = cell.Close()
+    summary = json.loads((tmp_path / "run" / "summary.json").read_text())
+    print(f"\n{scenario}: {json.dumps({k: v for k, v in summary.items() if k != 'command'})}")
+    assert run.returncode == 0 and summary["success"] is True, (output, summary)
+    assert "rtde_control started" in emulator
+    assert 0.0 < summary["tracking_delay_s"] < 0.1
+    for key, value in checks.items():
+        if key == "T_s":
+            assert summary[key] == pytest.approx(value, abs=0.05)
+        else:
+            assert abs(summary[key]) < value
+    assert "Traceback" not in output + emulator
+
+
+FAULTS = {
+    "killed": (
+        lambda cell: cell.process.send_signal(signal.SIGKILL),
+        r"hardware fault on ur10e at t = .* s: (RTDE connection lost|RTDE receive failed|"
+        r"command not sent): .*",
+    ),
+    "frozen": (
+        lambda cell: cell.process.send_signal(signal.SIGSTOP),
+        rf"hardware fault on ur10e at t = .* s: link quiet for .* s \(watchdog {WATCHDOG} s\) "
+        r"\(stopping it also failed: servoStop unconfirmed within 0.25 s\)",
+    ),
+    "stopped from the dashboard": (
+        lambda cell: cell.Dashboard("stop"),
+        r"hardware fault on ur10e at t = .* s: command not sent: servoJ not accepted: the "
+        r"control program has stopped .*; arm stopped",
+    ),
+}
+
+
+@pytest.mark.parametrize("fault", FAULTS)
+def test_a_controller_fault_stops_the_run_within_the_watchdog_and_a_second(fault, tmp_path):
+    inject, failure = FAULTS[fault]
+    cell = UrCell("ur10e_joint_tour")
+    try:
+        run = _StartRun(cell, "ur10e_joint_tour", tmp_path / "run")
+        lines = []
+        for line in run.stdout:  # the tour is under way at 0.25 s of its 4.2 s
+            lines.append(line)
+            if "simulated" in line:
+                break
+        inject(cell)
+        fault_time = time.monotonic()
+        for line in run.stdout:
+            lines.append(line)
+            if line.startswith("  failure:"):  # printed once summary.json is written
+                elapsed = time.monotonic() - fault_time
+                break
+        lines.append(run.communicate(timeout=60)[0])
+    finally:
+        cell.Close()
+    output = "".join(lines)
+    summary = json.loads((tmp_path / "run" / "summary.json").read_text())
+    print(f"\n{fault}: fault to its line {elapsed:.3f} s; failure: {summary['failure']}")
+    assert run.returncode == 1, output
+    assert re.fullmatch(failure, summary["failure"]), summary["failure"]
+    assert elapsed < WATCHDOG + 1.0
+    assert "Traceback" not in output
