@@ -97,10 +97,10 @@ def test_the_dashboard_answers_ur_rtde_and_stop_ends_the_program():
 class UrCell:
     """`guidedarm emulate ur --scenario SCENARIO` on a loopback address of its own."""
 
-    def __init__(self, scenario: str) -> None:
+    def __init__(self, scenario: str, *options: str) -> None:
         self.host = FreeLoopbackHost()
         self.process = subprocess.Popen(
-            [*CLI, "emulate", "ur", "--scenario", scenario, "--host", self.host],
+            [*CLI, "emulate", "ur", "--scenario", scenario, "--host", self.host, *options],
             stdout=subprocess.PIPE,
             stderr=subprocess.STDOUT,
             text=True,
@@ -143,7 +143,7 @@ def test_ur10e_tasks_through_the_real_ur_rtde_client(scenario, checks, tmp_path)
     """The run's verdict and tracking are the task's own (max_tracking_error, 0.05 rad for
     the tour, 10 mm for the planner), at the delay the task fits (the link, the servo loop:
     a few ms)."""
-    cell = UrCell(scenario)
+    cell = UrCell(scenario, "--lockstep")
     try:
         run = _StartRun(cell, scenario, tmp_path / "run")
         output, _ = run.communicate(timeout=300)

@@ -67,6 +67,12 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         f"{DEFAULT_SERVO_TIMEOUT})",
     )
     parser.add_argument(
+        "--lockstep",
+        action="store_true",
+        help="ur: each servoJ target advances the station by its interval instead of real "
+        "time (for tests whose verdict must not depend on the host's load)",
+    )
+    parser.add_argument(
         "--tof-latency",
         type=float,
         help="seconds from a range's end of ranging to its line leaving the tool (the "
@@ -169,6 +175,8 @@ def CheckArguments(args: argparse.Namespace) -> None:
     their defaults."""
     if args.overrides and not args.scenario:
         raise ConfigurationError("--set needs --scenario (the default cell has no scenario)")
+    if args.lockstep:
+        raise ConfigurationError("--lockstep applies to `emulate ur` only")
     for option in ("port", "host", "arm"):
         if getattr(args, option) is not None and args.device != "nachi":
             raise ConfigurationError(f"--{option} applies to `emulate nachi` only")

@@ -69,8 +69,10 @@ def StartUrEmulator(
     host: str,
     servo_acceleration: float = DEFAULT_SERVO_ACCELERATION,
     tof_latency: float = ToFDriverConfig().latency,
+    lockstep: bool = False,
 ) -> tuple[UrEmulator, dict[str, ToFEmulator]]:
-    """The UR emulator for `arm` of the station and a ToF emulator per tool."""
+    """The UR emulator for `arm` of the station (UrEmulator's `lockstep`) and a ToF
+    emulator per tool."""
     from guidedarm.diagrams.cli.command_emulate import ToFTap
 
     if arm not in station_scenario.arms:
@@ -105,6 +107,7 @@ def EmulateUr(args: argparse.Namespace) -> int:
         args.host,
         args.servo_acceleration or DEFAULT_SERVO_ACCELERATION,
         ToFDriverConfig().latency if args.tof_latency is None else args.tof_latency,
+        args.lockstep,
     )
     print(f"ur: {args.arm or DEFAULT_ARM} listening on {args.host} (RTDE 30004, dashboard "
           "29999, script 30003)", flush=True)  # fmt: skip

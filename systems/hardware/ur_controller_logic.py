@@ -25,6 +25,7 @@ watchdog), the arm brakes and the client refuses further commands itself.
 
 from __future__ import annotations
 
+import collections
 import threading
 
 import numpy as np
@@ -57,8 +58,14 @@ class UrControllerLogic:
         q0: np.ndarray,
         velocity: np.ndarray,
         acceleration: np.ndarray,
+        lockstep: bool = False,
     ) -> None:
         self.lock = threading.RLock()
+        self.lockstep = lockstep
+        # lockstep: every servoJ package received, in order, (q, interval): the emulator
+        # advances the arm by each target's interval instead of sampling the registers.
+        self.targets: collections.deque[tuple[np.ndarray, float]] = collections.deque()
+        self.target_arrived = threading.Event()
         self.lower, self.upper = np.asarray(lower, float), np.asarray(upper, float)
         self.velocity = np.asarray(velocity, float)
         self.acceleration = np.asarray(acceleration, float)
@@ -86,6 +93,9 @@ class UrControllerLogic:
             self.inputs.update(values)
             if "input_int_register_0" in values:
                 self.last_kick = self.time
+                if self.lockstep and values["input_int_register_0"] == SERVOJ:
+                    self.targets.append((self._RegisterTarget(), self._RegisterInterval()))
+                    self.target_arrived.set()
 
     def StartProgram(self, text: str) -> str:
         """A program received on the script port; returns what the controller did."""
@@ -153,13 +163,13 @@ class UrControllerLogic:
         """One pass of the control script's main loop."""
         cmd = int(self.inputs.get("input_int_register_0", NO_CMD))
         if cmd in REALTIME_COMMANDS:
-            if cmd == SERVOJ:
+            if cmd == SERVOJ and not self.lockstep:
                 # The script reads the registers at every cycle: a target that another
                 # command overwrote before this cycle is never seen, as on the controller.
-                q = [self.inputs.get(f"input_double_register_{i}", 0.0) for i in range(6)]
+                q = self._RegisterTarget()
                 if self.tracker is None or np.any(self.tracker.target != q):
-                    self._Servo(np.array(q), self.inputs.get("input_double_register_8", 0.002))
-            else:
+                    self.Servo(q, self._RegisterInterval())
+            elif cmd != SERVOJ:
                 self.unsupported += 1
             self.outputs["output_int_register_0"] = READY
         elif cmd == NO_CMD:
@@ -191,9 +201,18 @@ class UrControllerLogic:
         if done:
             self.outputs["output_int_register_0"] = DONE
 
-    def _Servo(self, q: np.ndarray, interval: float) -> None:
+    def _RegisterTarget(self) -> np.ndarray:
+        return np.array([self.inputs.get(f"input_double_register_{i}", 0.0) for i in range(6)])
+
+    def _RegisterInterval(self) -> float:
+        return float(self.inputs.get("input_double_register_8", 0.002))
+
+    def Servo(self, q: np.ndarray, interval: float) -> None:
         """A servoJ target: tracked within the limits (a target beyond the position range
-        is clipped to it, as a controller that protective-stops is not emulated)."""
+        is clipped to it, as a controller that protective-stops is not emulated); ignored
+        once the program has stopped."""
+        if not self.running:
+            return
         q = np.clip(q, self.lower, self.upper)
         if self.tracker is None or self.tracker.braking:
             self.tracker = ServoTracker(self.commanded, self.velocity, self.acceleration, self.time)

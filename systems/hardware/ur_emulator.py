@@ -155,6 +155,7 @@ class UrEmulator:
         period: float = 0.002,
         observers: tuple[Callable[[Context], None], ...] = (),
         servo_acceleration: float = 10.0,
+        lockstep: bool = False,
     ) -> None:
         self.station = station
         self.simulator = Simulator(station)
@@ -172,6 +173,7 @@ class UrEmulator:
             q0,
             plant.GetVelocitiesFromArray(instance, plant.GetVelocityUpperLimits()),
             np.full(len(q0), servo_acceleration),
+            lockstep,
         )
         self._command_port.FixValue(self.context, q0)
         self._period = period
@@ -198,26 +200,52 @@ class UrEmulator:
 
     def Run(self, duration: float = np.inf, realtime_rate: float = 1.0) -> None:
         """Steps the simulation until `duration` (s) or Close(); the controller runs in the
-        middle of each period of the station's discrete updates, as NachiEmulator.Run."""
-        self.simulator.set_target_realtime_rate(realtime_rate)
+        middle of each period of the station's discrete updates, as NachiEmulator.Run.
+        In lockstep, each servoJ target received advances the station by its interval, as
+        fast as the host allows; while none comes for a period of the host's clock, the
+        station steps a period at a time (the arm holds or brakes)."""
+        lockstep = self.logic.lockstep
+        self.simulator.set_target_realtime_rate(0.0 if lockstep else realtime_rate)
         self.simulator.Initialize()
         gc.freeze()  # a full collection over the station's objects would stall real time
-        start = t = self.context.get_time()
-        k = 0
-        while t < duration and not self._closing.is_set():
-            q = self._measured_port.Eval(self.context).copy()
-            v = self._velocity_port.Eval(self.context).copy()
-            self._command_port.FixValue(self.context, self.logic.Step(t, q, v))
-            with self._sessions_lock:
-                self._sessions = [s for s in self._sessions if not s.closed]
-                sessions = list(self._sessions)
-            for session in sessions:
-                session.Publish(t)
-            t = start + (k + 0.5) * self._period
-            k += 1
-            self.simulator.AdvanceTo(t)
-            for observer in self._observers:
-                observer(self.context)
+        self._start, self._k = self.context.get_time(), 0
+        while self.context.get_time() < duration and not self._closing.is_set():
+            steps = 1
+            if lockstep:
+                target = self._NextTarget()
+                if target is not None:
+                    q, interval = target
+                    with self.logic.lock:
+                        self.logic.Servo(q, interval)
+                    steps = max(1, round(interval / self._period))
+            for _ in range(steps):
+                self._Step()
+
+    def _NextTarget(self) -> tuple[np.ndarray, float] | None:
+        """The oldest servoJ target not yet run, waiting up to a period for one."""
+        logic = self.logic
+        if not logic.targets:
+            logic.target_arrived.wait(self._period)
+        logic.target_arrived.clear()
+        with logic.lock:
+            return logic.targets.popleft() if logic.targets else None
+
+    def _Step(self) -> None:
+        """One controller step: the program's cycle and servo loop at the current time,
+        the data packages due, then the station advanced to the middle of the next period."""
+        t = self.context.get_time()
+        q = self._measured_port.Eval(self.context).copy()
+        v = self._velocity_port.Eval(self.context).copy()
+        self._command_port.FixValue(self.context, self.logic.Step(t, q, v))
+        with self._sessions_lock:
+            self._sessions = [s for s in self._sessions if not s.closed]
+            sessions = list(self._sessions)
+        for session in sessions:
+            session.Publish(t)
+        self.simulator.AdvanceTo(self._start + (self._k + 0.5) * self._period)
+        self._k += 1
+        for observer in self._observers:
+            observer(self.context)
 
     def Close(self) -> None:
         """Ends Run and the servers."""
