@@ -228,16 +228,15 @@ def test_ur10e_waypoints_on_the_emulator_tracks_within_the_limit(tmp_path):
     at the delay that fits best, and ends as the simulated run does (T = 4.52 s)."""
     emulator = subprocess.Popen(
         [sys.executable, "-m", "guidedarm.diagrams.cli.main", "emulate", "nachi"]
-        + ["--port", "0", "--scenario", "ur10e_waypoints", "--arm", "ur10e"],
+        + ["--port", "0", "--scenario", "ur10e_waypoints", "--arm", "ur10e", "--lockstep"],
         stdout=subprocess.PIPE,
         text=True,
     )
     try:
         port = int(emulator.stdout.readline().split(":")[-1])
-        # The watchdog at 0.5 s, as above: the emulator shares the CPU with the suite.
         link = (
-            f"{{driver: nachi_tcp, port: {port}, watchdog: 0.5, stale_after: 0.05, "
-            "acceleration_limits: [5, 5, 5, 5, 5, 5]}"
+            f"{{driver: nachi_tcp, port: {port}, lockstep: true, watchdog: 0.5, "
+            "stale_after: 0.05, acceleration_limits: [5, 5, 5, 5, 5, 5]}"
         )
         run = subprocess.run(
             [sys.executable, "-m", "guidedarm.diagrams.cli.main", "run", "ur10e_waypoints"]
@@ -248,6 +247,10 @@ def test_ur10e_waypoints_on_the_emulator_tracks_within_the_limit(tmp_path):
             timeout=300,
         )
         summary = _Summary(tmp_path)
+        print(
+            f"\nlockstep: tracking delay {summary['tracking_delay_s']} s, TCP error max "
+            f"{summary['tcp_tracking_error_max_m']} m, T {summary['T_s']} s"
+        )
         assert run.returncode == 0 and summary["success"] is True, (run.stderr, summary)
         assert 0.01 <= summary["tracking_delay_s"] < 0.1
         assert summary["tcp_tracking_error_max_m"] < 0.01

@@ -123,42 +123,42 @@ class UrCell:
         return output
 
 
-def _StartRun(cell: UrCell, scenario: str, out: Path) -> subprocess.Popen:
+def _StartRun(cell: UrCell, scenario: str, out: Path, *overrides: str) -> subprocess.Popen:
     """The scenario's own driver settings (their defaults: watchdog 0.5 s), the host set."""
     command = [*CLI, "run", scenario, "--hardware", "--out", str(out)]
-    command += ["--set", f"station.hardware.arms.ur10e.host={cell.host}"]
+    for override in (f"station.hardware.arms.ur10e.host={cell.host}", *overrides):
+        command += ["--set", override]
     return subprocess.Popen(command, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
 
 
 @pytest.mark.slow
-@pytest.mark.parametrize(
-    "scenario, checks",
-    [
-        # the simulated tour: tracking 0 at 0 delay; the planner's run ends at T = 4.52 s
-        ("ur10e_joint_tour", {"final_error_rad": 1e-3}),
-        ("ur10e_waypoints", {"T_s": 4.52}),
-    ],
-)
-def test_ur10e_tasks_through_the_real_ur_rtde_client(scenario, checks, tmp_path):
-    """The run's verdict and tracking are the task's own (max_tracking_error, 0.05 rad for
-    the tour, 10 mm for the planner), at the delay the task fits (the link, the servo loop:
-    a few ms)."""
+@pytest.mark.parametrize("scenario", ["ur10e_joint_tour", "ur10e_waypoints"])
+def test_ur10e_tasks_through_the_real_ur_rtde_client(scenario, tmp_path):
+    """In lockstep (the emulator's clock is the servoJ stream's, the link waits for the
+    joints after each target), so that the figures do not depend on the host's load: the
+    run succeeds by the task's own verdict, the measured arm follows the stream one control
+    period behind (2 ms) within a few mrad, the planner's run ends as simulated (T = 4.52 s,
+    its joint accelerations within 80 deg/s^2) with the TCP within 5 mm of its stream."""
     cell = UrCell(scenario, "--lockstep")
     try:
-        run = _StartRun(cell, scenario, tmp_path / "run")
+        lockstep = "station.hardware.arms.ur10e.lockstep=true"
+        run = _StartRun(cell, scenario, tmp_path / "run", lockstep)
         output, _ = run.communicate(timeout=300)
     finally:
         emulator = cell.Close()
     summary = json.loads((tmp_path / "run" / "summary.json").read_text())
     print(f"\n{scenario}: {json.dumps({k: v for k, v in summary.items() if k != 'command'})}")
+    print(emulator.splitlines()[-2])
     assert run.returncode == 0 and summary["success"] is True, (output, summary)
-    assert "rtde_control started" in emulator
-    assert 0.0 < summary["tracking_delay_s"] < 0.1
-    for key, value in checks.items():
-        if key == "T_s":
-            assert summary[key] == pytest.approx(value, abs=0.05)
-        else:
-            assert abs(summary[key]) < value
+    assert "rtde_control started" in emulator and "0 unsupported commands" in emulator
+    assert summary["tracking_delay_s"] == pytest.approx(0.002)
+    assert summary["tracking_error_max_rad"] < 0.005
+    if scenario == "ur10e_waypoints":
+        assert summary["T_s"] == pytest.approx(4.52, abs=0.01)
+        assert max(summary["qdd_max"], -summary["qdd_min"]) <= np.radians(80) + 1e-9
+        assert summary["tcp_tracking_error_max_m"] < 0.005
+    else:
+        assert summary["final_error_rad"] < 1e-6
     assert "Traceback" not in output + emulator
 
 

@@ -69,8 +69,8 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     parser.add_argument(
         "--lockstep",
         action="store_true",
-        help="ur: each servoJ target advances the station by its interval instead of real "
-        "time (for tests whose verdict must not depend on the host's load)",
+        help="nachi, ur: while SERVO (servoJ) targets stream, advance the station by their "
+        "intervals instead of real time (for tests; the run's arm driver sets `lockstep: true`)",
     )
     parser.add_argument(
         "--tof-latency",
@@ -131,10 +131,12 @@ def StartEmulators(
     servo_acceleration: float = DEFAULT_SERVO_ACCELERATION,
     servo_timeout: float = DEFAULT_SERVO_TIMEOUT,
     tof_latency: float = DEFAULT_TOF_LATENCY,
+    lockstep: bool = False,
 ) -> tuple[NachiEmulator, dict[str, ToFEmulator]]:
     """The Nachi emulator for `arm` (SERVO loop limits: the model's joint speeds and
-    `servo_acceleration` rad/s^2; `servo_timeout` s) and a ToF emulator per tool, each
-    line leaving `tof_latency` s after its range's end of ranging."""
+    `servo_acceleration` rad/s^2; `servo_timeout` s; `lockstep`: NachiEmulator's) and a
+    ToF emulator per tool, each line leaving `tof_latency` s after its range's end of
+    ranging (on the station's clock, so in lockstep with the arm)."""
     if arm not in station_scenario.arms:
         raise ConfigurationError(
             f"--arm {arm}: not an arm of the station {list(station_scenario.arms)}"
@@ -162,6 +164,7 @@ def StartEmulators(
         observers=taps,
         servo_acceleration=servo_acceleration,
         servo_timeout=servo_timeout,
+        lockstep=lockstep,
     )
     return emulator, tofs
 
@@ -175,8 +178,11 @@ def CheckArguments(args: argparse.Namespace) -> None:
     their defaults."""
     if args.overrides and not args.scenario:
         raise ConfigurationError("--set needs --scenario (the default cell has no scenario)")
-    if args.lockstep:
-        raise ConfigurationError("--lockstep applies to `emulate ur` only")
+    if args.lockstep and args.device != "nachi":
+        raise ConfigurationError(
+            "--lockstep applies to `emulate nachi` and `emulate ur` only (the targets set "
+            "their clock)"
+        )
     for option in ("port", "host", "arm"):
         if getattr(args, option) is not None and args.device != "nachi":
             raise ConfigurationError(f"--{option} applies to `emulate nachi` only")
@@ -232,6 +238,7 @@ def emulate_command(args: argparse.Namespace) -> int:
         args.servo_acceleration,
         args.servo_timeout,
         latency,
+        args.lockstep,
     )
     if args.device == "nachi":
         print(f"nachi: {arm} listening on {args.host}:{emulator.port}", flush=True)

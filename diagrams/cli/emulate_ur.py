@@ -85,7 +85,14 @@ def StartUrEmulator(
     taps = tuple(
         ToFTap(station, name, tool.period, tofs[name], tof_latency) for name, tool in tools.items()
     )
-    emulator = UrEmulator(station, arm, host, observers=taps, servo_acceleration=servo_acceleration)
+    emulator = UrEmulator(
+        station,
+        arm,
+        host,
+        observers=taps,
+        servo_acceleration=servo_acceleration,
+        lockstep=lockstep,
+    )
     return emulator, tofs
 
 
@@ -117,6 +124,14 @@ def EmulateUr(args: argparse.Namespace) -> int:
         emulator.Run(args.duration)
     finally:
         emulator.Close()
+        logic = emulator.logic
+        state = "running" if logic.running else f"stopped: {logic.stop_reason or 'not started'}"
+        print(
+            f"ur: {logic.servo_packages} servoJ received, {logic.servo_targets} tracked, "
+            f"{emulator.idle_steps} steps without one, {logic.unsupported} unsupported "
+            f"commands; program {state}",
+            flush=True,
+        )
         for tof in tofs.values():
             tof.close()
     return 0

@@ -86,6 +86,11 @@ class ArmDriverConfig:
     controller's streaming timeout is its own setting (`guidedarm emulate nachi
     --servo-timeout`).
     lookahead_time, gain: servoJ parameters (UR only; s in [0.03, 0.2], 1/s in [100, 2000]).
+    lockstep: streaming to `guidedarm emulate nachi --lockstep` or `emulate ur --lockstep`
+    only: the emulated controller's clock advances by the SERVO (servoJ) intervals, and
+    each control period waits (at most `watchdog`) for the joints read after the previous
+    target, so that the run does not depend on how the OS schedules the two processes
+    (docs/hardware.md). Never on a real controller, whose clock does not wait.
     """
 
     driver: str = "ur_rtde"
@@ -99,6 +104,7 @@ class ArmDriverConfig:
     # URScript servoJ admits lookahead_time in [0.03, 0.2] s and gain in [100, 2000].
     lookahead_time: float = InRange(0.03, 0.2, 0.1)
     gain: float = InRange(100.0, 2000.0, 300.0)
+    lockstep: bool = False
 
     def Validate(self) -> None:
         """Raises ConfigurationError naming the first bad field."""
@@ -113,6 +119,8 @@ class ArmDriverConfig:
             for name in ("servo_timeout", "lookahead_time", "gain"):
                 if getattr(self, name) != getattr(defaults, name):
                     raise FieldError(name, f"applies to the ur_rtde driver only, not {self.driver}")
+        if self.lockstep and self.command_mode != "stream":
+            raise FieldError("lockstep", "applies to command_mode 'stream' only")
         if not self.stale_after <= self.watchdog:
             raise FieldError(
                 "stale_after", f"{self.stale_after} s exceeds the watchdog {self.watchdog} s"

@@ -150,10 +150,22 @@ def MakeHardwareStation(scenario: StationScenario, meshcat: Meshcat | None = Non
 def _OpenArmLink(name: str, config: ArmDriverConfig, period: float) -> ArmLink:
     if config.driver == "ur_rtde":
         return OpenUrRtde(
-            name, config.host, config.lookahead_time, config.gain, config.servo_timeout
+            name,
+            config.host,
+            config.lookahead_time,
+            config.gain,
+            config.servo_timeout,
+            lockstep_wait=config.watchdog if config.lockstep else None,
         )
     port = config.port or nachi_protocol.DEFAULT_PORT
-    return NachiLink(name, config.host, port, poll_period=period, command_mode=config.command_mode)
+    return NachiLink(
+        name,
+        config.host,
+        port,
+        poll_period=period,
+        command_mode=config.command_mode,
+        lockstep_wait=config.watchdog if config.lockstep else None,
+    )
 
 
 def _DrawMeasured(

@@ -5,7 +5,9 @@ simulation of the arm (the station's MultibodyPlant and position servo).
 servo loop of streamed SERVO targets with its timeout, stop and timeout latches, error log)
 and runs without a simulation; `ServeConnection` answers one client's
 lines with it; `NachiEmulator` steps the station in real time, feeds the logic the
-simulated joints and flange pose, and serves TCP clients.
+simulated joints and flange pose, and serves TCP clients. With `lockstep`, the station's
+time advances by the SERVO targets' intervals while a stream is tracked (LockstepClock)
+instead of the host clock.
 
 Any bytes a client sends (non-ASCII, binary, NUL, overlong lines) get a reply, `NG <code>
 <text>` when they are not a request, and are counted; the connection keeps being served.
@@ -19,6 +21,7 @@ import contextlib
 import gc
 import socket
 import threading
+import time
 from collections.abc import Callable
 
 import numpy as np
@@ -29,6 +32,7 @@ from pydrake.systems.framework import Context
 from guidedarm.systems.errors import ConfigurationError
 from guidedarm.systems.hardware import nachi_protocol as nachi
 from guidedarm.systems.hardware.line_socket import LineSocket
+from guidedarm.systems.hardware.lockstep_clock import LockstepClock
 from guidedarm.systems.hardware.servo_tracker import ServoTracker
 
 SETTLED = 1e-3  # rad; the arm counts as MOVING while farther than this from its command
@@ -44,7 +48,11 @@ class NachiControllerLogic:
     the command towards the latest target within `velocity` and `acceleration` (rad/s,
     rad/s^2 per joint) at every `Measure`; no SERVO for `servo_timeout` s brakes it and
     latches TIMEOUT. STOP holds the arm (braking within the limits while streaming) and
-    latches STOPPED. A latch refuses motion requests until RESET."""
+    latches STOPPED. A latch refuses motion requests until RESET.
+
+    With `lockstep`, a SERVO returns once the simulation has advanced by its interval
+    (`clock`, stepped by `WaitForClock` in the simulation thread), and the streaming
+    timeout counts host seconds without a SERVO."""
 
     def __init__(
         self,
@@ -54,6 +62,7 @@ class NachiControllerLogic:
         velocity: np.ndarray | None = None,
         acceleration: np.ndarray | None = None,
         servo_timeout: float = DEFAULT_SERVO_TIMEOUT,
+        lockstep: bool = False,
     ) -> None:
         self.lower, self.upper = lower, upper
         n = len(lower)
@@ -63,6 +72,7 @@ class NachiControllerLogic:
         )
         self.servo_timeout = servo_timeout
         self.lock = threading.Lock()
+        self.clock = LockstepClock(self.lock) if lockstep else None
         self.commanded = np.array(q0, float)
         self.measured = np.array(q0, float)
         self.time = 0.0
@@ -87,13 +97,39 @@ class NachiControllerLogic:
             tracker = self.tracker
             if tracker is not None:
                 if not tracker.braking and t - self.last_servo_time > self.servo_timeout:
-                    tracker.Brake()
-                    self.timed_out = True
-                    self.timeouts += 1
+                    self._TimeOut()
                 self.commanded = tracker.Step(t)
                 if tracker.braking and tracker.Standstill():
                     self.tracker, self.standstill_time = None, t
             return self.commanded.copy()
+
+    def WaitForClock(self, t_next: float) -> bool:
+        """Lockstep, from the simulation thread: blocks until the simulation may step to
+        t_next (s); True when the host clock paces that step (no stream is tracked). No
+        SERVO for `servo_timeout` host seconds brakes the arm as in real time."""
+        with self.lock:
+            while self.clock.Blocks(t_next):
+                if self.clock.SilentFor() > self.servo_timeout:
+                    self._TimeOut()
+                    break
+                self.clock.changed.wait(self.servo_timeout)
+            return self.clock.granted is None
+
+    def Close(self) -> None:
+        """Releases requests waiting for the lockstep clock (the simulation ends)."""
+        if self.clock is not None:
+            with self.lock:
+                self.clock.Close()
+
+    def _TimeOut(self) -> None:
+        self._Brake()
+        self.timed_out = True
+        self.timeouts += 1
+
+    def _Brake(self) -> None:
+        self.tracker.Brake()
+        if self.clock is not None:
+            self.clock.Release()
 
     def Handle(self, line: str) -> str:
         """The reply line to one request line (ASCII, without its LF)."""
@@ -132,7 +168,7 @@ class NachiControllerLogic:
             return self._Servo(request.values, request.interval)
         if word == nachi.STOP:
             if self.tracker is not None:
-                self.tracker.Brake()
+                self._Brake()
             else:
                 self.commanded = self.measured.copy()
             self.target = None
@@ -171,6 +207,11 @@ class NachiControllerLogic:
                 f"joint{j + 1} SERVO step implies {speed[j]:.4g} rad/s, beyond its "
                 f"limit {self.velocity[j]:.4g}",
             )
+        if self.clock is not None:  # the arm tracks the previous target for `interval` first
+            self.clock.Grant(self.time, interval)
+            refused = self._CheckMayMove(nachi.SERVO)  # a STOP or timeout meanwhile
+            if refused:
+                return refused
         if self.tracker is None:
             self.tracker = ServoTracker(self.commanded, self.velocity, self.acceleration, self.time)
         self.tracker.SetTarget(q, interval, self.time)
@@ -233,7 +274,9 @@ class NachiEmulator:
     flange pose is read from its plant (`plant` system), frames `<arm>::base`, `<arm>::flange`.
     The controller steps every `period` (s), its servo loop too: SERVO targets are tracked
     within the model's joint velocity limits and `servo_acceleration` (rad/s^2, every
-    joint); `servo_timeout` (s) without a SERVO brakes the arm.
+    joint); `servo_timeout` (s) without a SERVO brakes the arm. `lockstep`: while a stream
+    is tracked, the station steps by the SERVO intervals (see NachiControllerLogic), else
+    in real time.
     After every step each observer is called with the station's context (e.g. to sample
     sensor ports for other emulated devices; they run in the stepping thread).
     """
@@ -248,6 +291,7 @@ class NachiEmulator:
         observers: tuple[Callable[[Context], None], ...] = (),
         servo_acceleration: float = DEFAULT_SERVO_ACCELERATION,
         servo_timeout: float = DEFAULT_SERVO_TIMEOUT,
+        lockstep: bool = False,
     ) -> None:
         self._observers = observers
         self.station = station
@@ -270,6 +314,7 @@ class NachiEmulator:
             velocity,
             np.full(len(q0), servo_acceleration),
             servo_timeout,
+            lockstep,
         )
         self._command_port.FixValue(self.context, q0)
         self._period = period
@@ -286,14 +331,16 @@ class NachiEmulator:
         """Steps the simulation until `duration` (s) or Close(). The controller runs in the
         middle of each period of the station's discrete updates (plant, command sampling),
         so every step holds exactly one of them: stepping to their very instants would let
-        rounding decide whether a command is sampled now or a period later."""
-        self.simulator.set_target_realtime_rate(realtime_rate)
+        rounding decide whether a command is sampled now or a period later. In lockstep
+        the steps outside a stream are paced here at `realtime_rate`."""
+        lockstep = self.logic.clock is not None
+        self.simulator.set_target_realtime_rate(0.0 if lockstep else realtime_rate)
         self.simulator.Initialize()
         # A full garbage collection over the station's objects would stall the controller
         # (and the ToF lines written from this thread) in real time: freeze what is built.
         gc.freeze()
         start = t = self.context.get_time()
-        k = 0
+        k, origin = 0, None
         while t < duration and not self._closing.is_set():
             X_BF = self._plant.CalcRelativeTransform(self._plant_context, self._base, self._flange)
             q = self._measured_port.Eval(self.context)
@@ -302,14 +349,32 @@ class NachiEmulator:
             self._command_port.FixValue(self.context, command)
             t = start + (k + 0.5) * self._period
             k += 1
+            if lockstep:
+                real_time = self.logic.WaitForClock(t)
+                origin = self._Pace(t, realtime_rate, origin if real_time else None)
             self.simulator.AdvanceTo(t)
             for observer in self._observers:
                 observer(self.context)
+        self.logic.Close()
+
+    def _Pace(
+        self, t: float, rate: float, origin: tuple[float, float] | None
+    ) -> tuple[float, float] | None:
+        """Waits until host time reaches t (s) at `rate` from `origin` (simulated, host time;
+        None: from now, the host clock taking over after a lockstep stream); returns the
+        origin."""
+        now = time.monotonic()
+        if origin is None:
+            return self.context.get_time(), now
+        if rate > 0:
+            self._closing.wait(max(0.0, origin[1] + (t - origin[0]) / rate - now))
+        return origin
 
     def Close(self) -> None:
         """Ends Run and the accept thread. On Linux, closing a listening socket does not
         wake a thread blocked in accept(); shutting it down does."""
         self._closing.set()
+        self.logic.Close()
         with contextlib.suppress(OSError):
             self._server.shutdown(socket.SHUT_RDWR)
         self._server.close()

@@ -22,6 +22,13 @@ STOP from its pendant) or a lost connection is a fault: streaming ends and the A
 fails the run. `stop` waits at most `stop_timeout` for the controller's OK. Connecting sends
 RESET: starting a run is the deliberate act that clears an earlier STOP (or a streaming
 timeout).
+
+`lockstep_wait` (s) is for a controller whose clock advances by the SERVO intervals (the
+emulator's lockstep mode): `latest` then asks for the joints and waits, at most that long,
+for a reading requested after the call, which it hands over as fresh. Requests are served
+in order, so that reading comes after every target sent before it: the arm at the time the
+stream has reached, however late the OS ran either process. A wait that runs out returns
+the older sample with its age, which the ArmDriver's watchdog judges.
 """
 
 from __future__ import annotations
@@ -31,6 +38,7 @@ import contextlib
 import socket
 import struct
 import threading
+import time
 
 import numpy as np
 
@@ -83,9 +91,12 @@ class NachiLink:
         connect_timeout: float = 1.0,
         stop_timeout: float = 0.25,
         command_mode: str = "stream",
+        lockstep_wait: float | None = None,
     ) -> None:
         if command_mode not in COMMAND_MODES:
             raise ConfigurationError(f"{name}: command mode {command_mode!r}, not {COMMAND_MODES}")
+        if lockstep_wait is not None and command_mode != "stream":
+            raise ConfigurationError(f"{name}: lockstep needs command mode 'stream'")
         self.name = name
         self._streaming = command_mode == "stream"
         self.rejected_lines = 0
@@ -123,6 +134,10 @@ class NachiLink:
         self._target_lock = threading.Lock()
         self._target: np.ndarray | None = None
         self._interval = 0.0
+        # READ_JOINTS requests sent, and how many of their replies were read (lockstep).
+        self._lockstep_wait = lockstep_wait
+        self._reads = threading.Condition()
+        self._reads_sent = self._reads_done = 0
         self._stopped = False
         self._poll_period = poll_period
         self._latest = LatestSample()
@@ -193,9 +208,15 @@ class NachiLink:
                 with self._send_lock:
                     lines = [*self._TargetLines(), nachi.READ_JOINTS]
                     replies = self._SendLocked(lines)
+                    with self._reads:
+                        self._reads_sent += 1
+                        sent = self._reads_sent
                 for reply in replies[:-1]:
                     nachi.CheckOk(self._Await(reply))
-                self._Check(self._Measured, self._Await(replies[-1]))
+                if self._Check(self._Measured, self._Await(replies[-1])):
+                    with self._reads:
+                        self._reads_done = sent
+                        self._reads.notify_all()
             except nachi.NachiProtocolError as e:
                 self._fault = self._fault or str(e)
                 return
@@ -225,11 +246,14 @@ class NachiLink:
                 if self._dead is not None or self._closing.is_set():
                     raise ConnectionError(self._dead or "link closed") from None
 
-    def _Check(self, parse, reply: str) -> None:
+    def _Check(self, parse, reply: str) -> bool:
+        """Whether `parse` accepted the reply (else it is rejected and counted)."""
         try:
             parse(reply)
         except nachi.NachiProtocolError as e:
             self._Reject(str(e))
+            return False
+        return True
 
     def _Reject(self, why: str) -> None:
         self.rejected_lines += 1
@@ -248,7 +272,19 @@ class NachiLink:
         self._latest.put(q, v)
 
     def latest(self) -> JointSample | None:
-        return self._latest.get()
+        if self._lockstep_wait is None:
+            return self._latest.get()
+        with self._reads:
+            wanted = self._reads_sent + 1
+            self._wake.set()
+            read = self._reads.wait_for(
+                lambda: self._reads_done >= wanted or self._fault is not None,
+                self._lockstep_wait,
+            )
+        sample = self._latest.get()
+        if not read or sample is None or self._fault is not None or self._stopped:
+            return sample
+        return JointSample(sample.q, sample.v, time.monotonic())
 
     def fault(self) -> str | None:
         return self._fault

@@ -40,6 +40,9 @@ CONTROL_SCRIPT_HEADER = "def rtde_control():"
 READY, DONE = 1, 2  # output_int_register_0
 NO_CMD, SERVOJ, SERVO_STOP, STOPJ, SET_WATCHDOG, STOP_SCRIPT = 0, 11, 16, 34, 35, 255
 REALTIME_COMMANDS = {6, 9, 10, 11, 24, 25, 26, 27, 38, 58}  # answered `ready` at once
+# lockstep only: the number of servoJ targets the emulator has run (mod 2^31), which the
+# link waits for; a register ur_rtde leaves to the user (its receive interface reads 12-19).
+LOCKSTEP_COUNT_REGISTER = "output_int_register_18"
 STOPPED, PLAYING = 1, 2  # runtime_state
 POWER_ON, PROGRAM_RUNNING = 1 << 0, 1 << 1  # robot_status_bits
 NORMAL_MODE = 1 << 0  # safety_status_bits
@@ -82,6 +85,7 @@ class UrControllerLogic:
         self.last_kick = 0.0  # controller time input_int_register_0 was last written
         self.stop_reason = ""
         self.servo_targets = 0
+        self.servo_packages = 0  # servoJ data packages received
         self.unsupported = 0
         self.waiting_standstill = False
 
@@ -93,6 +97,8 @@ class UrControllerLogic:
             self.inputs.update(values)
             if "input_int_register_0" in values:
                 self.last_kick = self.time
+                if values["input_int_register_0"] == SERVOJ:
+                    self.servo_packages += 1
                 if self.lockstep and values["input_int_register_0"] == SERVOJ:
                     self.targets.append((self._RegisterTarget(), self._RegisterInterval()))
                     self.target_arrived.set()
@@ -211,6 +217,9 @@ class UrControllerLogic:
         """A servoJ target: tracked within the limits (a target beyond the position range
         is clipped to it, as a controller that protective-stops is not emulated); ignored
         once the program has stopped."""
+        if self.lockstep:
+            count = self.outputs.get(LOCKSTEP_COUNT_REGISTER, 0)
+            self.outputs[LOCKSTEP_COUNT_REGISTER] = (count + 1) % 2**31
         if not self.running:
             return
         q = np.clip(q, self.lower, self.upper)

@@ -202,15 +202,17 @@ class UrEmulator:
         """Steps the simulation until `duration` (s) or Close(); the controller runs in the
         middle of each period of the station's discrete updates, as NachiEmulator.Run.
         In lockstep, each servoJ target received advances the station by its interval, as
-        fast as the host allows; while none comes for a period of the host's clock, the
-        station steps a period at a time (the arm holds or brakes)."""
+        fast as the host allows (see _NextTarget)."""
         lockstep = self.logic.lockstep
         self.simulator.set_target_realtime_rate(0.0 if lockstep else realtime_rate)
         self.simulator.Initialize()
         gc.freeze()  # a full collection over the station's objects would stall real time
         self._start, self._k = self.context.get_time(), 0
+        self._stalled = False  # lockstep: the stream paused longer than the watchdog period
+        self.idle_steps = 0  # steps without a target (lockstep), or all steps
         while self.context.get_time() < duration and not self._closing.is_set():
             steps = 1
+            self.idle_steps += 1
             if lockstep:
                 target = self._NextTarget()
                 if target is not None:
@@ -218,17 +220,29 @@ class UrEmulator:
                     with self.logic.lock:
                         self.logic.Servo(q, interval)
                     steps = max(1, round(interval / self._period))
+                    self.idle_steps -= 1
             for _ in range(steps):
                 self._Step()
 
     def _NextTarget(self) -> tuple[np.ndarray, float] | None:
-        """The oldest servoJ target not yet run, waiting up to a period for one."""
+        """The oldest servoJ target not yet run. While a stream is tracked the station waits
+        for it (its clock is the stream's), at most the program's watchdog period (0.1 s
+        without one) of the host's clock; after that, and outside a stream, it waits one
+        period and steps without one (real time: the arm holds, brakes, the watchdog runs)."""
         logic = self.logic
+        with logic.lock:
+            tracking = logic.running and logic.tracker is not None and not logic.tracker.braking
+            streaming = tracking and not self._stalled
+            period = logic.watchdog_period if np.isfinite(logic.watchdog_period) else 0.1
         if not logic.targets:
-            logic.target_arrived.wait(self._period)
+            arrived = logic.target_arrived.wait(period if streaming else self._period)
+            self._stalled = self._stalled or (streaming and not arrived)
         logic.target_arrived.clear()
         with logic.lock:
-            return logic.targets.popleft() if logic.targets else None
+            if not logic.targets:
+                return None
+            self._stalled = False
+            return logic.targets.popleft()
 
     def _Step(self) -> None:
         """One controller step: the program's cycle and servo loop at the current time,

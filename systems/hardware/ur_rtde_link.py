@@ -32,6 +32,7 @@ import struct
 import sys
 import tempfile
 import threading
+import time
 from typing import Protocol
 
 import numpy as np
@@ -52,6 +53,7 @@ RTDE_PORT = 30004
 DASHBOARD_PORT = 29999
 SCRIPT_PORT = 30003
 CONNECT_TIMEOUT = 2.0  # s, for each port of ProbeUrController
+LOCKSTEP_REGISTER = 18  # output_int_register_18: servoJ run by `emulate ur --lockstep`
 RUNTIME_PLAYING = 2  # RTDE runtime_state of a running program
 CLOSE_TIMEOUT = 1.0  # s, for disconnecting both vendor interfaces
 SERVO_STOP_DECELERATION = 10.0  # rad/s^2, the vendor's default for servoStop
@@ -62,6 +64,7 @@ class RtdeReceive(Protocol):
     def getActualQd(self) -> list[float]: ...
     def getTimestamp(self) -> float: ...
     def getRuntimeState(self) -> int: ...
+    def getOutputIntRegister(self, output_id: int) -> int: ...
     def isConnected(self) -> bool: ...
     def disconnect(self) -> None: ...
 
@@ -95,6 +98,7 @@ class UrRtdeLink:
         poll_period: float = 0.0005,
         servo_timeout: float = 0.1,
         stop_timeout: float = 0.25,
+        lockstep_wait: float | None = None,
     ) -> None:
         if not control.setWatchdog(1.0 / servo_timeout):
             raise ConfigurationError(f"{name}: the UR controller refused its watchdog")
@@ -105,6 +109,12 @@ class UrRtdeLink:
         self._gain = gain
         self._poll_period = poll_period
         self._stop_timeout = stop_timeout
+        # lockstep (an emulator whose clock the servoJ stream sets): `latest` waits at most
+        # this long for a sample received after the last servoJ was sent.
+        self._lockstep_wait = lockstep_wait
+        self._sample_arrived = threading.Condition()
+        self._sent = 0  # servoJ sent (mod 2^31)
+        self._run = 0  # servoJ the emulator has run, as of the newest sample
         self._fault: str | None = None
         self._latest = LatestSample()
         self._closing = threading.Event()
@@ -124,12 +134,31 @@ class UrRtdeLink:
                 # runs backwards or is not a number (NaN != NaN) comes with stale data.
                 if timestamp > last_timestamp:
                     last_timestamp = timestamp
-                    self._latest.put(self._receive.getActualQ(), self._receive.getActualQd())
+                    q, v = self._receive.getActualQ(), self._receive.getActualQd()
+                    with self._sample_arrived:
+                        if self._lockstep_wait is not None:
+                            self._run = self._receive.getOutputIntRegister(LOCKSTEP_REGISTER)
+                        self._latest.put(q, v)
+                        self._sample_arrived.notify_all()
         except Exception as e:  # the vendor raises RuntimeError; any error ends the stream
             self._fault = f"RTDE receive failed: {DescribeError(e)}"
 
     def latest(self) -> JointSample | None:
-        return self._latest.get()
+        """The newest sample; in lockstep, one the emulator published after running every
+        servoJ sent (its count in output_int_register_18; waiting at most lockstep_wait),
+        stamped now: the emulator's clock is the stream's, its age on the host says nothing."""
+        if self._lockstep_wait is None:
+            return self._latest.get()
+        with self._sample_arrived:
+            arrived = self._sample_arrived.wait_for(self._SampleAfterLastSend, self._lockstep_wait)
+        sample = self._latest.get()
+        if not arrived or sample is None or self._fault is not None:
+            return sample
+        # Fresh by construction (it follows every target sent), however long the host took.
+        return JointSample(sample.q, sample.v, time.monotonic())
+
+    def _SampleAfterLastSend(self) -> bool:
+        return self._fault is not None or self._run == self._sent
 
     def fault(self) -> str | None:
         return self._fault
@@ -146,6 +175,8 @@ class UrRtdeLink:
                     "servoJ within servo_timeout, or a stop from the pendant or dashboard)"
                 )
             raise RuntimeError("servoJ not accepted by the controller")
+        with self._sample_arrived:
+            self._sent = (self._sent + 1) % 2**31
 
     def stop(self) -> None:
         """servoStop, confirmed by the controller within `stop_timeout` s: the vendor call
@@ -257,7 +288,12 @@ def ProbeUrController(host: str, timeout: float = CONNECT_TIMEOUT) -> dict[str, 
 
 
 def OpenUrRtde(
-    name: str, host: str, lookahead_time: float, gain: float, servo_timeout: float
+    name: str,
+    host: str,
+    lookahead_time: float,
+    gain: float,
+    servo_timeout: float,
+    lockstep_wait: float | None = None,
 ) -> UrRtdeLink:
     """Connects both vendor interfaces to the controller at `host` (RTDE port 30004),
     after ProbeUrController."""
@@ -272,6 +308,8 @@ def OpenUrRtde(
         ) from None
 
     variables = ["timestamp", "actual_q", "actual_qd", "runtime_state"]
+    if lockstep_wait is not None:
+        variables.append(f"output_int_register_{LOCKSTEP_REGISTER}")
     receive = control = None
     with CapturedStderr() as vendor:
         try:
@@ -286,7 +324,15 @@ def OpenUrRtde(
         said = "; ".join(line for line in [*vendor.text.splitlines(), error] if line.strip())
         raise ConfigurationError(f"{name}: cannot connect to the UR controller at {host}: {said}")
     sys.stderr.write(vendor.text)
-    return UrRtdeLink(name, receive, control, lookahead_time, gain, servo_timeout=servo_timeout)
+    return UrRtdeLink(
+        name,
+        receive,
+        control,
+        lookahead_time,
+        gain,
+        servo_timeout=servo_timeout,
+        lockstep_wait=lockstep_wait,
+    )
 
 
 class CapturedStderr:
