@@ -24,7 +24,9 @@ from guidedarm.diagrams.station.link_checks import (
 from guidedarm.diagrams.station.scenario import StationScenario
 from guidedarm.diagrams.station.station_plant import (
     AddStationModels,
+    ArmInitialPosition,
     GetArmInstance,
+    MakeMultibodyPlant,
     SetInitialPositions,
 )
 from guidedarm.systems.errors import ConfigurationError
@@ -57,18 +59,29 @@ def CheckArmAtStart(station: Diagram, root: Context, arm: str, q_start: np.ndarr
     measured by the (hardware) `station` in the diagram's context `root` are within
     START_TOLERANCE of the task's start pose q_start (rad): a task streams from that pose,
     and its first command would jump from anywhere else (a jump the arm driver's command
-    guard refuses)."""
+    guard refuses). The refusal names every joint's offset and the command that moves the
+    arm there."""
     port = station.GetOutputPort(f"{arm}.position_measured")
     q_measured = port.Eval(station.GetMyContextFromRoot(root))
     offset = np.asarray(q_measured, float) - np.asarray(q_start, float)
-    worst = int(np.argmax(np.abs(offset)))
-    if abs(offset[worst]) > START_TOLERANCE:
+    if np.max(np.abs(offset)) > START_TOLERANCE:
+        offsets = ", ".join(f"{x:+.4f}" for x in offset)
         raise ConfigurationError(
-            f"{arm} is not at the task's start pose: joint {worst + 1} is "
-            f"{offset[worst]:+.4f} rad from it (tolerance {START_TOLERANCE} rad); bring the "
-            "arm there first (an emulator: start it with --scenario and the run's --set "
-            "options)"
+            f"{arm} is not at the task's start pose: joint offsets [{offsets}] rad "
+            f"(tolerance {START_TOLERANCE} rad); bring it there with `guidedarm "
+            "move-to-start SCENARIO --hardware` and the run's --set options (an emulator: "
+            "start it with --scenario and the run's --set options)"
         )
+
+
+def StartPoses(task, scenario) -> dict[str, np.ndarray]:
+    """Each arm's start pose (rad) in a run of `scenario` by `task` (its TaskDefinition):
+    the initial positions of the station the run builds (path following's IK solution of
+    the hose's start, a tour's start, the planner's q(0)), the model's defaults where the
+    scenario gives none."""
+    station = task.Station(scenario)
+    plant = MakeMultibodyPlant(station, list(station.arms))
+    return {name: ArmInitialPosition(plant, name, arm) for name, arm in station.arms.items()}
 
 
 def MakeHardwareStation(scenario: StationScenario, meshcat: Meshcat | None = None) -> Diagram:
