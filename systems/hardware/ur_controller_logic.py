@@ -101,7 +101,8 @@ class UrControllerLogic:
                     self.servo_packages += 1
                 if self.lockstep and values["input_int_register_0"] == SERVOJ:
                     self.targets.append((self._RegisterTarget(), self._RegisterInterval()))
-                    self.target_arrived.set()
+            # lockstep: any input wakes the stepping thread (a servoStop must be run too)
+            self.target_arrived.set()
 
     def StartProgram(self, text: str) -> str:
         """A program received on the script port; returns what the controller did."""

@@ -35,6 +35,10 @@ from guidedarm.systems.hardware.ur_controller_logic import CONTROLLER_VERSION, U
 RTDE_PORT, DASHBOARD_PORT, SCRIPT_PORT = 30004, 29999, 30003
 MAX_FREQUENCY = 500.0  # Hz
 SEND_TIMEOUT = 0.5  # s
+# lockstep: a stream that pauses this long on the host (s) has ended, and the station
+# returns to real time; longer than a loaded host delays a PC's next target (0.1-0.5 s
+# seen), shorter than the tests' patience.
+LOCKSTEP_STALL = 2.0
 DASHBOARD_WELCOME = "Connected: Universal Robots Dashboard Server"
 
 
@@ -226,15 +230,16 @@ class UrEmulator:
 
     def _NextTarget(self) -> tuple[np.ndarray, float] | None:
         """The oldest servoJ target not yet run. While a stream is tracked the station waits
-        for it (its clock is the stream's), at most the program's watchdog period (0.1 s
-        without one) of the host's clock; after that, and outside a stream, it waits one
-        period and steps without one (real time: the arm holds, brakes, the watchdog runs)."""
+        for it (its clock is the stream's), at most LOCKSTEP_STALL of the host's clock;
+        after that, and outside a stream, it waits one period and steps without one (real
+        time: the arm holds or brakes, the program's watchdog runs)."""
         logic = self.logic
         with logic.lock:
             tracking = logic.running and logic.tracker is not None and not logic.tracker.braking
             streaming = tracking and not self._stalled
-            period = logic.watchdog_period if np.isfinite(logic.watchdog_period) else 0.1
+            period = LOCKSTEP_STALL
         if not logic.targets:
+            # woken by any input: a command other than servoJ is run by the next step
             arrived = logic.target_arrived.wait(period if streaming else self._period)
             self._stalled = self._stalled or (streaming and not arrived)
         logic.target_arrived.clear()

@@ -81,6 +81,7 @@ class RtdeControl(Protocol):
     ) -> bool: ...
     def servoStop(self, a: float) -> bool: ...
     def setWatchdog(self, min_frequency: float) -> bool: ...
+    def kickWatchdog(self) -> bool: ...
     def stopScript(self) -> None: ...
 
 
@@ -109,12 +110,17 @@ class UrRtdeLink:
         self._gain = gain
         self._poll_period = poll_period
         self._stop_timeout = stop_timeout
+        self._servo_timeout = servo_timeout
+        self._command_lock = threading.Lock()  # orders the kicks before the first servoJ
+        self._streaming = False
         # lockstep (an emulator whose clock the servoJ stream sets): `latest` waits at most
         # this long for a sample received after the last servoJ was sent.
         self._lockstep_wait = lockstep_wait
         self._sample_arrived = threading.Condition()
-        self._sent = 0  # servoJ sent (mod 2^31)
-        self._run = 0  # servoJ the emulator has run, as of the newest sample
+        # servoJ sent and run by the emulator (mod 2^31, as of the newest sample), counted
+        # from the emulator's count at the first sample (it counts over all its clients).
+        self._sent: int | None = None
+        self._run = 0
         self._fault: str | None = None
         self._latest = LatestSample()
         self._closing = threading.Event()
@@ -124,8 +130,12 @@ class UrRtdeLink:
 
     def _Poll(self) -> None:
         last_timestamp = -math.inf
+        last_kick = time.monotonic()
         try:
             while not self._closing.wait(self._poll_period):
+                if time.monotonic() - last_kick > self._servo_timeout / 4:
+                    last_kick = time.monotonic()
+                    self._KickUntilStreaming()
                 if not self._receive.isConnected():
                     self._fault = "RTDE connection lost"
                     return
@@ -138,10 +148,19 @@ class UrRtdeLink:
                     with self._sample_arrived:
                         if self._lockstep_wait is not None:
                             self._run = self._receive.getOutputIntRegister(LOCKSTEP_REGISTER)
+                            self._sent = self._run if self._sent is None else self._sent
                         self._latest.put(q, v)
                         self._sample_arrived.notify_all()
         except Exception as e:  # the vendor raises RuntimeError; any error ends the stream
             self._fault = f"RTDE receive failed: {DescribeError(e)}"
+
+    def _KickUntilStreaming(self) -> None:
+        """Feeds the control script's watchdog between connecting and the first servoJ
+        (building the diagram takes longer than the streaming timeout); never once the
+        stream has begun: then a stream that stops must let the controller stop the arm."""
+        with self._command_lock:
+            if not self._streaming:
+                self._control.kickWatchdog()
 
     def latest(self) -> JointSample | None:
         """The newest sample; in lockstep, one the emulator published after running every
@@ -158,7 +177,7 @@ class UrRtdeLink:
         return JointSample(sample.q, sample.v, time.monotonic())
 
     def _SampleAfterLastSend(self) -> bool:
-        return self._fault is not None or self._run == self._sent
+        return self._fault is not None or (self._sent is not None and self._run == self._sent)
 
     def fault(self) -> str | None:
         return self._fault
@@ -168,7 +187,10 @@ class UrRtdeLink:
         # No kickWatchdog after it: each servoJ writes input_int_register_0, which is what
         # the watchdog watches, and a kick (NO_CMD in that register) sent right after could
         # overwrite the servoJ before the control script's next cycle reads it.
-        if not self._control.servoJ(q, 0.0, 0.0, period, self._lookahead_time, self._gain):
+        with self._command_lock:
+            self._streaming = True
+            accepted = self._control.servoJ(q, 0.0, 0.0, period, self._lookahead_time, self._gain)
+        if not accepted:
             if self._receive.getRuntimeState() != RUNTIME_PLAYING:
                 raise RuntimeError(
                     "servoJ not accepted: the control program has stopped (its watchdog: no "
@@ -176,7 +198,8 @@ class UrRtdeLink:
                 )
             raise RuntimeError("servoJ not accepted by the controller")
         with self._sample_arrived:
-            self._sent = (self._sent + 1) % 2**31
+            if self._sent is not None:
+                self._sent = (self._sent + 1) % 2**31
 
     def stop(self) -> None:
         """servoStop, confirmed by the controller within `stop_timeout` s: the vendor call
