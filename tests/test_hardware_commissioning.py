@@ -4,11 +4,14 @@ task's start pose at reduced speed, then the run starts from there."""
 
 from __future__ import annotations
 
+import re
+import socket
 import subprocess
 import sys
 
 import numpy as np
 import pytest
+from hardware_doubles import StartNachiEmulator, StopServer
 from test_hardware_ur_emulator import UrCell
 
 from guidedarm.diagrams.station.move_to_start import MoveDuration, MoveTrajectory
@@ -52,6 +55,38 @@ def test_move_to_start_refusals(args, message):
     result = _Guidedarm("move-to-start", *args)
     assert result.returncode == 2
     assert result.stderr.strip() == f"guidedarm: error: {message}"
+
+
+def _NachiStatus(port: int) -> str:
+    with socket.create_connection(("127.0.0.1", port), timeout=5) as connection:
+        connection.sendall(b"STATUS\n")
+        return connection.makefile("r").readline().strip()
+
+
+def test_hardware_check_reads_the_mz04d_cell_and_commands_nothing():
+    """The emulated MZ04D cell (arm at the run's start pose, ToF tool on a pty): the check
+    reports the joints at the start pose and the six ranges in order r1..r6, and leaves the
+    controller as it found it (no RESET, no STOP, no target)."""
+    emulator, port, device = StartNachiEmulator("--scenario", "path_following")
+    try:
+        before = _NachiStatus(port)
+        check = _Guidedarm(
+            "hardware-check", "path_following",
+            "--set", f"station.hardware.arms.mz04d.port={port}",
+            "--set", f"station.hardware.tof_tools.tof.device={device}",
+        )  # fmt: skip
+        after = _NachiStatus(port)
+    finally:
+        StopServer(emulator)
+    assert check.returncode == 0, check.stdout + check.stderr
+    assert before == after == "STATUS IDLE 0 0"
+    assert "arm mz04d (nachi_tcp 127.0.0.1): STATUS IDLE 0 0" in check.stdout
+    offsets = re.search(r"from the task's start pose \[([^\]]*)\] rad", check.stdout)[1]
+    assert np.max(np.abs([float(x) for x in offsets.split(",")])) < 1e-4
+    ranges = re.search(r"\n  (r1 .*)\n", check.stdout)[1]
+    assert [field.split()[0] for field in ranges.split(", ")] == [f"r{i}" for i in range(1, 7)]
+    assert re.search(r"tof tof \(serial /dev/pts/\d+\): \d+ lines/s", check.stdout)
+    assert check.stdout.rstrip().endswith("hardware-check: every link answered")
 
 
 def test_hardware_check_names_every_link_that_fails():

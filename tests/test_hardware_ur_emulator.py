@@ -94,6 +94,22 @@ def test_the_dashboard_answers_ur_rtde_and_stop_ends_the_program():
     assert logic.Dashboard("no such request") == "could not understand: 'no such request'"
 
 
+@pytest.mark.parametrize(
+    "option, message",
+    [
+        (["--port", "30004"], "--port: not for `emulate ur`: ur_rtde connects to the fixed"),
+        (["--servo-timeout", "0.1"], "--servo-timeout: not for `emulate ur`: the UR's"),
+        (["--host", "192.0.2.1"], "--host '192.0.2.1': cannot listen there"),
+    ],
+)
+def test_emulate_ur_refuses_what_it_does_not_read(option, message):
+    result = subprocess.run(
+        [*CLI, "emulate", "ur", *option], capture_output=True, text=True, timeout=60
+    )
+    assert result.returncode == 2
+    assert result.stderr.startswith(f"guidedarm: error: {message}"), result.stderr
+
+
 class UrCell:
     """`guidedarm emulate ur --scenario SCENARIO` on a loopback address of its own."""
 

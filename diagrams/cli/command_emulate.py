@@ -13,7 +13,7 @@ import argparse
 
 import numpy as np
 from pydrake.multibody.parsing import LoadModelDirectives
-from pydrake.systems.framework import Context
+from pydrake.systems.framework import Context, Diagram
 
 from guidedarm.diagrams.cli.command_run import LoadScenario
 from guidedarm.diagrams.cli.emulate_ur import EmulateUr
@@ -123,6 +123,24 @@ class ToFTap:
             self._emulator.Write(ranges, status)
 
 
+def EmulatedStation(
+    station_scenario: StationScenario, arm: str, tof_latency: float
+) -> tuple[Diagram, dict[str, ToFEmulator], tuple[ToFTap, ...]]:
+    """The simulated station an emulator serves `arm` of, a ToF emulator per tool and the
+    taps that write its lines (`tof_latency` s after each range's end of ranging)."""
+    if arm not in station_scenario.arms:
+        raise ConfigurationError(
+            f"--arm {arm}: not an arm of the station {list(station_scenario.arms)}"
+        )
+    station = MakeStation(station_scenario)
+    tools = station_scenario.tof_tools
+    tofs = {name: ToFEmulator(None) for name in tools}
+    taps = tuple(
+        ToFTap(station, name, tool.period, tofs[name], tof_latency) for name, tool in tools.items()
+    )
+    return station, tofs, taps
+
+
 def StartEmulators(
     station_scenario: StationScenario,
     arm: str,
@@ -137,11 +155,7 @@ def StartEmulators(
     `servo_acceleration` rad/s^2; `servo_timeout` s; `lockstep`: NachiEmulator's) and a
     ToF emulator per tool, each line leaving `tof_latency` s after its range's end of
     ranging (on the station's clock, so in lockstep with the arm)."""
-    if arm not in station_scenario.arms:
-        raise ConfigurationError(
-            f"--arm {arm}: not an arm of the station {list(station_scenario.arms)}"
-        )
-    station = MakeStation(station_scenario)
+    station, tofs, taps = EmulatedStation(station_scenario, arm, tof_latency)
     plant = station.GetSubsystemByName("plant")
     instance = plant.GetModelInstanceByName(arm)
     missing = [f for f in NACHI_FRAMES if not plant.HasFrameNamed(f, instance)]
@@ -151,11 +165,6 @@ def StartEmulators(
             "Nachi emulator reports the flange pose with (an arm with base and flange frames: "
             "mz04d, ur10e)"
         )
-    tools = station_scenario.tof_tools
-    tofs = {name: ToFEmulator(None) for name in tools}
-    taps = tuple(
-        ToFTap(station, name, tool.period, tofs[name], tof_latency) for name, tool in tools.items()
-    )
     emulator = NachiEmulator(
         station,
         arm,
@@ -208,20 +217,24 @@ def CheckArguments(args: argparse.Namespace) -> None:
         raise ConfigurationError(f"--tof-latency {args.tof_latency}: must be >= 0 and finite")
 
 
+def ScenarioStation(args: argparse.Namespace, default) -> StationScenario:
+    """The station of --scenario with its --set options, or `default()` without one."""
+    if not args.scenario:
+        return default()
+    task, scenario, _ = LoadScenario(args.scenario, args.overrides)
+    if task.station is None and not hasattr(scenario, "station"):
+        raise ConfigurationError(
+            f"--scenario {args.scenario}: task '{task.name}' builds no station (no arm or "
+            "ToF tool to emulate)"
+        )
+    return task.Station(scenario)
+
+
 def emulate_command(args: argparse.Namespace) -> int:
     if args.device == "ur":
         return EmulateUr(args)
     CheckArguments(args)
-    if args.scenario:
-        task, scenario, _ = LoadScenario(args.scenario, args.overrides)
-        if task.station is None and not hasattr(scenario, "station"):
-            raise ConfigurationError(
-                f"--scenario {args.scenario}: task '{task.name}' builds no station (no arm or "
-                "ToF tool to emulate)"
-            )
-        station_scenario = task.Station(scenario)
-    else:
-        station_scenario = DefaultCell()
+    station_scenario = ScenarioStation(args, DefaultCell)
     if args.tof_latency is not None and not station_scenario.tof_tools:
         raise ConfigurationError("--tof-latency: the station has no tof_tools to emulate")
     if args.device == "tof" and not station_scenario.tof_tools:
@@ -242,12 +255,20 @@ def emulate_command(args: argparse.Namespace) -> int:
     )
     if args.device == "nachi":
         print(f"nachi: {arm} listening on {args.host}:{emulator.port}", flush=True)
+    Serve(emulator, tofs, args.duration)
+    return 0
+
+
+def Serve(emulator, tofs: dict[str, ToFEmulator], duration: float, report=None) -> None:
+    """Announces the ToF ptys, runs the emulator for `duration` s (or until interrupted),
+    then closes it, calls `report()` and closes the ptys."""
     for name, tof in tofs.items():
         print(f"tof: {name} streaming on {tof.device}", flush=True)
     try:
-        emulator.Run(args.duration)
+        emulator.Run(duration)
     finally:
         emulator.Close()
+        if report is not None:
+            report()
         for tof in tofs.values():
             tof.close()
-    return 0

@@ -15,11 +15,9 @@ import argparse
 import numpy as np
 from pydrake.multibody.parsing import LoadModelDirectives
 
-from guidedarm.diagrams.cli.command_run import LoadScenario
 from guidedarm.diagrams.station.hardware_config import ListenHostProblem, ToFDriverConfig
 from guidedarm.diagrams.station.model_paths import MODELS_DIR
 from guidedarm.diagrams.station.scenario import ArmConfig, StationScenario
-from guidedarm.diagrams.station.station import MakeStation
 from guidedarm.systems.errors import ConfigurationError
 from guidedarm.systems.hardware.nachi_emulator import DEFAULT_SERVO_ACCELERATION
 from guidedarm.systems.hardware.tof_emulator import ToFEmulator
@@ -73,18 +71,9 @@ def StartUrEmulator(
 ) -> tuple[UrEmulator, dict[str, ToFEmulator]]:
     """The UR emulator for `arm` of the station (UrEmulator's `lockstep`) and a ToF
     emulator per tool."""
-    from guidedarm.diagrams.cli.command_emulate import ToFTap
+    from guidedarm.diagrams.cli.command_emulate import EmulatedStation
 
-    if arm not in station_scenario.arms:
-        raise ConfigurationError(
-            f"--arm {arm}: not an arm of the station {list(station_scenario.arms)}"
-        )
-    station = MakeStation(station_scenario)
-    tools = station_scenario.tof_tools
-    tofs = {name: ToFEmulator(None) for name in tools}
-    taps = tuple(
-        ToFTap(station, name, tool.period, tofs[name], tof_latency) for name, tool in tools.items()
-    )
+    station, tofs, taps = EmulatedStation(station_scenario, arm, tof_latency)
     emulator = UrEmulator(
         station,
         arm,
@@ -98,16 +87,10 @@ def StartUrEmulator(
 
 def EmulateUr(args: argparse.Namespace) -> int:
     """`guidedarm emulate ur`."""
+    from guidedarm.diagrams.cli.command_emulate import ScenarioStation, Serve
+
     CheckUrArguments(args)
-    if args.scenario:
-        task, scenario, _ = LoadScenario(args.scenario, args.overrides)
-        if task.station is None and not hasattr(scenario, "station"):
-            raise ConfigurationError(
-                f"--scenario {args.scenario}: task '{task.name}' builds no station"
-            )
-        station_scenario = task.Station(scenario)
-    else:
-        station_scenario = UrCell()
+    station_scenario = ScenarioStation(args, UrCell)
     emulator, tofs = StartUrEmulator(
         station_scenario,
         args.arm or DEFAULT_ARM,
@@ -118,12 +101,8 @@ def EmulateUr(args: argparse.Namespace) -> int:
     )
     print(f"ur: {args.arm or DEFAULT_ARM} listening on {args.host} (RTDE 30004, dashboard "
           "29999, script 30003)", flush=True)  # fmt: skip
-    for name, tof in tofs.items():
-        print(f"tof: {name} streaming on {tof.device}", flush=True)
-    try:
-        emulator.Run(args.duration)
-    finally:
-        emulator.Close()
+
+    def report() -> None:
         logic = emulator.logic
         state = "running" if logic.running else f"stopped: {logic.stop_reason or 'not started'}"
         print(
@@ -132,6 +111,6 @@ def EmulateUr(args: argparse.Namespace) -> int:
             f"commands; program {state}",
             flush=True,
         )
-        for tof in tofs.values():
-            tof.close()
+
+    Serve(emulator, tofs, args.duration, report)
     return 0
