@@ -108,18 +108,20 @@ def test_ur_rtde_against_an_rtde_only_server_is_refused_within_its_deadline(tmp_
 
 
 class RefusingLink(ScriptedArmLink):
-    """A link whose measurements are stale (older than stale_after, within the watchdog)
-    and whose controller refuses the stream after `refuse_after` updates."""
+    """A link whose measurements are `stale_age` old (older than stale_after, within the
+    watchdog) until `fresh_after` updates, and whose controller refuses the stream after
+    `refuse_after` updates (as a real one does on the first target after a pause)."""
 
     name = "mz04d"
 
-    def __init__(self, q, refuse_after: int) -> None:
+    def __init__(self, q, stale_age: float, fresh_after: int, refuse_after: int) -> None:
         super().__init__(q)
         self.updates = 0
-        self.refuse_after = refuse_after
+        self.stale_age, self.fresh_after, self.refuse_after = stale_age, fresh_after, refuse_after
 
     def fault(self) -> str | None:
         self.updates += 1
+        self.age = self.stale_age if self.updates <= self.fresh_after else 0.0
         if self.updates > self.refuse_after:
             return "controller refused: 'NG E07 servo timeout; send RESET before SERVO'"
         return None
@@ -135,10 +137,14 @@ def _Limits(n: int = 6) -> JointLimits:
     )
 
 
-@pytest.mark.parametrize("stale, hint", [(True, True), (False, False)])
-def test_a_stream_refused_after_stale_measurements_names_the_setting(stale, hint):
-    link = RefusingLink(np.zeros(6), refuse_after=12)
-    link.age = 0.03 if stale else 0.0  # stale_after 0.02 s, watchdog 0.1 s
+@pytest.mark.parametrize(
+    "stale_age, fresh_after, hint",
+    [(0.03, 100, True), (0.03, 10, True), (0.0, 100, False)],
+    ids=["stale until refused", "refused at the first target after the streak", "fresh"],
+)
+def test_a_stream_refused_after_stale_measurements_names_the_setting(stale_age, fresh_after, hint):
+    # stale_after 0.02 s, watchdog 0.1 s
+    link = RefusingLink(np.zeros(6), stale_age, fresh_after, refuse_after=12)
     builder = DiagramBuilder()
     driver = builder.AddSystem(ArmDriver(link, _Limits(), 0.01, watchdog=0.1, stale_after=0.02))
     source = builder.AddSystem(ConstantVectorSource(np.zeros(6)))
@@ -150,7 +156,7 @@ def test_a_stream_refused_after_stale_measurements_names_the_setting(stale, hint
     assert "NG E07 servo timeout" in text
     setting = "raise station.hardware.arms.mz04d.stale_after, at most the watchdog 0.1 s"
     assert (setting in text) == hint
-    if hint:  # every update since the start skipped its command
-        periods = int(re.search(r"no command sent for the last (\d+) periods", text)[1])
-        assert periods == round(fault.value.t / 0.01)
+    if hint:  # every update skipped its command until the measurements were fresh
+        periods = int(re.search(r"no command sent for (\d+) periods", text)[1])
+        assert periods == min(round(fault.value.t / 0.01), fresh_after)
     assert link.stops == 1
