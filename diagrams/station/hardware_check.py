@@ -30,14 +30,13 @@ LISTEN = 1.0  # s each link is watched for its rates
 
 
 def FormatJoints(q: np.ndarray) -> str:
-    """Joint positions as rad and degrees."""
+    """Joint positions as rad (4 decimals) and degrees (2), no negative zeros."""
+    radians = np.round(np.asarray(q, float), 4) + 0.0
+    degrees = np.round(np.degrees(q), 2) + 0.0
     return (
-        "["
-        + ", ".join(f"{x:+.4f}" for x in q)
-        + "] rad ("
-        + ", ".join(f"{np.degrees(x):+.2f}" for x in q)
-        + " deg)"
-    )
+        "[" + ", ".join(f"{x:+.4f}" for x in radians) + "] rad ("
+        + ", ".join(f"{x:+.2f}" for x in degrees) + " deg)"
+    )  # fmt: skip
 
 
 def CheckArm(

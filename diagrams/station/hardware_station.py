@@ -65,7 +65,7 @@ def CheckArmAtStart(station: Diagram, root: Context, arm: str, q_start: np.ndarr
     q_measured = port.Eval(station.GetMyContextFromRoot(root))
     offset = np.asarray(q_measured, float) - np.asarray(q_start, float)
     if np.max(np.abs(offset)) > START_TOLERANCE:
-        offsets = ", ".join(f"{x:+.4f}" for x in offset)
+        offsets = ", ".join(f"{x:+.4f}" for x in np.round(offset, 4) + 0.0)  # no -0.0000
         raise ConfigurationError(
             f"{arm} is not at the task's start pose: joint offsets [{offsets}] rad "
             f"(tolerance {START_TOLERANCE} rad); bring it there with `guidedarm "
