@@ -16,14 +16,22 @@ import tty
 
 import numpy as np
 import pytest
-from hardware_doubles import ScriptedArmLink, StartServer
+from hardware_doubles import Mz04dScenario, ScriptedArmLink, StartServer, WriteTestVideo
 from pydrake.systems.analysis import Simulator
 from pydrake.systems.framework import DiagramBuilder
 from pydrake.systems.primitives import ConstantVectorSource
+from pydrake.systems.sensors import CameraConfig
 
-from guidedarm.systems.errors import HardwareFaultError
+from guidedarm.diagrams.station.hardware_config import (
+    ArmDriverConfig,
+    CameraDriverConfig,
+    HardwareConfig,
+)
+from guidedarm.diagrams.station.station import MakeStation
+from guidedarm.systems.errors import ConfigurationError, HardwareFaultError
 from guidedarm.systems.hardware.arm_driver import ArmDriver
 from guidedarm.systems.hardware.command_guard import JointLimits
+from guidedarm.systems.hardware.tof_emulator import ToFEmulator
 
 CLI = [sys.executable, "-m", "guidedarm.diagrams.cli.main"]
 
@@ -160,3 +168,38 @@ def test_a_stream_refused_after_stale_measurements_names_the_setting(stale_age, 
         periods = int(re.search(r"no command sent for (\d+) periods", text)[1])
         assert periods == min(round(fault.value.t / 0.01), fresh_after)
     assert link.stops == 1
+
+
+def test_a_camera_with_frames_of_another_size_is_refused_before_any_arm_connects(tmp_path):
+    """A 64 x 48 video for a 640 x 480 camera: refused naming the camera and both sizes,
+    before the arm (nothing listens on its port) is reached."""
+    video = tmp_path / "camera.avi"
+    WriteTestVideo(video, 64, 48, 30.0, 10)
+    hardware = HardwareConfig(
+        arms={"mz04d": ArmDriverConfig(driver="nachi_tcp", port=1, acceleration_limits=[10] * 6)},
+        cameras={"camera": CameraDriverConfig(source=str(video))},
+    )
+    scenario = Mz04dScenario(cameras={"camera": CameraConfig(width=640, height=480)})
+    scenario.hardware = hardware
+    with pytest.raises(ConfigurationError) as refusal:
+        MakeStation(scenario, hardware=True)
+    assert str(refusal.value) == (
+        f"camera: camera '{video}' delivers 64x48 frames, the scenario expects 640x480"
+    )
+
+
+def test_an_unread_tof_pty_drops_lines_instead_of_stalling_the_emulator():
+    """An emulator's ToF pty that nobody reads (the run pointed at another device) fills in
+    seconds; its writes must not block, or the simulation thread that writes them, and with
+    it the emulated arm, freezes and the run blames the arm ("link quiet")."""
+    tof = ToFEmulator(None)
+    try:
+        start = time.monotonic()
+        for _ in range(5000):  # about 300 kB, far beyond a pty's buffer
+            assert tof.Write(np.full(6, 0.05), np.zeros(6, int))
+        elapsed = time.monotonic() - start
+    finally:
+        tof.close()
+    assert tof.dropped > 0
+    assert tof.lines == 5000
+    print(f"\n5000 lines written in {elapsed:.3f} s, {tof.dropped} dropped")
