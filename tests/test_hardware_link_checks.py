@@ -31,6 +31,7 @@ from guidedarm.diagrams.station.station import MakeStation
 from guidedarm.systems.errors import ConfigurationError, HardwareFaultError
 from guidedarm.systems.hardware.arm_driver import ArmDriver
 from guidedarm.systems.hardware.command_guard import JointLimits
+from guidedarm.systems.hardware.nachi_protocol import CheckOk, NachiProtocolError
 from guidedarm.systems.hardware.tof_emulator import ToFEmulator
 
 CLI = [sys.executable, "-m", "guidedarm.diagrams.cli.main"]
@@ -203,3 +204,15 @@ def test_an_unread_tof_pty_drops_lines_instead_of_stalling_the_emulator():
     assert tof.dropped > 0
     assert tof.lines == 5000
     print(f"\n5000 lines written in {elapsed:.3f} s, {tof.dropped} dropped")
+
+
+def test_a_streaming_timeout_names_the_controller_setting():
+    with pytest.raises(NachiProtocolError) as refusal:
+        CheckOk("NG E07 servo timeout; send RESET before SERVO")
+    assert str(refusal.value).endswith(
+        "(no SERVO reached the controller within its streaming timeout, a User Task "
+        "setting; `guidedarm emulate nachi --servo-timeout`)"
+    )
+    with pytest.raises(NachiProtocolError) as other:
+        CheckOk("NG E05 stopped; send RESET before SERVO")
+    assert str(other.value) == "controller refused: 'NG E05 stopped; send RESET before SERVO'"
