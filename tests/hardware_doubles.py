@@ -14,6 +14,7 @@ import sys
 import threading
 import time
 import tty
+from collections.abc import Callable
 
 import numpy as np
 
@@ -21,6 +22,21 @@ from guidedarm.systems.hardware import nachi_protocol as nachi
 from guidedarm.systems.hardware.arm_link import JointSample
 from guidedarm.systems.hardware.line_socket import LineSocket
 from guidedarm.systems.hardware.nachi_emulator import NachiControllerLogic
+
+# s; how long a test waits for something that must happen: a bound for a loaded machine,
+# not a timing (the tests' verdicts never depend on how long it takes within it).
+LOADED_MACHINE_BOUND = 5.0
+# s; the Nachi emulator's streaming timeout in tests that are not about it: the default
+# 0.1 s ran out when the shared CPU delayed a client in the same process (NG E07).
+RELAXED_SERVO_TIMEOUT = 2.0
+
+
+def WaitUntil(condition: Callable[[], bool], timeout: float = LOADED_MACHINE_BOUND) -> bool:
+    """Polls `condition` every millisecond until it holds or `timeout` s passed; returns it."""
+    deadline = time.monotonic() + timeout
+    while not condition() and time.monotonic() < deadline:
+        time.sleep(0.001)
+    return condition()
 
 
 class RecordingRtdeControl:
@@ -84,18 +100,26 @@ class FreezingNachiController:
     commanded, the controller clock the host's) that can `freeze`: from then on it receives
     and records request lines with their arrival times but answers none, as a controller
     whose task hangs while its TCP stack still accepts bytes; it freezes by itself after
-    answering `answers` lines. `measurement_offset` corrupts the joints it reports."""
+    answering `answers` lines. `measurement_offset` corrupts the joints it reports (its sign
+    flipping at every READ_JOINTS with `flip_offset`: a reading that jumps back and forth).
+    `clock_step` (s): the controller clock advances this much per request answered instead
+    of following the host's, so that velocities between its readings do not depend on how
+    the OS schedules the threads."""
 
-    def __init__(self, q0: np.ndarray, answers: float = np.inf) -> None:
+    def __init__(
+        self, q0: np.ndarray, answers: float = np.inf, clock_step: float | None = None
+    ) -> None:
         self.logic = NachiControllerLogic(np.full(6, -np.pi), np.full(6, np.pi), q0)
         self._server = socket.create_server(("127.0.0.1", 0))
         self.port = self._server.getsockname()[1]
         self.frozen = False
         self._answers = answers
         self.measurement_offset = np.zeros(6)  # rad, added to the joints it reports
+        self.flip_offset = False
         # host time (time.monotonic(), s) the last joint measurement (a READ_JOINTS reply) was sent
         self.last_measurement = 0.0
         self.received_frozen: list[tuple[float, str]] = []
+        self._clock_step = clock_step
         threading.Thread(target=self._Serve, daemon=True).start()
 
     def _Serve(self) -> None:
@@ -103,6 +127,7 @@ class FreezingNachiController:
         connection.setsockopt(socket.IPPROTO_TCP, socket.TCP_NODELAY, 1)
         lines = LineSocket(connection)
         start = time.monotonic()
+        answered = 0
         with connection, contextlib.suppress(OSError):
             while True:
                 line = lines.ReadLine()
@@ -112,7 +137,12 @@ class FreezingNachiController:
                     self.received_frozen.append((time.monotonic(), line))
                     continue
                 q = self.logic.commanded
-                self.logic.Measure(time.monotonic() - start, q, np.zeros(3), np.zeros(3))
+                answered += 1
+                t = time.monotonic() - start if self._clock_step is None else 0.0
+                t += answered * (self._clock_step or 0.0)
+                self.logic.Measure(t, q, np.zeros(3), np.zeros(3))
+                if self.flip_offset and line == nachi.READ_JOINTS:
+                    self.measurement_offset = -self.measurement_offset
                 self.logic.measured = q + self.measurement_offset
                 replies = self.logic.Handle(line)
                 # The driver's watchdog runs from its newest measurement: the reply to a

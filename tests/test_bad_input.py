@@ -227,6 +227,15 @@ BAD_INPUTS = [
     ("driver-port-range", Run(PF, "station.hardware.arms.mz04d.port=70000"), "[0, 65535]"),
     ("driver-negative-port", Run(PF, "station.hardware.arms.mz04d.port=-1"), "port'"),
     ("driver-nan-watchdog", Run(PF, "station.hardware.arms.mz04d.watchdog=.nan"), "watchdog'"),
+    (
+        "driver-lockstep-move",
+        Run(
+            PF,
+            "station.hardware.arms.mz04d={{driver: nachi_tcp, command_mode: move, lockstep: true}}",
+            flags=("--hardware",),
+        ),
+        "lockstep': applies to command_mode 'stream' only",
+    ),
     ("tof-driver-baudrate", Run(PF, "station.hardware.tof_tools.tof.baudrate=0"), "baudrate'"),
     ("camera-driver-watchdog", Run(PF, "station.hardware.cameras.c.watchdog=-2"), "watchdog'"),
     ("hose-zero-diameter", Run(PF, "station.hose.diameter=0"), "station.hose.diameter"),
@@ -595,6 +604,7 @@ BAD_INPUTS = [
     ("emulate-set-alone", ["emulate", "nachi", "--set", "arm=ur10e"], "--set needs --scenario"),
     ("emulate-tof-arm", ["emulate", "tof", "--arm", "ur10e"], "--arm applies to `emulate nachi`"),
     ("emulate-tof-host", ["emulate", "tof", "--host", "0.0.0.0"], "--host applies to"),
+    ("emulate-tof-lockstep", ["emulate", "tof", "--lockstep"], "--lockstep applies to `emulate"),
     ("show-unknown-arm", ["show", "kuka"], "unknown arm or scene 'kuka'"),
     ("show-negative-timeout", ["show", "ur10e", "--timeout", "-1"], "--timeout must be"),
     ("show-nan-timeout", ["show", "ur10e", "--timeout", "nan"], "--timeout must be"),

@@ -7,7 +7,7 @@ import threading
 
 import numpy as np
 import pytest
-from hardware_doubles import Mz04dScenario, WriteTestVideo
+from hardware_doubles import RELAXED_SERVO_TIMEOUT, Mz04dScenario, WriteTestVideo
 from pydrake.common.value import AbstractValue
 from pydrake.geometry import Meshcat
 from pydrake.systems.analysis import Simulator
@@ -49,7 +49,8 @@ def _Ports(diagram) -> dict[str, object]:
 
 @pytest.fixture
 def devices(tmp_path):
-    emulator = NachiEmulator(MakeStation(Mz04dScenario()), "mz04d", port=0)
+    station = MakeStation(Mz04dScenario())
+    emulator = NachiEmulator(station, "mz04d", port=0, servo_timeout=RELAXED_SERVO_TIMEOUT)
     thread = threading.Thread(target=emulator.Run, kwargs={"duration": 30.0}, daemon=True)
     thread.start()
     tof = ToFEmulator(lambda: (np.full(6, 0.05), np.zeros(6, int)), period=0.02)

@@ -3,11 +3,12 @@ and the whole path through a pseudo-terminal fed by the emulator."""
 
 from __future__ import annotations
 
-import threading
+import re
 import time
 
 import numpy as np
 import pytest
+from hardware_doubles import WaitUntil
 from pydrake.math import RigidTransform, RotationMatrix
 from pydrake.systems.analysis import Simulator
 
@@ -126,10 +127,13 @@ def test_silent_tool_fails_the_run_after_its_watchdog():
         emulator.close()
         start = time.monotonic()
         with pytest.raises(
-            HardwareFaultError, match=r"on tof at t = 0\.\d+ s: no valid line for 0.1[5-9]\d* s"
-        ):
+            HardwareFaultError, match=r"on tof at t = \d\.\d+ s: no valid line for \d\.\d+ s"
+        ) as fault:
             simulator.AdvanceTo(2.0)
-        assert time.monotonic() - start < 1.0  # well before the 2 s the run asked for
+        # After the watchdog, well before the 2 s the run asked for (a bound for a loaded
+        # machine: 6 watchdogs).
+        silent_for = float(re.search(r"no valid line for (\S+) s", str(fault.value))[1])
+        assert silent_for >= 0.15 and time.monotonic() - start < 1.0
     finally:
         transport.close()
 
@@ -153,64 +157,51 @@ def test_driver_stamps_a_line_with_its_measurement_instant_in_diagram_time():
     measured_at = stamp.Eval(context)
     assert np.ptp(measured_at) == 0.0
     assert 5.0 - (after - received) - 0.007 <= measured_at[0] <= 5.0 - (before - received) - 0.007
-    assert measured_at[0] == pytest.approx(5.0 - 0.030 - 0.007, abs=0.02)
+    assert measured_at[0] <= 5.0 - 0.030 - 0.007
     context.SetTime(5.02)
     context.SetDiscreteState(driver.EvalUniquePeriodicDiscreteUpdate(context).value())
     np.testing.assert_array_equal(stamp.Eval(context), measured_at)
     collector.Feed((FormatTofLine(8, RANGES_MM, STATUS) + "\r\n").encode())
+    received = collector.latest()[1]
     context.SetTime(5.04)
+    before = time.monotonic()
     context.SetDiscreteState(driver.EvalUniquePeriodicDiscreteUpdate(context).value())
-    assert stamp.Eval(context)[0] == pytest.approx(5.04 - 0.007, abs=0.02)
-
-
-def _StampFiftyLines() -> np.ndarray:
-    """Writes 50 lines 10 ms apart through a ToF emulator's pty and polls the collector
-    every 0.5 ms; returns the receive-minus-write delay (s) of each line seen."""
-    emulator = ToFEmulator(None)
-    collector = ToFLineCollector()
-    transport = SerialTransport(collector, emulator.device, 115200)
-    written = []
-
-    def WriteLines():
-        start = time.monotonic() + 0.1
-        for k in range(50):
-            time.sleep(max(0.0, start + 0.01 * k - time.monotonic()))
-            written.append(time.monotonic())
-            emulator.Write(np.full(6, 0.001 * k), STATUS)
-
-    writer = threading.Thread(target=WriteLines)
-    writer.start()
-    received = {}
-    try:
-        while writer.is_alive() or time.monotonic() < written[-1] + 0.05:
-            latest = collector.latest()
-            if latest is not None:
-                received.setdefault(latest[0].seq, latest[1])
-            time.sleep(0.0005)
-    finally:
-        writer.join()
-        emulator.close()
-        transport.close()
-    return np.array([received[k] - written[k] for k in received])
+    after = time.monotonic()
+    newer = stamp.Eval(context)[0]
+    assert 5.04 - (after - received) - 0.007 <= newer <= 5.04 - (before - received) - 0.007
 
 
 def test_each_line_is_stamped_when_it_arrives():
     """Lines written 10 ms apart each keep their own receive time, the basis of
     `measured_at`: the serial transport hands over the bytes that arrived, not fixed-size
     chunks (a read of 256 bytes waited up to its 50 ms timeout and stamped 2-3 lines with
-    one late time). On shared cores a stalled process can miss a stretch of lines, so the
-    best of three rounds counts; chunked stamping fails every round."""
-    rounds = []
-    for _ in range(3):
-        rounds.append(_StampFiftyLines())
-        if len(rounds[-1]) >= 45:
-            break
-    delays = max(rounds, key=len)
+    one late time). Each line is written once the one before was received, so every line is
+    seen; each stamp lies between its own write and the next line's; the median delay is
+    far below the 50 ms that chunked reading gives every line (0.4 ms measured; a loaded
+    machine delays a few lines, not the median)."""
+    emulator = ToFEmulator(None)
+    collector = ToFLineCollector()
+    transport = SerialTransport(collector, emulator.device, 115200)
+    written, stamps = [], []
+
+    def Received(seq: int) -> bool:
+        latest = collector.latest()
+        return latest is not None and latest[0].seq == seq
+
+    try:
+        for k in range(50):
+            time.sleep(0.01)
+            written.append(time.monotonic())
+            emulator.Write(np.full(6, 0.001 * k), STATUS)
+            assert WaitUntil(lambda k=k: Received(k))
+            stamps.append(collector.latest()[1])
+    finally:
+        emulator.close()
+        transport.close()
+    delays = np.array(stamps) - np.array(written)
     print(
-        f"lines seen {len(delays)} of 50 (rounds {[len(r) for r in rounds]}), delay median "
-        f"{1e3 * np.median(delays):.2f} ms, p90 {1e3 * np.percentile(delays, 90):.2f} ms, "
-        f"max {1e3 * delays.max():.2f} ms"
+        f"delay median {1e3 * np.median(delays):.2f} ms, p90 "
+        f"{1e3 * np.percentile(delays, 90):.2f} ms, max {1e3 * delays.max():.2f} ms"
     )
-    assert len(delays) >= 45  # the test's 0.5 ms polling may miss one under load
-    assert np.all(delays >= 0)
-    assert np.median(delays) < 0.002 and np.percentile(delays, 90) < 0.005
+    assert np.all(delays >= 0) and np.all(np.array(stamps[:-1]) < written[1:])
+    assert np.median(delays) < 0.025

@@ -54,23 +54,29 @@ def _RunDriver(link, t_final: float, watchdog: float = 0.1) -> tuple[ArmDriver, 
 
 
 def test_receive_side_reads_the_double_at_500_hz_and_streams_servoj():
+    connected = time.monotonic()
     process, receive, control, link = _Connect()
     try:
-        deadline = time.monotonic() + 2.0
+        deadline = time.monotonic() + 5.0
         while link.latest() is None and time.monotonic() < deadline:
             time.sleep(0.01)
         np.testing.assert_allclose(link.latest().q, Q_DOUBLE, atol=1e-12)
-        t0 = receive.getTimestamp()
-        time.sleep(0.5)
-        rate = (receive.getTimestamp() - t0) / 0.5
-        assert 0.9 < rate < 1.1  # controller seconds per host second
+        # The controller clock counts seconds since the stream started: it reaches 0.5 s
+        # (5 s is a bound for a loaded machine), and never runs ahead of the host's.
+        while receive.getTimestamp() < 0.5 and time.monotonic() < deadline:
+            time.sleep(0.01)
+        assert 0.5 <= receive.getTimestamp() <= time.monotonic() - connected
         driver, simulator = _RunDriver(link, 0.3)
         measured = driver.GetOutputPort("state_estimated").Eval(simulator.get_context())
         np.testing.assert_allclose(measured, Q_DOUBLE + [0.0] * 6, atol=1e-12)
         servo = [c for c in control.calls if c[0] == "servoJ"]
-        assert 100 <= len(servo) <= 151  # 0.3 s at 500 Hz, minus stale skips on a busy CPU
+        # 0.3 s at 500 Hz: each of the 150 periods in [0, 0.3) sends a servoJ or skips a
+        # stale sample (a busy CPU delays the double's samples), and each servoJ's time is
+        # the interval since the previous one, whole periods.
+        assert len(servo) >= 1 and len(servo) + driver.stale_skips == 150
         assert servo[-1][1][0] == pytest.approx(Q_DOUBLE)
-        assert servo[-1][1][1] == pytest.approx(0.002)
+        periods = np.array([c[1][1] for c in servo]) / 0.002
+        np.testing.assert_allclose(periods, np.maximum(1, np.round(periods)), atol=1e-6)
         # The controller's streaming timeout: 0.1 s, fed by every servoJ itself (a kick
         # right after it could overwrite the servoJ command before the script reads it),
         # by kicks before the first one only.
@@ -86,16 +92,16 @@ def test_receive_side_reads_the_double_at_500_hz_and_streams_servoj():
 def test_quiet_link_stops_the_robot_and_fails_the_run():
     process, _, control, link = _Connect("--quiet-after", "0.3")
     try:
-        start = time.monotonic()
         with pytest.raises(
             HardwareFaultError, match=r"ur10e at .*: link quiet for .* \(watchdog 0.1 s\)"
         ):
             _RunDriver(link, 5.0)
-        assert time.monotonic() - start < 1.5
         assert control.Count("servoStop") == 1
         assert control.calls[-1][0] == "servoStop"
-        # No command followed the last fresh sample by more than the staleness bound.
+        # Stopped after the watchdog, within a bound for a loaded machine (10 watchdogs),
+        # and no command followed the last fresh sample by more than the staleness bound.
         last_sample = link.latest().host_time
+        assert 0.1 <= control.calls[-1][2] - last_sample < 1.0
         late = [c for c in control.calls if c[0] == "servoJ" and c[2] > last_sample + 0.025]
         assert late == []
     finally:
@@ -109,13 +115,12 @@ def test_timestamps_running_backwards_are_stale_and_trip_the_watchdog():
     no command follows them and the watchdog stops the robot."""
     process, _, control, link = _Connect("--backwards-after", "0.3")
     try:
-        start = time.monotonic()
         with pytest.raises(
-            HardwareFaultError, match=r"ur10e at .*: link quiet for 0\.1\d* s \(watchdog 0.1 s\)"
+            HardwareFaultError, match=r"ur10e at .*: link quiet for .* \(watchdog 0.1 s\)"
         ):
             _RunDriver(link, 5.0)
-        assert time.monotonic() - start < 1.5
         assert control.Count("servoStop") == 1
+        assert 0.1 <= control.calls[-1][2] - link.latest().host_time < 1.0
     finally:
         link.close()
         StopServer(process)

@@ -26,6 +26,7 @@ from guidedarm.diagrams.station.model_paths import MODELS_DIR
 from guidedarm.diagrams.station.scenario import ArmConfig, StationScenario
 from guidedarm.diagrams.station.station import MakeStation
 from guidedarm.systems.errors import ConfigurationError
+from guidedarm.systems.hardware.lockstep_clock import SAME_INSTANT
 from guidedarm.systems.hardware.nachi_emulator import (
     DEFAULT_SERVO_ACCELERATION,
     DEFAULT_SERVO_TIMEOUT,
@@ -118,7 +119,7 @@ class ToFTap:
             status = np.where(valid, 0, NO_TARGET_STATUS)
             due = tick * self._period + self._latency
             self._pending.append((due, self._ranges.Eval(context).copy(), status))
-        while self._pending and self._pending[0][0] <= t:
+        while self._pending and self._pending[0][0] <= t + SAME_INSTANT:  # due now
             _, ranges, status = self._pending.pop(0)
             self._emulator.Write(ranges, status)
 

@@ -7,17 +7,18 @@ then waits for the next target. So the emulated arm moves exactly as far as the 
 said time has passed, however the OS schedules the PC and the emulator: a tracking verdict
 then depends on the commands and the simulation only. Outside a stream (before the first
 target, braking after STOP or a timeout, idle) no target says what time it is, and the
-simulation keeps the host's real time.
+simulation keeps the host's real time. Between targets time stands still, so nothing
+moves while the PC is late, and nothing times out either.
 """
 
 from __future__ import annotations
 
 import threading
-import time
 
-import numpy as np
-
-WAIT_SLICE = 0.05  # s; how often a wait re-checks whether the emulator closes
+# s; times closer than this are the same instant: sums of intervals and multiples of a step
+# that should meet (a target's end, a ToF line's due time, a step) differ by rounding only,
+# and in lockstep they meet at every step.
+SAME_INSTANT = 1e-9
 
 
 class LockstepClock:
@@ -29,18 +30,16 @@ class LockstepClock:
         self.granted: float | None = None  # controller time (s) the stream has granted
         self._caught_up = False  # the simulation waits at the last step within `granted`
         self._closed = False
-        self._last_grant_host = -np.inf  # time.monotonic() of the latest grant (s)
 
     def Grant(self, now: float, interval: float) -> None:
         """A target `interval` s after the previous one (after controller time `now` when a
         stream starts): returns once the simulation stands at the last step within the new
         granted time, or the clock was released or closed meanwhile."""
         self.granted = (now if self.granted is None else self.granted) + interval
-        self._last_grant_host = time.monotonic()
         self._caught_up = False
         self.changed.notify_all()
         while not (self._caught_up or self.granted is None or self._closed):
-            self.changed.wait(WAIT_SLICE)
+            self.changed.wait()
 
     def Release(self) -> None:
         """The stream ended (STOP, timeout): the simulation follows the host clock again."""
@@ -50,15 +49,12 @@ class LockstepClock:
     def Blocks(self, t_next: float) -> bool:
         """Whether the simulation must wait before stepping to t_next (s); telling a waiting
         Grant that the simulation has caught up when it must."""
-        blocks = not self._closed and self.granted is not None and t_next > self.granted + 1e-9
+        granted = self.granted
+        blocks = not self._closed and granted is not None and t_next > granted + SAME_INSTANT
         if blocks and not self._caught_up:
             self._caught_up = True
             self.changed.notify_all()
         return blocks
-
-    def SilentFor(self) -> float:
-        """Host seconds since the latest grant."""
-        return time.monotonic() - self._last_grant_host
 
     def Close(self) -> None:
         self._closed = True

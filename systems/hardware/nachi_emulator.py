@@ -51,8 +51,9 @@ class NachiControllerLogic:
     latches STOPPED. A latch refuses motion requests until RESET.
 
     With `lockstep`, a SERVO returns once the simulation has advanced by its interval
-    (`clock`, stepped by `WaitForClock` in the simulation thread), and the streaming
-    timeout counts host seconds without a SERVO."""
+    (`clock`, stepped by `WaitForClock` in the simulation thread). Time stands still
+    between targets then, the streaming timeout's too: a client that stops streaming
+    without STOP leaves the arm where the last interval ended."""
 
     def __init__(
         self,
@@ -97,7 +98,9 @@ class NachiControllerLogic:
             tracker = self.tracker
             if tracker is not None:
                 if not tracker.braking and t - self.last_servo_time > self.servo_timeout:
-                    self._TimeOut()
+                    self._Brake()
+                    self.timed_out = True
+                    self.timeouts += 1
                 self.commanded = tracker.Step(t)
                 if tracker.braking and tracker.Standstill():
                     self.tracker, self.standstill_time = None, t
@@ -105,14 +108,10 @@ class NachiControllerLogic:
 
     def WaitForClock(self, t_next: float) -> bool:
         """Lockstep, from the simulation thread: blocks until the simulation may step to
-        t_next (s); True when the host clock paces that step (no stream is tracked). No
-        SERVO for `servo_timeout` host seconds brakes the arm as in real time."""
+        t_next (s); True when the host clock paces that step (no stream is tracked)."""
         with self.lock:
             while self.clock.Blocks(t_next):
-                if self.clock.SilentFor() > self.servo_timeout:
-                    self._TimeOut()
-                    break
-                self.clock.changed.wait(self.servo_timeout)
+                self.clock.changed.wait()
             return self.clock.granted is None
 
     def Close(self) -> None:
@@ -120,11 +119,6 @@ class NachiControllerLogic:
         if self.clock is not None:
             with self.lock:
                 self.clock.Close()
-
-    def _TimeOut(self) -> None:
-        self._Brake()
-        self.timed_out = True
-        self.timeouts += 1
 
     def _Brake(self) -> None:
         self.tracker.Brake()
@@ -359,7 +353,7 @@ class NachiEmulator:
 
     def _Pace(
         self, t: float, rate: float, origin: tuple[float, float] | None
-    ) -> tuple[float, float] | None:
+    ) -> tuple[float, float]:
         """Waits until host time reaches t (s) at `rate` from `origin` (simulated, host time;
         None: from now, the host clock taking over after a lockstep stream); returns the
         origin."""

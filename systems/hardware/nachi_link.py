@@ -134,7 +134,7 @@ class NachiLink:
         self._target_lock = threading.Lock()
         self._target: np.ndarray | None = None
         self._interval = 0.0
-        # READ_JOINTS requests sent, and how many of their replies were read (lockstep).
+        # READ_JOINTS requests numbered (_target_lock), and the newest one read (_reads).
         self._lockstep_wait = lockstep_wait
         self._reads = threading.Condition()
         self._reads_sent = self._reads_done = 0
@@ -206,36 +206,36 @@ class NachiLink:
             self._wake.clear()
             try:
                 with self._send_lock:
-                    lines = [*self._TargetLines(), nachi.READ_JOINTS]
-                    replies = self._SendLocked(lines)
-                    with self._reads:
-                        self._reads_sent += 1
-                        sent = self._reads_sent
+                    target_lines, read = self._TargetLines()
+                    replies = self._SendLocked([*target_lines, nachi.READ_JOINTS])
                 for reply in replies[:-1]:
                     nachi.CheckOk(self._Await(reply))
                 if self._Check(self._Measured, self._Await(replies[-1])):
                     with self._reads:
-                        self._reads_done = sent
+                        self._reads_done = read
                         self._reads.notify_all()
-            except nachi.NachiProtocolError as e:
+            except (nachi.NachiProtocolError, OSError) as e:
                 self._fault = self._fault or str(e)
-                return
-            except OSError as e:
-                self._fault = self._fault or str(e)
+                with self._reads:  # a `latest` waiting in lockstep returns at once
+                    self._reads.notify_all()
                 return
 
-    def _TargetLines(self) -> list[str]:
+    def _TargetLines(self) -> tuple[list[str], int]:
         """The request lines of the pending target, none if there is none or the link was
-        stopped (called with the send lock held, which `stop` takes too)."""
+        stopped (called with the send lock held, which `stop` takes too), and the number of
+        the READ_JOINTS that follows them: counted as the target is taken, so that a
+        reading numbered after a `latest` call follows every target queued before it."""
         with self._target_lock:
             target, interval = self._target, self._interval
             if target is not None:
                 self._target, self._interval = None, 0.0
+            self._reads_sent += 1
+            read = self._reads_sent
         if target is None or self._stopped:
-            return []
+            return [], read
         if not self._streaming:
-            return [nachi.FormatSetTarget(target), nachi.MOVE]
-        return [nachi.FormatServo(target, interval)]
+            return [nachi.FormatSetTarget(target), nachi.MOVE], read
+        return [nachi.FormatServo(target, interval)], read
 
     def _Await(self, reply: PendingReply) -> str:
         """The reply, however long the controller takes, unless the link dies or closes."""
@@ -274,9 +274,10 @@ class NachiLink:
     def latest(self) -> JointSample | None:
         if self._lockstep_wait is None:
             return self._latest.get()
-        with self._reads:
+        with self._target_lock:
             wanted = self._reads_sent + 1
-            self._wake.set()
+        self._wake.set()
+        with self._reads:
             read = self._reads.wait_for(
                 lambda: self._reads_done >= wanted or self._fault is not None,
                 self._lockstep_wait,

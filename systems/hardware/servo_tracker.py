@@ -20,11 +20,9 @@ from __future__ import annotations
 
 import numpy as np
 
+from guidedarm.systems.hardware.lockstep_clock import SAME_INSTANT
+
 DEFAULT_GAIN = 50.0  # 1/s; position error to velocity correction
-# s; times closer than this are the same instant. A tick that ends exactly where the
-# reference arrives (every tick in an emulator's lockstep mode) still moves with it,
-# whichever way the rounding of the two sums of intervals fell.
-SAME_INSTANT = 1e-9
 
 
 class ServoTracker:
@@ -53,7 +51,8 @@ class ServoTracker:
 
     def Reference(self, t: float) -> tuple[np.ndarray, np.ndarray]:
         """The reference position and velocity at time t (s); at its end, the velocity of
-        the ramp that ends there."""
+        the ramp that ends there (a tick ending where a target's interval ends, as every
+        tick in lockstep, still moves with it, whatever the rounding)."""
         moving = t < self._end + SAME_INSTANT
         r = self._start + self._rate * (min(t, self._end) - self._t0)
         return r, (self._rate if moving else np.zeros_like(self._rate))
