@@ -228,18 +228,13 @@ BAD_INPUTS = [
     ("driver-negative-port", Run(PF, "station.hardware.arms.mz04d.port=-1"), "port'"),
     ("driver-nan-watchdog", Run(PF, "station.hardware.arms.mz04d.watchdog=.nan"), "watchdog'"),
     (
-        "driver-lockstep-ur",
-        Run(WP, "station.hardware.arms.ur10e.lockstep=true", flags=("--hardware",)),
-        "lockstep': applies to nachi_tcp with command_mode 'stream' only",
-    ),
-    (
         "driver-lockstep-move",
         Run(
             PF,
             "station.hardware.arms.mz04d={{driver: nachi_tcp, command_mode: move, lockstep: true}}",
             flags=("--hardware",),
         ),
-        "lockstep': applies to nachi_tcp with command_mode 'stream' only",
+        "lockstep': applies to command_mode 'stream' only",
     ),
     ("tof-driver-baudrate", Run(PF, "station.hardware.tof_tools.tof.baudrate=0"), "baudrate'"),
     ("camera-driver-watchdog", Run(PF, "station.hardware.cameras.c.watchdog=-2"), "watchdog'"),

@@ -451,8 +451,8 @@ def _RunRefused(*args: str) -> subprocess.CompletedProcess:
                 "station.hardware.arms.ur10e={driver: ur_rtde, host: 127.0.0.9, "
                 "acceleration_limits: [5, 5, 5, 5, 5, 5]}",
             ],
-            "ur10e: cannot connect to the UR controller at 127.0.0.9: connect: Connection "
-            "refused; Error: Could not connect to: 127.0.0.9 at 30004, verify the IP",
+            "ur10e: cannot connect to the UR controller at 127.0.0.9: RTDE 127.0.0.9:30004: "
+            "[Errno 111] Connection refused",
         ),
         (["emulate", "nachi", "--port", "70000"], "--port: 70000 is not a TCP port (0..65535)"),
         (["emulate", "nachi", "--port", "-1"], "--port: -1 is not a TCP port (0..65535)"),
@@ -508,9 +508,10 @@ def test_an_arm_away_from_the_start_pose_is_refused_before_any_command(q_start, 
         errors = [line for line in output.splitlines() if line.startswith("guidedarm: error")]
         assert len(errors) == 1, output
         assert re.fullmatch(
-            r"guidedarm: error: mz04d is not at the task's start pose: joint \d is "
-            r"[+-]0\.0\d{3} rad from it \(tolerance 0\.0001 rad\); bring the arm there first "
-            r"\(an emulator: start it with --scenario and the run's --set options\)",
+            r"guidedarm: error: mz04d is not at the task's start pose: joint offsets "
+            r"\[([+-]\d\.\d{4}, ){5}[+-]\d\.\d{4}\] rad \(tolerance 0\.0001 rad\); bring it "
+            r"there with `guidedarm move-to-start SCENARIO --hardware` and the run's --set "
+            r"options \(an emulator: start it with --scenario and the run's --set options\)",
             errors[0],
         ), errors
         assert "Traceback" not in output and "Failure at" not in output
@@ -583,9 +584,10 @@ def test_a_joint_tour_arm_away_from_its_start_is_refused_before_any_command(tmp_
         errors = [line for line in result.stderr.splitlines() if line.startswith("guidedarm:")]
         assert result.returncode == 2, result.stderr
         assert errors == [
-            "guidedarm: error: ur10e is not at the task's start pose: joint 1 is +0.1000 rad "
-            "from it (tolerance 0.0001 rad); bring the arm there first (an emulator: start it "
-            "with --scenario and the run's --set options)"
+            "guidedarm: error: ur10e is not at the task's start pose: joint offsets [+0.1000, "
+            "+0.0000, +0.0000, +0.0000, +0.0000, +0.0000] rad (tolerance 0.0001 rad); bring it "
+            "there with `guidedarm move-to-start SCENARIO --hardware` and the run's --set "
+            "options (an emulator: start it with --scenario and the run's --set options)"
         ], result.stderr
         assert not (tmp_path / "run" / "summary.json").exists()
     finally:

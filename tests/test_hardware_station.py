@@ -131,7 +131,7 @@ NACHI = {"driver": "nachi_tcp", "acceleration_limits": [10.0] * 6}
         ({"host": " "}, {}, r"arms\.mz04d\.host': must not be empty"),
         ({"watchdog": float("nan")}, {}, r"arms\.mz04d\.watchdog': must be a finite number"),
         ({"watchdog": 0.0}, {}, r"arms\.mz04d\.watchdog': must be > 0, got 0\.0"),
-        ({"stale_after": 0.2}, {}, r"arms\.mz04d\.stale_after': 0\.2 s exceeds the watchdog"),
+        ({"stale_after": 0.6}, {}, r"arms\.mz04d\.stale_after': 0\.6 s exceeds the watchdog"),
         (
             {"acceleration_limits": [1.0] * 5 + [float("inf")]},
             {},

@@ -1,9 +1,10 @@
-"""`guidedarm emulate nachi|tof`: emulated devices served from a Drake simulation of a station.
+"""`guidedarm emulate nachi|tof|ur`: emulated devices served from a Drake simulation of a station.
 
 `nachi` serves the Nachi User Task line protocol (docs/nachi_protocol.md) for an arm of the
 station on TCP; every ToF tool of the station is streamed as well, each on its own
 pseudo-terminal. `tof` streams the ToF tools only, the arm holding its initial position.
 Without --scenario the station is the Wawrzyniak et al. cell (MZ04D, gripper, ToF tool `tof`).
+`ur` (a UR controller for the ur_rtde client) is diagrams/cli/emulate_ur.py's.
 """
 
 from __future__ import annotations
@@ -12,9 +13,10 @@ import argparse
 
 import numpy as np
 from pydrake.multibody.parsing import LoadModelDirectives
-from pydrake.systems.framework import Context
+from pydrake.systems.framework import Context, Diagram
 
 from guidedarm.diagrams.cli.command_run import LoadScenario
+from guidedarm.diagrams.cli.emulate_ur import EmulateUr
 from guidedarm.diagrams.station.hardware_config import (
     CheckPort,
     ListenHostProblem,
@@ -42,11 +44,13 @@ NACHI_FRAMES = ("base", "flange")
 
 def register(subparsers: argparse._SubParsersAction) -> None:
     parser = subparsers.add_parser("emulate", help="serve emulated hardware from a simulation")
-    parser.add_argument("device", choices=["nachi", "tof"])
+    parser.add_argument("device", choices=["nachi", "tof", "ur"])
     parser.add_argument("--scenario", help="scenario name or YAML whose `station` to simulate")
     parser.add_argument("--set", dest="overrides", action="append", default=[], metavar="K=V")
-    parser.add_argument("--arm", help="the arm served over TCP (nachi; default mz04d)")
-    parser.add_argument("--host", help="the address nachi listens on (default 127.0.0.1)")
+    parser.add_argument("--arm", help="the arm served (nachi: default mz04d; ur: ur10e)")
+    parser.add_argument(
+        "--host", help="the address nachi or ur listens on (default 127.0.0.1; ur: any 127.x.y.z)"
+    )
     parser.add_argument(
         "--port", type=int, help=f"TCP port of `nachi` (default {DEFAULT_PORT}; 0 = any free)"
     )
@@ -66,8 +70,8 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     parser.add_argument(
         "--lockstep",
         action="store_true",
-        help="nachi: while SERVO targets stream, advance the station by their intervals "
-        "instead of real time (for tests; the run's arm driver sets `lockstep: true`)",
+        help="nachi, ur: while SERVO (servoJ) targets stream, advance the station by their "
+        "intervals instead of real time (for tests; the run's arm driver sets `lockstep: true`)",
     )
     parser.add_argument(
         "--tof-latency",
@@ -120,6 +124,24 @@ class ToFTap:
             self._emulator.Write(ranges, status)
 
 
+def EmulatedStation(
+    station_scenario: StationScenario, arm: str, tof_latency: float
+) -> tuple[Diagram, dict[str, ToFEmulator], tuple[ToFTap, ...]]:
+    """The simulated station an emulator serves `arm` of, a ToF emulator per tool and the
+    taps that write its lines (`tof_latency` s after each range's end of ranging)."""
+    if arm not in station_scenario.arms:
+        raise ConfigurationError(
+            f"--arm {arm}: not an arm of the station {list(station_scenario.arms)}"
+        )
+    station = MakeStation(station_scenario)
+    tools = station_scenario.tof_tools
+    tofs = {name: ToFEmulator(None) for name in tools}
+    taps = tuple(
+        ToFTap(station, name, tool.period, tofs[name], tof_latency) for name, tool in tools.items()
+    )
+    return station, tofs, taps
+
+
 def StartEmulators(
     station_scenario: StationScenario,
     arm: str,
@@ -134,11 +156,7 @@ def StartEmulators(
     `servo_acceleration` rad/s^2; `servo_timeout` s; `lockstep`: NachiEmulator's) and a
     ToF emulator per tool, each line leaving `tof_latency` s after its range's end of
     ranging (on the station's clock, so in lockstep with the arm)."""
-    if arm not in station_scenario.arms:
-        raise ConfigurationError(
-            f"--arm {arm}: not an arm of the station {list(station_scenario.arms)}"
-        )
-    station = MakeStation(station_scenario)
+    station, tofs, taps = EmulatedStation(station_scenario, arm, tof_latency)
     plant = station.GetSubsystemByName("plant")
     instance = plant.GetModelInstanceByName(arm)
     missing = [f for f in NACHI_FRAMES if not plant.HasFrameNamed(f, instance)]
@@ -148,11 +166,6 @@ def StartEmulators(
             "Nachi emulator reports the flange pose with (an arm with base and flange frames: "
             "mz04d, ur10e)"
         )
-    tools = station_scenario.tof_tools
-    tofs = {name: ToFEmulator(None) for name in tools}
-    taps = tuple(
-        ToFTap(station, name, tool.period, tofs[name], tof_latency) for name, tool in tools.items()
-    )
     emulator = NachiEmulator(
         station,
         arm,
@@ -177,7 +190,8 @@ def CheckArguments(args: argparse.Namespace) -> None:
         raise ConfigurationError("--set needs --scenario (the default cell has no scenario)")
     if args.lockstep and args.device != "nachi":
         raise ConfigurationError(
-            "--lockstep applies to `emulate nachi` only (the SERVO targets set its clock)"
+            "--lockstep applies to `emulate nachi` and `emulate ur` only (the targets set "
+            "their clock)"
         )
     for option in ("port", "host", "arm"):
         if getattr(args, option) is not None and args.device != "nachi":
@@ -204,18 +218,24 @@ def CheckArguments(args: argparse.Namespace) -> None:
         raise ConfigurationError(f"--tof-latency {args.tof_latency}: must be >= 0 and finite")
 
 
+def ScenarioStation(args: argparse.Namespace, default) -> StationScenario:
+    """The station of --scenario with its --set options, or `default()` without one."""
+    if not args.scenario:
+        return default()
+    task, scenario, _ = LoadScenario(args.scenario, args.overrides)
+    if task.station is None and not hasattr(scenario, "station"):
+        raise ConfigurationError(
+            f"--scenario {args.scenario}: task '{task.name}' builds no station (no arm or "
+            "ToF tool to emulate)"
+        )
+    return task.Station(scenario)
+
+
 def emulate_command(args: argparse.Namespace) -> int:
+    if args.device == "ur":
+        return EmulateUr(args)
     CheckArguments(args)
-    if args.scenario:
-        task, scenario, _ = LoadScenario(args.scenario, args.overrides)
-        if task.station is None and not hasattr(scenario, "station"):
-            raise ConfigurationError(
-                f"--scenario {args.scenario}: task '{task.name}' builds no station (no arm or "
-                "ToF tool to emulate)"
-            )
-        station_scenario = task.Station(scenario)
-    else:
-        station_scenario = DefaultCell()
+    station_scenario = ScenarioStation(args, DefaultCell)
     if args.tof_latency is not None and not station_scenario.tof_tools:
         raise ConfigurationError("--tof-latency: the station has no tof_tools to emulate")
     if args.device == "tof" and not station_scenario.tof_tools:
@@ -236,12 +256,20 @@ def emulate_command(args: argparse.Namespace) -> int:
     )
     if args.device == "nachi":
         print(f"nachi: {arm} listening on {args.host}:{emulator.port}", flush=True)
+    Serve(emulator, tofs, args.duration)
+    return 0
+
+
+def Serve(emulator, tofs: dict[str, ToFEmulator], duration: float, report=None) -> None:
+    """Announces the ToF ptys, runs the emulator for `duration` s (or until interrupted),
+    then closes it, calls `report()` and closes the ptys."""
     for name, tof in tofs.items():
         print(f"tof: {name} streaming on {tof.device}", flush=True)
     try:
-        emulator.Run(args.duration)
+        emulator.Run(duration)
     finally:
         emulator.Close()
+        if report is not None:
+            report()
         for tof in tofs.values():
             tof.close()
-    return 0

@@ -86,18 +86,18 @@ class ArmDriverConfig:
     controller's streaming timeout is its own setting (`guidedarm emulate nachi
     --servo-timeout`).
     lookahead_time, gain: servoJ parameters (UR only; s in [0.03, 0.2], 1/s in [100, 2000]).
-    lockstep: nachi_tcp streaming to `guidedarm emulate nachi --lockstep` only: the emulated
-    controller's clock advances by the SERVO intervals, and each control period waits (at
-    most `watchdog`) for the joints read after the previous target, so that the run does
-    not depend on how the OS schedules the two processes (docs/hardware.md). Never on a
-    real controller, whose clock does not wait.
+    lockstep: streaming to `guidedarm emulate nachi --lockstep` or `emulate ur --lockstep`
+    only: the emulated controller's clock advances by the SERVO (servoJ) intervals, and
+    each control period waits (at most `watchdog`) for the joints read after the previous
+    target, so that the run does not depend on how the OS schedules the two processes
+    (docs/hardware.md). Never on a real controller, whose clock does not wait.
     """
 
     driver: str = "ur_rtde"
     host: str = "127.0.0.1"
     port: int = InRange(0, 65535, 0)
-    watchdog: float = Positive(0.1)
-    stale_after: float = Positive(0.02)
+    watchdog: float = Positive(0.5)
+    stale_after: float = Positive(0.05)
     acceleration_limits: list[float] = Positive(factory=list)
     command_mode: str = "stream"
     servo_timeout: float = Positive(0.1)
@@ -119,8 +119,8 @@ class ArmDriverConfig:
             for name in ("servo_timeout", "lookahead_time", "gain"):
                 if getattr(self, name) != getattr(defaults, name):
                     raise FieldError(name, f"applies to the ur_rtde driver only, not {self.driver}")
-        if self.lockstep and (self.driver, self.command_mode) != ("nachi_tcp", "stream"):
-            raise FieldError("lockstep", "applies to nachi_tcp with command_mode 'stream' only")
+        if self.lockstep and self.command_mode != "stream":
+            raise FieldError("lockstep", "applies to command_mode 'stream' only")
         if not self.stale_after <= self.watchdog:
             raise FieldError(
                 "stale_after", f"{self.stale_after} s exceeds the watchdog {self.watchdog} s"

@@ -15,14 +15,20 @@ from pydrake.systems.framework import Context, Diagram, DiagramBuilder, OutputPo
 from pydrake.systems.primitives import ConstantVectorSource, MatrixGain, Multiplexer
 from pydrake.systems.rendering import MultibodyPositionToGeometryPose
 
-from guidedarm.diagrams.station.hardware_config import ArmDriverConfig, HardwareConfig
+from guidedarm.diagrams.station.hardware_config import ArmDriverConfig
+from guidedarm.diagrams.station.link_checks import (
+    CheckHardwareEntries,
+    ProveCamera,
+    ProveToFTool,
+)
 from guidedarm.diagrams.station.scenario import StationScenario
 from guidedarm.diagrams.station.station_plant import (
     AddStationModels,
+    ArmInitialPosition,
     GetArmInstance,
+    MakeMultibodyPlant,
     SetInitialPositions,
 )
-from guidedarm.systems.config_checks import CheckConfig
 from guidedarm.systems.errors import ConfigurationError
 from guidedarm.systems.hardware import nachi_protocol
 from guidedarm.systems.hardware.arm_driver import ArmDriver
@@ -53,24 +59,35 @@ def CheckArmAtStart(station: Diagram, root: Context, arm: str, q_start: np.ndarr
     measured by the (hardware) `station` in the diagram's context `root` are within
     START_TOLERANCE of the task's start pose q_start (rad): a task streams from that pose,
     and its first command would jump from anywhere else (a jump the arm driver's command
-    guard refuses)."""
+    guard refuses). The refusal names every joint's offset and the command that moves the
+    arm there."""
     port = station.GetOutputPort(f"{arm}.position_measured")
     q_measured = port.Eval(station.GetMyContextFromRoot(root))
     offset = np.asarray(q_measured, float) - np.asarray(q_start, float)
-    worst = int(np.argmax(np.abs(offset)))
-    if abs(offset[worst]) > START_TOLERANCE:
+    if np.max(np.abs(offset)) > START_TOLERANCE:
+        offsets = ", ".join(f"{x:+.4f}" for x in np.round(offset, 4) + 0.0)  # no -0.0000
         raise ConfigurationError(
-            f"{arm} is not at the task's start pose: joint {worst + 1} is "
-            f"{offset[worst]:+.4f} rad from it (tolerance {START_TOLERANCE} rad); bring the "
-            "arm there first (an emulator: start it with --scenario and the run's --set "
-            "options)"
+            f"{arm} is not at the task's start pose: joint offsets [{offsets}] rad "
+            f"(tolerance {START_TOLERANCE} rad); bring it there with `guidedarm "
+            "move-to-start SCENARIO --hardware` and the run's --set options (an emulator: "
+            "start it with --scenario and the run's --set options)"
         )
+
+
+def StartPoses(task, scenario) -> dict[str, np.ndarray]:
+    """Each arm's start pose (rad) in a run of `scenario` by `task` (its TaskDefinition):
+    the initial positions of the station the run builds (path following's IK solution of
+    the hose's start, a tour's start, the planner's q(0)), the model's defaults where the
+    scenario gives none."""
+    station = task.Station(scenario)
+    plant = MakeMultibodyPlant(station, list(station.arms))
+    return {name: ArmInitialPosition(plant, name, arm) for name, arm in station.arms.items()}
 
 
 def MakeHardwareStation(scenario: StationScenario, meshcat: Meshcat | None = None) -> Diagram:
     """Builds the hardware station of `scenario`; connects to every configured device."""
     hardware = scenario.hardware
-    _CheckCovered(scenario, hardware)
+    CheckHardwareEntries(scenario, hardware)
     builder = DiagramBuilder()
     scene_graph = builder.AddNamedSystem("scene_graph", SceneGraph())
     plant = MultibodyPlant(0.0)
@@ -78,6 +95,42 @@ def MakeHardwareStation(scenario: StationScenario, meshcat: Meshcat | None = Non
     AddStationModels(scenario, plant)
     plant.Finalize()
     SetInitialPositions(scenario, plant)
+    # The sensors prove themselves first: an arm connection sends RESET (docs/hardware.md).
+    for name, camera in scenario.cameras.items():
+        config = hardware.cameras[name]
+        grabber = FrameGrabber(config.source)
+        ProveCamera(name, grabber, camera.width, camera.height, config.watchdog)
+        system = OpenCvCamera(
+            grabber,
+            camera.width,
+            camera.height,
+            1.0 / camera.fps,
+            config.watchdog,
+        )
+        builder.AddNamedSystem(f"{name}.opencv_camera", system)
+        builder.ExportOutput(system.get_output_port(), f"{name}.rgb_image")
+    for name in scenario.tof_tools:
+        tool = scenario.ToFTool(name)
+        config = hardware.tof_tools[name]
+        collector = ToFLineCollector(name)
+        if config.transport == "serial":
+            SerialTransport(collector, config.device, config.baudrate)
+        else:
+            BleTransport(collector, config.device)
+        ProveToFTool(collector, config.device, config.watchdog)
+        grid = MakeDetectionGrid(plant, tool)
+        latency = tool.ranging_time / 2 + config.latency
+        system = ToFDriver(
+            collector,
+            tool.period / TOF_POLLS_PER_PERIOD,
+            config.watchdog,
+            tool.max_range,
+            grid,
+            latency=latency,
+        )
+        builder.AddNamedSystem(f"{name}.driver", system)
+        for port in TOF_PORTS:
+            builder.ExportOutput(system.GetOutputPort(port), f"{name}.{port}")
     measured: dict[str, OutputPort] = {}
     for name, arm in scenario.arms.items():
         config = hardware.arms[name]
@@ -100,38 +153,6 @@ def MakeHardwareStation(scenario: StationScenario, meshcat: Meshcat | None = Non
         for port in ("position_measured", "velocity_estimated", "state_estimated"):
             builder.ExportOutput(driver.GetOutputPort(port), f"{name}.{port}")
         measured[name] = driver.GetOutputPort("position_measured")
-    for name, camera in scenario.cameras.items():
-        config = hardware.cameras[name]
-        system = OpenCvCamera(
-            FrameGrabber(config.source),
-            camera.width,
-            camera.height,
-            1.0 / camera.fps,
-            config.watchdog,
-        )
-        builder.AddNamedSystem(f"{name}.opencv_camera", system)
-        builder.ExportOutput(system.get_output_port(), f"{name}.rgb_image")
-    for name in scenario.tof_tools:
-        tool = scenario.ToFTool(name)
-        config = hardware.tof_tools[name]
-        collector = ToFLineCollector(name)
-        if config.transport == "serial":
-            SerialTransport(collector, config.device, config.baudrate)
-        else:
-            BleTransport(collector, config.device)
-        grid = MakeDetectionGrid(plant, tool)
-        latency = tool.ranging_time / 2 + config.latency
-        system = ToFDriver(
-            collector,
-            tool.period / TOF_POLLS_PER_PERIOD,
-            config.watchdog,
-            tool.max_range,
-            grid,
-            latency=latency,
-        )
-        builder.AddNamedSystem(f"{name}.driver", system)
-        for port in TOF_PORTS:
-            builder.ExportOutput(system.GetOutputPort(port), f"{name}.{port}")
     if meshcat is not None:
         _DrawMeasured(builder, plant, scene_graph, measured, meshcat)
     diagram = builder.Build()
@@ -139,20 +160,15 @@ def MakeHardwareStation(scenario: StationScenario, meshcat: Meshcat | None = Non
     return diagram
 
 
-def _CheckCovered(scenario: StationScenario, hardware: HardwareConfig) -> None:
-    """Every arm, camera and ToF tool of the scenario needs a valid driver entry: fail
-    before connecting."""
-    for section in ("arms", "cameras", "tof_tools"):
-        missing = sorted(set(getattr(scenario, section)) - set(getattr(hardware, section)))
-        if missing:
-            raise ConfigurationError(f"hardware.{section}: no driver for {missing}")
-    CheckConfig(hardware, "hardware")
-
-
 def _OpenArmLink(name: str, config: ArmDriverConfig, period: float) -> ArmLink:
     if config.driver == "ur_rtde":
         return OpenUrRtde(
-            name, config.host, config.lookahead_time, config.gain, config.servo_timeout
+            name,
+            config.host,
+            config.lookahead_time,
+            config.gain,
+            config.servo_timeout,
+            lockstep_wait=config.watchdog if config.lockstep else None,
         )
     port = config.port or nachi_protocol.DEFAULT_PORT
     return NachiLink(

@@ -64,6 +64,8 @@ class ArmDriver(LeafSystem):
         self._watchdog = watchdog
         self._stale_after = stale_after
         self.stale_skips = 0
+        self._stale_streak = 0  # periods skipped since the last command sent
+        self._last_streak = (0, -np.inf)  # the last streak of 2+ periods, when it ended (s)
         n = limits.lower.size
         self._n = n
         # State: measured q, v; the last sent command q, its implied v, when it was sent
@@ -117,7 +119,7 @@ class ArmDriver(LeafSystem):
         x = context.get_discrete_state(self._state).value().copy()
         fault = self._link.fault()
         if fault is not None:
-            self._Fail(context, fault)
+            self._Fail(context, fault + self._StaleStreakHint(context.get_time()))
         sample = self._link.latest()
         age = SampleAge(sample, time.monotonic())
         if age > self._watchdog:
@@ -128,7 +130,13 @@ class ArmDriver(LeafSystem):
         x[: 2 * n] = np.concatenate([sample.q, sample.v])
         if age > self._stale_after:
             self.stale_skips += 1
+            self._stale_streak += 1
         else:
+            # the fault of a refused stream arrives with the reply to a target after the
+            # streak, a period or more later: remember the streak and when it ended
+            if self._stale_streak >= 2:
+                self._last_streak = (self._stale_streak, context.get_time())
+            self._stale_streak = 0
             q_command = self.get_input_port().Eval(context)
             t_sent, dt_sent = x[-2:]
             dt = context.get_time() - t_sent
@@ -144,6 +152,24 @@ class ArmDriver(LeafSystem):
                 self._Fail(context, f"command not sent: {DescribeError(e)}")
             x[2 * n :] = np.concatenate([q_command, v, [context.get_time(), dt]])
         state.set_value(self._state, x)
+
+    def _StaleStreakHint(self, t: float) -> str:
+        """What to change when the link faults after the driver sent nothing for several
+        periods because every measurement was stale (now, or a streak that ended within
+        the watchdog before `t`, s): a controller that stops the arm when the stream
+        pauses (a Nachi SERVO or UR servoJ timeout) refuses the next target."""
+        streak, ended = self._last_streak
+        if self._stale_streak >= 2:
+            streak = self._stale_streak
+        elif t - ended > self._watchdog:
+            return ""
+        return (
+            f" (no command sent for {streak} periods, "
+            f"{streak * self._period:.3f} s: every measurement was older than "
+            f"stale_after {self._stale_after} s; raise station.hardware.arms.{self._link.name}"
+            f".stale_after, at most the watchdog {self._watchdog} s, or the controller's "
+            "streaming timeout)"
+        )
 
     def _Fail(self, context: Context, what: str) -> NoReturn:
         """Stops the arm and raises the fault with the stop's error beside it."""

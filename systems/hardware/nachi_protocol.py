@@ -144,9 +144,16 @@ def ParsePose(line: str) -> tuple[np.ndarray, np.ndarray]:
 
 
 def CheckOk(line: str) -> None:
-    """Client side: raises NachiProtocolError unless the reply is OK."""
+    """Client side: raises NachiProtocolError unless the reply is OK; a streaming timeout
+    (E07) says which setting decides it."""
     if line.strip() != "OK":
-        raise NachiProtocolError(f"controller refused: {Quote(line, 120)}")
+        hint = ""
+        if line.startswith(f"{NG} {E_TIMEOUT}"):
+            hint = (
+                " (no SERVO reached the controller within its streaming timeout, a User Task "
+                "setting; `guidedarm emulate nachi --servo-timeout`)"
+            )
+        raise NachiProtocolError(f"controller refused: {Quote(line, 120)}{hint}")
 
 
 def RepliesOutOfStep(request_word: str, line: str) -> bool:

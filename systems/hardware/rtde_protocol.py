@@ -1,14 +1,19 @@
-"""The Universal Robots RTDE wire protocol, version 2 (the subset a data-output client uses).
+"""The Universal Robots RTDE wire protocol, version 2 (outputs, and the input registers a
+control client such as ur_rtde's RTDEControlInterface writes).
 
 Every packet is `uint16 size` (bytes, header included), `uint8 type`, payload; all fields
 big-endian. A client requests the protocol version, reads the controller version, sets up an
 output recipe (frequency in Hz + comma-separated variable names; the reply carries the recipe
 id and the comma-separated types), sends START and then receives DATA_PACKAGEs: recipe id
-followed by the variables packed in recipe order.
+followed by the variables packed in recipe order. A control client also sets up input
+recipes (comma-separated names; the reply carries the recipe id, numbered from 1 in the
+order of the setups, and the types) and sends DATA_PACKAGEs of them, which write the
+controller's input registers.
 """
 
 from __future__ import annotations
 
+import re
 import struct
 from dataclasses import dataclass
 
@@ -56,6 +61,21 @@ OUTPUT_TYPES = {
 }
 
 
+# Registers 0..47 (the upper 24 are the fieldbus-free range).
+_REGISTER = re.compile(r"(input|output)_(int|double)_register_(\d+)$")
+
+
+def VariableType(name: str, direction: str = "output") -> str:
+    """The RTDE type of an output (or input) variable, or NOT_FOUND as the controller
+    answers for names it does not serve."""
+    match = _REGISTER.match(name)
+    if match and match[1] == direction and int(match[3]) < 48:
+        return "INT32" if match[2] == "int" else "DOUBLE"
+    if direction == "output":
+        return OUTPUT_TYPES.get(name, "NOT_FOUND")
+    return "NOT_FOUND"
+
+
 class RtdeProtocolError(GuidedArmError):
     """A packet that does not follow the RTDE protocol (truncated, unknown type, bad size)."""
 
@@ -100,3 +120,18 @@ def EncodeDataPackage(recipe_id: int, recipe: struct.Struct, values: list) -> by
     for value in values:
         flat.extend(value if isinstance(value, list | tuple) else [value])
     return EncodePacket(DATA_PACKAGE, bytes([recipe_id]) + recipe.pack(*flat))
+
+
+def DecodeDataPackage(recipe: struct.Struct, types: list[str], payload: bytes) -> list:
+    """The values of a DATA_PACKAGE's payload after its recipe id (vectors as lists)."""
+    if len(payload) != recipe.size:
+        raise RtdeProtocolError(f"data package of {len(payload)} B, its recipe has {recipe.size}")
+    flat = list(recipe.unpack(payload))
+    values = []
+    for type_name in types:
+        count = struct.calcsize(">" + TYPE_FORMATS[type_name]) // struct.calcsize(
+            ">" + TYPE_FORMATS[type_name][-1]
+        )
+        values.append(flat[:count] if count > 1 else flat[0])
+        del flat[:count]
+    return values

@@ -31,6 +31,11 @@ class ToFEmulator:
     ) -> None:
         self._master, slave = os.openpty()
         tty.setraw(slave)  # no echo, no CR/LF translation: the bytes pass as the MCU sent them
+        # A tool keeps streaming whether or not anyone reads: lines that find the pty's
+        # buffer full are lost (counted in `dropped`), never waited for, so that a pty
+        # nobody reads cannot stall the simulation thread that writes them.
+        os.set_blocking(self._master, False)
+        self.dropped = 0
         self.device = os.ttyname(slave)
         self._slave = slave
         self._source = source
@@ -53,6 +58,8 @@ class ToFEmulator:
             line = line[: len(line) // 2]
         try:
             os.write(self._master, line.encode("ascii"))
+        except BlockingIOError:
+            self.dropped += 1
         except OSError:
             return False
         return True
