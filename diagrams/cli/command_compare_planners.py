@@ -103,7 +103,8 @@ def ComparePlanners(
     planning = setup.planning
     if planning.scaling is None or planning.penalty is None:
         raise ConfigurationError("compare-planners needs limits=velocity,acceleration")
-    joints = SolveWaypointIk(planning.kinematics, waypoints, q0)
+    margin = planning.parameters.joint_limit_margin
+    joints = SolveWaypointIk(planning.kinematics, waypoints, q0, margin=margin)
     trajectories = {
         ROBUST: PlannerTrajectory(_Planning(planning, waypoints, joints, True), q0, max_time),
         PAPER: PlannerTrajectory(_Planning(planning, waypoints, None, False), q0, max_time),

@@ -185,7 +185,8 @@ def RunWaypoints(scenario: WaypointsScenario, context: RunContext) -> dict[str, 
     planner_context = planner.GetMyContextFromRoot(simulator.get_mutable_context())
 
     def monitor(root_context) -> EventStatus:
-        done_time = planner.GetOutputPort("planner_state").Eval(planner_context)[-1]
+        state = planner.GetOutputPort("planner_state").Eval(planner_context)
+        done_time = state[PlannerState.DONE_ROW]
         if 0 <= done_time <= root_context.get_time() - scenario.settle_time:
             return EventStatus.ReachedTermination(planner, "task ended")
         return EventStatus.DidNothing()

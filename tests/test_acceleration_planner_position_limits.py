@@ -1,0 +1,105 @@
+"""The robust planner's joint position limits (viability bound) and its watch over its own
+motion (oscillation measure, progress), on the plain functions, without a Diagram."""
+
+import math
+
+import numpy as np
+import pytest
+
+from guidedarm.systems.planning.acceleration_planner_limits import JerkWindow, StepBounds
+from guidedarm.systems.planning.acceleration_planner_position_limits import (
+    PositionStepBounds,
+    ViableSpeed,
+)
+from guidedarm.systems.planning.acceleration_planner_watch import (
+    Progressed,
+    ReversalRates,
+    TargetError,
+)
+
+DT = 0.002
+A, V, RATE, BRAKING, JERK = 1.4, 1.05, 25.0, 0.7, 50.0
+
+
+def _DriveTowardsLimit(q0: float, qd0: float, q_upper: float, seconds: float):
+    """One joint whose law asks for +A all the time, bounded by the acceleration, velocity
+    and position step bounds and the jerk window as the robust step does: (q, qd, qdd)."""
+    q, qd, qdd = q0, qd0, 0.0
+    samples = []
+    for _ in range(round(seconds / DT)):
+        lower, upper = StepBounds(([-A], [A]), ([-V], [V]), [qd], RATE)
+        lower, upper = PositionStepBounds(
+            [q], [qd], lower, upper, [-10.0], [q_upper], [BRAKING], RATE
+        )
+        w_lo, w_hi, _ = JerkWindow([A], [qdd], JERK * DT, lower, upper)
+        qdd = min(max(A, w_lo[0]), w_hi[0])
+        qd_next = qd + qdd * DT
+        q += 0.5 * (qd + qd_next) * DT
+        qd = qd_next
+        samples.append((q, qd, qdd))
+    return np.array(samples)
+
+
+def test_viable_speed_is_the_square_root_law_of_braking():
+    v, slope = ViableSpeed(0.5, 0.7, RATE)
+    assert v == pytest.approx(math.sqrt(0.7)) and slope == pytest.approx(0.7 / v)
+    assert ViableSpeed(0.001, 0.7, RATE) == (pytest.approx(0.025), RATE)  # linear near it
+    assert ViableSpeed(0.0, 0.7, RATE)[0] == 0.0 and ViableSpeed(-0.1, 0.7, RATE)[0] == 0.0
+
+
+@pytest.mark.parametrize("distance", [0.02, 0.15, 1.0, 3.0])
+def test_a_joint_pushed_at_its_limit_brakes_in_time_and_rests_there(distance):
+    """From rest `distance` rad before the limit, a law that always asks for +A: the joint
+    never passes the limit, never exceeds the acceleration or velocity limit, and comes to
+    rest at the limit without chatter (its acceleration settles at 0)."""
+    samples = _DriveTowardsLimit(0.0, 0.0, distance, 6.0)
+    q, qd, qdd = samples.T
+    assert q.max() <= distance + 1e-9
+    assert np.abs(qdd).max() <= A + 1e-12 and np.abs(qd).max() <= V + 1e-12
+    assert q[-1] == pytest.approx(distance, abs=2e-3)
+    assert np.abs(qd[-500:]).max() < 1e-3 and np.abs(qdd[-500:]).max() < 1e-3
+
+
+def test_a_joint_arriving_at_full_speed_brakes_within_the_acceleration_limit():
+    """At the velocity limit 1 rad before the limit (its braking distance at A/2 is 0.79
+    rad): braking starts early enough to stop before it at the acceleration limit."""
+    samples = _DriveTowardsLimit(0.0, V, 1.0, 4.0)
+    q, _, qdd = samples.T
+    assert q.max() <= 1.0 + 1e-9
+    assert qdd.min() >= -A - 1e-12
+
+
+def test_at_rest_on_the_limit_the_bound_neither_pushes_back_nor_lets_it_pass():
+    lower, upper = PositionStepBounds(
+        [1.0, -1.0], [0.0, 0.0], [-A, -A], [A, A], [-1.0, -1.0], [1.0, 1.0], [BRAKING] * 2, RATE
+    )
+    assert upper[0] == 0.0 and lower[0] == -A  # at the upper limit: may leave, not pass
+    assert lower[1] == 0.0 and upper[1] == A  # at the lower limit likewise
+
+
+def test_far_from_the_limits_the_bounds_are_unchanged_and_past_them_braking_is_full():
+    far = PositionStepBounds([0.0], [0.5], [-A], [A], [-3.0], [3.0], [BRAKING], RATE)
+    assert far == ([-A], [A])
+    past = PositionStepBounds([1.01], [0.3], [-A], [A], [-3.0], [1.0], [BRAKING], RATE)
+    assert past == ([-A], [-A])
+
+
+def test_the_oscillation_measure_counts_a_limit_cycle_and_not_a_move():
+    """A 3 Hz swing between the acceleration limits exceeds the default bound 5 /s
+    within 4 s; a rest-to-rest bang-bang move (accelerate, brake) reverses once."""
+    times = np.arange(0.0, 5.0, DT)
+    cycle = A * np.sign(np.sin(2 * np.pi * 3.0 * times))[:, None]
+    rates = ReversalRates(cycle, np.array([A]), DT)[:, 0]
+    first = times[np.argmax(rates > 5.0)]
+    assert rates.max() > 5.0 and first < 4.0
+    move = np.where(times < 1.0, A, np.where(times < 2.0, -A, 0.0))[:, None]
+    assert ReversalRates(move, np.array([A]), DT).max() == pytest.approx(0.5, abs=1e-9)
+    small = 0.4 * cycle  # swings within 50 % of the limit do not count
+    assert ReversalRates(small, np.array([A]), DT).max() == 0.0
+
+
+def test_progress_is_a_smaller_error_or_more_waypoint_progress():
+    assert TargetError([0.03, 0.0, 0.04, 0.0, 0.0, 0.2]) == pytest.approx(0.07)
+    assert Progressed(0.098, 0.0, 0.1, 0.0) == (True, 0.098, 0.0)
+    assert Progressed(0.0995, 0.0, 0.1, 0.0) == (False, 0.1, 0.0)
+    assert Progressed(0.2, 1.5, 0.1, 1.0) == (True, 0.2, 1.5)
