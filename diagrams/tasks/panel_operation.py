@@ -60,6 +60,7 @@ from guidedarm.diagrams.tasks.panel_operation_report import (
 )
 from guidedarm.diagrams.tasks.planner_builder import MakeAccelerationPlanner
 from guidedarm.diagrams.tasks.registry import RunFlags, TaskDefinition
+from guidedarm.diagrams.tasks.trajectory_csv import AddTrajectoryLogs
 from guidedarm.systems.config_checks import (
     ChangedKey,
     CheckConfig,
@@ -282,6 +283,17 @@ class PanelOperationRun:
             self.panel.switches[scenario.switch - 1],
             scenario.panel_model,
         )
+        command = (
+            planner[0].GetOutputPort("position_commanded")
+            if planner is not None
+            else self.sequencer.get_output_port(0)
+        )
+        self.trajectory_logs = AddTrajectoryLogs(
+            builder,
+            command,
+            self.station.GetOutputPort(f"{scenario.arm}.position_measured"),
+            planner[0].GetOutputPort("planner_state") if planner is not None else None,
+        )
         self.joint_log = builder.AddNamedSystem(
             "joint_log", VectorLogSink(self.kinematics.plant.num_positions(), 0.02)
         )
@@ -334,6 +346,7 @@ class PanelOperationRun:
         plant_context = self.plant.GetMyMutableContextFromRoot(context)
         self.plant.SetPositions(plant_context, self.arm_instance, q_start)
         self.joint_log.FindMutableLog(context).Clear()
+        self.trajectory_logs.Clear(context)
         self.simulator.Initialize()
         self.context.start_recording()
         sequencer_context = self.sequencer.GetMyContextFromRoot(context)

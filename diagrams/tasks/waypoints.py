@@ -24,6 +24,7 @@ from guidedarm.diagrams.tasks.planner_builder import MakeAccelerationPlanner, Sy
 from guidedarm.diagrams.tasks.planner_plots import PlotScaling, PlotTcpPath
 from guidedarm.diagrams.tasks.registry import TaskDefinition
 from guidedarm.diagrams.tasks.tracking import DelayedTrackingError, SampledCommands
+from guidedarm.diagrams.tasks.trajectory_csv import JointMotionMetrics, WriteTrajectoryCsv
 from guidedarm.systems.config_checks import (
     CheckConfig,
     CheckFields,
@@ -218,6 +219,9 @@ def RunWaypoints(scenario: WaypointsScenario, context: RunContext) -> dict[str, 
         )
     context.headline.update(metrics)
     SavePlannerFigures(context, scenario, setup, trajectory, measured)
+    WriteTrajectoryCsv(
+        context, trajectory.times, trajectory.q, trajectory.qd, trajectory.qdd, measured
+    )
     return {"sim_time_s": round(t_end, 4), **metrics, "failure": failure}
 
 
@@ -235,6 +239,9 @@ WAYPOINTS_METRICS = (
     "waypoint_distance_m.#",
     "qdd_step_max",
     "braking_steps",
+    "joint_limit_distance_min_rad",
+    "oscillation_rate_max",
+    "handover_time_s",
     "tracking_error_max_rad",
     "tcp_tracking_error_max_m",
     "tracking_delay_s",
@@ -262,6 +269,14 @@ def TrajectoryMetrics(
         "waypoint_distance_m": ClosestApproach(tcp[:, :3], waypoints).round(5).tolist(),
         "qdd_step_max": float(np.abs(np.diff(trajectory.qdd, axis=0)).max(initial=0.0)),
         "braking_steps": int(trajectory.braking.sum()),
+        **JointMotionMetrics(
+            trajectory.q,
+            trajectory.qdd,
+            kinematics.PositionLimits(),
+            setup.acceleration_limit,
+            setup.planning.parameters.time_step,
+        ),
+        "handover_time_s": trajectory.handover_time if trajectory.handover_time >= 0 else None,
     }
     if measured is not None and measured.size:
         count = min(len(measured), len(trajectory.q))
