@@ -46,6 +46,7 @@ from guidedarm.diagrams.run_context import RunContext
 from guidedarm.diagrams.station.model_paths import MODELS_DIR
 from guidedarm.diagrams.station.scenario import StationScenario
 from guidedarm.diagrams.station.station import MakeStation
+from guidedarm.diagrams.tasks.cell_collisions import CellCollisions, ModelNames
 from guidedarm.diagrams.tasks.panel_assets import COVER_CLOSED_M
 from guidedarm.diagrams.tasks.panel_camera_rig import LookAt
 from guidedarm.diagrams.tasks.panel_files import (
@@ -272,6 +273,12 @@ class PanelOperationRun:
         )
         self.sequencer = systems.sequencer
         self.kinematics = systems.kinematics
+        self.collisions = CellCollisions(
+            station_scenario,
+            scenario.arm,
+            ModelNames(self.kinematics.plant),
+            [scenario.panel_model],
+        )
         AddPanelOverlays(
             builder,
             self.context.meshcat,
@@ -315,7 +322,8 @@ class PanelOperationRun:
 
     def SampleStart(self, seed: int) -> np.ndarray:
         """A start joint vector whose camera sees the panel from a random pose (see
-        StartConfig), by inverse kinematics from the arm's default position."""
+        StartConfig), by inverse kinematics from the arm's default position, clear of the
+        cell and of the arm itself (a colliding pose is drawn again)."""
         start = self.scenario.start
         rng = np.random.default_rng(seed)
         centres = [m.X_PM.GetDeterministicValue().translation() for m in self.panel.markers]
@@ -333,7 +341,7 @@ class PanelOperationRun:
             p_PC = aim + rng.uniform(*start.distance_m) * np.asarray(direction)
             X_WT = self.X_WP @ LookAt(p_PC, aim) @ self.kinematics.X_CT
             q = self.kinematics.SolveTip(X_WT, q_default)
-            if q is not None:
+            if q is not None and not self.collisions.Contacts(q):
                 return q
         raise ConfigurationError(f"no reachable start pose found for seed {seed}")
 
@@ -422,11 +430,11 @@ def RunPanelOperation(scenario: PanelOperationScenario, context: RunContext) -> 
     """Builds the diagram, picks the start and simulates one operation."""
     run = PanelOperationRun(scenario, context)
     start = scenario.start
-    q_start = (
-        np.asarray(start.position, float)
-        if start.position
-        else run.SampleStart(scenario.random_seed)
-    )
+    if start.position:
+        q_start = np.asarray(start.position, float)
+        run.collisions.Refuse(q_start, f"the {scenario.arm} start pose")
+    else:
+        q_start = run.SampleStart(scenario.random_seed)
     return run.Run(q_start)
 
 

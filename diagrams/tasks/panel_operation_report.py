@@ -65,6 +65,7 @@ PANEL_OPERATION_METRICS = (
     "lost_measurements",
     "joint_limit_distance_min_rad",
     "oscillation_rate_max",
+    "cell_contacts",
     "sim_time_s",
 )
 
@@ -139,7 +140,8 @@ def PanelOperationMetrics(
 
 def _WriteTrajectory(run: PanelOperationRun, context: Context) -> dict[str, Any]:
     """Writes the run's trajectory.csv; returns its JointMotionMetrics (the planner's
-    acceleration limits as the oscillation measure's scale, whatever the motion)."""
+    acceleration limits as the oscillation measure's scale, whatever the motion) and the
+    measured arm's contact episodes with the cell or itself (cell_contacts)."""
     scenario = run.scenario
     period = scenario.station.arms[scenario.arm].control_period
     times, q, qd, qdd, q_meas = run.trajectory_logs.Samples(context, period)
@@ -152,7 +154,9 @@ def _WriteTrajectory(run: PanelOperationRun, context: Context) -> dict[str, Any]
     acceleration = SymmetricLimit(
         scenario.planner.max_joint_acceleration, "planner.max_joint_acceleration"
     )
-    return JointMotionMetrics(q, qdd, limits, acceleration, period)
+    metrics = JointMotionMetrics(q, qdd, limits, acceleration, period)
+    # the measured arm every 20 ms (10 control periods)
+    return {**metrics, "cell_contacts": run.collisions.CountContacts(q_meas[::10])}
 
 
 def _mm(value: float) -> float:

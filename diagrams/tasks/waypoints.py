@@ -20,6 +20,7 @@ from guidedarm.diagrams.plots import PlotJointSeries
 from guidedarm.diagrams.run_context import AdvanceWithProgress, RunContext
 from guidedarm.diagrams.station.scenario import StationScenario
 from guidedarm.diagrams.station.station import MakeStation
+from guidedarm.diagrams.tasks.cell_collisions import CellCollisions, ModelNames
 from guidedarm.diagrams.tasks.planner_builder import MakeAccelerationPlanner, SymmetricLimit
 from guidedarm.diagrams.tasks.planner_plots import PlotScaling, PlotTcpPath
 from guidedarm.diagrams.tasks.registry import TaskDefinition
@@ -44,6 +45,7 @@ from guidedarm.systems.planning.acceleration_planner_math import (
     PlannerConfig,
     PlannerState,
     PlanningError,
+    RunPlanning,
 )
 
 LIMIT_CHOICES = ("none", "velocity", "velocity,acceleration")
@@ -149,9 +151,29 @@ def CheckReadKeys(scenario: WaypointsScenario) -> None:
             )
 
 
+def CheckCellBeforeMotion(scenario: WaypointsScenario, setup: PlannerSetup) -> CellCollisions:
+    """Refuses (ConfigurationError, one line naming the bodies) a start pose, a waypoint's
+    joint solution or, in the robust mode, a kinematic dry run of the law (RunPlanning at
+    the planner period, checked every 10 ms) that collides with the cell or the arm
+    itself; a dry run that the law cannot finish (PlanningError) is refused with its
+    message. Returns the CellCollisions for the run's contact count."""
+    collisions = CellCollisions(scenario.station, scenario.arm, ModelNames(setup.plant))
+    collisions.Refuse(setup.q0, f"the {scenario.arm} start pose")
+    for i, q in enumerate(setup.joint_waypoints):
+        collisions.Refuse(q, f"the joint solution of waypoint {i + 1}")
+    if scenario.planner.robust:
+        try:
+            planned = RunPlanning(setup.planning, setup.q0, scenario.max_time)
+        except PlanningError as e:
+            raise ConfigurationError(f"the planner's dry run cannot finish the task: {e}") from None
+        collisions.CheckPlannedMotion(planned.times, planned.q, planned.index)
+    return collisions
+
+
 def RunWaypoints(scenario: WaypointsScenario, context: RunContext) -> dict[str, Any]:
     """Simulates the planner driving the station's arm; returns the Table-2 metrics."""
     setup = MakePlannerSetup(scenario)
+    collisions = CheckCellBeforeMotion(scenario, setup)
     arm = scenario.arm
     builder = DiagramBuilder()
     station = builder.AddNamedSystem(
@@ -217,6 +239,7 @@ def RunWaypoints(scenario: WaypointsScenario, context: RunContext) -> dict[str, 
             f"the measured TCP strayed {tracking:.4g} m from the commanded one "
             f"(max_tracking_error {scenario.max_tracking_error} m)"
         )
+    metrics["cell_contacts"] = collisions.CountContacts(measured[::10])
     context.headline.update(metrics)
     SavePlannerFigures(context, scenario, setup, trajectory, measured)
     WriteTrajectoryCsv(
@@ -245,6 +268,7 @@ WAYPOINTS_METRICS = (
     "tracking_error_max_rad",
     "tcp_tracking_error_max_m",
     "tracking_delay_s",
+    "cell_contacts",
 )
 
 
@@ -276,7 +300,8 @@ def TrajectoryMetrics(
             setup.acceleration_limit,
             setup.planning.parameters.time_step,
         ),
-        "handover_time_s": trajectory.handover_time if trajectory.handover_time >= 0 else None,
+        # -1: the law kept to the Cartesian line (no hand-over to joint space)
+        "handover_time_s": round(trajectory.handover_time, 4),
     }
     if measured is not None and measured.size:
         count = min(len(measured), len(trajectory.q))
