@@ -5,8 +5,13 @@ import math
 
 import numpy as np
 import pytest
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
 
+from guidedarm.diagrams.cli.command_run import LoadScenario
+from guidedarm.diagrams.tasks.waypoints import MakePlannerSetup
 from guidedarm.systems.planning.acceleration_planner_limits import JerkWindow, StepBounds
+from guidedarm.systems.planning.acceleration_planner_math import RunPlanning
 from guidedarm.systems.planning.acceleration_planner_position_limits import (
     PositionStepBounds,
     ViableSpeed,
@@ -16,6 +21,8 @@ from guidedarm.systems.planning.acceleration_planner_watch import (
     ReversalRates,
     TargetError,
 )
+from guidedarm.systems.planning.random_waypoint_tasks import EXTRA_KINDS, MakeRandomWaypointTasks
+from guidedarm.systems.planning.waypoint_ik import SolveWaypointIk
 
 DT = 0.002
 A, V, RATE, BRAKING, JERK = 1.4, 1.05, 25.0, 0.7, 50.0
@@ -103,3 +110,48 @@ def test_progress_is_a_smaller_error_or_more_waypoint_progress():
     assert Progressed(0.098, 0.0, 0.1, 0.0) == (True, 0.098, 0.0)
     assert Progressed(0.0995, 0.0, 0.1, 0.0) == (False, 0.1, 0.0)
     assert Progressed(0.2, 1.5, 0.1, 1.0) == (True, 0.2, 1.5)
+
+
+@pytest.fixture(scope="module")
+def setups():
+    names = {"ur10e": "ur10e_waypoints", "mz04d": "mz04d_waypoints"}
+    names["rover_arm"] = "rover_arm_waypoints"
+    return {arm: MakePlannerSetup(LoadScenario(name, [])[1]) for arm, name in names.items()}
+
+
+@settings(
+    max_examples=4,
+    deadline=None,
+    derandomize=True,
+    suppress_health_check=[HealthCheck.function_scoped_fixture],
+)
+@given(
+    arm=st.sampled_from(["ur10e", "mz04d", "rover_arm"]),
+    kind=st.sampled_from(EXTRA_KINDS),
+    seed=st.integers(0, 10_000),
+)
+def test_property_near_limit_and_large_tasks_end_within_1_mm_inside_every_limit(
+    setups, arm, kind, seed
+):
+    """Any seeded random task starting 0.02-0.15 rad from a joint limit, or moving
+    0.2-0.5 m and up to 90 deg, on any arm, the planner alone: it ends within 1 mm, the
+    commanded q stays within the limits less the margin, qd and qdd within theirs, and no
+    joint's acceleration reverses more often than the oscillation bound."""
+    setup = setups[arm]
+    planning = setup.planning
+    task = MakeRandomWaypointTasks(planning.kinematics, 1, seed, kind)[0]
+    margin = planning.parameters.joint_limit_margin
+    joints = SolveWaypointIk(planning.kinematics, task.waypoints, task.q0, margin=margin)
+    trajectory = RunPlanning(planning.WithWaypoints(task.waypoints, joints), task.q0, 20.0)
+    assert trajectory.done_time > 0
+    p_end = planning.kinematics.Position(trajectory.q[-1])
+    assert np.linalg.norm(p_end[:3] - task.waypoints[-1, :3]) <= 1e-3
+    lower, upper = planning.kinematics.PositionLimits()
+    # a start inside the margin may stay there; the command never goes further out
+    inner_lower = np.minimum(lower + margin, task.q0) - 1e-9
+    inner_upper = np.maximum(upper - margin, task.q0) + 1e-9
+    assert np.all(trajectory.q >= inner_lower) and np.all(trajectory.q <= inner_upper)
+    assert np.all(np.abs(trajectory.qd) <= setup.velocity_limit * (1 + 1e-9))
+    assert np.all(np.abs(trajectory.qdd) <= setup.acceleration_limit * (1 + 1e-9))
+    rates = ReversalRates(trajectory.qdd, setup.acceleration_limit, planning.parameters.time_step)
+    assert rates.max() <= planning.parameters.max_reversal_rate

@@ -113,8 +113,9 @@ class PlannerConfig:
     handover_ramp: robust mode: the time over which that hand-over blends in (s).
     max_reversal_rate: robust mode: the oscillation bound: a joint whose commanded
         acceleration reverses sign (between excursions beyond 50 % of its limit) more often
-        than this (1/s, averaged over about 2 s) stops the planner with a
-        PlanningError naming it.
+        than this (1/s, averaged over about 2 s) hands the law over to joint space for
+        the rest of the task, and once handed over stops the planner with a PlanningError
+        naming it.
     stall_time: robust mode: the planner stops with a PlanningError once the TCP has made
         no progress towards its target for this long (s); after half of it the law hands
         over to joint space first.

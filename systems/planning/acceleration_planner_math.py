@@ -411,7 +411,10 @@ class AccelerationPlanning:
         self, state: PlannerState, sigma: float, a: np.ndarray, b: np.ndarray
     ) -> tuple[np.ndarray, np.ndarray]:
         """(a, b) blended towards the joint-space law q'' = -Lambda_V qd - Lambda_P (q - q*)
-        (a = 0) by w = smoothstep of sigma over joint_space_blend, or over handover_ramp
+        (a = 0; with the braking approach on, Lambda_P (q - q*) becomes Lambda_V times the
+        speed sign(u) min(Lambda_P / Lambda_V |u|, sqrt(2 eta A |u|)), u = q - q*, so a joint
+        far from its target, whose acceleration saturates, brakes in time instead of
+        overshooting) by w = smoothstep of sigma over joint_space_blend, or over handover_ramp
         once the law is handed over to joint space for the rest of the task (_Watch); q* is
         the IK solution of the current waypoint, blended like (19) inside a
         neighbourhood."""
@@ -428,7 +431,16 @@ class AccelerationPlanning:
         q_target = self.joint_waypoints[i]
         if state.inside:
             q_target = q_target + state.sigma * (self.joint_waypoints[i + 1] - q_target)
-        b_joint = -params.gain_v * state.qd - params.gain_p * (state.q - q_target)
+        u = state.q - q_target
+        if self.inverse_braking is None:
+            b_joint = -params.gain_v * state.qd - params.gain_p * u
+        else:
+            # (9) in joint space, its speed towards the target capped by the braking law
+            speed = np.minimum(
+                (params.gain_p / params.gain_v) * np.abs(u),
+                np.sqrt(2.0 * np.abs(u) / np.asarray(self.inverse_braking)),
+            )
+            b_joint = -params.gain_v * (state.qd + np.sign(u) * speed)
         if self.penalty is not None:
             b_joint = b_joint + self.penalty.Perturbation(state.qd)
         return (1.0 - w) * np.asarray(a), (1.0 - w) * np.asarray(b) + w * b_joint
@@ -472,8 +484,10 @@ class AccelerationPlanning:
         return False
 
     def _WatchOscillation(self, state: PlannerState, qdd: list[float]) -> None:
-        """The oscillation measure's step (UpdateReversals); a joint reversing faster than
-        max_reversal_rate stops the planner with a PlanningError naming it."""
+        """The oscillation measure's step (UpdateReversals): a joint reversing faster than
+        max_reversal_rate hands the law over to joint space for the rest of the task, or,
+        once handed over (or without joint solutions), stops the planner with a
+        PlanningError naming it."""
         signs, rates = UpdateReversals(
             qdd,
             self._reversal_limits,
@@ -484,6 +498,12 @@ class AccelerationPlanning:
         state.reversal_sign, state.reversal_rate = np.array(signs), np.array(rates)
         worst = max(rates)
         if worst > self.parameters.max_reversal_rate:
+            if state.handover_time < 0 and self.joint_waypoints is not None:
+                # the Cartesian law struggles: hand over to joint space, whose plain error
+                # dynamics towards the joint solution cannot swing; the measure restarts
+                state.handover_time, state.best_error, state.best_time = state.t, 1e9, state.t
+                state.reversal_rate = np.zeros(len(rates))
+                return
             joint = rates.index(worst) + 1
             raise PlanningError(
                 f"joint {joint} oscillates at t = {state.t:.2f} s: its commanded acceleration "

@@ -32,7 +32,7 @@ def SolveWaypointIk(
     waypoints: np.ndarray,
     q_start: np.ndarray,
     tolerance: float = 1e-6,
-    attempts: int = 8,
+    attempts: int = 24,
     margin: float = 0.0,
 ) -> np.ndarray:
     """Joint positions (rad), one row per waypoint, within the plant's joint limits less
