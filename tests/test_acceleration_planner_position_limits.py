@@ -47,22 +47,25 @@ def _DriveTowardsLimit(q0: float, qd0: float, q_upper: float, seconds: float):
     return np.array(samples)
 
 
-def test_viable_speed_is_the_square_root_law_of_braking():
+def test_viable_speed_is_the_square_root_law_of_braking_smoothed_at_the_limit():
+    c = 0.7 / RATE
     v, slope = ViableSpeed(0.5, 0.7, RATE)
-    assert v == pytest.approx(math.sqrt(0.7)) and slope == pytest.approx(0.7 / v)
-    assert ViableSpeed(0.001, 0.7, RATE) == (pytest.approx(0.025), RATE)  # linear near it
+    assert v == pytest.approx(math.sqrt(0.7 + c * c) - c) and slope == pytest.approx(0.7 / (v + c))
+    assert abs(v - math.sqrt(0.7)) <= c  # the square-root law less at most c = 0.028 rad/s
+    assert ViableSpeed(1e-9, 0.7, RATE)[1] == pytest.approx(RATE)  # a finite slope at it
     assert ViableSpeed(0.0, 0.7, RATE)[0] == 0.0 and ViableSpeed(-0.1, 0.7, RATE)[0] == 0.0
 
 
 @pytest.mark.parametrize("distance", [0.02, 0.15, 1.0, 3.0])
 def test_a_joint_pushed_at_its_limit_brakes_in_time_and_rests_there(distance):
     """From rest `distance` rad before the limit, a law that always asks for +A: the joint
-    never passes the limit, never exceeds the acceleration or velocity limit, and comes to
-    rest at the limit without chatter (its acceleration settles at 0)."""
+    never passes the limit, never exceeds the acceleration, velocity or jerk limit, and
+    comes to rest at the limit without chatter (its acceleration settles at 0)."""
     samples = _DriveTowardsLimit(0.0, 0.0, distance, 6.0)
     q, qd, qdd = samples.T
     assert q.max() <= distance + 1e-9
     assert np.abs(qdd).max() <= A + 1e-12 and np.abs(qd).max() <= V + 1e-12
+    assert np.abs(np.diff(qdd)).max() <= JERK * DT * (1 + 1e-9)  # the bound moves smoothly
     assert q[-1] == pytest.approx(distance, abs=2e-3)
     assert np.abs(qd[-500:]).max() < 1e-3 and np.abs(qdd[-500:]).max() < 1e-3
 

@@ -411,13 +411,10 @@ class AccelerationPlanning:
         self, state: PlannerState, sigma: float, a: np.ndarray, b: np.ndarray
     ) -> tuple[np.ndarray, np.ndarray]:
         """(a, b) blended towards the joint-space law q'' = -Lambda_V qd - Lambda_P (q - q*)
-        (a = 0; with the braking approach on, Lambda_P (q - q*) becomes Lambda_V times the
-        speed sign(u) min(Lambda_P / Lambda_V |u|, sqrt(2 eta A |u|)), u = q - q*, so a joint
-        far from its target, whose acceleration saturates, brakes in time instead of
-        overshooting) by w = smoothstep of sigma over joint_space_blend, or over handover_ramp
-        once the law is handed over to joint space for the rest of the task (_Watch); q* is
-        the IK solution of the current waypoint, blended like (19) inside a
-        neighbourhood."""
+        (a = 0; with the braking approach on, _JointSpaceApproach) by w = smoothstep of
+        sigma over joint_space_blend, or over handover_ramp once the law is handed over to
+        joint space for the rest of the task (_Watch); q* is the IK solution of the current
+        waypoint, blended like (19) inside a neighbourhood."""
         params = self.parameters
         sigma_full, sigma_start = params.joint_space_blend
         w = 0.0
@@ -435,15 +432,23 @@ class AccelerationPlanning:
         if self.inverse_braking is None:
             b_joint = -params.gain_v * state.qd - params.gain_p * u
         else:
-            # (9) in joint space, its speed towards the target capped by the braking law
-            speed = np.minimum(
-                (params.gain_p / params.gain_v) * np.abs(u),
-                np.sqrt(2.0 * np.abs(u) / np.asarray(self.inverse_braking)),
-            )
-            b_joint = -params.gain_v * (state.qd + np.sign(u) * speed)
+            b_joint = self._JointSpaceApproach(state.qd, u)
         if self.penalty is not None:
             b_joint = b_joint + self.penalty.Perturbation(state.qd)
         return (1.0 - w) * np.asarray(a), (1.0 - w) * np.asarray(b) + w * b_joint
+
+    def _JointSpaceApproach(self, qd: np.ndarray, u: np.ndarray) -> np.ndarray:
+        """The joint-space law with the braking approach on (rad/s^2): qd tracks, at the rate
+        k = approach_rate, the speed towards the target v = sqrt(2 eta A |u| + c^2) - c with
+        c = eta A / r and r = k / 4 (the square-root law of braking at eta A far away, so a
+        joint whose acceleration saturates brakes in time instead of overshooting; the
+        exponential rate r near the target, k = 4 r making the loop critically damped),
+        u = q - q* the joints' distance to their target (rad)."""
+        k = self.parameters.approach_rate
+        braking = 1.0 / np.asarray(self.inverse_braking)
+        c = braking / (0.25 * k)
+        speed = np.sqrt(2.0 * braking * np.abs(u) + c * c) - c
+        return -k * (qd + np.sign(u) * speed)
 
     def _Watch(self, state: PlannerState, e: np.ndarray) -> None:
         """The hand-over to joint space and the progress watch (PlannedState's best_*): a

@@ -19,18 +19,20 @@ import math
 from collections.abc import Sequence
 
 
-def ViableSpeed(distance: float, braking: float, rate: float = math.inf) -> tuple[float, float]:
-    """(v, dv/d distance): v = sqrt(2 braking distance) (rad/s), the largest speed towards a
-    limit `distance` (rad) away from which braking at `braking` (rad/s^2) stops at the
-    limit, 0 at or past it; within 2 braking / rate^2 of the limit (2.2 mrad for 0.7 rad/s^2
-    and 25 /s) rate x distance instead, whose slope stays finite: the square root's
-    infinite slope at the limit would make the bound switch from step to step there."""
+def ViableSpeed(distance: float, braking: float, rate: float) -> tuple[float, float]:
+    """(v, dv/d distance): the largest speed towards a limit `distance` (rad) away from
+    which braking at `braking` (rad/s^2) stops at the limit, smoothed at the limit:
+    v = sqrt(2 braking distance + c^2) - c with c = braking / rate (rad/s). Far from the
+    limit it is the square-root law sqrt(2 braking distance) less c; at the limit its slope
+    is `rate` (1/s) instead of the square root's infinite one, which would make the bound
+    switch from step to step there, and its slope braking / (v + c) is continuous, so the
+    bound is (a piecewise bound's kink made the commanded q'' jump by 0.7 rad/s^2 in one
+    step on the UR10e). 0 at or past the limit."""
+    c = braking / rate
     if distance <= 0.0:
-        return 0.0, rate if rate < math.inf else 0.0
-    if rate * rate * distance < 2.0 * braking:
-        return rate * distance, rate
-    v = math.sqrt(2.0 * braking * distance)
-    return v, braking / v
+        return 0.0, rate
+    v = math.sqrt(2.0 * braking * distance + c * c) - c
+    return v, braking / (v + c)
 
 
 def PositionStepBounds(

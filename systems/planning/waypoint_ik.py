@@ -37,7 +37,8 @@ def SolveWaypointIk(
 ) -> np.ndarray:
     """Joint positions (rad), one row per waypoint, within the plant's joint limits less
     `margin` (rad; the robust planner's joint_limit_margin), each the solution nearest the
-    previous one (the first nearest q_start) that the solver finds.
+    previous one (the first nearest q_start) that the solver finds, moved by whole turns
+    towards it (NearestTurn).
 
     Each waypoint is solved from the previous solution, then from small perturbations of it
     (near a singularity the solver can stall at the guess itself), then from random
@@ -66,9 +67,22 @@ def SolveWaypointIk(
                 f"waypoint {i + 1} {np.round(p, 4).tolist()} is out of reach of "
                 f"{plant.GetModelInstanceName(instance)} (no joint solution within its limits)"
             )
+        q = NearestTurn(q, q_previous, limits)
         solutions.append(q)
         q_previous = q
     return np.array(solutions)
+
+
+def NearestTurn(
+    q: np.ndarray, q_near: np.ndarray, limits: tuple[np.ndarray, np.ndarray]
+) -> np.ndarray:
+    """q with each joint moved by whole turns (2 pi, the same pose for a revolute joint)
+    as near to q_near as the limits allow: on joints that can turn more than once (the
+    UR10e's +-2 pi) the solver may return a solution a turn away from the nearest one."""
+    turns = np.round((q_near - q) / (2 * np.pi))
+    nearest = q + 2 * np.pi * turns
+    inside = (nearest >= limits[0]) & (nearest <= limits[1])
+    return np.where(inside, nearest, q)
 
 
 def _Solve(
