@@ -232,6 +232,11 @@ class AccelerationPlanning:
                 (parameters.position_braking * smallest).tolist(),
             )
             self._reversal_limits = smallest.tolist()
+            # The position bound falls at rate (dv/dt + q'') <= rate (b + A) while a joint
+            # accelerates at A towards it: capped so that the jerk limit can follow it.
+            largest = float(max(self.scaling.upper.max(), -self.scaling.lower.min()))
+            jerk_rate = parameters.max_jerk / (largest * (1.0 + parameters.position_braking))
+            self._position_rate = min(self._velocity_bound_rate, jerk_rate)
 
     def _SetWaypoints(self, waypoints: np.ndarray, joint_waypoints: np.ndarray | None) -> None:
         waypoints = np.atleast_2d(np.asarray(waypoints, float))
@@ -380,8 +385,7 @@ class AccelerationPlanning:
         lower, upper = StepBounds(accel, velocity, qd, self._velocity_bound_rate)
         if self.position_bounds is not None:
             lower, upper = PositionStepBounds(
-                state.q.tolist(), qd, lower, upper, *self.position_bounds,
-                self._velocity_bound_rate,
+                state.q.tolist(), qd, lower, upper, *self.position_bounds, self._position_rate,
             )  # fmt: skip
         c = 1.0
         if accel is not None:
@@ -470,7 +474,7 @@ class AccelerationPlanning:
         stalled = t - state.best_time
         if not latched and self.joint_waypoints is not None:
             if stalled > 0.5 * params.stall_time or self._NearLimit(state):
-                state.handover_time, state.best_error, state.best_time = t, 1e9, t
+                _HandOver(state)
             return
         if stalled > params.stall_time:
             what = "rad from its joint solution" if latched else "m from it (pose error)"
@@ -504,10 +508,9 @@ class AccelerationPlanning:
         worst = max(rates)
         if worst > self.parameters.max_reversal_rate:
             if state.handover_time < 0 and self.joint_waypoints is not None:
-                # the Cartesian law struggles: hand over to joint space, whose plain error
-                # dynamics towards the joint solution cannot swing; the measure restarts
-                state.handover_time, state.best_error, state.best_time = state.t, 1e9, state.t
-                state.reversal_rate = np.zeros(len(rates))
+                # the Cartesian law struggles: hand over to joint space, whose error dynamics
+                # towards the joint solution do not swing
+                _HandOver(state)
                 return
             joint = rates.index(worst) + 1
             raise PlanningError(
@@ -574,6 +577,14 @@ class AccelerationPlanning:
                 state.index += 1
                 state.inside, state.sigma = False, 0.0
         return state, None
+
+
+def _HandOver(state: PlannerState) -> None:
+    """Hands the law over to joint space for the rest of the task from now: the progress
+    watch and the oscillation measure restart with the new law (the Cartesian law's
+    reversals before it are not the joint-space law's)."""
+    state.handover_time, state.best_error, state.best_time = state.t, 1e9, state.t
+    state.reversal_rate = np.zeros(state.reversal_rate.size)
 
 
 def _SmoothStep(x: float) -> float:
