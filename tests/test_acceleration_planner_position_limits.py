@@ -10,6 +10,7 @@ from hypothesis import strategies as st
 
 from guidedarm.diagrams.cli.command_run import LoadScenario
 from guidedarm.diagrams.tasks.waypoints import MakePlannerSetup
+from guidedarm.systems.planning.acceleration_planner_kinematics import PlanningError
 from guidedarm.systems.planning.acceleration_planner_limits import JerkWindow, StepBounds
 from guidedarm.systems.planning.acceleration_planner_math import RunPlanning
 from guidedarm.systems.planning.acceleration_planner_position_limits import (
@@ -158,3 +159,23 @@ def test_property_near_limit_and_large_tasks_end_within_1_mm_inside_every_limit(
     assert np.all(np.abs(trajectory.qdd) <= setup.acceleration_limit * (1 + 1e-9))
     rates = ReversalRates(trajectory.qdd, setup.acceleration_limit, planning.parameters.time_step)
     assert rates.max() <= planning.parameters.max_reversal_rate
+
+
+def test_a_target_past_a_joint_limit_stops_with_a_no_progress_failure_within_seconds(setups):
+    """The rover arm's TCP sent where J2 would be 0.4 rad past its upper limit, without
+    joint solutions to hand over to: the law holds J2 within its margin, makes no progress
+    and stops with a PlanningError naming the waypoint stall_time (3 s) after its last
+    progress, well before the 20 s time limit."""
+    setup = setups["rover_arm"]
+    planning = setup.planning
+    lower, upper = planning.kinematics.PositionLimits()
+    q_goal = setup.q0.copy()
+    q_goal[1] = upper[1] + 0.4
+    target = planning.kinematics.Position(q_goal)[np.newaxis]
+    law = planning.WithWaypoints(target)
+    state = law.InitialState(setup.q0)
+    with pytest.raises(PlanningError, match=r"no progress towards waypoint 1 for 3\.0 s"):
+        while state.t < 20.0:
+            state = law.Step(state)
+            assert lower[1] + 0.01 - 1e-9 <= state.q[1] <= upper[1] - 0.01 + 1e-9
+    assert state.t < 12.0  # 9.5 s: it creeps closer until about 6.5 s, then 3 s stalled
