@@ -17,6 +17,7 @@ from pydrake.systems.framework import DiagramBuilder
 from guidedarm.diagrams.station.scenario import ArmConfig, StationScenario
 from guidedarm.diagrams.station.station import MakeStation
 from guidedarm.diagrams.tasks.planner_builder import MakeAccelerationPlanner
+from guidedarm.systems.planning.acceleration_planner_state import PlannerState
 
 scenario = StationScenario(
     directives=[
@@ -47,6 +48,7 @@ simulator.AdvanceTo(5.0)
 context = simulator.get_context()
 q = station.GetOutputPort("mz04d.position_measured").Eval(station.GetMyContextFromRoot(context))
 tcp = planner.planning.kinematics.Position(q)
-T = planner.GetOutputPort("planner_state").Eval(planner.GetMyContextFromRoot(context))[-1]
+state = planner.GetOutputPort("planner_state").Eval(planner.GetMyContextFromRoot(context))
+T = state[PlannerState.DONE_ROW]
 print(f"planner task ended at T = {T:.2f} s")
 print(f"final TCP error (measured arm): {1e3 * np.linalg.norm(tcp[:3] - waypoints[-1][:3]):.3f} mm")

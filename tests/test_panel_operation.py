@@ -102,6 +102,26 @@ def test_planner_motion_presses_the_switch_within_the_planner_limits(tmp_path):
     log = run.joint_log.FindLog(run.simulator.get_context())
     speed = np.abs(np.diff(log.data(), axis=1)) / np.diff(log.sample_times())
     assert 0.2 < speed.max() <= 0.5 * 1.05
+    # trajectory.csv: one row per 2 ms, the planner's qd within its limit; no contact with
+    # the cell, no oscillation
+    rows = np.loadtxt(tmp_path / "trajectory.csv", delimiter=",", skiprows=1)
+    assert rows.shape[1] == 25 and np.allclose(np.diff(rows[:, 0]), 0.002)
+    assert np.abs(rows[:, 7:13]).max() <= 0.5 * (1 + 1e-9)
+    assert result["cell_contacts"] == 0 and result["oscillation_rate_max"] < 5.0
+
+
+@pytest.mark.slow
+def test_the_start_that_drove_the_planner_into_a_limit_cycle_presses_its_switch(tmp_path):
+    """Start seed 40, switch 1: the first move turned J1 by 3.3 rad, drove J2 and J6 into
+    their limits and oscillated at 3 Hz until the 40 s time limit; with the position limits
+    and the hand-over to joint space it presses the switch."""
+    run = _run(tmp_path, ["switch=1"])
+    result = run.Run(run.SampleStart(40))
+    assert result["failure"] is None, result["failure"]
+    assert result["success"] and result["switch_pressed"] == 1
+    assert max(result["press_error_mm"].values()) <= 2.0
+    assert result["sim_time_s"] < 25.0 and result["cell_contacts"] == 0
+    assert result["joint_limit_distance_min_rad"] >= 0.01 and result["oscillation_rate_max"] < 5.0
 
 
 @pytest.mark.parametrize(

@@ -22,7 +22,8 @@ from guidedarm.systems.planning.planner_baselines import TrapezoidProfile
 SUMMARY_KEYS = {
     "T_s", "qd_max", "qd_min", "qdd_max", "qdd_min", "final_error_m", "c_min",
     "waypoint_distance_m", "sim_time_s", "failure", "tracking_error_max_rad",
-    "tcp_tracking_error_max_m", "tracking_delay_s",
+    "tcp_tracking_error_max_m", "tracking_delay_s", "joint_limit_distance_min_rad",
+    "oscillation_rate_max", "handover_time_s", "cell_contacts",
 }  # fmt: skip
 FIGURES = [
     "tcp_path", "joint_positions", "joint_velocities", "joint_accelerations",
@@ -36,6 +37,13 @@ def test_guidedarm_run_ur10e_waypoints_through_the_station(tmp_path):
     assert summary.keys() >= SUMMARY_KEYS
     assert NumericMetricNames(summary) == set(GetTask("waypoints").KnownMetrics())
     assert summary["failure"] is None and summary["success"] is True
+    assert summary["cell_contacts"] == 0 and summary["oscillation_rate_max"] < 2.0
+    assert summary["joint_limit_distance_min_rad"] > 0.01
+    rows = np.loadtxt(tmp_path / "trajectory.csv", delimiter=",", skiprows=1)
+    header = (tmp_path / "trajectory.csv").read_text().splitlines()[0].split(",")
+    assert header[:2] == ["t", "q_cmd_1"] and header[-1] == "q_meas_6" and rows.shape[1] == 25
+    # one row per 2 ms control period; the commanded q, qd, qdd within their limits
+    assert np.allclose(np.diff(rows[:, 0]), 0.002) and np.abs(rows[:, 13:19]).max() <= 1.3963
     # the robust mode's braking approach and per-joint saturation: 4.52 s where the paper's law
     # takes 5.41 s
     assert summary["T_s"] == pytest.approx(4.52, abs=0.05)
@@ -133,3 +141,13 @@ def test_delayed_tracking_error_finds_the_lag_of_a_delayed_arm(lag, expected):
     assert delay == pytest.approx(expected, abs=1e-9)
     assert error == pytest.approx(np.abs(measured - command(times - delay)).max())
     assert (error < 1e-12) == (lag <= MAX_TRACKING_DELAY)
+
+
+def test_a_start_pose_in_collision_is_refused_in_one_line(capsys, tmp_path):
+    """The MZ04D's ToF tool swung into the arm's own base: refused before any motion."""
+    start = "[0.0, 0.0708, -0.25, 0.0, -1.5708, 0.0]"
+    args = ["--set", f"station.arms.mz04d.initial_position={start}", "--out", str(tmp_path)]
+    assert main(["run", "mz04d_waypoints", *args]) == 2
+    error = capsys.readouterr().err.strip().splitlines()[-1]
+    assert "start pose collides: mz04d::base and tof_tool::tof_tool overlap by" in error
+    assert not (tmp_path / "summary.json").exists()

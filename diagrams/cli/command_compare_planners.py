@@ -11,12 +11,14 @@ Figures are computed on the commanded trajectories sampled at the planner period
 max |qd| (rad/s), max |qdd| (rad/s^2), max |jerk| (rad/s^3, finite differences of qdd), and
 the closest TCP approach to each waypoint (mm).
 
-With --random N --arm ARM [--seed S] [--set KEY=VALUE]: N seeded random reachable tasks
-(systems/planning/random_waypoint_tasks.py) on the arm's waypoints scenario (with the
-overrides), every planner on each, one table:
+With --random N --arm ARM [--seed S] [--kind KIND] [--set KEY=VALUE]: N seeded random
+reachable tasks (systems/planning/random_waypoint_tasks.py; the kinds regular,
+near_singular, steep in turn, or all of one --kind, including near_limit and large) on the
+arm's waypoints scenario (with the overrides), every planner on each, one table:
 success rate (the planner ended within 1 mm and 1 mrad and kept every limit; a baseline
 found a trajectory), T median, median ratios of T to Ruckig's and Toppra's on the same task,
-max |qd|, |qdd|, |jerk| over all tasks, and the number of tasks with a limit breach.
+max |qd|, |qdd|, |jerk| over all tasks, and the number of tasks with a limit breach
+(position, velocity or acceleration).
 """
 
 from __future__ import annotations
@@ -45,7 +47,11 @@ from guidedarm.systems.planning.planner_baselines import (
     RuckigThroughWaypoints,
     ToppraThroughWaypoints,
 )
-from guidedarm.systems.planning.random_waypoint_tasks import MakeRandomWaypointTasks
+from guidedarm.systems.planning.random_waypoint_tasks import (
+    EXTRA_KINDS,
+    KINDS,
+    MakeRandomWaypointTasks,
+)
 from guidedarm.systems.planning.waypoint_ik import SolveWaypointIk
 
 BLEND_RADIUS_M = 0.05
@@ -71,6 +77,11 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     parser.add_argument("--random", type=int, metavar="N", help="N seeded random reachable tasks")
     parser.add_argument("--arm", choices=sorted(ARM_SCENARIOS), help="the arm of --random")
     parser.add_argument("--seed", type=int, help="random seed of --random (>= 0, default 0)")
+    parser.add_argument(
+        "--kind",
+        choices=[*KINDS, *EXTRA_KINDS],
+        help="all --random tasks of one kind (default: regular, near_singular, steep in turn)",
+    )
     parser.set_defaults(func=compare_command)
 
 
@@ -103,7 +114,8 @@ def ComparePlanners(
     planning = setup.planning
     if planning.scaling is None or planning.penalty is None:
         raise ConfigurationError("compare-planners needs limits=velocity,acceleration")
-    joints = SolveWaypointIk(planning.kinematics, waypoints, q0)
+    margin = planning.parameters.joint_limit_margin
+    joints = SolveWaypointIk(planning.kinematics, waypoints, q0, margin=margin)
     trajectories = {
         ROBUST: PlannerTrajectory(_Planning(planning, waypoints, joints, True), q0, max_time),
         PAPER: PlannerTrajectory(_Planning(planning, waypoints, None, False), q0, max_time),
@@ -155,22 +167,30 @@ def TableRow(setup: PlannerSetup, trajectory: JointTrajectory) -> dict[str, Any]
 
 
 def Breaches(setup: PlannerSetup, trajectory: JointTrajectory) -> bool:
-    """Whether any sample exceeds a velocity or acceleration limit."""
+    """Whether any sample exceeds a position, velocity or acceleration limit."""
     tolerance = 1 + LIMIT_TOLERANCE
+    lower, upper = setup.planning.kinematics.PositionLimits()
     return bool(
         np.any(np.abs(trajectory.qd) > setup.velocity_limit * tolerance)
         or np.any(np.abs(trajectory.qdd) > setup.acceleration_limit * tolerance)
+        or np.any(trajectory.q < lower - LIMIT_TOLERANCE)
+        or np.any(trajectory.q > upper + LIMIT_TOLERANCE)
     )
 
 
 def RandomComparison(
-    arm: str, count: int, seed: int = 0, overrides: Sequence[str] = ()
+    arm: str,
+    count: int,
+    seed: int = 0,
+    overrides: Sequence[str] = (),
+    kind: str | None = None,
 ) -> dict[str, dict[str, Any]]:
-    """Every planner on `count` random reachable tasks of `arm`: one summary per planner;
-    `overrides` (`key=value`) change the arm's waypoints scenario (its planner, limits)."""
+    """Every planner on `count` random reachable tasks of `arm` (all of `kind` if given):
+    one summary per planner; `overrides` (`key=value`) change the arm's waypoints scenario
+    (its planner, limits)."""
     scenario = LoadWaypointsScenario(ARM_SCENARIOS[arm], list(overrides))
     setup = MakePlannerSetup(scenario)
-    tasks = MakeRandomWaypointTasks(setup.planning.kinematics, count, seed)
+    tasks = MakeRandomWaypointTasks(setup.planning.kinematics, count, seed, kind)
     runs = [ComparePlanners(setup, task.waypoints, task.q0, scenario.max_time) for task in tasks]
     summaries = {}
     for name in runs[0]:
@@ -253,7 +273,7 @@ def _CheckModeOptions(args: argparse.Namespace) -> None:
         if problems:
             raise ConfigurationError("; ".join(problems))
         return
-    for option in ("arm", "seed"):
+    for option in ("arm", "seed", "kind"):
         if getattr(args, option) is not None:
             raise ConfigurationError(f"--{option} is read only with --random N")
 
@@ -261,7 +281,9 @@ def _CheckModeOptions(args: argparse.Namespace) -> None:
 def compare_command(args: argparse.Namespace) -> int:
     _CheckModeOptions(args)
     if args.random is not None:
-        summaries = RandomComparison(args.arm, args.random, args.seed or 0, args.overrides)
+        summaries = RandomComparison(
+            args.arm, args.random, args.seed or 0, args.overrides, args.kind
+        )
         PrintRandomTable(args.arm, args.random, summaries)
         if args.out:
             context = RunContext(out_dir=args.out)

@@ -12,7 +12,9 @@ the scenario's value with `--set` overrides applied) and one line of documentati
   pydrake has none.
 
 Mappings keyed by name (`station.arms`, `station.cameras`, ...) list each entry of the
-scenario, or `<name>` with the entry type's defaults when the mapping is empty.
+scenario, or `<name>` with the entry type's defaults when the mapping is empty. A last line
+lists the numbers the task's summary.json can carry (TaskDefinition.metrics, dotted names,
+`#` for a list's elements).
 """
 
 from __future__ import annotations
@@ -114,6 +116,7 @@ def describe_command(args: argparse.Namespace) -> int:
     widths = [min(max(len(getattr(r, a)) for r in rows), w) for a, w in WIDTHS]
     lines = [_Row(["key", "type", "value", "doc"], widths)]
     lines += [_Row([r.key, r.type, r.value, r.doc], widths) for r in rows]
+    lines.append(f"summary.json numbers: {', '.join(task.KnownMetrics())}")
     try:
         print("\n".join(lines), flush=True)
     except BrokenPipeError:

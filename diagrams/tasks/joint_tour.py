@@ -28,6 +28,7 @@ from guidedarm.diagrams.station.station_plant import (
 )
 from guidedarm.diagrams.tasks.registry import TaskDefinition
 from guidedarm.diagrams.tasks.tracking import DelayedTrackingError
+from guidedarm.diagrams.tasks.trajectory_csv import WriteTrajectoryCsv
 from guidedarm.systems.config_checks import (
     MAX_JOINT_POSITION,
     CheckConfig,
@@ -155,6 +156,16 @@ def RunJointTour(scenario: JointTourScenario, context: RunContext) -> dict[str, 
     context.save_figure(
         PlotJointSeries(times, {"commanded": q_cmd, "measured": q_meas}, "q (rad)"), "joints"
     )
+    period = scenario.station.arms[scenario.arm].control_period
+    grid = np.arange(0.0, times[-1] + period / 2, period)
+    WriteTrajectoryCsv(
+        context,
+        grid,
+        trajectory.vector_values(grid).T,
+        _Derivative(trajectory, grid, 1),
+        _Derivative(trajectory, grid, 2),
+        np.column_stack([np.interp(grid, times, row) for row in q_meas]),
+    )
     final_error = float(np.max(np.abs(trajectory.vector_values(times[-1:]) - q_meas[:, -1:])))
     delay, tracking_error = DelayedTrackingError(
         times, lambda t: trajectory.vector_values(t).T, q_meas.T, norm=np.inf
@@ -177,6 +188,14 @@ def RunJointTour(scenario: JointTourScenario, context: RunContext) -> dict[str, 
         "final_error_rad": final_error,
         "failure": failure,
     }
+
+
+def _Derivative(trajectory: PiecewisePolynomial, times: np.ndarray, order: int) -> np.ndarray:
+    """The trajectory's derivative of `order` at times (samples x joints), 0 after its end
+    (the tour holds its last waypoint)."""
+    values = trajectory.MakeDerivative(order).vector_values(times).T
+    values[times > trajectory.end_time()] = 0.0
+    return values
 
 
 # The numbers of RunJointTour's summary (TaskDefinition.metrics).

@@ -46,6 +46,7 @@ from guidedarm.diagrams.run_context import RunContext
 from guidedarm.diagrams.station.model_paths import MODELS_DIR
 from guidedarm.diagrams.station.scenario import StationScenario
 from guidedarm.diagrams.station.station import MakeStation
+from guidedarm.diagrams.tasks.cell_collisions import CellCollisions, ModelNames
 from guidedarm.diagrams.tasks.panel_assets import COVER_CLOSED_M
 from guidedarm.diagrams.tasks.panel_camera_rig import LookAt
 from guidedarm.diagrams.tasks.panel_files import (
@@ -60,6 +61,7 @@ from guidedarm.diagrams.tasks.panel_operation_report import (
 )
 from guidedarm.diagrams.tasks.planner_builder import MakeAccelerationPlanner
 from guidedarm.diagrams.tasks.registry import RunFlags, TaskDefinition
+from guidedarm.diagrams.tasks.trajectory_csv import AddTrajectoryLogs
 from guidedarm.systems.config_checks import (
     ChangedKey,
     CheckConfig,
@@ -271,6 +273,12 @@ class PanelOperationRun:
         )
         self.sequencer = systems.sequencer
         self.kinematics = systems.kinematics
+        self.collisions = CellCollisions(
+            station_scenario,
+            scenario.arm,
+            ModelNames(self.kinematics.plant),
+            [scenario.panel_model],
+        )
         AddPanelOverlays(
             builder,
             self.context.meshcat,
@@ -281,6 +289,17 @@ class PanelOperationRun:
             systems.estimator.solver.intrinsics,
             self.panel.switches[scenario.switch - 1],
             scenario.panel_model,
+        )
+        command = (
+            planner[0].GetOutputPort("position_commanded")
+            if planner is not None
+            else self.sequencer.get_output_port(0)
+        )
+        self.trajectory_logs = AddTrajectoryLogs(
+            builder,
+            command,
+            self.station.GetOutputPort(f"{scenario.arm}.position_measured"),
+            planner[0].GetOutputPort("planner_state") if planner is not None else None,
         )
         self.joint_log = builder.AddNamedSystem(
             "joint_log", VectorLogSink(self.kinematics.plant.num_positions(), 0.02)
@@ -303,7 +322,8 @@ class PanelOperationRun:
 
     def SampleStart(self, seed: int) -> np.ndarray:
         """A start joint vector whose camera sees the panel from a random pose (see
-        StartConfig), by inverse kinematics from the arm's default position."""
+        StartConfig), by inverse kinematics from the arm's default position, clear of the
+        cell and of the arm itself (a colliding pose is drawn again)."""
         start = self.scenario.start
         rng = np.random.default_rng(seed)
         centres = [m.X_PM.GetDeterministicValue().translation() for m in self.panel.markers]
@@ -321,7 +341,7 @@ class PanelOperationRun:
             p_PC = aim + rng.uniform(*start.distance_m) * np.asarray(direction)
             X_WT = self.X_WP @ LookAt(p_PC, aim) @ self.kinematics.X_CT
             q = self.kinematics.SolveTip(X_WT, q_default)
-            if q is not None:
+            if q is not None and not self.collisions.Contacts(q):
                 return q
         raise ConfigurationError(f"no reachable start pose found for seed {seed}")
 
@@ -334,6 +354,7 @@ class PanelOperationRun:
         plant_context = self.plant.GetMyMutableContextFromRoot(context)
         self.plant.SetPositions(plant_context, self.arm_instance, q_start)
         self.joint_log.FindMutableLog(context).Clear()
+        self.trajectory_logs.Clear(context)
         self.simulator.Initialize()
         self.context.start_recording()
         sequencer_context = self.sequencer.GetMyContextFromRoot(context)
@@ -409,11 +430,11 @@ def RunPanelOperation(scenario: PanelOperationScenario, context: RunContext) -> 
     """Builds the diagram, picks the start and simulates one operation."""
     run = PanelOperationRun(scenario, context)
     start = scenario.start
-    q_start = (
-        np.asarray(start.position, float)
-        if start.position
-        else run.SampleStart(scenario.random_seed)
-    )
+    if start.position:
+        q_start = np.asarray(start.position, float)
+        run.collisions.Refuse(q_start, f"the {scenario.arm} start pose")
+    else:
+        q_start = run.SampleStart(scenario.random_seed)
     return run.Run(q_start)
 
 

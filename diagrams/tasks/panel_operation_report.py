@@ -10,6 +10,8 @@ import numpy as np
 from pydrake.systems.framework import Context
 
 from guidedarm.diagrams.plots import PlotJointSeries
+from guidedarm.diagrams.tasks.planner_builder import SymmetricLimit
+from guidedarm.diagrams.tasks.trajectory_csv import JointMotionMetrics, WriteTrajectoryCsv
 from guidedarm.systems.markers.panel_operation import SequencerState
 
 if TYPE_CHECKING:
@@ -61,6 +63,9 @@ PANEL_OPERATION_METRICS = (
     "measurements.#.p_CP_mm.#",
     "measurements.#.estimate_error_mm",
     "lost_measurements",
+    "joint_limit_distance_min_rad",
+    "oscillation_rate_max",
+    "cell_contacts",
     "sim_time_s",
 )
 
@@ -113,6 +118,7 @@ def PanelOperationMetrics(
                 np.linalg.norm(1e-3 * np.array(record["p_CP_mm"]) - p_CP)
             )
     lost = [m for m in state.measurements if not m["valid"]]
+    motion = _WriteTrajectory(run, context)
     return {
         "success": failure is None,
         "switch": scenario.switch,
@@ -125,10 +131,32 @@ def PanelOperationMetrics(
         "press_target_W_mm": [_mm(v) for v in target_W.translation()],
         "measurements": state.measurements,
         "lost_measurements": len(lost),
+        **motion,
         "marker_loss": scenario.operation.on_marker_loss if lost else None,
         "failure": failure,
         "sim_time_s": round(context.get_time(), 3),
     }
+
+
+def _WriteTrajectory(run: PanelOperationRun, context: Context) -> dict[str, Any]:
+    """Writes the run's trajectory.csv; returns its JointMotionMetrics (the planner's
+    acceleration limits as the oscillation measure's scale, whatever the motion) and the
+    measured arm's contact episodes with the cell or itself (cell_contacts)."""
+    scenario = run.scenario
+    period = scenario.station.arms[scenario.arm].control_period
+    times, q, qd, qdd, q_meas = run.trajectory_logs.Samples(context, period)
+    WriteTrajectoryCsv(run.context, times, q, qd, qdd, q_meas)
+    plant, instance = run.plant, run.arm_instance
+    limits = (
+        plant.GetPositionsFromArray(instance, plant.GetPositionLowerLimits()),
+        plant.GetPositionsFromArray(instance, plant.GetPositionUpperLimits()),
+    )
+    acceleration = SymmetricLimit(
+        scenario.planner.max_joint_acceleration, "planner.max_joint_acceleration"
+    )
+    metrics = JointMotionMetrics(q, qdd, limits, acceleration, period)
+    # the measured arm every 20 ms (10 control periods)
+    return {**metrics, "cell_contacts": run.collisions.CountContacts(q_meas[::10])}
 
 
 def _mm(value: float) -> float:

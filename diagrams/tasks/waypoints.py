@@ -20,10 +20,12 @@ from guidedarm.diagrams.plots import PlotJointSeries
 from guidedarm.diagrams.run_context import AdvanceWithProgress, RunContext
 from guidedarm.diagrams.station.scenario import StationScenario
 from guidedarm.diagrams.station.station import MakeStation
+from guidedarm.diagrams.tasks.cell_collisions import CellCollisions, ModelNames
 from guidedarm.diagrams.tasks.planner_builder import MakeAccelerationPlanner, SymmetricLimit
 from guidedarm.diagrams.tasks.planner_plots import PlotScaling, PlotTcpPath
 from guidedarm.diagrams.tasks.registry import TaskDefinition
 from guidedarm.diagrams.tasks.tracking import DelayedTrackingError, SampledCommands
+from guidedarm.diagrams.tasks.trajectory_csv import JointMotionMetrics, WriteTrajectoryCsv
 from guidedarm.systems.config_checks import (
     CheckConfig,
     CheckFields,
@@ -43,6 +45,7 @@ from guidedarm.systems.planning.acceleration_planner_math import (
     PlannerConfig,
     PlannerState,
     PlanningError,
+    RunPlanning,
 )
 
 LIMIT_CHOICES = ("none", "velocity", "velocity,acceleration")
@@ -148,9 +151,29 @@ def CheckReadKeys(scenario: WaypointsScenario) -> None:
             )
 
 
+def CheckCellBeforeMotion(scenario: WaypointsScenario, setup: PlannerSetup) -> CellCollisions:
+    """Refuses (ConfigurationError, one line naming the bodies) a start pose, a waypoint's
+    joint solution or, in the robust mode, a kinematic dry run of the law (RunPlanning at
+    the planner period, checked every 10 ms) that collides with the cell or the arm
+    itself; a dry run that the law cannot finish (PlanningError) is refused with its
+    message. Returns the CellCollisions for the run's contact count."""
+    collisions = CellCollisions(scenario.station, scenario.arm, ModelNames(setup.plant))
+    collisions.Refuse(setup.q0, f"the {scenario.arm} start pose")
+    for i, q in enumerate(setup.joint_waypoints):
+        collisions.Refuse(q, f"the joint solution of waypoint {i + 1}")
+    if scenario.planner.robust:
+        try:
+            planned = RunPlanning(setup.planning, setup.q0, scenario.max_time)
+        except PlanningError as e:
+            raise ConfigurationError(f"the planner's dry run cannot finish the task: {e}") from None
+        collisions.CheckPlannedMotion(planned.times, planned.q, planned.index)
+    return collisions
+
+
 def RunWaypoints(scenario: WaypointsScenario, context: RunContext) -> dict[str, Any]:
     """Simulates the planner driving the station's arm; returns the Table-2 metrics."""
     setup = MakePlannerSetup(scenario)
+    collisions = CheckCellBeforeMotion(scenario, setup)
     arm = scenario.arm
     builder = DiagramBuilder()
     station = builder.AddNamedSystem(
@@ -185,7 +208,8 @@ def RunWaypoints(scenario: WaypointsScenario, context: RunContext) -> dict[str, 
     planner_context = planner.GetMyContextFromRoot(simulator.get_mutable_context())
 
     def monitor(root_context) -> EventStatus:
-        done_time = planner.GetOutputPort("planner_state").Eval(planner_context)[-1]
+        state = planner.GetOutputPort("planner_state").Eval(planner_context)
+        done_time = state[PlannerState.DONE_ROW]
         if 0 <= done_time <= root_context.get_time() - scenario.settle_time:
             return EventStatus.ReachedTermination(planner, "task ended")
         return EventStatus.DidNothing()
@@ -215,8 +239,12 @@ def RunWaypoints(scenario: WaypointsScenario, context: RunContext) -> dict[str, 
             f"the measured TCP strayed {tracking:.4g} m from the commanded one "
             f"(max_tracking_error {scenario.max_tracking_error} m)"
         )
+    metrics["cell_contacts"] = collisions.CountContacts(measured[::10])
     context.headline.update(metrics)
     SavePlannerFigures(context, scenario, setup, trajectory, measured)
+    WriteTrajectoryCsv(
+        context, trajectory.times, trajectory.q, trajectory.qd, trajectory.qdd, measured
+    )
     return {"sim_time_s": round(t_end, 4), **metrics, "failure": failure}
 
 
@@ -234,9 +262,13 @@ WAYPOINTS_METRICS = (
     "waypoint_distance_m.#",
     "qdd_step_max",
     "braking_steps",
+    "joint_limit_distance_min_rad",
+    "oscillation_rate_max",
+    "handover_time_s",
     "tracking_error_max_rad",
     "tcp_tracking_error_max_m",
     "tracking_delay_s",
+    "cell_contacts",
 )
 
 
@@ -261,6 +293,15 @@ def TrajectoryMetrics(
         "waypoint_distance_m": ClosestApproach(tcp[:, :3], waypoints).round(5).tolist(),
         "qdd_step_max": float(np.abs(np.diff(trajectory.qdd, axis=0)).max(initial=0.0)),
         "braking_steps": int(trajectory.braking.sum()),
+        **JointMotionMetrics(
+            trajectory.q,
+            trajectory.qdd,
+            kinematics.PositionLimits(),
+            setup.acceleration_limit,
+            setup.planning.parameters.time_step,
+        ),
+        # -1: the law kept to the Cartesian line (no hand-over to joint space)
+        "handover_time_s": round(trajectory.handover_time, 4),
     }
     if measured is not None and measured.size:
         count = min(len(measured), len(trajectory.q))

@@ -78,7 +78,8 @@ class AccelerationPlanner(LeafSystem):
             if q_guess is None:
                 plant = kinematics.plant
                 q_guess = plant.GetPositions(plant.CreateDefaultContext(), kinematics.instance)
-            joints = SolveWaypointIk(kinematics, planning.waypoints, q_guess)
+            margin = planning.parameters.joint_limit_margin
+            joints = SolveWaypointIk(kinematics, planning.waypoints, q_guess, margin=margin)
             planning = planning.WithWaypoints(planning.waypoints, joints)
         self._planning = planning
         n = 6
@@ -166,7 +167,10 @@ class AccelerationPlanner(LeafSystem):
     def _StartTask(self, task: PlannerTask, state: PlannerState) -> AccelerationPlanning:
         try:
             planning = self._planning.WithWaypoints(task.waypoints)
-            joints = SolveWaypointIk(planning.kinematics, planning.waypoints, state.q)
+            margin = planning.parameters.joint_limit_margin
+            joints = SolveWaypointIk(
+                planning.kinematics, planning.waypoints, state.q, margin=margin
+            )
             planning = planning.WithWaypoints(planning.waypoints, joints)
         except ConfigurationError as e:
             raise PlanningError(f"planner task {task.sequence} refused: {e}") from None

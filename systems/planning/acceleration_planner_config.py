@@ -24,6 +24,12 @@ ROBUST_ONLY_FIELDS = (
     "approach_rate",
     "joint_space_blend",
     "saturation_metric",
+    "joint_limit_margin",
+    "position_braking",
+    "limit_blend",
+    "handover_ramp",
+    "max_reversal_rate",
+    "stall_time",
 )
 PAPER_ONLY_FIELDS = ("scaling_recovery_rate", "min_singular_value")
 
@@ -93,6 +99,26 @@ class PlannerConfig:
         value of J_g falls from sigma_start to sigma_full the law hands over, smoothly, to
         the same error dynamics in joint space towards the waypoints' IK solutions, which
         crosses singularities a Cartesian law cannot.
+    joint_limit_margin: robust mode, with acceleration limits: the commanded q stays within
+        [lower + margin, upper - margin] of the plant's joint position limits (rad), and
+        the waypoints' IK solutions too.
+    position_braking: robust mode: the fraction of the acceleration limits a joint plans to
+        brake with towards a position limit: its speed towards the limit is bounded by
+        sqrt(2 position_braking A d), d the distance to the limit (the viability bound).
+    limit_blend: robust mode: a joint closer than this to a position limit (rad, beyond the
+        margin) and moving towards it hands the law over to joint space towards the
+        waypoints' IK solutions for the rest of the task: the Cartesian line would leave
+        the joint's range, the joint-space line between two configurations within the
+        limits cannot.
+    handover_ramp: robust mode: the time over which that hand-over blends in (s).
+    max_reversal_rate: robust mode: the oscillation bound: a joint whose commanded
+        acceleration reverses sign (between excursions beyond 50 % of its limit) more often
+        than this (1/s, averaged over about 2 s) hands the law over to joint space for
+        the rest of the task, and once handed over stops the planner with a PlanningError
+        naming it.
+    stall_time: robust mode: the planner stops with a PlanningError once the TCP has made
+        no progress towards its target for this long (s); after half of it the law hands
+        over to joint space first.
     """
 
     robust: bool = True
@@ -120,6 +146,12 @@ class PlannerConfig:
     approach_rate: float = Positive(20.0)
     saturation_metric: str = "task"
     joint_space_blend: list[float] = field(default_factory=lambda: [0.005, 0.02])
+    joint_limit_margin: float = InRange(0.0, 0.2, 0.01)
+    position_braking: float = InRange(0.0, 1.0, 0.5, low_open=True, high_open=True)
+    limit_blend: float = InRange(0.0, 1.0, 0.1)
+    handover_ramp: float = Positive(0.3)
+    max_reversal_rate: float = Positive(5.0)
+    stall_time: float = Positive(3.0)
 
     def Validate(self) -> None:
         """Raises ConfigurationError naming the first bad setting."""

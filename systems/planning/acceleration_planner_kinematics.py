@@ -275,10 +275,15 @@ class ArmKinematics:
 
     def JointLimits(self) -> tuple[np.ndarray, np.ndarray]:
         """The arm's joint position limits (rad), at most +-pi (a turn covers every angle)."""
+        lower, upper = self.PositionLimits()
+        return np.maximum(lower, -np.pi), np.minimum(upper, np.pi)
+
+    def PositionLimits(self) -> tuple[np.ndarray, np.ndarray]:
+        """The arm's joint position limits (rad) as the plant has them (+-inf if none)."""
         plant, instance = self.plant, self.instance
         lower = plant.GetPositionsFromArray(instance, plant.GetPositionLowerLimits())
         upper = plant.GetPositionsFromArray(instance, plant.GetPositionUpperLimits())
-        return np.maximum(lower, -np.pi), np.minimum(upper, np.pi)
+        return lower, upper
 
     def MinSingularValue(self, q: np.ndarray) -> float:
         """Smallest singular value of the geometric Jacobian J_g at q (m or rad per rad)."""

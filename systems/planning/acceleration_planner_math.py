@@ -65,9 +65,15 @@ from guidedarm.systems.planning.acceleration_planner_limits import (
     StepBounds,
     VelocityPenalty,
 )
+from guidedarm.systems.planning.acceleration_planner_position_limits import PositionStepBounds
 from guidedarm.systems.planning.acceleration_planner_state import (
     PlannedTrajectory,
     PlannerState,
+)
+from guidedarm.systems.planning.acceleration_planner_watch import (
+    Progressed,
+    TargetError,
+    UpdateReversals,
 )
 
 
@@ -214,6 +220,23 @@ class AccelerationPlanning:
             self.inverse_braking = (1.0 / (parameters.approach_acceleration * braking)).tolist()
             r0 = parameters.SlowRoot()
             self.approach_rates = (r0, parameters.gain_v - r0, parameters.approach_rate)
+        # the robust mode's position limits and watch need a finite braking acceleration
+        self.position_bounds = None
+        if parameters.robust and self.scaling is not None:
+            lower, upper = kinematics.PositionLimits()
+            margin = parameters.joint_limit_margin
+            smallest = np.minimum(self.scaling.upper, -self.scaling.lower)
+            self.position_bounds = (
+                (lower + margin).tolist(),
+                (upper - margin).tolist(),
+                (parameters.position_braking * smallest).tolist(),
+            )
+            self._reversal_limits = smallest.tolist()
+            # The position bound falls at rate (dv/dt + q'') <= rate (b + A) while a joint
+            # accelerates at A towards it: capped so that the jerk limit can follow it.
+            largest = float(max(self.scaling.upper.max(), -self.scaling.lower.min()))
+            jerk_rate = parameters.max_jerk / (largest * (1.0 + parameters.position_braking))
+            self._position_rate = min(self._velocity_bound_rate, jerk_rate)
 
     def _SetWaypoints(self, waypoints: np.ndarray, joint_waypoints: np.ndarray | None) -> None:
         waypoints = np.atleast_2d(np.asarray(waypoints, float))
@@ -264,6 +287,8 @@ class AccelerationPlanning:
         """Starts this planner's task from `state` (possibly moving): first waypoint, not
         ended, and with acceleration limits c restarts from 0 (the smooth start)."""
         state.index, state.sigma, state.inside, state.done_time = 0, 0.0, False, -1.0
+        state.handover_time, state.best_error, state.best_progress = -1.0, 1e9, 0.0
+        state.best_time = state.t
         if self.scaling is not None:
             state.c_hat0, state.t0 = 0.0, state.t
         return state
@@ -277,7 +302,7 @@ class AccelerationPlanning:
         self.kinematics.Evaluate(q0, np.zeros(6), analytic=not self.parameters.robust)
         c0 = 0.0 if self.scaling is not None else 1.0
         zero = np.zeros(6)
-        return PlannerState(q0.copy(), zero, zero.copy(), t=t, c=c0, c_hat0=c0, t0=t)
+        return PlannerState(q0.copy(), zero, zero.copy(), t=t, c=c0, c_hat0=c0, t0=t, best_time=t)
 
     def Step(self, state: PlannerState) -> PlannerState:
         """The state one time step later (raises PlanningError if it cannot continue)."""
@@ -303,6 +328,8 @@ class AccelerationPlanning:
             penalty = self.penalty.Perturbation(state.qd)
             if penalty is not self.penalty.zero:
                 b = b + penalty
+        if self.position_bounds is not None:
+            self._Watch(state, e)
         if params.robust and self.joint_waypoints is not None:
             a, b = self._BlendJointSpace(state, sigma, a, b)
         if params.robust:
@@ -311,6 +338,8 @@ class AccelerationPlanning:
             qdd, c, c_hat0, t0, braking = (*self._LimitSeed(state, a, b), False)
         if not math.isfinite(sum(_Floats(qdd))):  # NaN or inf in a joint
             raise PlanningError(f"non-finite joint acceleration at t = {state.t:.3f} s")
+        if self.position_bounds is not None:
+            self._WatchOscillation(state, _Floats(qdd))
         qdd = np.asarray(qdd, float)
         # q'' held over the step; times arrays of dt, which cost less than a float's
         # conversion in each product
@@ -354,6 +383,10 @@ class AccelerationPlanning:
             return qdd, 1.0, state.c_hat0, state.t0, False
         qd, qdd_previous, a, b = state.qd.tolist(), state.qdd.tolist(), _Floats(a), _Floats(b)
         lower, upper = StepBounds(accel, velocity, qd, self._velocity_bound_rate)
+        if self.position_bounds is not None:
+            lower, upper = PositionStepBounds(
+                state.q.tolist(), qd, lower, upper, *self.position_bounds, self._position_rate,
+            )  # fmt: skip
         c = 1.0
         if accel is not None:
             d = GovernorDamping(a, qd, *accel, params.bias_margin, params.governor_gain)
@@ -382,22 +415,109 @@ class AccelerationPlanning:
         self, state: PlannerState, sigma: float, a: np.ndarray, b: np.ndarray
     ) -> tuple[np.ndarray, np.ndarray]:
         """(a, b) blended towards the joint-space law q'' = -Lambda_V qd - Lambda_P (q - q*)
-        (a = 0) by w = smoothstep of sigma over joint_space_blend; q* is the IK solution of
-        the current waypoint, blended like (19) inside a neighbourhood."""
+        (a = 0; with the braking approach on, _JointSpaceApproach) by w = smoothstep of
+        sigma over joint_space_blend, or over handover_ramp once the law is handed over to
+        joint space for the rest of the task (_Watch); q* is the IK solution of the current
+        waypoint, blended like (19) inside a neighbourhood."""
         params = self.parameters
         sigma_full, sigma_start = params.joint_space_blend
-        if sigma >= sigma_start:
+        w = 0.0
+        if sigma < sigma_start:
+            w = _SmoothStep((sigma_start - sigma) / (sigma_start - sigma_full))
+        if state.handover_time >= 0:
+            w = max(w, _SmoothStep((state.t - state.handover_time) / params.handover_ramp))
+        if w == 0.0:
             return a, b
-        x = min(1.0, (sigma_start - sigma) / (sigma_start - sigma_full))
-        w = x * x * (3.0 - 2.0 * x)
         i = state.index
         q_target = self.joint_waypoints[i]
         if state.inside:
             q_target = q_target + state.sigma * (self.joint_waypoints[i + 1] - q_target)
-        b_joint = -params.gain_v * state.qd - params.gain_p * (state.q - q_target)
+        u = state.q - q_target
+        if self.inverse_braking is None:
+            b_joint = -params.gain_v * state.qd - params.gain_p * u
+        else:
+            b_joint = self._JointSpaceApproach(state.qd, u)
         if self.penalty is not None:
             b_joint = b_joint + self.penalty.Perturbation(state.qd)
         return (1.0 - w) * np.asarray(a), (1.0 - w) * np.asarray(b) + w * b_joint
+
+    def _JointSpaceApproach(self, qd: np.ndarray, u: np.ndarray) -> np.ndarray:
+        """The joint-space law with the braking approach on (rad/s^2): qd tracks, at the rate
+        k = approach_rate, the speed towards the target v = sqrt(2 eta A |u| + c^2) - c with
+        c = eta A / r and r = k / 4 (the square-root law of braking at eta A far away, so a
+        joint whose acceleration saturates brakes in time instead of overshooting; the
+        exponential rate r near the target, k = 4 r making the loop critically damped),
+        u = q - q* the joints' distance to their target (rad)."""
+        k = self.parameters.approach_rate
+        braking = 1.0 / np.asarray(self.inverse_braking)
+        c = braking / (0.25 * k)
+        speed = np.sqrt(2.0 * braking * np.abs(u) + c * c) - c
+        return -k * (qd + np.sign(u) * speed)
+
+    def _Watch(self, state: PlannerState, e: np.ndarray) -> None:
+        """The hand-over to joint space and the progress watch (PlannedState's best_*): a
+        joint within limit_blend of a position limit and moving towards it, or no progress
+        for half of stall_time, hands the law over to joint space for the rest of the task
+        (where the waypoints' IK solutions are known); no progress for stall_time stops the
+        planner with a PlanningError."""
+        params, t = self.parameters, state.t
+        latched = state.handover_time >= 0
+        if latched:
+            error = float(np.linalg.norm(state.q - self.joint_waypoints[state.index]))
+        else:
+            error = TargetError(e.tolist())
+        progressed, state.best_error, state.best_progress = Progressed(
+            error, state.index + state.sigma, state.best_error, state.best_progress
+        )
+        if progressed or state.done:
+            state.best_time = t
+        stalled = t - state.best_time
+        if not latched and self.joint_waypoints is not None:
+            if stalled > 0.5 * params.stall_time or self._NearLimit(state):
+                _HandOver(state)
+            return
+        if stalled > params.stall_time:
+            what = "rad from its joint solution" if latched else "m from it (pose error)"
+            raise PlanningError(
+                f"no progress towards waypoint {state.index + 1} for {stalled:.1f} s "
+                f"(planner.stall_time): {error:.4f} {what}"
+            )
+
+    def _NearLimit(self, state: PlannerState) -> bool:
+        """Whether a joint is within limit_blend of a position limit, moving towards it."""
+        reach = self.parameters.limit_blend
+        lower, upper, _ = self.position_bounds
+        for q_i, qd_i, lo, hi in zip(state.q.tolist(), state.qd.tolist(), lower, upper):
+            if (qd_i > 0.0 and hi - q_i < reach) or (qd_i < 0.0 and q_i - lo < reach):
+                return True
+        return False
+
+    def _WatchOscillation(self, state: PlannerState, qdd: list[float]) -> None:
+        """The oscillation measure's step (UpdateReversals): a joint reversing faster than
+        max_reversal_rate hands the law over to joint space for the rest of the task, or,
+        once handed over (or without joint solutions), stops the planner with a
+        PlanningError naming it."""
+        signs, rates = UpdateReversals(
+            qdd,
+            self._reversal_limits,
+            state.reversal_sign.tolist(),
+            state.reversal_rate.tolist(),
+            self.parameters.time_step,
+        )
+        state.reversal_sign, state.reversal_rate = np.array(signs), np.array(rates)
+        worst = max(rates)
+        if worst > self.parameters.max_reversal_rate:
+            if state.handover_time < 0 and self.joint_waypoints is not None:
+                # the Cartesian law struggles: hand over to joint space, whose error dynamics
+                # towards the joint solution do not swing
+                _HandOver(state)
+                return
+            joint = rates.index(worst) + 1
+            raise PlanningError(
+                f"joint {joint} oscillates at t = {state.t:.2f} s: its commanded acceleration "
+                f"reversed {worst:.1f} times per second (planner.max_reversal_rate "
+                f"{self.parameters.max_reversal_rate})"
+            )
 
     def _Target(self, state: PlannerState):
         """The location the error is measured to: p_i, or the blend (19) towards p_i+1 (a
@@ -457,6 +577,20 @@ class AccelerationPlanning:
                 state.index += 1
                 state.inside, state.sigma = False, 0.0
         return state, None
+
+
+def _HandOver(state: PlannerState) -> None:
+    """Hands the law over to joint space for the rest of the task from now: the progress
+    watch and the oscillation measure restart with the new law (the Cartesian law's
+    reversals before it are not the joint-space law's)."""
+    state.handover_time, state.best_error, state.best_time = state.t, 1e9, state.t
+    state.reversal_rate = np.zeros(state.reversal_rate.size)
+
+
+def _SmoothStep(x: float) -> float:
+    """3 x^2 - 2 x^3 of x clipped to [0, 1]."""
+    x = 0.0 if x < 0.0 else (1.0 if x > 1.0 else x)
+    return x * x * (3.0 - 2.0 * x)
 
 
 def _Floats(v: np.ndarray | list[float]) -> list[float]:

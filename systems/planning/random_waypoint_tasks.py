@@ -24,9 +24,16 @@ from guidedarm.systems.planning.acceleration_planner_kinematics import (
 )
 
 KINDS = ("regular", "near_singular", "steep")
+# Kinds made only on request (MakeRandomWaypointTasks's `kind`), so the seeded mixed set of
+# KINDS stays as it is: `near_limit`, a start with one or two joints 0.02-0.15 rad from a
+# position limit; `large`, moves of 0.2-0.5 m turning up to 90 deg.
+EXTRA_KINDS = ("near_limit", "large")
+NEAR_LIMIT_RAD = (0.02, 0.15)
 WAYPOINT_COUNT = 3
 STEP_M = (0.05, 0.25)
+LARGE_STEP_M = (0.2, 0.5)
 MAX_TURN_RAD = np.radians(40.0)
+LARGE_TURN_RAD = np.radians(90.0)
 MAX_PITCH_RAD = np.radians(85.0)
 STEEP_PITCH_RAD = np.radians(70.0)
 SINGULAR_SIGMA = (0.01, 0.03)
@@ -47,12 +54,14 @@ class RandomWaypointTask:
 
 
 def MakeRandomWaypointTasks(
-    kinematics: ArmKinematics, count: int, seed: int = 0
+    kinematics: ArmKinematics, count: int, seed: int = 0, kind: str | None = None
 ) -> list[RandomWaypointTask]:
-    """`count` tasks for the arm of `kinematics`, the same for the same seed."""
+    """`count` tasks for the arm of `kinematics`, the same for the same seed: the KINDS in
+    turn, or all of one `kind` (of KINDS or EXTRA_KINDS)."""
     rng = np.random.default_rng(seed)
     lower, upper = _JointRange(kinematics)
-    return [_MakeTask(kinematics, KINDS[k % len(KINDS)], lower, upper, rng) for k in range(count)]
+    kinds = KINDS if kind is None else (kind,)
+    return [_MakeTask(kinematics, kinds[k % len(kinds)], lower, upper, rng) for k in range(count)]
 
 
 def _JointRange(kinematics: ArmKinematics) -> tuple[np.ndarray, np.ndarray]:
@@ -74,9 +83,17 @@ def _MakeTask(kinematics, kind, lower, upper, rng) -> RandomWaypointTask:
             sigma = kinematics.MinSingularValue(q0)
         elif sigma < SINGULAR_SIGMA[1] or (kind == "steep" and pitch < STEEP_PITCH_RAD - 0.1):
             continue
+        if kind == "near_limit":
+            q0 = _NearLimit(kinematics, q0, rng)
+            if kinematics.MinSingularValue(q0) < SINGULAR_SIGMA[1]:
+                continue
         if abs(kinematics.Position(q0)[4]) > MAX_PITCH_RAD:
             continue
-        joints = _Waypoints(kinematics, q0, lower, upper, rng)
+        box = (lower, upper)
+        if kind == "near_limit":  # waypoints anywhere within the limits, as the start
+            q_lower, q_upper = kinematics.PositionLimits()
+            box = (q_lower + NEAR_LIMIT_RAD[0], q_upper - NEAR_LIMIT_RAD[0])
+        joints = _Waypoints(kinematics, q0, *box, rng, large=kind == "large")
         if joints is None:
             continue
         waypoints = np.array([kinematics.Position(q) for q in joints])
@@ -115,15 +132,30 @@ def _NearSingular(kinematics, q, lower, upper, rng) -> np.ndarray | None:
     return q
 
 
-def _Waypoints(kinematics, q0, lower, upper, rng, attempts: int = 400) -> np.ndarray | None:
+def _NearLimit(kinematics, q, rng) -> np.ndarray:
+    """q with one or two random joints moved 0.02-0.15 rad (NEAR_LIMIT_RAD) inside one of
+    their position limits (the plant's, e.g. +-2 pi on most UR10e joints)."""
+    q_lower, q_upper = kinematics.PositionLimits()
+    q = q.copy()
+    for k in rng.choice(6, size=int(rng.integers(1, 3)), replace=False):
+        gap = rng.uniform(*NEAR_LIMIT_RAD)
+        q[k] = q_lower[k] + gap if rng.random() < 0.5 else q_upper[k] - gap
+    return q
+
+
+def _Waypoints(
+    kinematics, q0, lower, upper, rng, attempts: int = 400, large: bool = False
+) -> np.ndarray | None:
     """WAYPOINT_COUNT configurations, each near the previous one, whose TCP poses keep the
-    step and turn bounds; None if none is found within the attempts."""
+    step and turn bounds (the large ones with `large`); None if none is found within the
+    attempts."""
     joints = []
     q_previous = q0
+    reach, steps, turn = (1.5, LARGE_STEP_M, LARGE_TURN_RAD) if large else (0.6, STEP_M, None)
     for _ in range(WAYPOINT_COUNT):
         for _ in range(attempts):
-            q = np.clip(q_previous + rng.uniform(-0.6, 0.6, 6), lower, upper)
-            if _Acceptable(kinematics, q_previous, q):
+            q = np.clip(q_previous + rng.uniform(-reach, reach, 6), lower, upper)
+            if _Acceptable(kinematics, q_previous, q, steps, turn or MAX_TURN_RAD):
                 break
         else:
             return None
@@ -132,15 +164,17 @@ def _Waypoints(kinematics, q0, lower, upper, rng, attempts: int = 400) -> np.nda
     return np.array(joints)
 
 
-def _Acceptable(kinematics, q_previous: np.ndarray, q: np.ndarray) -> bool:
+def _Acceptable(
+    kinematics, q_previous: np.ndarray, q: np.ndarray, steps=STEP_M, max_turn=MAX_TURN_RAD
+) -> bool:
     p0, p1 = kinematics.Position(q_previous), kinematics.Position(q)
     step = float(np.linalg.norm(p1[:3] - p0[:3]))
     R0 = RotationMatrix(RollPitchYaw(p0[3:])).matrix()
     R1 = RotationMatrix(RollPitchYaw(p1[3:])).matrix()
     turn = float(np.linalg.norm(RotationError(R1, R0)))
     return (
-        STEP_M[0] <= step <= STEP_M[1]
-        and turn <= MAX_TURN_RAD
+        steps[0] <= step <= steps[1]
+        and turn <= max_turn
         and abs(p1[4]) <= MAX_PITCH_RAD
         and kinematics.MinSingularValue(q) >= MIN_SIGMA
     )

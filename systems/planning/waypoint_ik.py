@@ -32,10 +32,13 @@ def SolveWaypointIk(
     waypoints: np.ndarray,
     q_start: np.ndarray,
     tolerance: float = 1e-6,
-    attempts: int = 8,
+    attempts: int = 24,
+    margin: float = 0.0,
 ) -> np.ndarray:
-    """Joint positions (rad), one row per waypoint, within the plant's joint limits, each
-    the solution nearest the previous one (the first nearest q_start) that the solver finds.
+    """Joint positions (rad), one row per waypoint, within the plant's joint limits less
+    `margin` (rad; the robust planner's joint_limit_margin), each the solution nearest the
+    previous one (the first nearest q_start) that the solver finds, moved by whole turns
+    towards it (NearestTurn).
 
     Each waypoint is solved from the previous solution, then from small perturbations of it
     (near a singularity the solver can stall at the guess itself), then from random
@@ -45,10 +48,9 @@ def SolveWaypointIk(
     """
     plant, instance = kinematics.plant, kinematics.instance
     context = plant.CreateDefaultContext()
-    lower = np.maximum(
-        plant.GetPositionsFromArray(instance, plant.GetPositionLowerLimits()), -np.pi
-    )
-    upper = np.minimum(plant.GetPositionsFromArray(instance, plant.GetPositionUpperLimits()), np.pi)
+    q_lower, q_upper = kinematics.PositionLimits()
+    limits = (q_lower + margin, q_upper - margin)
+    lower, upper = np.maximum(limits[0], -np.pi), np.minimum(limits[1], np.pi)
     rng = np.random.default_rng(0)
     solutions = []
     q_previous = np.asarray(q_start, float)
@@ -57,7 +59,7 @@ def SolveWaypointIk(
         near = [q_previous + rng.normal(0.0, 0.05 * k, 6) for k in (1, 2, 4)]
         far = [rng.uniform(lower, upper) for _ in range(attempts - 1)]
         for guess in [q_previous, *near, *far]:
-            q = _Solve(kinematics, context, X_BT, guess, q_previous, tolerance)
+            q = _Solve(kinematics, context, X_BT, guess, q_previous, tolerance, limits)
             if q is not None:
                 break
         else:
@@ -65,9 +67,22 @@ def SolveWaypointIk(
                 f"waypoint {i + 1} {np.round(p, 4).tolist()} is out of reach of "
                 f"{plant.GetModelInstanceName(instance)} (no joint solution within its limits)"
             )
+        q = NearestTurn(q, q_previous, limits)
         solutions.append(q)
         q_previous = q
     return np.array(solutions)
+
+
+def NearestTurn(
+    q: np.ndarray, q_near: np.ndarray, limits: tuple[np.ndarray, np.ndarray]
+) -> np.ndarray:
+    """q with each joint moved by whole turns (2 pi, the same pose for a revolute joint)
+    as near to q_near as the limits allow: on joints that can turn more than once (the
+    UR10e's +-2 pi) the solver may return a solution a turn away from the nearest one."""
+    turns = np.round((q_near - q) / (2 * np.pi))
+    nearest = q + 2 * np.pi * turns
+    inside = (nearest >= limits[0]) & (nearest <= limits[1])
+    return np.where(inside, nearest, q)
 
 
 def _Solve(
@@ -77,6 +92,7 @@ def _Solve(
     guess: np.ndarray,
     nearest: np.ndarray,
     tolerance: float,
+    limits: tuple[np.ndarray, np.ndarray],
 ) -> np.ndarray | None:
     plant, instance = kinematics.plant, kinematics.instance
     plant.SetPositions(context, instance, guess)
@@ -96,24 +112,31 @@ def _Solve(
     if (~arm).any():  # the rest of the scene stays where it is
         prog.AddBoundingBoxConstraint(q_full[~arm], q_full[~arm], ik.q()[~arm])
     prog.AddQuadraticErrorCost(np.eye(int(arm.sum())) * 1e-3, nearest, ik.q()[arm])
+    prog.AddBoundingBoxConstraint(limits[0], limits[1], ik.q()[arm])
     result = Solve(prog, q_full)
     if not result.is_success():
         return None
     return _Polish(
-        kinematics, X_BT, plant.GetPositionsFromArray(instance, result.GetSolution(ik.q()))
+        kinematics,
+        X_BT,
+        plant.GetPositionsFromArray(instance, result.GetSolution(ik.q())),
+        limits,
     )
 
 
-def _Polish(kinematics: ArmKinematics, X_BT: RigidTransform, q: np.ndarray) -> np.ndarray:
+def _Polish(
+    kinematics: ArmKinematics,
+    X_BT: RigidTransform,
+    q: np.ndarray,
+    limits: tuple[np.ndarray, np.ndarray],
+) -> np.ndarray:
     """q moved onto the pose X_BT by Newton steps on [position; rotation vector] error.
 
     The solver's orientation constraint bounds trace(R), so an accepted solution can be
     off by up to about 1e-3 rad; the robust planner converges onto these joints near
     singularities, so they must hold the pose itself. Steps that would leave the joint
     limits are not taken (the solver's solution is kept)."""
-    plant, instance = kinematics.plant, kinematics.instance
-    lower = plant.GetPositionsFromArray(instance, plant.GetPositionLowerLimits())
-    upper = plant.GetPositionsFromArray(instance, plant.GetPositionUpperLimits())
+    lower, upper = limits
     x_target, R_target = X_BT.translation(), X_BT.rotation().matrix()
     polished = q.copy()
     for _ in range(20):
