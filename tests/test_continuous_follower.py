@@ -262,20 +262,32 @@ def test_config_rules_between_fields(field, value, message):
         dataclasses.replace(ContinuousConfig(), **{field: value}).Validate()
 
 
+# The harder scene: three brackets, two clamps and a second hose crossing 40 mm under it.
+CLUTTER = (
+    "station.hose.brackets=3",
+    "station.hose.clamps=2",
+    "station.hose.crossing_clearance=0.04",
+)
+
+
 @pytest.mark.slow
-@pytest.mark.parametrize("path", ["paper_path_3", "random_9", "random_34"])
-def test_continuous_run_through_the_station(tmp_path, path):
+@pytest.mark.parametrize(
+    "path, scene",
+    [("paper_path_3", ()), ("random_9", ()), ("random_34", ()), ("random_11", CLUTTER)],
+)
+def test_continuous_run_through_the_station(tmp_path, path, scene):
     """One seeded run of `motion: continuous` (ranging) through the simulated station, a
     paper path and random hoses: success, full coverage, no collisions, and the issue's
     goals for speed and error (the full set: tests/benchmarks/bench_continuous_following).
     random_34 ends near the cell's wall: the search past its end is stopped by the servo at
-    the workspace, which ends the hose there instead of failing the run."""
+    the workspace, which ends the hose there instead of failing the run. random_11 (its
+    tightest arc by its start bracket) with the cluttered scene (CLUTTER)."""
     import json
 
     from guidedarm.diagrams.cli.main import main
 
     out = tmp_path / "run"
-    sets = [f"path={path}", "motion=continuous", "estimator=ranging"]
+    sets = [f"path={path}", "motion=continuous", "estimator=ranging", *scene]
     code = main(
         ["run", "path_following", "--out", str(out)] + [a for s in sets for a in ("--set", s)]
     )
