@@ -85,6 +85,7 @@ BAD = {
     "servo weights -1": (lambda: Servo(weights=-np.ones(6)), "weights[0]", ">= 0"),
     "servo weights 0": (lambda: Servo(weights=np.zeros(6)), "weights", "at least one"),
     "servo damping 2": (lambda: Servo(damping=2.0), "damping", "in [0.001, 1]"),
+    "servo feedforward 1.5": (lambda: Servo(feedforward=1.5), "feedforward", "in [0, 1]"),
     "servo unfinalized": (
         lambda: Servo(plant=UNFINALIZED, frame=UNFINALIZED.world_frame()),
         "plant",

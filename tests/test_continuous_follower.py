@@ -209,6 +209,45 @@ def test_servo_closes_a_large_error_without_overshoot():
     assert q == pytest.approx(error_q, abs=1e-4)
 
 
+def test_servo_feedforward_follows_a_moving_target_without_lag():
+    """A target moving at 0.1 m/s (J = I): the feedback alone settles v / gain behind it (5
+    mm, less the period's move, as the error is taken to the next period's target); with
+    the target's velocity fed forward it settles within that one period's move (0.4 mm)."""
+    J = np.eye(6)
+    velocity = np.array([0, 0, 0, 0.1, 0.0, 0.0])
+    lags = []
+    for feedforward in (False, True):
+        q, v = np.zeros(6), np.zeros(6)
+        for k in range(int(2.0 / DT)):
+            target = velocity * (k + 1) * DT
+            twist = velocity if feedforward else None
+            q, v, _ = ServoStep(
+                J, target - q, q, v, DT, _Limits(6), np.eye(3), np.ones(6), 1e-6, 20, twist
+            )
+        lags.append(float(np.linalg.norm(target - q)))
+    assert lags[0] == pytest.approx(0.1 / 20 - 0.1 * DT, rel=1e-5)
+    assert lags[1] < 0.1 * DT * 1.001
+
+
+def test_an_arm_lagging_the_target_slows_it():
+    """A straight hose known ahead: an arm lag of twice lag_tolerance halves the speed the
+    target settles at; the default tolerance (0) leaves the speed alone."""
+    point, tangent = (lambda s: np.array([s, 0.0, 0.1])), (lambda s: np.array([1.0, 0, 0]))
+    _, estimate, _ = _Follow(point, tangent, 0.5)
+
+    def Settled(config: ContinuousConfig, lag: float) -> float:
+        s = estimate.fit.s - 0.1
+        ref = Reference(FOLLOW, point(s), np.array([1.0, 0, 0]), s, 0.0)
+        for _ in range(200):
+            ref = Advance(ref, estimate, DT, config, lag)
+        return ref.v
+
+    free = Settled(ContinuousConfig(), 0.0)
+    assert free > ContinuousConfig().min_speed
+    assert Settled(ContinuousConfig(), 0.05) == free
+    assert Settled(ContinuousConfig(lag_tolerance=0.004), 0.008) == pytest.approx(free / 2)
+
+
 @pytest.mark.parametrize(
     "field, value, message",
     [
@@ -223,20 +262,32 @@ def test_config_rules_between_fields(field, value, message):
         dataclasses.replace(ContinuousConfig(), **{field: value}).Validate()
 
 
+# The harder scene: three brackets, two clamps and a second hose crossing 40 mm under it.
+CLUTTER = (
+    "station.hose.brackets=3",
+    "station.hose.clamps=2",
+    "station.hose.crossing_clearance=0.04",
+)
+
+
 @pytest.mark.slow
-@pytest.mark.parametrize("path", ["paper_path_3", "random_9", "random_34"])
-def test_continuous_run_through_the_station(tmp_path, path):
+@pytest.mark.parametrize(
+    "path, scene",
+    [("paper_path_3", ()), ("random_9", ()), ("random_34", ()), ("random_11", CLUTTER)],
+)
+def test_continuous_run_through_the_station(tmp_path, path, scene):
     """One seeded run of `motion: continuous` (ranging) through the simulated station, a
     paper path and random hoses: success, full coverage, no collisions, and the issue's
     goals for speed and error (the full set: tests/benchmarks/bench_continuous_following).
     random_34 ends near the cell's wall: the search past its end is stopped by the servo at
-    the workspace, which ends the hose there instead of failing the run."""
+    the workspace, which ends the hose there instead of failing the run. random_11 (its
+    tightest arc by its start bracket) with the cluttered scene (CLUTTER)."""
     import json
 
     from guidedarm.diagrams.cli.main import main
 
     out = tmp_path / "run"
-    sets = [f"path={path}", "motion=continuous", "estimator=ranging"]
+    sets = [f"path={path}", "motion=continuous", "estimator=ranging", *scene]
     code = main(
         ["run", "path_following", "--out", str(out)] + [a for s in sets for a in ("--set", s)]
     )

@@ -183,6 +183,7 @@ def AddContinuousFollowing(
             config.servo_damping,
             setup.workspace,
             setup.X_WB,
+            config.servo_feedforward,
         ),
     )
     for port in ("ranges", "valid", "measured_at"):

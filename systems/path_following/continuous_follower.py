@@ -68,6 +68,7 @@ class _Run:
     record: np.ndarray | None = None
     grid: np.ndarray | None = None
     failure: str = ""
+    lag: float = 0.0
 
     @property
     def stopped(self) -> bool:
@@ -181,7 +182,7 @@ class ContinuousFollower(LeafSystem):
             run = _CannotFollow(run, f"the servo stopped the arm at t = {t:.2f} s: {servo_failure}")
         if not run.failure:
             reference = Advance(
-                run.reference, run.estimate, self._config.servo_period, self._config
+                run.reference, run.estimate, self._config.servo_period, self._config, run.lag
             )
             run = Replaced(run, reference=reference)
         state.get_mutable_abstract_state(self._run).set_value(run)
@@ -259,6 +260,7 @@ class ContinuousFollower(LeafSystem):
             step=run.step + 1,
             record=record,
             grid=np.concatenate((detected, errors), axis=None).astype(float),
+            lag=lag,
         )
         closest, sensor = min(
             ((r, k) for k, (r, v) in enumerate(zip(range_list, valid_list, strict=True)) if v),

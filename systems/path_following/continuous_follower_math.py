@@ -84,10 +84,15 @@ class ContinuousConfig:
     max_turn_rate_deg: the fastest turn of the target's x axis (deg/s).
     heading_tolerance_deg: the target's x axis lagging the estimated heading by more than
         this slows the target in proportion (deg).
+    lag_tolerance: the tool farther than this from the target at a reading (the arm cannot
+        keep up, e.g. its wrist turning at its joint limits) slows the target in proportion
+        (m); 0 (the default): off.
     servo_period: the target and the differential IK's tick (s); servo_gain: the
-        differential IK's gain on the tool's pose error (1/s), beside the target's own
-        velocity; rotation_weight: the length (m) a rotation of 1 rad of the tool counts
-        as against its position (the position, which the tracking needs, comes first;
+        differential IK's gain on the tool's pose error (1/s); servo_feedforward: the share
+        of the target's own velocity the differential IK adds to that feedback (0 to 1;
+        without it the arm lags the target by the feedback's braking curve, v^2 / 2 a, 15
+        mm at 0.1 m/s); rotation_weight: the length (m) a rotation of 1 rad of the tool
+        counts as against its position (the position, which the tracking needs, comes first;
         1 mm to 1 m, the arm's reach);
         roll_weight: the share of that weight of the roll about x_T (the hose's axis, which
         the detection does not need); servo_damping: the largest damping of the least
@@ -121,8 +126,10 @@ class ContinuousConfig:
     max_correction_speed: float = Positive(0.03)
     max_turn_rate_deg: float = Positive(30.0)
     heading_tolerance_deg: float = InRange(0.5, 90.0, 10.0)
+    lag_tolerance: float = InRange(0.0, 0.05, 0.0)
     servo_period: float = Positive(0.008)
     servo_gain: float = Positive(20.0)
+    servo_feedforward: float = InRange(0.0, 1.0, 0.0)
     rotation_weight: float = InRange(1e-3, 1.0, 0.05)
     roll_weight: float = InRange(0.0, 1.0, 0.1)
     servo_damping: float = InRange(1e-3, 1.0, 0.01)
@@ -566,9 +573,14 @@ def OnReading(
 
 
 def Advance(
-    ref: Reference, estimate: HoseEstimate, dt: float, config: ContinuousConfig
+    ref: Reference,
+    estimate: HoseEstimate,
+    dt: float,
+    config: ContinuousConfig,
+    lag: float = 0.0,
 ) -> Reference:
-    """The target one servo period later (module docstring). Its 3-vectors in floats: numpy's
+    """The target one servo period later (module docstring); lag: how far (m) the arm's
+    tool was from the target at the latest reading. Its 3-vectors in floats: numpy's
     per-call overhead on them costs more than the arithmetic, every servo period."""
     if ref.mode == DONE:
         return Replaced(ref, v=0.0)
@@ -590,11 +602,16 @@ def Advance(
     # proportion: it waits for the tool to turn instead of dragging it off the hose
     # sideways. (The heading of 30 mm of noisy readings wobbles by a few degrees, which
     # tilts the detection plane harmlessly.)
+    arm_lag = lag
     x_ref, heading = ref.x.tolist(), fit.heading.tolist()
     lag = math.acos(max(-1.0, min(1.0, _Dot(x_ref, heading)))) if ref.mode == FOLLOW else 0.0
     tolerance = math.radians(config.heading_tolerance_deg)
     if lag > tolerance:
         v_goal *= tolerance / lag
+    # An arm that cannot keep up (a fast turn of the wrist at its joint limits) slows the
+    # target the same way: the speed is what the arm can follow, not what the fit allows.
+    if ref.mode == FOLLOW and 0 < config.lag_tolerance < arm_lag:
+        v_goal *= config.lag_tolerance / arm_lag
     dv_max = config.acceleration * dt
     v = ref.v + max(-dv_max, min(dv_max, v_goal - ref.v))
     # The target moves with the path it is on (the estimate's curve in FOLLOW, the search's

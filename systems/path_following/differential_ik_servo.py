@@ -52,8 +52,9 @@ class DifferentialIkServo(LeafSystem):
     gain: of the pose error (1/s); weights (6 >= 0, not all 0: roll about x_T, pitch, yaw,
     x, y, z) and damping (in [MIN_DAMPING, 1]): of the least squares
     (differential_ik_servo_math.ServoStep); workspace and X_WB: the walls (m, the arm's base
-    frame B) and B's pose in W, None: no walls. Bad arguments raise ConfigurationError
-    naming them.
+    frame B) and B's pose in W, None: no walls; feedforward: the share (0 to 1) of the
+    target's velocity (its change over the last period) fed forward beside the feedback, 0:
+    none. Bad arguments raise ConfigurationError naming them.
     """
 
     def __init__(
@@ -69,6 +70,7 @@ class DifferentialIkServo(LeafSystem):
         damping: float,
         workspace: WorkspaceConfig | None = None,
         X_WB: RigidTransform | None = None,
+        feedforward: float = 0.0,
     ) -> None:
         super().__init__()
         CheckPlant("plant", plant)
@@ -86,6 +88,7 @@ class DifferentialIkServo(LeafSystem):
         if not weights.any():
             raise FieldError("weights", f"at least one must be > 0, got {weights}")
         CheckArgument("damping", damping, Bound(MIN_DAMPING, 1.0))
+        CheckArgument("feedforward", feedforward, Bound(0.0, 1.0))
         CheckInstance("workspace", workspace, (WorkspaceConfig, type(None)))
         if workspace is not None:
             workspace.Validate()
@@ -94,6 +97,7 @@ class DifferentialIkServo(LeafSystem):
         self._plant_context = plant.CreateDefaultContext()
         self._period, self._gain = period, gain
         self._weights, self._damping = weights, damping
+        self._feedforward = feedforward / period
         self._limits = JointLimits(
             plant.GetPositionLowerLimits(),
             plant.GetPositionUpperLimits(),
@@ -122,6 +126,9 @@ class DifferentialIkServo(LeafSystem):
         self._v = self.DeclareDiscreteState(n)
         self._status = self.DeclareDiscreteState(1)
         self._wall = self.DeclareDiscreteState(1)
+        # The previous period's target (X_WD as a 3 x 4 matrix, row-major) for the
+        # feedforward, all NaN before the first.
+        self._previous = self.DeclareDiscreteState(np.full(12, np.nan))
         self.DeclarePeriodicDiscreteUpdateEvent(period, 0.0, self._Update)
         # Outputs copied from the state by Drake, without a Python call.
         self.DeclareStateOutputPort("position_commanded", self._q)
@@ -149,6 +156,13 @@ class DifferentialIkServo(LeafSystem):
             plant_context, JacobianWrtVariable.kV, self._frame, _ORIGIN, self._world, self._world
         )
         X_WD = self._target.Eval(context)
+        twist = None
+        if self._feedforward:
+            previous = context.get_discrete_state(self._previous).get_value()
+            discrete.set_value(self._previous, X_WD.GetAsMatrix34().ravel())
+            if not np.isnan(previous[0]):
+                X_previous = RigidTransform(previous.reshape(3, 4))
+                twist = PoseError(X_previous, X_WD) * self._feedforward
         q_next, v_next, limited = ServoStep(
             J,
             PoseError(X_WT, X_WD),
@@ -160,6 +174,7 @@ class DifferentialIkServo(LeafSystem):
             self._weights,
             self._damping,
             self._gain,
+            twist,
         )
         wall = self._BodyAtWall(StoppingPositions(q_next, v_next, self._limits))
         if wall:

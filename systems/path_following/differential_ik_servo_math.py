@@ -148,32 +148,39 @@ def ServoStep(
     weights: np.ndarray,
     damping: float,
     gain: float,
+    twist: np.ndarray | None = None,
 ) -> tuple[np.ndarray, np.ndarray, bool]:
     """(q_next, v_next, limited): one period (module docstring). J: the 6 x n spatial
     velocity Jacobian of T in W at q; error: the pose error of T ([w; v] in W, PoseError's
-    order); R_WT: T's orientation (3 x 3); limited: whether a speed or acceleration limit
+    order); R_WT: T's orientation (3 x 3); twist: the target's own velocity ([w; v] in W,
+    rad/s and m/s), fed forward through the same least squares (v_ff = J# twist, added to
+    the feedback); None: feedback only; limited: whether a speed or acceleration limit
     changed v_next."""
     n = J.shape[1]
-    # J and the error as one 6 x (n + 1) matrix, expressed in T (its two 3-row halves
-    # rotated in one stacked product, each the same BLAS product as alone) and weighted by
-    # rows; its normal equations in one product.
-    A = R_WT.T @ np.concatenate((J, error[:, None]), axis=1).reshape(2, 3, n + 1)
-    A = A.reshape(6, n + 1)
+    # J, the error (and the twist) as one 6 x (n + 1 or 2) matrix, expressed in T (its two
+    # 3-row halves rotated in one stacked product, each the same BLAS product as alone) and
+    # weighted by rows; its normal equations in one product.
+    columns = (J, error[:, None]) if twist is None else (J, error[:, None], twist[:, None])
+    m = n + len(columns) - 1
+    A = R_WT.T @ np.concatenate(columns, axis=1).reshape(2, 3, m)
+    A = A.reshape(6, m)
     A *= weights[:, None]
     normal = A[:, :n].T @ A
     # J_T' J_T = V diag(e) V': sigma_min^2 of J_T is e[0], and the damped solve is diagonal.
     e, V = SymmetricEigen(normal[:, :n])
     lam2 = max(damping**2 - max(float(e[0]), 0.0), MIN_DAMPING**2)
     q_, v_ = q.tolist(), v.tolist()
-    rhs = np.empty((n, 2))
+    rhs = np.empty((n, m - n + 1))
     rhs[:, 0] = [lam2 * c for c in CentringVelocity(q_, limits)]
-    rhs[:, 1] = normal[:, n]
-    v_c, dq = (V @ ((V.T @ rhs) / (e + lam2)[:, None])).T.tolist()
+    rhs[:, 1:] = normal[:, n:]
+    v_c, dq, *feedforward = (V @ ((V.T @ rhs) / (e + lam2)[:, None])).T.tolist()
     # The rest joint by joint in Python floats (JointLimits), in list comprehensions (the
     # cheapest loops in CPython).
     reach = max([abs(d) / a for d, a in zip(dq, limits.feedback_acceleration_list, strict=True)])
     scale = min(gain, math.sqrt(2.0 / reach)) if reach > 0 else gain
     v_wanted = [c + d * scale for c, d in zip(v_c, dq, strict=True)]
+    if feedforward:
+        v_wanted = [w + f for w, f in zip(v_wanted, feedforward[0], strict=True)]
     speed_ratio = min(
         [
             s / (1e-300 if abs(w) < 1e-300 else abs(w))  # s / max(|w|, 1e-300) (_SELECT)

@@ -5,8 +5,9 @@ world, or (path following) the arm's base frame B, which the station turns into 
 coordinates with the frame's pose X_WB. The hose is registered on the plant's world body as
 a chain of capsules (radius = hose radius, one per centerline segment) with proximity,
 illustration and perception roles, so that the ToF sensors, contact checks and cameras all
-see it; a bracket (a collar 50 mm from the hose end and a post down to the table at world
-z = 0) holds each end, as the metal brackets of Wawrzyniak et al. do.
+see it; brackets (a collar and a post down to the table at world z = 0, by default one
+50 mm from each end, as the metal brackets of Wawrzyniak et al.), clamps and a crossing
+hose can be added (hose_fixtures.py).
 """
 
 import itertools
@@ -15,8 +16,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
-from pydrake.geometry import Box, Capsule, Cylinder
-from pydrake.math import RigidTransform, RotationMatrix
+from pydrake.geometry import Capsule
 from pydrake.multibody.plant import CoulombFriction, MultibodyPlant
 
 from guidedarm.systems.config_checks import (
@@ -25,6 +25,11 @@ from guidedarm.systems.config_checks import (
     Positive,
 )
 from guidedarm.systems.errors import ConfigurationError
+from guidedarm.systems.path_following.hose_fixtures import (
+    BracketCount,
+    RegisterFixtures,
+    SegmentPose,
+)
 from guidedarm.systems.path_following.workspace import WorkspaceConfig
 
 HOSES_DIR = Path(__file__).resolve().parents[2] / "models" / "hoses"
@@ -32,9 +37,7 @@ MIN_HOSE_LENGTH = 0.10
 # Every coordinate of a hose (m) lies within this of the origin: a few metres around a
 # tabletop arm; farther is no hose the arms reach, and 1e308 overflows the geometry.
 MAX_HOSE_COORDINATE = 5.0
-BRACKET_INSET = 0.05
 _HOSE_COLOR = np.array([0.15, 0.45, 0.85, 1.0])
-_BRACKET_COLOR = np.array([0.55, 0.56, 0.58, 1.0])
 
 
 @dataclass
@@ -49,14 +52,23 @@ class HoseConfig:
     diameter: hose diameter (m); the paper's shower hose is 20 mm.
     segment_length: length of one capsule of the geometry chain (m; at least 1 mm: a
         finer chain adds capsules, and collision time, without changing the hose's shape).
-    brackets: add a bracket at each end.
+    brackets: the brackets holding the hose (a collar and a post to the table): true (the
+        default) one 50 mm from each end, false none, an integer N that many: the two end
+        ones and N - 2 evenly between (N = 1: the start one).
+    clamps: hose clamps (a band, no post) evenly spread between the end brackets' places.
+    crossing_clearance: > 0 adds a second, straight hose of the same diameter crossing
+        under the middle of this one, perpendicular to it in plan, with this gap between
+        the two surfaces (m); 0: none. Refused when it would reach below the table.
+    hose_fixtures.py has the shapes; none of them is the followed hose.
     """
 
     centerline: str = ""
     frame: str = ""
     diameter: float = Positive(0.020)
     segment_length: float = InRange(0.001, math.inf, 0.010)
-    brackets: bool = True
+    brackets: bool | int = InRange(0, 50, True)
+    clamps: int = InRange(0, 50, 0)
+    crossing_clearance: float = InRange(0.0, 1.0, 0.0)
 
 
 def ResolveCenterlinePath(name_or_file: str) -> Path:
@@ -338,7 +350,8 @@ def WriteCenterline(points: np.ndarray, path: Path) -> None:
 def RegisterHose(plant: MultibodyPlant, centerline: np.ndarray, config: HoseConfig) -> list:
     """Registers the hose (and brackets) on the world body of an unfinalized plant.
 
-    Returns the GeometryIds of the hose capsules (proximity role), for contact checks.
+    Returns the GeometryIds of the hose capsules (proximity role), and of the crossing
+    hose's, for contact checks.
     """
     if not (config.diameter > 0 and config.segment_length > 0):
         raise ConfigurationError("hose diameter and segment_length must be positive")
@@ -349,40 +362,17 @@ def RegisterHose(plant: MultibodyPlant, centerline: np.ndarray, config: HoseConf
     friction = CoulombFriction(0.5, 0.5)
     ids = []
     for i, (a, b) in enumerate(itertools.pairwise(points)):
-        X_WC = _SegmentPose(a, b)
+        X_WC = SegmentPose(a, b)
         shape = Capsule(radius, float(np.linalg.norm(b - a)))
         ids.append(plant.RegisterCollisionGeometry(world, X_WC, shape, f"hose_{i}", friction))
         plant.RegisterVisualGeometry(world, X_WC, shape, f"hose_{i}", _HOSE_COLOR)
-    if config.brackets:
-        for name, ordered in (("start", points), ("end", points[::-1])):
-            _RegisterBracket(plant, name, ordered, radius, friction)
-    return ids
-
-
-def _RegisterBracket(plant, name, ordered, radius, friction) -> None:
-    """A collar around the hose BRACKET_INSET from its end and a post under it to the table.
-
-    The hose runs free beyond the bracket, so a follower that passes its end sees nothing
-    more (the post lies under the hose, where the consistency check rejects it).
-    """
-    world = plant.world_body()
-    s = ArcLength(ordered)
-    at = np.array([np.interp(BRACKET_INSET, s, ordered[:, i]) for i in range(3)])
-    ahead = np.array([np.interp(BRACKET_INSET + 0.01, s, ordered[:, i]) for i in range(3)])
-    axis = (ahead - at) / np.linalg.norm(ahead - at)
-    X_WC = _SegmentPose(at - axis * 0.006, at + axis * 0.006)
-    collar = Cylinder(radius + 0.003, 0.012)
-    post_top = at[2] - radius
-    height = max(post_top, 0.001)
-    X_WP = RigidTransform([at[0], at[1], height / 2])
-    post = Box(0.012, 0.012, height)
-    for suffix, X, shape in (("collar", X_WC, collar), ("post", X_WP, post)):
-        label = f"hose_bracket_{name}_{suffix}"
-        plant.RegisterCollisionGeometry(world, X, shape, label, friction)
-        plant.RegisterVisualGeometry(world, X, shape, label, _BRACKET_COLOR)
-
-
-def _SegmentPose(a: np.ndarray, b: np.ndarray) -> RigidTransform:
-    """Pose whose z axis runs from a to b, centred between them."""
-    axis = (b - a) / np.linalg.norm(b - a)
-    return RigidTransform(RotationMatrix.MakeFromOneVector(axis, 2), (a + b) / 2)
+    crossing = RegisterFixtures(
+        plant,
+        points,
+        (ArcLength(points), ArcLength(points[::-1])),
+        radius,
+        BracketCount(config.brackets),
+        config.clamps,
+        config.crossing_clearance,
+    )
+    return ids + crossing

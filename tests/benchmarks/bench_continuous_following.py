@@ -8,7 +8,7 @@ continuous set's totals against the goals (speed >= 40 mm/s, tracking mean <= 3 
 max <= 10 mm).
 
     .venv/bin/python tests/benchmarks/bench_continuous_following.py [--quick] [--more]
-        [--set KEY=VALUE ...]
+        [--paths P1,P2,...] [--load] [--set KEY=VALUE ...]
 
     .venv/bin/python tests/benchmarks/bench_continuous_following.py --breakdown PATH
         [--set KEY=VALUE ...]
@@ -19,8 +19,11 @@ max <= 10 mm).
     .venv/bin/python tests/benchmarks/bench_continuous_following.py --rtf PATH [N]
         [--set KEY=VALUE ...]
 
---quick: paper paths only; --more: random_20..39 too; --set: scenario overrides passed
-to every run (e.g. --set station.plant_config.time_step=0.004). --breakdown: one
+--quick: paper paths only; --more: random_20..39 too; --paths: these hoses only (e.g.
+paper_path_1,random_11); --load: one core kept busy by a process the benchmark starts
+and stops itself (a pure-Python spin loop), so that "with one core busy" is the same load
+wherever it runs (also with --rtf); --set: scenario overrides passed to every run (e.g.
+--set station.plant_config.time_step=0.004 or --set station.hose.brackets=3). --breakdown: one
 continuous ranging run on PATH in this process, printing the CPU time (process time,
 which other processes' load disturbs less than wall time) per simulated second of the
 simulation loop and of each per-tick Python system in it (the rest of the loop is the
@@ -235,7 +238,26 @@ def RealtimeFactors(path: str, runs: int) -> None:
             print(f"{kind}: median {median:.2f} (min {min(values)}, max {max(values)})")
 
 
+@contextlib.contextmanager
+def OneCoreBusy(busy: bool):
+    """With busy, a process spinning one core for the duration of the block."""
+    if not busy:
+        yield
+        return
+    spinner = subprocess.Popen([sys.executable, "-c", "while True: pass"])
+    try:
+        yield
+    finally:
+        spinner.kill()
+        spinner.wait()
+
+
 def main() -> None:
+    with OneCoreBusy("--load" in sys.argv):
+        Run()
+
+
+def Run() -> None:
     if "--rtf" in sys.argv:
         at = sys.argv.index("--rtf")
         count = sys.argv[at + 2] if len(sys.argv) > at + 2 else "--"
@@ -258,9 +280,13 @@ def main() -> None:
     paths = [f"paper_path_{k}" for k in range(1, 5)]
     if "--quick" not in sys.argv:
         paths += [f"random_{k}" for k in range(40 if "--more" in sys.argv else 20)]
+    if "--paths" in sys.argv:
+        paths = sys.argv[sys.argv.index("--paths") + 1].split(",")
+    paper = [p for p in paths if p.startswith("paper_path_")]
     runs = [(p, "continuous", "ranging") for p in paths]
-    runs += [(p, "continuous", "grid") for p in paths[:4]]
-    runs += [(p, "joint_trajectory", "ranging") for p in paths[:4]]
+    runs += [(p, "continuous", "grid") for p in paper]
+    if "--paths" not in sys.argv:
+        runs += [(p, "joint_trajectory", "ranging") for p in paper]
     print("| path | motion | estimator | " + " | ".join(FIELDS) + " | wall_s | rtf |")
     print("|" + "---|" * (len(FIELDS) + 5))
     results = []
