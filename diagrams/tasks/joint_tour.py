@@ -50,7 +50,8 @@ class JointTourScenario:
     ever farther than this from the commanded tour on any joint (rad), at the delay
     (tracking.MAX_TRACKING_DELAY at most, reported as tracking_delay_s) that fits it best:
     a tour ends where it started, so the final error alone passes an arm that never moved
-    (the shipped ur10e_joint_tour tracks within 0.0018 rad)."""
+    (the shipped ur10e_joint_tour tracks within 0.0018 rad).
+    random_seed: the scenario's random seed (the draw of station.errors)."""
 
     task: str = "joint_tour"
     arm: str = ""
@@ -59,6 +60,7 @@ class JointTourScenario:
     settle_time: float = InRange(0.0, 60.0, 0.5)
     max_final_error: float = Positive(0.01)
     max_tracking_error: float = Positive(0.05)
+    random_seed: int = 0
     station: StationScenario = field(default_factory=StationScenario)
 
     def Validate(self) -> None:

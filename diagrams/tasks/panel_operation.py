@@ -60,6 +60,7 @@ from guidedarm.diagrams.tasks.panel_operation_report import (
 )
 from guidedarm.diagrams.tasks.planner_builder import MakeAccelerationPlanner
 from guidedarm.diagrams.tasks.registry import RunFlags, TaskDefinition
+from guidedarm.systems.cell_errors.camera_errors import ScaledCameraErrors
 from guidedarm.systems.config_checks import (
     ChangedKey,
     CheckConfig,
@@ -367,9 +368,16 @@ class PanelOperationRun:
 
 
 def _replace_camera(station: StationScenario, name: str, camera, k: int) -> StationScenario:
+    """The station with camera `name` rendering k times its resolution, its pixel errors
+    (station.errors.cameras, drawn) scaled with it."""
     cameras = dict(station.cameras)
     cameras[name] = SupersampledCameraConfig(camera, k)
-    return StationScenario(**{**station.__dict__, "cameras": cameras})
+    station = station.WithErrorsDrawn(None)
+    errors = station.errors
+    if name in errors.cameras:
+        scaled = {**errors.cameras, name: ScaledCameraErrors(errors.cameras[name], k)}
+        errors = dataclasses.replace(errors, cameras=scaled)
+    return dataclasses.replace(station, cameras=cameras, errors=errors)
 
 
 def _MakePlanner(scenario: PanelOperationScenario) -> tuple[AccelerationPlanner, PlannerFrames]:

@@ -18,6 +18,9 @@ from guidedarm.systems.errors import ConfigurationError
 LIST_INDEX = "#"
 # What RunTask adds to every task's metrics: the run's wall-clock time (s).
 RUN_METRICS = ("wall_time_s",)
+# Where RunTask writes the run's drawn cell errors (station.errors) in the summary: the
+# cell of the run, not a metric.
+ERRORS_KEY = "errors"
 
 
 @dataclass(frozen=True)
@@ -77,6 +80,11 @@ class TaskDefinition:
                         f"{flag} has no effect on task {self.name} (it simulates no station)"
                     )
         station = getattr(scenario, "station", None)
+        if isinstance(station, StationScenario) and flags.hardware and station.HasErrors():
+            raise ConfigurationError(
+                "station.errors and station.errors_preset describe a simulated cell; a "
+                "--hardware run drives the real one: remove them"
+            )
         if isinstance(station, StationScenario) and not flags.hardware:
             try:
                 station.CheckSimulated()
@@ -109,9 +117,10 @@ class TaskDefinition:
 
 def NumericMetricNames(summary: Any, prefix: str = "") -> set[str]:
     """The dotted names of the numbers in a summary (booleans are not numbers), list
-    indices written LIST_INDEX: what TaskDefinition.metrics declares."""
+    indices written LIST_INDEX: what TaskDefinition.metrics declares. The drawn errors
+    (ERRORS_KEY at the top) are not metrics."""
     if isinstance(summary, dict):
-        items = [(str(k), v) for k, v in summary.items()]
+        items = [(str(k), v) for k, v in summary.items() if prefix or k != ERRORS_KEY]
     elif isinstance(summary, list):
         items = [(LIST_INDEX, v) for v in summary]
     elif isinstance(summary, int | float) and not isinstance(summary, bool):
