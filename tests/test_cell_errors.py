@@ -205,3 +205,24 @@ def test_error_entries_load_from_yaml_tags():
     drawn = station.WithErrorsDrawn(1).errors.cameras["camera"]
     assert len(drawn.focal_error_px) == 2
     assert drawn.X_mount_error.IsDeterministic()
+
+
+def test_errors_budget_runs_every_source_alone_and_all_together(run_cli, tmp_path):
+    """marker_view with the c920 preset, one draw each: a row per accuracy metric for
+    `all` and for each of the preset's four camera sources, in the table and the CSV."""
+    code, out, err = run_cli(
+        "errors-budget", "marker_view", "--preset", "c920", "--runs", "1",
+        "--out", tmp_path, "--set", "supersampling=1",
+    )  # fmt: skip
+    assert code == 0, err
+    rows = (tmp_path / "errors_budget.csv").read_text().splitlines()
+    sources = {row.split(",")[0] for row in rows[1:]}
+    assert sources == {
+        "all",
+        "camera_errors.focal_error_px",
+        "camera_errors.principal_point_error_px",
+        "camera_errors.distortion",
+        "camera_errors.X_mount_error",
+    }
+    assert (tmp_path / "errors_budget.png").stat().st_size > 0
+    assert "abs_error_mm" in out

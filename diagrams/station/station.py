@@ -230,7 +230,9 @@ def _AddCamera(
     # body that carries F. The camera's own offset X_BC is already inside `color`.
     X_BodyS = frame.GetFixedPoseInBodyFrame() @ config.X_PB.GetDeterministicValue()
     if errors is not None:
-        X_BodyS = X_BodyS @ true.X_mount_error
+        # The error is the camera frame C's true pose in its nominal one: S moves with it.
+        X_SC = color.core().sensor_pose_in_camera_body()
+        X_BodyS = X_BodyS @ X_SC @ true.X_mount_error @ X_SC.inverse()
     body_frame_id = plant.GetBodyFrameIdOrThrow(frame.body().index())
     sensor = builder.AddNamedSystem(
         f"{name}.rgbd_sensor", RgbdSensor(body_frame_id, X_BodyS, color, depth)
@@ -251,11 +253,21 @@ def _InstanceOf(plant: MultibodyPlant, scoped_name: str):
     return plant.GetModelInstanceByName(scoped_name.rsplit("::", 1)[0])
 
 
+def TrueArmPositions(station: Diagram, root_context, arm: str) -> np.ndarray | None:
+    """The true joint positions (rad) of `arm` in the simulated station's plant in its
+    context within `root_context`; None for a hardware station, which has no truth."""
+    if not station.HasOutputPort("sim.plant_state"):
+        return None
+    plant = station.GetSubsystemByName("plant")
+    context = plant.GetMyContextFromRoot(root_context)
+    return plant.GetPositions(context, plant.GetModelInstanceByName(arm))
+
+
 def TruePose(station: Diagram, root_context, frame_A: str, frame_B: str) -> RigidTransform | None:
     """X_AB between two scoped frames of the simulated station's (true) plant in its
     context within `root_context` (the ground truth of the `sim.` ports); None for a
     hardware station, which has no truth."""
-    if not station.HasSubsystemNamed("plant"):
+    if not station.HasOutputPort("sim.plant_state"):
         return None
     plant = station.GetSubsystemByName("plant")
     context = plant.GetMyContextFromRoot(root_context)

@@ -20,7 +20,7 @@ from guidedarm.diagrams.plots import PlotJointSeries
 from guidedarm.diagrams.run_context import AdvanceWithProgress, RunContext
 from guidedarm.diagrams.station.hardware_station import CheckArmAtStart
 from guidedarm.diagrams.station.scenario import StationScenario
-from guidedarm.diagrams.station.station import MakeStation
+from guidedarm.diagrams.station.station import MakeStation, TrueArmPositions
 from guidedarm.diagrams.station.station_plant import (
     ArmInitialPosition,
     CheckJointPositions,
@@ -172,17 +172,28 @@ def RunJointTour(scenario: JointTourScenario, context: RunContext) -> dict[str, 
             f"the measured arm ended {final_error:.4g} rad from the last waypoint "
             f"(max_final_error {scenario.max_final_error} rad)"
         )
-    return {
+    metrics = {
         "sim_time_s": round(t_end, 4),
         "tracking_error_max_rad": tracking_error,
         "tracking_delay_s": delay,
         "final_error_rad": final_error,
         "failure": failure,
     }
+    q_true = TrueArmPositions(station, root, scenario.arm)
+    if q_true is not None:
+        last = trajectory.vector_values(times[-1:])[:, 0]
+        metrics["true_final_error_rad"] = float(np.max(np.abs(last - q_true)))
+    return metrics
 
 
 # The numbers of RunJointTour's summary (TaskDefinition.metrics).
-JOINT_TOUR_METRICS = ("sim_time_s", "tracking_error_max_rad", "tracking_delay_s", "final_error_rad")
+JOINT_TOUR_METRICS = (
+    "sim_time_s",
+    "tracking_error_max_rad",
+    "tracking_delay_s",
+    "final_error_rad",
+    "true_final_error_rad",
+)
 
 TASK = TaskDefinition(
     name="joint_tour",

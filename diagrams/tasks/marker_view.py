@@ -143,4 +143,12 @@ TASK = TaskDefinition(
     description="estimate the marker panel's pose from one free-camera view (markers paper)",
     simulates=False,
     metrics=MARKER_VIEW_METRICS,
+    ground_truth_metrics=(
+        "abs_error_mm",
+        "rel_error_pct",
+        "abs_angle_error_deg",
+        "rotation_error_deg",
+        "reference_mm",
+        "reference_deg",
+    ),
 )

@@ -51,6 +51,9 @@ class TaskDefinition:
     check_run(scenario, flags), when given, refuses (ConfigurationError) a scenario the
     task cannot run with these RunFlags (e.g. path following's kinematic executor with
     --hardware); CheckRun calls it before anything of the run is written.
+    ground_truth_metrics: metrics measured against the simulation's truth that have no
+    `true_` prefix (e.g. marker_view's errors against the rendered pose); `guidedarm
+    describe` lists each metric's source (MetricSource).
     metrics: the dotted names of every number its summary.json can carry (a list's
     elements as `name.#`; RUN_METRICS are added to every task's): what a campaign may
     collect and its report plots. tests/test_sweep.py compares them with real runs.
@@ -65,6 +68,20 @@ class TaskDefinition:
     simulates: bool = True
     metrics: tuple[str, ...] = ()
     check_run: Callable[[Any, RunFlags], None] | None = None
+    ground_truth_metrics: tuple[str, ...] = ()
+
+    def MetricSource(self, name: str) -> str:
+        """Where a metric comes from: the true cell (a `true_` metric, or one of
+        ground_truth_metrics), what the controller commands or measures (one with a
+        `true_` twin), or '' for the others (times, counts, settings)."""
+        parts = name.split(".")
+        if any(p.startswith("true_") for p in parts) or name in self.ground_truth_metrics:
+            return "the true cell (simulation ground truth; none on hardware)"
+        for i in range(len(parts)):
+            twin = ".".join([*parts[:i], f"true_{parts[i]}", *parts[i + 1 :]])
+            if twin in self.metrics:
+                return f"what the controller commands or measures (on the true cell: {twin})"
+        return ""
 
     def CheckRun(self, scenario: Any, flags: RunFlags) -> None:
         """Refuses (ConfigurationError, one line) running `scenario` with `flags`: a flag a

@@ -96,7 +96,12 @@ def DrawErrors(config: Any, random_seed: int | None, prefix: str = "") -> Any:
             f"{prefix} is a distribution: draw it with the run's random_seed first "
             "(a task run does; MakeStation builds one drawn cell)"
         )
-    return DrawValue(config, SourceGenerator(random_seed, prefix))
+    try:
+        return DrawValue(config, SourceGenerator(random_seed, prefix))
+    except Exception as e:  # Drake refuses some distributions (e.g. Gaussian Rpy angles)
+        why = str(e).strip().splitlines()[0] if str(e).strip() else type(e).__name__
+        why = why.split(" condition ", 1)[-1] if why.startswith("Failure at") else why
+        raise ConfigurationError(f"{prefix}: Drake cannot draw this distribution ({why})") from None
 
 
 def ErrorsAsData(config: Any) -> Any:
