@@ -110,26 +110,32 @@ def RunBudget(
     scenario: Any,
     runs: int,
     progress: Callable[[str], None] = lambda _: None,
-) -> list[BudgetRow]:
-    """Runs `scenario` `runs` times (random_seed 0..runs-1) with every source, then with
-    each source alone, and returns the statistics of every accuracy metric (a numeric
-    metric with `error` in its name) per configuration."""
+    each_source: bool = True,
+) -> tuple[list[BudgetRow], list[tuple[str, int, str, float]]]:
+    """Runs `scenario` `runs` times (random_seed 0..runs-1) with every source, then (with
+    `each_source`) with each source alone, and returns the statistics of every accuracy
+    metric (a numeric metric with `error` in its name) per configuration, and every run's
+    values as (source, random_seed, metric, value)."""
     if not hasattr(scenario, "random_seed"):
         raise ConfigurationError(f"task {task.name} has no random_seed to draw errors from")
-    rows = []
-    for source in [ALL_SOURCES, *ErrorSources(scenario)]:
+    rows, values = [], []
+    for source in [ALL_SOURCES, *(ErrorSources(scenario) if each_source else [])]:
         summaries = []
         for seed in range(runs):
             progress(f"{source}: draw {seed + 1} of {runs}")
             configured = dataclasses.replace(OnlySource(scenario, source), random_seed=seed)
             with tempfile.TemporaryDirectory(prefix="guidedarm-budget-") as out:
                 summaries.append(RunTask(task, configured, RunContext(Path(out), quiet=True)))
+            values += [(source, seed, *v) for v in _AccuracyMetrics(summaries[-1])]
         rows += _Statistics(source, summaries)
-    return rows
+    return rows, values
 
 
-def WriteBudget(rows: list[BudgetRow], out_dir: Path) -> list[Path]:
-    """errors_budget.csv and errors_budget.png (p95 per metric, a bar per source)."""
+def WriteBudget(
+    rows: list[BudgetRow], values: list[tuple[str, int, str, float]], out_dir: Path
+) -> list[Path]:
+    """errors_budget.csv, errors_budget_runs.csv (every run's values) and
+    errors_budget.png (mean and p95 per metric, a bar per source)."""
     import matplotlib.pyplot as plt  # after guidedarm.diagrams.plots chose Agg
 
     import guidedarm.diagrams.plots  # noqa: F401  (selects the Agg backend)
@@ -141,6 +147,11 @@ def WriteBudget(rows: list[BudgetRow], out_dir: Path) -> list[Path]:
         writer.writerow([field.name for field in dataclasses.fields(BudgetRow)])
         for row in rows:
             writer.writerow([getattr(row, field.name) for field in dataclasses.fields(row)])
+    runs_table = out_dir / "errors_budget_runs.csv"
+    with runs_table.open("w", newline="") as f:
+        writer = csv.writer(f)
+        writer.writerow(["source", "random_seed", "metric", "value"])
+        writer.writerows(values)
     metrics = sorted({r.metric for r in rows})
     sources = list(dict.fromkeys(r.source for r in rows))
     figure, axes = plt.subplots(len(metrics), 1, figsize=(8, 1.2 + 1.6 * len(metrics)))
@@ -161,7 +172,7 @@ def WriteBudget(rows: list[BudgetRow], out_dir: Path) -> list[Path]:
     picture = out_dir / "errors_budget.png"
     figure.savefig(picture, dpi=110)
     plt.close(figure)
-    return [table, picture]
+    return [table, runs_table, picture]
 
 
 def FormatBudget(rows: list[BudgetRow]) -> str:
@@ -174,12 +185,16 @@ def FormatBudget(rows: list[BudgetRow]) -> str:
     return "\n".join(lines)
 
 
+def _AccuracyMetrics(summary: dict[str, Any]) -> list[tuple[str, float]]:
+    """(name, value) of a summary's accuracy metrics: its numbers with `error` in the name."""
+    return [(name, value) for name, value in _Scalars(summary) if "error" in name]
+
+
 def _Statistics(source: str, summaries: list[dict[str, Any]]) -> list[BudgetRow]:
     values: dict[str, list[float]] = {}
     for summary in summaries:
-        for name, value in _Scalars(summary):
-            if "error" in name:
-                values.setdefault(name, []).append(value)
+        for name, value in _AccuracyMetrics(summary):
+            values.setdefault(name, []).append(value)
     success = float(np.mean([s.get("success") is True for s in summaries]))
     return [
         BudgetRow(

@@ -226,3 +226,32 @@ def test_errors_budget_runs_every_source_alone_and_all_together(run_cli, tmp_pat
     }
     assert (tmp_path / "errors_budget.png").stat().st_size > 0
     assert "abs_error_mm" in out
+
+
+def test_link_errors_move_the_true_arm_s_joint_frames():
+    """A 2 mm error of the UR10e's first joint frame (along its x) moves its tool by those
+    2 mm at any joint angles; the arm keeps its joints, their order and its actuators."""
+    from pydrake.math import RigidTransform
+    from pydrake.multibody.plant import MultibodyPlant
+
+    from guidedarm.diagrams.station.station_plant import AddStationModels
+
+    _, scenario, _ = LoadScenario("ur10e_waypoints", [])
+    link_errors = [Transform(RigidTransform([0.002, 0.0, 0.0]))] + [Transform()] * 5
+    plants = []
+    for arm_errors in ({}, {"ur10e": ArmErrors(link_errors=link_errors)}):
+        plant = MultibodyPlant(0.0)
+        AddStationModels(scenario.station, plant, arm_errors=arm_errors)
+        plant.Finalize()
+        plants.append(plant)
+    q = np.array([0.3, -1.2, 1.0, -0.5, 0.7, 0.2])
+    tools = []
+    for plant in plants:
+        context = plant.CreateDefaultContext()
+        plant.SetPositions(context, plant.GetModelInstanceByName("ur10e"), q)
+        tools.append(plant.GetFrameByName("tool0").CalcPoseInWorld(context).translation())
+        assert plant.num_actuated_dofs(plant.GetModelInstanceByName("ur10e")) == 6
+    nominal = plants[0]
+    parent = nominal.GetFrameByName("shoulder_pan_joint_parent")
+    R_WF = parent.CalcPoseInWorld(nominal.CreateDefaultContext()).rotation()
+    np.testing.assert_allclose(tools[1] - tools[0], R_WF @ [0.002, 0.0, 0.0], atol=1e-12)

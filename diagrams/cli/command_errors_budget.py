@@ -1,9 +1,10 @@
-"""`guidedarm errors-budget SCENARIO --preset P [--runs N] [--out DIR] [--set K=V]`.
+"""`guidedarm errors-budget SCENARIO --preset P [--runs N] [--all-only] [--out DIR] [--set K=V]`.
 
 Runs the scenario over N draws of its cell's errors (the presets P and the scenario's own
 station.errors), with every source on and then with each source alone, and prints and
 writes the error budget: mean, p95 and max of every accuracy metric per source
-(DIR/errors_budget.csv, DIR/errors_budget.png; diagrams/errors_budget.py). Runs are
+(DIR/errors_budget.csv, every run's values in DIR/errors_budget_runs.csv,
+DIR/errors_budget.png; diagrams/errors_budget.py). Runs are
 sequential, in this process.
 """
 
@@ -29,6 +30,9 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         "--preset", required=True, help="error presets NAME[,NAME] (models/errors/NAME.yaml)"
     )
     parser.add_argument("--runs", type=int, default=10, help="draws per configuration (10)")
+    parser.add_argument(
+        "--all-only", action="store_true", help="only every source together (no budget)"
+    )
     parser.add_argument("--out", type=Path, help="output directory (default runs/budget-NAME)")
     AddOverridesArgument(parser, "override a scenario key (dotted keys reach nested fields)")
     parser.set_defaults(func=errors_budget_command)
@@ -40,9 +44,15 @@ def errors_budget_command(args: argparse.Namespace) -> int:
     task, scenario, name = LoadScenario(args.scenario, args.overrides)
     scenario = WithPreset(scenario, args.preset)
     out_dir = PrepareOutputDirectory(args.out or Path("runs") / f"budget-{name}")
-    rows = RunBudget(task, scenario, args.runs, lambda text: print(f"  {text}", flush=True))
+    rows, values = RunBudget(
+        task,
+        scenario,
+        args.runs,
+        lambda text: print(f"  {text}", flush=True),
+        each_source=not args.all_only,
+    )
     print(FormatBudget(rows))
     print("wrote:")
-    for path in WriteBudget(rows, out_dir):
+    for path in WriteBudget(rows, values, out_dir):
         print(f"  {path}")
     return 0

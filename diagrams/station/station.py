@@ -50,7 +50,6 @@ from guidedarm.diagrams.station.station_plant import (
     SetInitialPositions,
 )
 from guidedarm.systems.cell_errors.camera_errors import CameraErrors, MakeTrueCamera
-from guidedarm.systems.cell_errors.distributions import IsZeroError
 from guidedarm.systems.cell_errors.joint_encoder import JointEncoder
 from guidedarm.systems.cell_errors.lens_distortion import LensDistortion
 from guidedarm.systems.config_checks import CheckConfig, CheckInstance
@@ -73,7 +72,7 @@ def MakeStation(
     errors = scenario.WithErrorsDrawn(None).errors
     builder = DiagramBuilder()
     plant, scene_graph = AddMultibodyPlant(scenario.plant_config, builder)
-    AddStationModels(scenario, plant, model_errors=errors.models)
+    AddStationModels(scenario, plant, model_errors=errors.models, arm_errors=errors.arms)
     if scenario.cameras:
         # Only cameras render; a renderer poses every perception geometry at every plant
         # step (SceneGraph's pose update), most of the step's cost without a camera.
@@ -154,7 +153,9 @@ def _AddArm(
     # integrate it between every two events.)
     # What the controller measures: the true state, or what the encoders make of it.
     measured_state = plant.get_state_output_port(instance)
-    if errors is not None and not IsZeroError(errors):
+    if errors is not None and (
+        errors.joint_offset or errors.encoder_resolution or errors.joint_stiffness
+    ):
         encoder = builder.AddNamedSystem(
             f"{name}.encoder", _MakeEncoder(errors, n, controller_plant, f"errors.arms.{name}")
         )

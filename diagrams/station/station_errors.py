@@ -41,11 +41,14 @@ class ArmErrors:
     joint_stiffness: per joint, the transmission's stiffness (N m/rad); empty: rigid. The
         link deflects from the motor angle under the gravity torque it holds while the
         encoder reads the motor side (systems/cell_errors/joint_encoder.py).
+    link_errors: per revolute joint, the true pose of its frame on its parent link in
+        the nominal one (the links' length and twist errors; m, rad); empty: none.
     """
 
     joint_offset: VectorError = field(default_factory=list)
     encoder_resolution: ScalarError = 0.0
     joint_stiffness: VectorError = field(default_factory=list)
+    link_errors: list[Transform] = field(default_factory=list)
 
     def Validate(self) -> None:
         """Raises ConfigurationError naming the first bad field (drawn values only)."""
@@ -56,6 +59,8 @@ class ArmErrors:
             )
         if isinstance(self.joint_stiffness, list) and not all(k > 0 for k in self.joint_stiffness):
             raise ConfigurationError("joint_stiffness: every stiffness must be > 0 (N m/rad)")
+        if any(X.base_frame for X in self.link_errors):
+            raise ConfigurationError("link_errors: base_frame cannot be set (each is in its joint)")
 
 
 @dataclass

@@ -24,9 +24,10 @@ from pydrake.multibody.parsing import (
 from pydrake.multibody.plant import MultibodyPlant
 from pydrake.multibody.tree import ModelInstanceIndex
 
+from guidedarm.diagrams.station.link_errors import MoveJointFrames
 from guidedarm.diagrams.station.model_paths import MakeParser
 from guidedarm.diagrams.station.scenario import ArmConfig, StationScenario
-from guidedarm.diagrams.station.station_errors import ModelErrors
+from guidedarm.diagrams.station.station_errors import ArmErrors, ModelErrors
 from guidedarm.systems.config_checks import (
     NON_NEGATIVE,
     CheckArgument,
@@ -74,10 +75,12 @@ def AddStationModels(
     model_instance_names: list[str] | None = None,
     with_hose: bool = True,
     model_errors: dict[str, ModelErrors] | None = None,
+    arm_errors: dict[str, ArmErrors] | None = None,
 ) -> None:
     """Adds the scenario's models (all, or the named instances) to an unfinalized plant;
     a welded model of `model_errors` (drawn, keyed by instance) where it truly is: its
-    weld's X_PC followed by X_error (the simulated station's plant only)."""
+    weld's X_PC followed by X_error; an arm of `arm_errors` with its link_errors
+    (link_errors.MoveJointFrames). Errors are for the simulated station's plant only."""
     directives = scenario.directives
     if model_instance_names is not None:
         directives = _KeepInstances(scenario, model_instance_names)
@@ -87,6 +90,11 @@ def AddStationModels(
         ProcessModelDirectives(ModelDirectives(directives=directives), MakeParser(plant))
     except Exception as e:
         raise _DirectivesError(e) from None
+    for arm, errors in (arm_errors or {}).items():
+        if errors.link_errors:
+            X_errors = [X.GetDeterministicValue() for X in errors.link_errors]
+            GetArmInstance(plant, arm)  # a known instance, or one line naming the others
+            MoveJointFrames(plant, arm, X_errors)
     if with_hose and scenario.hose is not None:
         RegisterHose(plant, HoseCenterlineInWorld(scenario), scenario.hose)
 
