@@ -114,7 +114,7 @@ def RunBudget(
 ) -> tuple[list[BudgetRow], list[tuple[str, int, str, float]]]:
     """Runs `scenario` `runs` times (random_seed 0..runs-1) with every source, then (with
     `each_source`) with each source alone, and returns the statistics of every accuracy
-    metric (a numeric metric with `error` in its name) per configuration, and every run's
+    metric (_AccuracyMetrics) per configuration, and every run's
     values as (source, random_seed, metric, value)."""
     if not hasattr(scenario, "random_seed"):
         raise ConfigurationError(f"task {task.name} has no random_seed to draw errors from")
@@ -186,8 +186,13 @@ def FormatBudget(rows: list[BudgetRow]) -> str:
 
 
 def _AccuracyMetrics(summary: dict[str, Any]) -> list[tuple[str, float]]:
-    """(name, value) of a summary's accuracy metrics: its numbers with `error` in the name."""
-    return [(name, value) for name, value in _Scalars(summary) if "error" in name]
+    """(name, value) of a summary's accuracy metrics: its numbers whose name says `error`
+    or `repeatability`."""
+    return [
+        (name, value)
+        for name, value in _Scalars(summary)
+        if "error" in name or "repeatability" in name
+    ]
 
 
 def _Statistics(source: str, summaries: list[dict[str, Any]]) -> list[BudgetRow]:
