@@ -19,7 +19,7 @@ from guidedarm.diagrams.overlays.waypoint_overlays import AddWaypointOverlays
 from guidedarm.diagrams.plots import PlotJointSeries
 from guidedarm.diagrams.run_context import AdvanceWithProgress, RunContext
 from guidedarm.diagrams.station.scenario import StationScenario
-from guidedarm.diagrams.station.station import MakeStation
+from guidedarm.diagrams.station.station import MakeStation, TruePose
 from guidedarm.diagrams.tasks.cell_collisions import CellCollisions, ModelNames
 from guidedarm.diagrams.tasks.planner_builder import MakeAccelerationPlanner, SymmetricLimit
 from guidedarm.diagrams.tasks.planner_plots import PlotScaling, PlotTcpPath
@@ -66,6 +66,7 @@ class WaypointsScenario:
         the commanded one (m), at the delay (tracking.MAX_TRACKING_DELAY at most, reported
         as tracking_delay_s) that fits the measurement best: the planner's success alone
         says nothing of the arm.
+    random_seed: the scenario's random seed (the draw of station.errors).
     """
 
     task: str = "waypoints"
@@ -80,6 +81,7 @@ class WaypointsScenario:
     max_time: float = Positive(20.0)
     settle_time: float = NonNegative(0.3)
     max_tracking_error: float = Positive(0.01)
+    random_seed: int = 0
     station: StationScenario = field(default_factory=StationScenario)
 
     def Validate(self) -> None:
@@ -240,6 +242,14 @@ def RunWaypoints(scenario: WaypointsScenario, context: RunContext) -> dict[str, 
             f"(max_tracking_error {scenario.max_tracking_error} m)"
         )
     metrics["cell_contacts"] = collisions.CountContacts(measured[::10])
+    X_WT = TruePose(station, root, "world", scenario.tool_frame)
+    if X_WT is not None:
+        # The waypoints are in the nominal base frame: where the base is meant to be.
+        kinematics = setup.planning.kinematics
+        X_WB = kinematics.base_frame.CalcPoseInWorld(kinematics.plant.CreateDefaultContext())
+        p_BT = X_WB.inverse() @ X_WT.translation()
+        true_error = np.linalg.norm(p_BT - setup.planning.waypoints[-1, :3])
+        metrics["true_final_error_m"] = float(true_error)
     context.headline.update(metrics)
     SavePlannerFigures(context, scenario, setup, trajectory, measured)
     WriteTrajectoryCsv(
@@ -258,6 +268,7 @@ WAYPOINTS_METRICS = (
     "qdd_max",
     "qdd_min",
     "final_error_m",
+    "true_final_error_m",
     "c_min",
     "waypoint_distance_m.#",
     "qdd_step_max",
