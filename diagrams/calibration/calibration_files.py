@@ -1,0 +1,44 @@
+"""The files of the calibration commands: BOARD.yaml in, CAMERA.yaml (as the marker
+estimator reads it, diagrams/tasks/panel_files.py) and hand_eye.yaml out."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+from pydrake.math import RigidTransform, RollPitchYaw
+
+from guidedarm.diagrams.scenario_loading import ScenarioError, load_typed, read_raw_scenario
+from guidedarm.systems.calibration.charuco_board import BoardSpec
+from guidedarm.systems.markers.marker_pose_estimator_math import CameraIntrinsics
+
+
+def LoadBoardSpec(path: str | Path) -> BoardSpec:
+    """The board in a BOARD.yaml file, checked (bounds, marker smaller than square, enough
+    markers in the dictionary)."""
+    path = Path(path)
+    if not path.is_file():
+        raise ScenarioError(f"file not found: {path}")
+    return load_typed(BoardSpec, read_raw_scenario(path), str(path))
+
+
+def CameraFileText(intrinsics: CameraIntrinsics, comments: list[str]) -> str:
+    """A CAMERA.yaml: `comments` as # lines, then the intrinsics (px) and distortion."""
+    lines = [f"# {c}" for c in comments]
+    lines += [f"width: {intrinsics.width}", f"height: {intrinsics.height}"]
+    lines += [f"{k}: {getattr(intrinsics, k):.4f}" for k in ("fx", "fy", "cx", "cy")]
+    lines.append("distortion: [" + ", ".join(f"{d:.6g}" for d in intrinsics.distortion) + "]")
+    return "\n".join(lines) + "\n"
+
+
+def TransformFileText(name: str, X: RigidTransform, comments: list[str]) -> str:
+    """A YAML mapping holding one Drake schema Transform `name` (translation in m,
+    rotation as !Rpy in deg), after `comments` as # lines."""
+    rpy = np.degrees(RollPitchYaw(X.rotation()).vector())
+    lines = [f"# {c}" for c in comments]
+    lines += [
+        f"{name}:",
+        "  translation: [" + ", ".join(f"{v:.6f}" for v in X.translation()) + "]",
+        "  rotation: !Rpy { deg: [" + ", ".join(f"{v:.5f}" for v in rpy) + "] }",
+    ]
+    return "\n".join(lines) + "\n"
