@@ -133,3 +133,32 @@ def test_the_shipped_scenario_loads_with_either_motion():
     assert PanelPlannerConfig().parameters.position_tolerance == 1e-4
     assert PanelPlannerConfig().parameters.orientation_tolerance == 1e-4
     assert PlannerBaseFrame(scenario) == "rover_arm::base"
+
+
+def test_estimator_camera_file_is_the_estimators_model(tmp_path, run_cli):
+    """estimator_camera_file replaces the model derived from the station's CameraConfig;
+    a file for another image size is refused at load."""
+    camera = tmp_path / "calibrated.yaml"
+    camera.write_text(
+        "width: 1920\nheight: 1080\nfx: 1362.5\nfy: 1361.0\ncx: 961.0\ncy: 538.0\n"
+        "distortion: [-0.2, 0.07, 0.0, 0.0, 0.0]\n"
+    )
+    run = _run(tmp_path, [f"estimator_camera_file={camera}"])
+    estimator = run.diagram.GetSubsystemByName("marker_pose_estimator")
+    assert estimator.solver.intrinsics.fx == 1362.5
+    assert estimator.solver.intrinsics.distortion == [-0.2, 0.07, 0.0, 0.0, 0.0]
+    small = tmp_path / "small.yaml"
+    small.write_text("width: 640\nheight: 480\nfx: 500\nfy: 500\ncx: 319.5\ncy: 239.5\n")
+    for path, message in (
+        (small, "is for 640 x 480 px images, camera 'camera' renders 1920 x 1080"),
+        (tmp_path / "missing.yaml", "file not found"),
+    ):
+        code, _, err = run_cli(
+            "run",
+            "panel_operation",
+            "--out",
+            tmp_path / "out",
+            "--set",
+            f"estimator_camera_file={path}",
+        )
+        assert code == 2 and message in err and len(err.strip().splitlines()) == 1, err

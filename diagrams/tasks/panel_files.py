@@ -30,6 +30,23 @@ def LoadCameraIntrinsics(path: str | Path) -> CameraIntrinsics:
     return load_typed(CameraIntrinsics, _ReadMapping(path), str(path))
 
 
+def LoadEstimatorIntrinsics(
+    camera_file: str, camera: CameraConfig, camera_name: str
+) -> CameraIntrinsics | None:
+    """The estimator's camera model in `camera_file` (relative to models/ or absolute; None
+    when empty), refused unless it is for the images of `camera` (width x height)."""
+    if not camera_file:
+        return None
+    intrinsics = LoadCameraIntrinsics(MODELS_DIR / camera_file)
+    if (intrinsics.width, intrinsics.height) != (camera.width, camera.height):
+        raise ConfigurationError(
+            f"estimator_camera_file {camera_file} is for {intrinsics.width} x "
+            f"{intrinsics.height} px images, camera '{camera_name}' renders "
+            f"{camera.width} x {camera.height}"
+        )
+    return intrinsics
+
+
 def LoadPanelSpec(path: str | Path) -> PanelSpec:
     """The panel in a PANEL.yaml file (its dictionary name is checked here)."""
     panel = load_typed(PanelSpec, _ReadMapping(path), str(path))

@@ -49,6 +49,7 @@ from guidedarm.diagrams.station.station import MakeStation
 from guidedarm.diagrams.tasks.panel_assets import COVER_CLOSED_M
 from guidedarm.diagrams.tasks.panel_camera_rig import LookAt
 from guidedarm.diagrams.tasks.panel_files import (
+    LoadEstimatorIntrinsics,
     LoadPanelSpec,
     SupersampledCameraConfig,
 )
@@ -75,6 +76,7 @@ from guidedarm.systems.markers.image_degradation import (
     DegradationConfig,
     SeededDegradation,
 )
+from guidedarm.systems.markers.marker_pose_estimator_math import CameraIntrinsics
 from guidedarm.systems.markers.panel_operation_math import (
     PanelOperationConfig,
     PlannerFrames,
@@ -140,6 +142,10 @@ class PanelOperationScenario:
     camera: the key of station.cameras on the arm (1920 x 1080 C920 by default).
     tip_frame: the scoped frame T that presses (gripper tip).
     panel_file: PANEL.yaml relative to models/.
+    estimator_camera_file: the estimator's camera model, a CAMERA.yaml (intrinsics and
+        distortion, e.g. written by `guidedarm calibrate camera`) relative to models/ or
+        absolute, of the camera's width x height; empty: derived from the station's
+        CameraConfig (no distortion).
     panel_model: the panel's model instance in the directives.
     supersampling: the camera renders this many times its resolution, and
         ImageDegradation averages it back (1..8; degradation.supersampling must stay 1;
@@ -163,6 +169,7 @@ class PanelOperationScenario:
     camera: str = "camera"
     tip_frame: str = "rover_gripper::gripper_tip"
     panel_file: str = "panel/panel.yaml"
+    estimator_camera_file: str = ""
     panel_model: str = "panel"
     supersampling: int = InRange(1, 8, 3)
     degradation: DegradationConfig = field(default_factory=DegradationConfig)
@@ -185,7 +192,14 @@ class PanelOperationScenario:
         CheckRenderedSupersampling(
             self.degradation, self.station.cameras[self.camera], self.supersampling
         )
+        self.EstimatorIntrinsics()
         _CheckModeKeys(self)
+
+    def EstimatorIntrinsics(self) -> CameraIntrinsics | None:
+        """The estimator's camera model (estimator_camera_file), None when derived."""
+        return LoadEstimatorIntrinsics(
+            self.estimator_camera_file, self.station.cameras[self.camera], self.camera
+        )
 
 
 def _CheckModeKeys(scenario: PanelOperationScenario) -> None:
@@ -268,6 +282,7 @@ class PanelOperationRun:
                 SeededDegradation(scenario.degradation, scenario.random_seed), supersampling=k
             ),
             planner=planner,
+            intrinsics=scenario.EstimatorIntrinsics(),
         )
         self.sequencer = systems.sequencer
         self.kinematics = systems.kinematics
