@@ -1,16 +1,35 @@
 """The files of the calibration commands: BOARD.yaml in, CAMERA.yaml (as the marker
-estimator reads it, diagrams/tasks/panel_files.py) and hand_eye.yaml out."""
+estimator reads it, diagrams/tasks/panel_files.py) and hand_eye.yaml out.
 
-from __future__ import annotations
+No `from __future__ import annotations` here: yaml_load_typed reads HandEyeFile's
+annotations."""
 
+from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
+from pydrake.common.schema import Transform
 from pydrake.math import RigidTransform, RollPitchYaw
 
 from guidedarm.diagrams.scenario_loading import ScenarioError, load_typed, read_raw_scenario
 from guidedarm.systems.calibration.charuco_board import BoardSpec
 from guidedarm.systems.markers.marker_pose_estimator_math import CameraIntrinsics
+
+
+@dataclass
+class HandEyeFile:
+    """hand_eye.yaml: X_PC, the camera's optical frame C in the frame it is mounted on
+    (its base_frame), a Drake schema Transform that replaces the camera's X_PB."""
+
+    X_PC: Transform = field(default_factory=Transform)
+
+
+def LoadHandEye(path: str | Path) -> HandEyeFile:
+    """The X_PC of a hand_eye.yaml written by `guidedarm calibrate hand-eye`."""
+    path = Path(path)
+    if not path.is_file():
+        raise ScenarioError(f"file not found: {path}")
+    return load_typed(HandEyeFile, read_raw_scenario(path), str(path))
 
 
 def LoadBoardSpec(path: str | Path) -> BoardSpec:
