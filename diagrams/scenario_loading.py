@@ -219,6 +219,25 @@ REPLACED_KEYS = {
 }
 
 
+# Keys of a station's ToF tools that moved to station.errors (what the real sensors read
+# differently from the truth): station.tof_tools.<tool>.KEY -> station.errors.tof_tools.<tool>.KEY.
+MOVED_TOF_KEYS = ("offset", "drift_rate", "drift_max")
+
+
+def _refuse_moved_keys(raw: dict[str, Any], source: str) -> None:
+    """A ToF tool key of MOVED_TOF_KEYS under station.tof_tools is refused naming its new
+    place under station.errors."""
+    station = raw.get("station")
+    tools = station.get("tof_tools") if isinstance(station, dict) else None
+    for name, tool in (tools or {}).items() if isinstance(tools, dict) else ():
+        for key in MOVED_TOF_KEYS:
+            if isinstance(tool, dict) and key in tool:
+                raise ScenarioError(
+                    f"{source}: key 'station.tof_tools.{name}.{key}' moved to "
+                    f"'station.errors.tof_tools.{name}.{key}' (the real sensor's errors)"
+                )
+
+
 def load_typed(
     schema: type[T], raw: dict[str, Any], source: str, overridden: Iterable[str] = ()
 ) -> T:
@@ -227,6 +246,7 @@ def load_typed(
     of the `overridden` dotted keys."""
     try:
         _refuse_replaced_keys(schema, raw, source)
+        _refuse_moved_keys(raw, source)
         _check_node(schema, raw, "", source)
         try:
             typed = yaml_load_typed(schema=schema, data=yaml_dump(raw))

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import math
 import time
 import traceback
@@ -16,7 +17,10 @@ from guidedarm.diagrams.run_context import (
     NonFiniteKeys,
     RunContext,
 )
-from guidedarm.diagrams.tasks.registry import RunFlags, TaskDefinition
+from guidedarm.diagrams.station.scenario import StationScenario
+from guidedarm.diagrams.tasks.registry import ERRORS_KEY, RunFlags, TaskDefinition
+from guidedarm.systems.cell_errors.camera_errors import CameraErrors
+from guidedarm.systems.cell_errors.distributions import DrawErrors, ErrorsAsData, IsZeroError
 from guidedarm.systems.errors import DrakeCheckFailure, GuidedArmError, RunFailedError
 
 # The `failure` of a run stopped by Ctrl-C.
@@ -26,14 +30,17 @@ TRACEBACK_FILE = "traceback.txt"
 
 
 def RunTask(task: TaskDefinition, scenario: Any, context: RunContext) -> dict[str, Any]:
-    """Removes a previous run's DIR/summary.json and traceback.txt, writes DIR/scenario.yaml
-    (the fully resolved scenario), runs the task and returns its metrics plus `success` and
-    `wall_time_s` (s), with `success` false and `failure` set when the run failed in any
-    way once started: a RunFailedError, Ctrl-C, a non-finite metric (written as null), or a
-    bug (its traceback in DIR/traceback.txt). Any other GuidedArmError (a refusal before
+    """Draws the scenario's errors (WithErrorsDrawn), removes a previous run's
+    DIR/summary.json and traceback.txt, writes DIR/scenario.yaml (the fully resolved
+    scenario, its errors drawn), runs the task and returns its metrics plus `success`,
+    `wall_time_s` (s) and the drawn errors (ERRORS_KEY, when any), with `success` false
+    and `failure` set when the run failed in any way once started: a RunFailedError,
+    Ctrl-C, a non-finite metric (written as null), or a bug (its traceback in
+    DIR/traceback.txt). Any other GuidedArmError (a refusal before
     any motion, e.g. a ConfigurationError) passes through; the task's CheckRun for the
     context's --hardware and live Meshcat refuses before anything is written."""
     task.CheckRun(scenario, RunFlags(hardware=context.hardware, live=context.live))
+    scenario = WithErrorsDrawn(scenario)
     # A previous run's verdict in the same folder must not stand beside this run's files.
     for stale in (SUMMARY_FILE, TRACEBACK_FILE):
         (context.out_dir / stale).unlink(missing_ok=True)
@@ -63,7 +70,37 @@ def RunTask(task: TaskDefinition, scenario: Any, context: RunContext) -> dict[st
     if "success" not in metrics:  # a task whose metrics say only `failure`
         metrics = {"success": metrics.get("failure") is None, **metrics}
     metrics["wall_time_s"] = round(time.perf_counter() - wall_start, 3)
+    drawn = DrawnErrors(scenario)
+    if drawn:
+        metrics[ERRORS_KEY] = drawn
     return metrics
+
+
+def WithErrorsDrawn(scenario: Any) -> Any:
+    """`scenario` with its error models (station.errors and its presets, marker_view's
+    camera_errors) drawn once from its random_seed, one stream per source: the cell of
+    this run, which the resolved scenario.yaml repeats."""
+    seed = getattr(scenario, "random_seed", None)
+    station = getattr(scenario, "station", None)
+    if isinstance(station, StationScenario):
+        scenario = dataclasses.replace(scenario, station=station.WithErrorsDrawn(seed))
+    camera_errors = getattr(scenario, "camera_errors", None)
+    if isinstance(camera_errors, CameraErrors):
+        drawn = DrawErrors(camera_errors, seed, "camera_errors")
+        scenario = dataclasses.replace(scenario, camera_errors=drawn)
+    return scenario
+
+
+def DrawnErrors(scenario: Any) -> dict[str, Any]:
+    """The drawn errors of a scenario (WithErrorsDrawn) as summary.json's ERRORS_KEY: the
+    station's, or marker_view's camera_errors under `camera`; {} for an exact cell."""
+    station = getattr(scenario, "station", None)
+    if isinstance(station, StationScenario):
+        return ErrorsAsData(station.errors)
+    camera_errors = getattr(scenario, "camera_errors", None)
+    if isinstance(camera_errors, CameraErrors) and not IsZeroError(camera_errors):
+        return {"camera": ErrorsAsData(camera_errors)}
+    return {}
 
 
 def InterruptedFailure(interrupt: KeyboardInterrupt) -> str:

@@ -110,6 +110,7 @@ def Estimate(camera: str, panel: str = str(DEFAULT_PANEL_FILE), image: str = "{f
 
 
 JT, WP, PF, PO = "ur10e_joint_tour", "ur10e_waypoints", "path_following", "panel_operation"
+TOF_ERRORS = "station.errors.tof_tools.tof"
 
 # (id, arguments, a part of the one-line message); {f}: the files, {out}: a fresh directory.
 BAD_INPUTS = [
@@ -240,16 +241,23 @@ BAD_INPUTS = [
     ("tof-negative-ranging", Run(PF, "station.tof_tools.tof.ranging_time=-0.01"), "ranging_time'"),
     ("tof-ranging-period", Run(PF, "station.tof_tools.tof.ranging_time=0.03"), "exceed period"),
     ("tof-zero-period", Run(PF, "station.tof_tools.tof.period=0"), "period': must be > 0"),
-    ("tof-offset-count", Run(PF, "station.tof_tools.tof.offset=[0.001]"), "offset must hold 6"),
-    ("tof-nan-offset", Run(PF, "station.tof_tools.tof.offset=[0,0,.nan,0,0,0]"), "offset[2]'"),
-    ("tof-offset-range", Run(PF, "station.tof_tools.tof.offset=[0,0,0,0,0,1]"), "offset[5]'"),
-    ("tof-negative-drift", Run(PF, "station.tof_tools.tof.drift_rate=-1"), "drift_rate'"),
-    ("tof-inf-drift-max", Run(PF, "station.tof_tools.tof.drift_max=.inf"), "drift_max'"),
+    (
+        "tof-offset-moved",
+        Run(PF, "station.tof_tools.tof.offset=[0.001]"),
+        "moved to 'station.errors",
+    ),
+    ("tof-offset-count", Run(PF, f"{TOF_ERRORS}.offset=[0.001]"), "offset must hold 6"),
+    ("tof-nan-offset", Run(PF, f"{TOF_ERRORS}.offset=[0,0,.nan,0,0,0]"), "offset[2]'"),
+    ("tof-offset-range", Run(PF, f"{TOF_ERRORS}.offset=[0,0,0,0,0,1]"), "offset[5] = 1 m"),
+    ("tof-negative-drift", Run(PF, f"{TOF_ERRORS}.drift_rate=-1"), "drift_rate must be >= 0"),
+    ("tof-inf-drift-max", Run(PF, f"{TOF_ERRORS}.drift_max=.inf"), "drift_max'"),
     (
         "tof-drift-without-bound",
-        Run(PF, "station.tof_tools.tof.drift_rate=0.01", "station.tof_tools.tof.drift_max=0"),
+        Run(PF, f"{TOF_ERRORS}.drift_rate=0.01", f"{TOF_ERRORS}.drift_max=0"),
         "needs drift_max > 0",
     ),
+    ("errors-unknown-tool", Run(PF, "station.errors.tof_tools.tofx.offset=[]"), "no such tof_tool"),
+    ("errors-unknown-preset", Run(PF, "station.errors_preset=foo"), "unknown preset 'foo'"),
     ("tof-driver-latency", Run(PF, "station.hardware.tof_tools.tof.latency=-1"), "latency'"),
     # --- waypoints and planner
     ("waypoints-inf-time", Run(WP, "max_time=.inf"), "key 'max_time': must be a finite"),

@@ -22,6 +22,7 @@ from guidedarm.systems.path_following.path_follower import FollowerConfig
 from guidedarm.systems.path_following.tool_pose_ik import ToolPoseIk
 from guidedarm.systems.path_following.tool_pose_ik_math import ToolPoseIkConfig, ToolPoseSolver
 from guidedarm.systems.planning.acceleration_planner_kinematics import ArmKinematics
+from guidedarm.systems.tof.tof_errors import ToFErrors
 from guidedarm.systems.tof.tof_tool_sensor import ToFToolConfig, ToFToolSensor
 
 HOME = [-1.5708, -1.5708, -2.356, -0.785, 1.5708, 0.785]
@@ -128,7 +129,7 @@ BAD = {
     "tof rings 3.5": (lambda: ToFToolConfig(rings=3.5).Validate(), "rings", "integer"),
     "tof period '0.02'": (lambda: ToFToolConfig(period="0.02").Validate(), "period", "number"),
     "tof offset 'a'": (
-        lambda: ToFToolConfig(offset=[0.0, "a", 0.0, 0.0, 0.0, 0.0]).Validate(),
+        lambda: ToFErrors(offset=[0.0, "a", 0.0, 0.0, 0.0, 0.0]).Validate(),
         "offset[1]",
         "number",
     ),

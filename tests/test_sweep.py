@@ -88,6 +88,7 @@ def ReadRows(path: Path) -> list[dict]:
             TOUR + "metrics: [tracking_error_max_rad, coverage]\n",
             "metric 'coverage' is not a numeric metric of task 'joint_tour' (known: "
             "final_error_rad, sim_time_s, tracking_delay_s, tracking_error_max_rad, "
+            "true_final_error_rad, "
             "wall_time_s)",
         ),
         (TOUR + "metrics: [task]\n", "metric 'task' is not a numeric metric"),  # text

@@ -1,5 +1,6 @@
 """ToF sensor timing: ranges read at their measurement instant and held, `measured_at`,
-range offsets and a bounded drift; the defaults keep a reading unchanged."""
+range offsets, crosstalk and a bounded drift (ToFErrors); the defaults keep a reading
+unchanged."""
 
 import numpy as np
 import pytest
@@ -11,13 +12,14 @@ from pydrake.systems.analysis import Simulator
 from pydrake.systems.framework import DiagramBuilder
 
 from guidedarm.diagrams.station.model_paths import MakeParser
+from guidedarm.systems.tof.tof_errors import ToFErrors
 from guidedarm.systems.tof.tof_tool_sensor import ToFToolConfig, ToFToolSensor
 from guidedarm.systems.tof.tof_tool_sensor_math import DriftStep, Measure
 
 SPEED = 0.2  # m/s, the tool across the hose along its y axis
 
 
-def _SlidingTool(config: ToFToolConfig):
+def _SlidingTool(config: ToFToolConfig, errors: ToFErrors | None = None):
     """The ToF tool on a prismatic joint along its y axis (no gravity, no actuator: it
     slides at the velocity it starts with) and a 20 mm hose, a capsule along the tool's x
     axis through the tool frame's origin O (where the paper's hose lies) at joint position
@@ -33,7 +35,7 @@ def _SlidingTool(config: ToFToolConfig):
     )
     plant.mutable_gravity_field().set_gravity_vector([0.0, 0.0, 0.0])
     plant.Finalize()
-    sensor = builder.AddSystem(ToFToolSensor(plant, config))
+    sensor = builder.AddSystem(ToFToolSensor(plant, config, errors))
     builder.Connect(scene_graph.get_query_output_port(), sensor.get_input_port())
     return builder.Build(), plant, sensor
 
@@ -84,16 +86,21 @@ def test_a_moving_tool_reads_the_geometry_at_the_measurement_instant():
     assert max(apart) > 0.003
 
 
-def test_offset_and_a_bounded_drift_are_added_to_every_return():
-    """Per-sensor offsets shift every return by their value; a drift of 5 mm per sqrt(s)
-    bounded at 2 mm moves the ranges by at most 2 mm, and does move them."""
+def test_offset_crosstalk_and_a_bounded_drift_change_every_return():
+    """Per-sensor offsets shift every return by their value; a crosstalk of 10 % shortens
+    it by a tenth; a drift of 5 mm per sqrt(s) bounded at 2 mm moves the ranges by at most
+    2 mm, and does move them."""
     offset = [0.001, -0.002, 0.0, 0.003, 0.0005, -0.001]
     base = ToFToolConfig(noise_std=0.0, quantization=0.0)
-    shifted = ToFToolConfig(noise_std=0.0, quantization=0.0, offset=offset)
-    drifting = ToFToolConfig(noise_std=0.0, quantization=0.0, drift_rate=0.005, drift_max=0.002)
+    cases = {
+        "base": ToFErrors(),
+        "shifted": ToFErrors(offset=offset),
+        "crosstalk": ToFErrors(crosstalk=[0.1] * 6),
+        "drifting": ToFErrors(drift_rate=0.005, drift_max=0.002),
+    }
     readings = {}
-    for name, config in (("base", base), ("shifted", shifted), ("drifting", drifting)):
-        diagram, plant, sensor = _SlidingTool(config)
+    for name, errors in cases.items():
+        diagram, plant, sensor = _SlidingTool(base, errors)
         simulator = _Start(diagram, plant, 0.0)
         plant.SetVelocities(plant.GetMyMutableContextFromRoot(simulator.get_mutable_context()), [0])
         rows = []
@@ -111,6 +118,9 @@ def test_offset_and_a_bounded_drift_are_added_to_every_return():
         (readings["shifted"] - readings["base"])[valid],
         np.broadcast_to(offset, valid.shape)[valid],
         atol=1e-12,
+    )
+    np.testing.assert_allclose(
+        readings["crosstalk"][valid], 0.9 * readings["base"][valid], rtol=1e-12
     )
     drift = (readings["drifting"] - readings["base"])[valid]
     assert np.max(np.abs(drift)) <= 0.002 + 1e-12

@@ -114,6 +114,10 @@ def describe_command(args: argparse.Namespace) -> int:
     widths = [min(max(len(getattr(r, a)) for r in rows), w) for a, w in WIDTHS]
     lines = [_Row(["key", "type", "value", "doc"], widths)]
     lines += [_Row([r.key, r.type, r.value, r.doc], widths) for r in rows]
+    lines += ["", f"metrics of task {task.name} (summary.json):"]
+    for metric in task.KnownMetrics():
+        source = task.MetricSource(metric)
+        lines.append(f"  {metric}" + (f": {source}" if source else ""))
     try:
         print("\n".join(lines), flush=True)
     except BrokenPipeError:

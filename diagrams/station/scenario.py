@@ -11,6 +11,13 @@ from pydrake.systems.sensors import CameraConfig
 from pydrake.visualization import VisualizationConfig
 
 from guidedarm.diagrams.station.hardware_config import HardwareConfig
+from guidedarm.diagrams.station.station_errors import (
+    CheckErrorKeys,
+    DrawStationErrors,
+    LoadPreset,
+    PresetNames,
+    StationErrors,
+)
 from guidedarm.systems.config_checks import (
     MAX_JOINT_POSITION,
     ChangedKey,
@@ -113,6 +120,9 @@ class StationScenario:
     hose: a hose (centerline, brackets) registered on the world body, or None.
     tof_tools: six-sensor ToF tools; each exports `<name>.ranges`, `.valid`, `.measured_at`
         and the detection grid's `.detections`, `.detection_errors` (TOF_PORTS).
+    errors: what the simulated (true) cell has and the nominal models do not
+        (station_errors.StationErrors; empty: the exact cell); errors_preset: presets
+        under it, "NAME[,NAME...]" of models/errors/NAME.yaml ('' none).
     """
 
     directives: list[ModelDirective] = field(default_factory=list)
@@ -124,6 +134,8 @@ class StationScenario:
     hardware: HardwareConfig = field(default_factory=HardwareConfig)
     hose: HoseConfig | None = None
     tof_tools: dict[str, ToFToolConfig] = field(default_factory=dict)
+    errors: StationErrors = field(default_factory=StationErrors)
+    errors_preset: str = ""
 
     def Validate(self) -> None:
         """Checked at load (CheckConfig): the fields, then no camera field the station does
@@ -144,6 +156,24 @@ class StationScenario:
             raise FieldError(
                 "visualization.lcm_bus", "the station visualizes in Meshcat only; it cannot be set"
             )
+        for name in PresetNames(self.errors_preset):
+            LoadPreset(name)
+        known = {"arms": set(self.arms), "cameras": set(self.cameras)}
+        known["tof_tools"] = set(self.tof_tools)
+        CheckErrorKeys(self.errors, known)
+        for name in PresetNames(self.errors_preset):
+            CheckErrorKeys(LoadPreset(name), known)
+
+    def WithErrorsDrawn(self, random_seed: int | None) -> "StationScenario":
+        """A copy whose `errors` are the presets and errors combined and drawn from
+        `random_seed` (station_errors.DrawStationErrors; None refuses distributions),
+        `errors_preset` empty: the cell of one run, which repeats it when loaded."""
+        drawn = DrawStationErrors(self.errors_preset, self.errors, random_seed)
+        return dataclasses.replace(self, errors=drawn, errors_preset="")
+
+    def HasErrors(self) -> bool:
+        """Whether errors or a preset are set (the cell is not the exact one)."""
+        return bool(PresetNames(self.errors_preset)) or self.errors != StationErrors()
 
     def CheckSimulated(self) -> None:
         """Refuses what only the hardware station reads, for a simulated run: a camera's

@@ -25,6 +25,7 @@ import copy
 import numpy as np
 from pydrake.geometry import MakeRenderEngineVtk, Meshcat, RenderEngineVtkParams, SceneGraph
 from pydrake.lcm import DrakeLcm
+from pydrake.math import RigidTransform
 from pydrake.multibody.plant import AddMultibodyPlant, MultibodyPlant
 from pydrake.systems.controllers import InverseDynamics
 from pydrake.systems.framework import Diagram, DiagramBuilder
@@ -40,6 +41,7 @@ from pydrake.visualization import ApplyVisualizationConfig
 
 from guidedarm.diagrams.station.hardware_station import MakeHardwareStation
 from guidedarm.diagrams.station.scenario import RENDERER_NAME, ArmConfig, StationScenario
+from guidedarm.diagrams.station.station_errors import ArmErrors
 from guidedarm.diagrams.station.station_plant import (
     AddStationModels,
     ArmAndAttachments,
@@ -47,8 +49,12 @@ from guidedarm.diagrams.station.station_plant import (
     MakeMultibodyPlant,
     SetInitialPositions,
 )
+from guidedarm.systems.cell_errors.camera_errors import CameraErrors, MakeTrueCamera
+from guidedarm.systems.cell_errors.joint_encoder import JointEncoder
+from guidedarm.systems.cell_errors.lens_distortion import LensDistortion
 from guidedarm.systems.config_checks import CheckConfig, CheckInstance
 from guidedarm.systems.errors import ConfigurationError
+from guidedarm.systems.plant_frames import GetScopedFrame
 from guidedarm.systems.tof.tof_tool_sensor import TOF_PORTS, ToFToolSensor
 
 
@@ -63,9 +69,10 @@ def MakeStation(
     if hardware:
         return MakeHardwareStation(scenario, meshcat)
     scenario.CheckSimulated()
+    errors = scenario.WithErrorsDrawn(None).errors
     builder = DiagramBuilder()
     plant, scene_graph = AddMultibodyPlant(scenario.plant_config, builder)
-    AddStationModels(scenario, plant)
+    AddStationModels(scenario, plant, model_errors=errors.models, arm_errors=errors.arms)
     if scenario.cameras:
         # Only cameras render; a renderer poses every perception geometry at every plant
         # step (SceneGraph's pose update), most of the step's cost without a camera.
@@ -73,12 +80,14 @@ def MakeStation(
     plant.Finalize()
     SetInitialPositions(scenario, plant)
     for name, arm in scenario.arms.items():
-        _AddArm(builder, plant, scenario, name, arm)
+        _AddArm(builder, plant, scenario, name, arm, errors.arms.get(name))
     for name, camera in scenario.cameras.items():
-        _AddCamera(builder, plant, scene_graph, name, camera)
+        _AddCamera(builder, plant, scene_graph, name, camera, errors.cameras.get(name))
     for name in scenario.tof_tools:
         tof = scenario.ToFTool(name)
-        sensor = builder.AddNamedSystem(f"{name}.sensor", ToFToolSensor(plant, tof))
+        sensor = builder.AddNamedSystem(
+            f"{name}.sensor", ToFToolSensor(plant, tof, errors.tof_tools.get(name))
+        )
         builder.Connect(scene_graph.get_query_output_port(), sensor.get_input_port())
         for port in TOF_PORTS:
             builder.ExportOutput(sensor.GetOutputPort(port), f"{name}.{port}")
@@ -122,6 +131,7 @@ def _AddArm(
     scenario: StationScenario,
     name: str,
     arm: ArmConfig,
+    errors: ArmErrors | None,
 ) -> None:
     instance = GetArmInstance(plant, name)
     n = plant.num_actuated_dofs(instance)
@@ -141,6 +151,16 @@ def _AddArm(
     # InverseDynamics tau = M a_d + c - tau_g. (InverseDynamicsController is the same law,
     # but its PidController's integral state, even at ki = 0, makes the simulator
     # integrate it between every two events.)
+    # What the controller measures: the true state, or what the encoders make of it.
+    measured_state = plant.get_state_output_port(instance)
+    if errors is not None and (
+        errors.joint_offset or errors.encoder_resolution or errors.joint_stiffness
+    ):
+        encoder = builder.AddNamedSystem(
+            f"{name}.encoder", _MakeEncoder(errors, n, controller_plant, f"errors.arms.{name}")
+        )
+        builder.Connect(measured_state, encoder.get_input_port())
+        measured_state = encoder.get_output_port()
     eye = np.eye(n)
     states = builder.AddNamedSystem(f"{name}.servo_states", Multiplexer([2 * n, 2 * n]))
     gains = np.hstack([arm.kp * eye, kd * eye, -arm.kp * eye, -kd * eye])
@@ -155,10 +175,10 @@ def _AddArm(
         ),
     )
     builder.Connect(interpolator.get_output_port(), states.get_input_port(0))
-    builder.Connect(plant.get_state_output_port(instance), states.get_input_port(1))
+    builder.Connect(measured_state, states.get_input_port(1))
     builder.Connect(states.get_output_port(), pd.get_input_port())
     builder.Connect(pd.get_output_port(), servo.get_input_port_desired_acceleration())
-    builder.Connect(plant.get_state_output_port(instance), servo.get_input_port_estimated_state())
+    builder.Connect(measured_state, servo.get_input_port_estimated_state())
     # Generalized forces of the controller plant's joints in the arm's actuator order.
     B = controller_plant.MakeActuationMatrix()
     actuation = servo.get_output_port_generalized_force()
@@ -169,10 +189,25 @@ def _AddArm(
     builder.Connect(actuation, plant.get_actuation_input_port(instance))
     builder.ExportInput(interpolator.get_input_port(), f"{name}.position_commanded")
     demux = builder.AddNamedSystem(f"{name}.state_demux", Demultiplexer([n, n]))
-    builder.Connect(plant.get_state_output_port(instance), demux.get_input_port())
+    builder.Connect(measured_state, demux.get_input_port())
     builder.ExportOutput(demux.get_output_port(0), f"{name}.position_measured")
     builder.ExportOutput(demux.get_output_port(1), f"{name}.velocity_estimated")
-    builder.ExportOutput(plant.get_state_output_port(instance), f"{name}.state_estimated")
+    builder.ExportOutput(measured_state, f"{name}.state_estimated")
+
+
+def _MakeEncoder(
+    errors: ArmErrors, n: int, controller_plant: MultibodyPlant, key: str
+) -> JointEncoder:
+    """The arm's JointEncoder from its drawn errors (lengths checked against n joints)."""
+    for field_name in ("joint_offset", "joint_stiffness"):
+        values = getattr(errors, field_name)
+        if len(values) not in (0, n):
+            raise ConfigurationError(
+                f"{key}.{field_name} has {len(values)} values, the arm has {n} joints"
+            )
+    offset = np.asarray(errors.joint_offset or np.zeros(n), float)
+    stiffness = np.asarray(errors.joint_stiffness, float) if errors.joint_stiffness else None
+    return JointEncoder(offset, errors.encoder_resolution, stiffness, controller_plant)
 
 
 def _AddCamera(
@@ -181,8 +216,10 @@ def _AddCamera(
     scene_graph: SceneGraph,
     name: str,
     config: CameraConfig,
+    errors: CameraErrors | None,
 ) -> None:
-    config = copy.deepcopy(config)  # the scenario's own is left as given
+    true = MakeTrueCamera(config, errors or CameraErrors())
+    config = copy.deepcopy(true.config)  # the scenario's own is left as given
     config.renderer_name = RENDERER_NAME
     color, depth = config.MakeCameras()
     base = config.X_PB.base_frame or "world"
@@ -193,12 +230,21 @@ def _AddCamera(
     # The sensor body S is placed relative to frame F; RgbdSensor wants it relative to the
     # body that carries F. The camera's own offset X_BC is already inside `color`.
     X_BodyS = frame.GetFixedPoseInBodyFrame() @ config.X_PB.GetDeterministicValue()
+    if errors is not None:
+        # The error is the camera frame C's true pose in its nominal one: S moves with it.
+        X_SC = color.core().sensor_pose_in_camera_body()
+        X_BodyS = X_BodyS @ X_SC @ true.X_mount_error @ X_SC.inverse()
     body_frame_id = plant.GetBodyFrameIdOrThrow(frame.body().index())
     sensor = builder.AddNamedSystem(
         f"{name}.rgbd_sensor", RgbdSensor(body_frame_id, X_BodyS, color, depth)
     )
     builder.Connect(scene_graph.get_query_output_port(), sensor.query_object_input_port())
-    builder.ExportOutput(sensor.color_image_output_port(), f"{name}.rgb_image")
+    image = sensor.color_image_output_port()
+    if true.remap is not None:
+        lens = builder.AddNamedSystem(f"{name}.lens", LensDistortion(true.remap))
+        builder.Connect(image, lens.get_input_port())
+        image = lens.get_output_port()
+    builder.ExportOutput(image, f"{name}.rgb_image")
     builder.ExportOutput(sensor.body_pose_in_world_output_port(), f"sim.{name}.X_WS")
 
 
@@ -206,3 +252,26 @@ def _InstanceOf(plant: MultibodyPlant, scoped_name: str):
     if "::" not in scoped_name:
         return plant.world_body().model_instance()
     return plant.GetModelInstanceByName(scoped_name.rsplit("::", 1)[0])
+
+
+def TrueArmPositions(station: Diagram, root_context, arm: str) -> np.ndarray | None:
+    """The true joint positions (rad) of `arm` in the simulated station's plant in its
+    context within `root_context`; None for a hardware station, which has no truth."""
+    if not station.HasOutputPort("sim.plant_state"):
+        return None
+    plant = station.GetSubsystemByName("plant")
+    context = plant.GetMyContextFromRoot(root_context)
+    return plant.GetPositions(context, plant.GetModelInstanceByName(arm))
+
+
+def TruePose(station: Diagram, root_context, frame_A: str, frame_B: str) -> RigidTransform | None:
+    """X_AB between two scoped frames of the simulated station's (true) plant in its
+    context within `root_context` (the ground truth of the `sim.` ports); None for a
+    hardware station, which has no truth."""
+    if not station.HasOutputPort("sim.plant_state"):
+        return None
+    plant = station.GetSubsystemByName("plant")
+    context = plant.GetMyContextFromRoot(root_context)
+    A = GetScopedFrame(plant, frame_A, "frame")
+    B = GetScopedFrame(plant, frame_B, "frame")
+    return B.CalcPose(context, A)

@@ -24,8 +24,10 @@ from pydrake.multibody.parsing import (
 from pydrake.multibody.plant import MultibodyPlant
 from pydrake.multibody.tree import ModelInstanceIndex
 
+from guidedarm.diagrams.station.link_errors import MoveJointFrames
 from guidedarm.diagrams.station.model_paths import MakeParser
 from guidedarm.diagrams.station.scenario import ArmConfig, StationScenario
+from guidedarm.diagrams.station.station_errors import ArmErrors, ModelErrors
 from guidedarm.systems.config_checks import (
     NON_NEGATIVE,
     CheckArgument,
@@ -72,15 +74,27 @@ def AddStationModels(
     plant: MultibodyPlant,
     model_instance_names: list[str] | None = None,
     with_hose: bool = True,
+    model_errors: dict[str, ModelErrors] | None = None,
+    arm_errors: dict[str, ArmErrors] | None = None,
 ) -> None:
-    """Adds the scenario's models (all, or the named instances) to an unfinalized plant."""
+    """Adds the scenario's models (all, or the named instances) to an unfinalized plant;
+    a welded model of `model_errors` (drawn, keyed by instance) where it truly is: its
+    weld's X_PC followed by X_error; an arm of `arm_errors` with its link_errors
+    (link_errors.MoveJointFrames). Errors are for the simulated station's plant only."""
     directives = scenario.directives
     if model_instance_names is not None:
         directives = _KeepInstances(scenario, model_instance_names)
+    if model_errors:
+        directives = _MovedWelds(scenario, directives, model_errors)
     try:
         ProcessModelDirectives(ModelDirectives(directives=directives), MakeParser(plant))
     except Exception as e:
         raise _DirectivesError(e) from None
+    for arm, errors in (arm_errors or {}).items():
+        if errors.link_errors:
+            X_errors = [X.GetDeterministicValue() for X in errors.link_errors]
+            GetArmInstance(plant, arm)  # a known instance, or one line naming the others
+            MoveJointFrames(plant, arm, X_errors)
     if with_hose and scenario.hose is not None:
         RegisterHose(plant, HoseCenterlineInWorld(scenario), scenario.hose)
 
@@ -205,6 +219,34 @@ def _KeepInstances(scenario: StationScenario, names: list[str]) -> list[ModelDir
         elif directive.add_frame and _Instance(directive.add_frame.X_PF.base_frame or "") in names:
             kept.append(directive)
     return kept
+
+
+def _MovedWelds(
+    scenario: StationScenario, directives: list[ModelDirective], errors: dict[str, ModelErrors]
+) -> list[ModelDirective]:
+    """The flattened directives with the weld of each model of `errors` (the weld whose
+    child is in that instance) moved by its X_error; ConfigurationError for a model that
+    no directive welds."""
+    package_map = MakeParser(MultibodyPlant(0.0)).package_map()
+    try:
+        flat = FlattenModelDirectives(ModelDirectives(directives=directives), package_map)
+    except Exception as e:
+        raise _DirectivesError(e) from None
+    moved = set()
+    for directive in flat.directives:
+        weld = directive.add_weld
+        if weld and _Instance(weld.child) in errors and _Instance(weld.child) not in moved:
+            X_PC = weld.X_PC.GetDeterministicValue() if weld.X_PC else RigidTransform()
+            X_error = errors[_Instance(weld.child)].X_error.GetDeterministicValue()
+            weld.X_PC = Transform(X_PC @ X_error)
+            moved.add(_Instance(weld.child))
+    missing = sorted(set(errors) - moved)
+    if missing:
+        raise ConfigurationError(
+            f"errors.models.{missing[0]}: no weld of a model instance '{missing[0]}' in the "
+            "directives (X_error moves a welded model)"
+        )
+    return flat.directives
 
 
 def _DirectivesError(e: Exception) -> ConfigurationError:

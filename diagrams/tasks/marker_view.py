@@ -26,6 +26,8 @@ from guidedarm.diagrams.station.scenario import UNSUPPORTED_CAMERA_FIELDS, Unrea
 from guidedarm.diagrams.tasks.panel_camera_rig import LookAt, PanelCameraRig
 from guidedarm.diagrams.tasks.panel_files import DEFAULT_PANEL_FILE, LoadPanelSpec
 from guidedarm.diagrams.tasks.registry import TaskDefinition
+from guidedarm.systems.cell_errors.camera_errors import CameraErrors
+from guidedarm.systems.cell_errors.distributions import DrawErrors
 from guidedarm.systems.config_checks import CheckFields, InRange
 from guidedarm.systems.errors import ConfigurationError, RunFailedError
 from guidedarm.systems.markers.image_degradation import (
@@ -52,7 +54,10 @@ class MarkerViewScenario:
         width x height x supersampling^2 <= MAX_RENDER_PIXELS).
     degradation: lighting, blur, noise (its supersampling must stay 1: the top-level key
         sets it; its noise seed is the scenario's random_seed).
-    random_seed: the scenario's random seed (the image noise).
+    random_seed: the scenario's random seed (the image noise, the draw of camera_errors).
+    camera_errors: how the real camera differs from `camera` (CameraErrors, the fields
+        of station.errors.cameras.<camera>; numbers or distributions drawn from
+        random_seed): it renders through them, the estimator uses `camera`.
     """
 
     task: str = "marker_view"
@@ -62,6 +67,7 @@ class MarkerViewScenario:
     supersampling: int = InRange(1, 8, 3)
     degradation: DegradationConfig = field(default_factory=DegradationConfig)
     random_seed: int = 0
+    camera_errors: CameraErrors = field(default_factory=CameraErrors)
 
     def Validate(self) -> None:
         """Checked at load (CheckConfig): the fields' bounds, the rendered size, and no key
@@ -78,7 +84,9 @@ class MarkerViewScenario:
 
 def RunMarkerView(scenario: MarkerViewScenario, context: RunContext) -> dict[str, Any]:
     """Renders the view, estimates the panel pose and returns the errors (see above)."""
-    rig = PanelCameraRig(scenario.camera, scenario.supersampling)
+    rig = PanelCameraRig(
+        scenario.camera, scenario.supersampling, errors=DrawErrors(scenario.camera_errors, None)
+    )
     solver = MarkerPoseSolver(rig.intrinsics, LoadPanelSpec(DEFAULT_PANEL_FILE))
     a = np.radians(scenario.angle_deg)
     d = scenario.distance_m
@@ -135,4 +143,12 @@ TASK = TaskDefinition(
     description="estimate the marker panel's pose from one free-camera view (markers paper)",
     simulates=False,
     metrics=MARKER_VIEW_METRICS,
+    ground_truth_metrics=(
+        "abs_error_mm",
+        "rel_error_pct",
+        "abs_angle_error_deg",
+        "rotation_error_deg",
+        "reference_mm",
+        "reference_deg",
+    ),
 )

@@ -28,6 +28,12 @@ from guidedarm.diagrams.tasks.panel_files import (
     IntrinsicsFromCameraConfig,
     SupersampledCameraConfig,
 )
+from guidedarm.systems.cell_errors.camera_errors import (
+    CameraErrors,
+    MakeTrueCamera,
+    ScaledCameraErrors,
+)
+from guidedarm.systems.cell_errors.lens_distortion_math import Remap
 from guidedarm.systems.errors import ConfigurationError
 from guidedarm.systems.markers.image_degradation import DegradationConfig, DegradeImage
 
@@ -48,8 +54,15 @@ class PanelCameraRig:
     """The panel (models/panel/panel.sdf, P = world) and a camera configured by `camera`."""
 
     def __init__(
-        self, camera: CameraConfig, supersampling: int = 3, panel_sdf: str | None = None
+        self,
+        camera: CameraConfig,
+        supersampling: int = 3,
+        panel_sdf: str | None = None,
+        errors: CameraErrors | None = None,
     ) -> None:
+        """camera: the nominal camera (its file), whose intrinsics `intrinsics` are; errors:
+        how the real camera differs (drawn CameraErrors; None: it is exact): it renders
+        through them."""
         builder = DiagramBuilder()
         plant, scene_graph = AddMultibodyPlantSceneGraph(builder, 0.0)
         scene_graph.AddRenderer(RENDERER_NAME, MakeRenderEngineVtk(RenderEngineVtkParams()))
@@ -64,8 +77,11 @@ class PanelCameraRig:
         self._plant_context = plant.GetMyMutableContextFromRoot(self._context)
         self._scene_graph = scene_graph
         rendered = SupersampledCameraConfig(camera, supersampling)
-        rendered.renderer_name = RENDERER_NAME
-        self.color_camera, _ = rendered.MakeCameras()
+        self._true = MakeTrueCamera(
+            rendered, ScaledCameraErrors(errors or CameraErrors(), supersampling)
+        )
+        self._true.config.renderer_name = RENDERER_NAME
+        self.color_camera, _ = self._true.config.MakeCameras()
         self.supersampling = supersampling
         self.intrinsics = IntrinsicsFromCameraConfig(rendered, supersampling)
         self._world = scene_graph.world_frame_id()
@@ -83,8 +99,11 @@ class PanelCameraRig:
         query = self._scene_graph.get_query_output_port().Eval(
             self._scene_graph.GetMyContextFromRoot(self._context)
         )
-        image = query.RenderColorImage(self.color_camera, self._world, X_PC)
+        X_PC_true = X_PC @ self._true.X_mount_error
+        image = np.asarray(query.RenderColorImage(self.color_camera, self._world, X_PC_true).data)
+        if self._true.remap is not None:
+            image = Remap(image, self._true.remap)
         params = dataclasses.replace(
             degradation or DegradationConfig(), supersampling=self.supersampling
         )
-        return DegradeImage(np.asarray(image.data), params, stream)
+        return DegradeImage(image, params, stream)

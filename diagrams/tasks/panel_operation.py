@@ -11,18 +11,24 @@ the planner's frames, limits and parameters under `planner`). The start is a ran
 pose in front of the panel (seeded: distance, tilt, aim point) solved by inverse
 kinematics, so a marker is in view; or an explicit joint vector.
 
-Metrics (ground truth from the simulation; frames as in
-systems/markers/marker_pose_estimator_math.py):
+Metrics (frames as in systems/markers/marker_pose_estimator_math.py). The arm's poses
+come from its measured joints through the nominal kinematics (what the controller
+believes; the panel where it truly is); each has a `true_` twin from the true plant's
+joints (and the camera's true mount), which differs only with station.errors:
   switch_pressed      1-based index of the switch whose cap travelled past its on-travel
                       (a list if several did, None if none): observed, not assumed;
   success             no failure and exactly the chosen switch pressed;
-  base_position_error_mm  |true camera position in P at the base point - its target|;
-  base_camera_distance_mm the true camera distance from the panel plane there;
-  press_error_mm      {x, y, z}: |true tip position in P while pressing - its target|;
+  base_position_error_mm  |camera position in P at the base point - its target|
+                      (true_base_position_error_mm: the true camera's);
+  base_camera_distance_mm the camera distance from the panel plane there;
+  press_error_mm      {x, y, z}: |tip position in P while pressing - its target|
+                      (true_press_error_mm: the true tip's);
   press_tip_W_mm, press_target_W_mm  that tip position and its target in the world
-                      (the parked rover's) frame, as in the paper's Tables 5 and 6;
+                      (the parked rover's) frame, as in the paper's Tables 5 and 6
+                      (true_press_tip_W_mm: the true tip's);
   measurements        one record per image analysed (point, validity, ids, distance, the
-                      estimated p_CP and its true error estimate_error_mm);
+                      estimated p_CP and its error estimate_error_mm against the believed
+                      camera pose, true_estimate_error_mm against the true one);
   lost_measurements   how many images showed no marker (0 if they always did);
   marker_loss         what the sequencer did when markers were not visible ("abort" or
                       "continue" with the last valid estimate), None if they always were.
@@ -61,6 +67,7 @@ from guidedarm.diagrams.tasks.panel_operation_report import (
 )
 from guidedarm.diagrams.tasks.planner_builder import MakeAccelerationPlanner
 from guidedarm.diagrams.tasks.registry import RunFlags, TaskDefinition
+from guidedarm.systems.cell_errors.camera_errors import ScaledCameraErrors
 from guidedarm.systems.config_checks import (
     ChangedKey,
     CheckConfig,
@@ -304,6 +311,13 @@ class PanelOperationRun:
             self.station.GetOutputPort(f"{scenario.arm}.position_measured"),
             self.joint_log.get_input_port(),
         )
+        # The true plant's state (ground truth), for the true_ metrics.
+        self.true_log = builder.AddNamedSystem(
+            "true_state_log", VectorLogSink(plant.num_multibody_states(), TRUE_LOG_PERIOD)
+        )
+        builder.Connect(
+            self.station.GetOutputPort("sim.plant_state"), self.true_log.get_input_port()
+        )
         self.diagram = builder.Build()
         self.simulator = Simulator(self.diagram)
         ApplySimulatorConfig(scenario.station.simulator_config, self.simulator)
@@ -381,10 +395,22 @@ class PanelOperationRun:
         return PanelOperationMetrics(self, state, context, planner_failure)
 
 
+# The period (s) of the true plant state's log: the true arm at the instants the
+# sequencer records (it records them at rest, so the nearest sample is the pose).
+TRUE_LOG_PERIOD = 0.01
+
+
 def _replace_camera(station: StationScenario, name: str, camera, k: int) -> StationScenario:
+    """The station with camera `name` rendering k times its resolution, its pixel errors
+    (station.errors.cameras, drawn) scaled with it."""
     cameras = dict(station.cameras)
     cameras[name] = SupersampledCameraConfig(camera, k)
-    return StationScenario(**{**station.__dict__, "cameras": cameras})
+    station = station.WithErrorsDrawn(None)
+    errors = station.errors
+    if name in errors.cameras:
+        scaled = {**errors.cameras, name: ScaledCameraErrors(errors.cameras[name], k)}
+        errors = dataclasses.replace(errors, cameras=scaled)
+    return dataclasses.replace(station, cameras=cameras, errors=errors)
 
 
 def _MakePlanner(scenario: PanelOperationScenario) -> tuple[AccelerationPlanner, PlannerFrames]:
@@ -438,5 +464,6 @@ TASK = TaskDefinition(
     run=RunPanelOperation,
     description="rover arm presses a panel switch guided by markers (Annusewicz-Mistal et al.)",
     metrics=PANEL_OPERATION_METRICS,
+    ground_truth_metrics=("switch_travel_mm.#", "press_target_W_mm.#"),
     check_run=CheckRun,
 )

@@ -4,9 +4,11 @@ T gripper tip)."""
 
 from __future__ import annotations
 
+from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
+from pydrake.math import RigidTransform
 from pydrake.systems.framework import Context
 
 from guidedarm.diagrams.plots import PlotJointSeries
@@ -54,6 +56,12 @@ PANEL_OPERATION_METRICS = (
     "press_error_mm.z",
     "press_tip_W_mm.#",
     "press_target_W_mm.#",
+    "true_base_position_error_mm",
+    "true_press_error_mm.x",
+    "true_press_error_mm.y",
+    "true_press_error_mm.z",
+    "true_press_tip_W_mm.#",
+    "measurements.#.true_estimate_error_mm",
     "measurements.#.t_s",
     "measurements.#.ids.#",
     "measurements.#.reprojection_error_px",
@@ -91,27 +99,35 @@ def PanelOperationMetrics(
         failure = f"pressed switches {pressed}, expected [{scenario.switch}]"
     targets = run.sequencer.targets
     X_PW = run.X_WP.inverse()
-    base_error = base_distance = None
+    base_error = base_distance = true_base_error = None
     if "measure_base" in state.q_at:
         X_PC = X_PW @ run.kinematics.X_WC(np.array(state.q_at["measure_base"]))
         X_PC_target = targets.base() @ run.kinematics.X_CT.inverse()
         base_error = _mm(np.linalg.norm(X_PC.translation() - X_PC_target.translation()))
         base_distance = _mm(X_PC.translation()[2])
-    press_error = press_tip = None
+        X_PC_true = X_PW @ _TrueArm(run, context, state, "measure_base").X_WC
+        true_base_error = _mm(np.linalg.norm(X_PC_true.translation() - X_PC_target.translation()))
+    press = {}
+    target = targets.at_switch(-scenario.operation.press_depth_m).translation()
     target_W = run.X_WP @ targets.at_switch(-scenario.operation.press_depth_m)
     if "press" in state.q_at:
-        X_WT = run.kinematics.X_WT(np.array(state.q_at["press"]))
-        p_PT = (X_PW @ X_WT).translation()
-        target = targets.at_switch(-scenario.operation.press_depth_m).translation()
-        press_error = dict(zip("xyz", (_mm(abs(e)) for e in p_PT - target), strict=True))
-        press_tip = [_mm(v) for v in X_WT.translation()]
+        believed = run.kinematics.X_WT(np.array(state.q_at["press"]))
+        true = _TrueArm(run, context, state, "press").X_WT
+        for prefix, X_WT in (("", believed), ("true_", true)):
+            p_PT = (X_PW @ X_WT).translation()
+            errors = (_mm(abs(e)) for e in p_PT - target)
+            press[f"{prefix}press_error_mm"] = dict(zip("xyz", errors, strict=True))
+            press[f"{prefix}press_tip_W_mm"] = [_mm(v) for v in X_WT.translation()]
     for record in state.measurements:
         if "p_CP_mm" in record:
-            X_WC = run.kinematics.X_WC(np.array(state.q_at[f"measure_{record['point']}"]))
+            label = f"measure_{record['point']}"
+            p_CP_estimated = 1e-3 * np.array(record["p_CP_mm"])
+            X_WC = run.kinematics.X_WC(np.array(state.q_at[label]))
             p_CP = (X_WC.inverse() @ run.X_WP).translation()
-            record["estimate_error_mm"] = _mm(
-                np.linalg.norm(1e-3 * np.array(record["p_CP_mm"]) - p_CP)
-            )
+            record["estimate_error_mm"] = _mm(np.linalg.norm(p_CP_estimated - p_CP))
+            X_WC_true = _TrueArm(run, context, state, label).X_WC
+            p_CP_true = (X_WC_true.inverse() @ run.X_WP).translation()
+            record["true_estimate_error_mm"] = _mm(np.linalg.norm(p_CP_estimated - p_CP_true))
     lost = [m for m in state.measurements if not m["valid"]]
     return {
         "success": failure is None,
@@ -120,15 +136,39 @@ def PanelOperationMetrics(
         "switch_travel_mm": [_mm(t) for t in travels],
         "base_position_error_mm": base_error,
         "base_camera_distance_mm": base_distance,
-        "press_error_mm": press_error,
-        "press_tip_W_mm": press_tip,
+        "press_error_mm": press.get("press_error_mm"),
+        "press_tip_W_mm": press.get("press_tip_W_mm"),
         "press_target_W_mm": [_mm(v) for v in target_W.translation()],
+        "true_base_position_error_mm": true_base_error,
+        "true_press_error_mm": press.get("true_press_error_mm"),
+        "true_press_tip_W_mm": press.get("true_press_tip_W_mm"),
         "measurements": state.measurements,
         "lost_measurements": len(lost),
         "marker_loss": scenario.operation.on_marker_loss if lost else None,
         "failure": failure,
         "sim_time_s": round(context.get_time(), 3),
     }
+
+
+@dataclass
+class _ArmPose:
+    """The tip T and camera C of the arm in W (true or believed)."""
+
+    X_WT: RigidTransform
+    X_WC: RigidTransform
+
+
+def _TrueArm(run: PanelOperationRun, context: Context, state: SequencerState, label: str):
+    """The true tip and camera poses when the sequencer recorded `label`: the true arm
+    joints (the true-state log's sample nearest that instant) through the arm's
+    kinematics, the camera moved by its mount error (station.errors)."""
+    log = run.true_log.FindLog(context)
+    k = int(np.argmin(np.abs(log.sample_times() - state.t_at[label])))
+    positions = log.data()[: run.plant.num_positions(), k]
+    q = run.plant.GetPositionsFromArray(run.arm_instance, positions)
+    camera = run.scenario.station.errors.cameras.get(run.scenario.camera)
+    X_CnC = camera.X_mount_error.GetDeterministicValue() if camera else RigidTransform()
+    return _ArmPose(run.kinematics.X_WT(q), run.kinematics.X_WC(q) @ X_CnC)
 
 
 def _mm(value: float) -> float:

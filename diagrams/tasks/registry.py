@@ -18,6 +18,9 @@ from guidedarm.systems.errors import ConfigurationError
 LIST_INDEX = "#"
 # What RunTask adds to every task's metrics: the run's wall-clock time (s).
 RUN_METRICS = ("wall_time_s",)
+# Where RunTask writes the run's drawn cell errors (station.errors) in the summary: the
+# cell of the run, not a metric.
+ERRORS_KEY = "errors"
 
 
 @dataclass(frozen=True)
@@ -48,6 +51,9 @@ class TaskDefinition:
     check_run(scenario, flags), when given, refuses (ConfigurationError) a scenario the
     task cannot run with these RunFlags (e.g. path following's kinematic executor with
     --hardware); CheckRun calls it before anything of the run is written.
+    ground_truth_metrics: metrics measured against the simulation's truth that have no
+    `true_` prefix (e.g. marker_view's errors against the rendered pose); `guidedarm
+    describe` lists each metric's source (MetricSource).
     metrics: the dotted names of every number its summary.json can carry (a list's
     elements as `name.#`; RUN_METRICS are added to every task's): what a campaign may
     collect and its report plots. tests/test_sweep.py compares them with real runs.
@@ -62,6 +68,20 @@ class TaskDefinition:
     simulates: bool = True
     metrics: tuple[str, ...] = ()
     check_run: Callable[[Any, RunFlags], None] | None = None
+    ground_truth_metrics: tuple[str, ...] = ()
+
+    def MetricSource(self, name: str) -> str:
+        """Where a metric comes from: the true cell (a `true_` metric, or one of
+        ground_truth_metrics), what the controller commands or measures (one with a
+        `true_` twin), or '' for the others (times, counts, settings)."""
+        parts = name.split(".")
+        if any(p.startswith("true_") for p in parts) or name in self.ground_truth_metrics:
+            return "the true cell (simulation ground truth; none on hardware)"
+        for i in range(len(parts)):
+            twin = ".".join([*parts[:i], f"true_{parts[i]}", *parts[i + 1 :]])
+            if twin in self.metrics:
+                return f"what the controller commands or measures (on the true cell: {twin})"
+        return ""
 
     def CheckRun(self, scenario: Any, flags: RunFlags) -> None:
         """Refuses (ConfigurationError, one line) running `scenario` with `flags`: a flag a
@@ -77,6 +97,11 @@ class TaskDefinition:
                         f"{flag} has no effect on task {self.name} (it simulates no station)"
                     )
         station = getattr(scenario, "station", None)
+        if isinstance(station, StationScenario) and flags.hardware and station.HasErrors():
+            raise ConfigurationError(
+                "station.errors and station.errors_preset describe a simulated cell; a "
+                "--hardware run drives the real one: remove them"
+            )
         if isinstance(station, StationScenario) and not flags.hardware:
             try:
                 station.CheckSimulated()
@@ -109,9 +134,10 @@ class TaskDefinition:
 
 def NumericMetricNames(summary: Any, prefix: str = "") -> set[str]:
     """The dotted names of the numbers in a summary (booleans are not numbers), list
-    indices written LIST_INDEX: what TaskDefinition.metrics declares."""
+    indices written LIST_INDEX: what TaskDefinition.metrics declares. The drawn errors
+    (ERRORS_KEY at the top) are not metrics."""
     if isinstance(summary, dict):
-        items = [(str(k), v) for k, v in summary.items()]
+        items = [(str(k), v) for k, v in summary.items() if prefix or k != ERRORS_KEY]
     elif isinstance(summary, list):
         items = [(LIST_INDEX, v) for v in summary]
     elif isinstance(summary, int | float) and not isinstance(summary, bool):

@@ -19,7 +19,7 @@ from guidedarm.diagrams.overlays.waypoint_overlays import AddWaypointOverlays
 from guidedarm.diagrams.plots import PlotJointSeries
 from guidedarm.diagrams.run_context import AdvanceWithProgress, RunContext
 from guidedarm.diagrams.station.scenario import StationScenario
-from guidedarm.diagrams.station.station import MakeStation
+from guidedarm.diagrams.station.station import MakeStation, TruePose
 from guidedarm.diagrams.tasks.planner_builder import MakeAccelerationPlanner, SymmetricLimit
 from guidedarm.diagrams.tasks.planner_plots import PlotScaling, PlotTcpPath
 from guidedarm.diagrams.tasks.registry import TaskDefinition
@@ -63,6 +63,7 @@ class WaypointsScenario:
         the commanded one (m), at the delay (tracking.MAX_TRACKING_DELAY at most, reported
         as tracking_delay_s) that fits the measurement best: the planner's success alone
         says nothing of the arm.
+    random_seed: the scenario's random seed (the draw of station.errors).
     """
 
     task: str = "waypoints"
@@ -77,6 +78,7 @@ class WaypointsScenario:
     max_time: float = Positive(20.0)
     settle_time: float = NonNegative(0.3)
     max_tracking_error: float = Positive(0.01)
+    random_seed: int = 0
     station: StationScenario = field(default_factory=StationScenario)
 
     def Validate(self) -> None:
@@ -215,6 +217,10 @@ def RunWaypoints(scenario: WaypointsScenario, context: RunContext) -> dict[str, 
             f"the measured TCP strayed {tracking:.4g} m from the commanded one "
             f"(max_tracking_error {scenario.max_tracking_error} m)"
         )
+    X_BT = TruePose(station, root, scenario.base_frame, scenario.tool_frame)
+    if X_BT is not None:
+        true_error = np.linalg.norm(X_BT.translation() - setup.planning.waypoints[-1, :3])
+        metrics["true_final_error_m"] = float(true_error)
     context.headline.update(metrics)
     SavePlannerFigures(context, scenario, setup, trajectory, measured)
     return {"sim_time_s": round(t_end, 4), **metrics, "failure": failure}
@@ -230,6 +236,7 @@ WAYPOINTS_METRICS = (
     "qdd_max",
     "qdd_min",
     "final_error_m",
+    "true_final_error_m",
     "c_min",
     "waypoint_distance_m.#",
     "qdd_step_max",

@@ -73,6 +73,7 @@ class SequencerState:
     X_WP: RigidTransform | None = None
     measurements: list[dict] = field(default_factory=list)
     q_at: dict[str, list[float]] = field(default_factory=dict)
+    t_at: dict[str, float] = field(default_factory=dict)
     failure: str | None = None
     done: bool = False
 
@@ -204,10 +205,10 @@ class PanelOperation(LeafSystem):
         elif step.kind == "move":
             advance = self._StartMove(s, step, q, t)
         elif step.kind == "hold" and moved and t >= since + step.duration_s:
-            s.q_at[step.label] = q.tolist()
+            s.q_at[step.label], s.t_at[step.label] = q.tolist(), t
             advance = True
         elif step.kind == "done" and moved:
-            s.q_at["end"] = q.tolist()
+            s.q_at["end"], s.t_at["end"] = q.tolist(), t
             s.done = True
         if s.failure is not None:
             s.done = True
@@ -226,7 +227,7 @@ class PanelOperation(LeafSystem):
             "ids": list(estimate.ids),
             "reprojection_error_px": round(float(estimate.reprojection_error_px), 4),
         }
-        s.q_at[f"measure_{label}"] = q.tolist()
+        s.q_at[f"measure_{label}"], s.t_at[f"measure_{label}"] = q.tolist(), t
         if estimate.valid:
             s.X_WP = self._kinematics.X_WC(q) @ estimate.X_CP
             p_CP = estimate.X_CP.translation()

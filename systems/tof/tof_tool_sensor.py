@@ -17,6 +17,7 @@ from pydrake.math import RigidTransform
 from pydrake.multibody.plant import MultibodyPlant
 from pydrake.systems.framework import BasicVector, Context, DiscreteValues, LeafSystem
 
+from guidedarm.systems.cell_errors.distributions import DrawErrors
 from guidedarm.systems.config_checks import (
     CheckFields,
     CheckInstance,
@@ -27,6 +28,7 @@ from guidedarm.systems.config_checks import (
 from guidedarm.systems.errors import ConfigurationError
 from guidedarm.systems.plant_frames import CheckPlant, GetScopedFrame
 from guidedarm.systems.tof.primitive_ray_casting import SceneRayCaster, SensorMount
+from guidedarm.systems.tof.tof_errors import ErrorReadings, ToFErrors
 from guidedarm.systems.tof.tof_tool_sensor_math import (
     ConeRays,
     DetectionGrid,
@@ -59,11 +61,6 @@ class ToFToolConfig:
     ranging_time: each range integrates over the ranging_time (s) before it is available;
         its measurement instant is the middle of that interval (the VL6180X ranges in
         about 10 ms). At most `period`.
-    offset: constant range offset of each of the six sensors (m), added to every return.
-    drift_rate: each sensor's slow range drift, a random walk whose change over one second
-        has this standard deviation (m); 0: no drift.
-    drift_max: the drift stays within +-drift_max (m; the datasheet's temperature drift
-        reaches 9 mm).
     rings: rings of rays sampling each cone (1 + 3 rings (rings + 1) rays; at most 20,
         1261 rays a sensor: each reading casts every ray).
     """
@@ -78,9 +75,6 @@ class ToFToolConfig:
     seed: int | None = None
     period: float = Positive(0.02)
     ranging_time: float = NonNegative(0.010)
-    offset: list[float] = InRange(-0.1, 0.1, factory=lambda: [0.0] * NUM_SENSORS)
-    drift_rate: float = NonNegative(0.0)
-    drift_max: float = NonNegative(0.009)
     rings: int = InRange(0, 20, 2)
 
     def Validate(self) -> None:
@@ -88,13 +82,6 @@ class ToFToolConfig:
         CheckFields(self)
         if len(self.sensor_frames) != NUM_SENSORS:
             raise ConfigurationError(f"sensor_frames must name {NUM_SENSORS} frames")
-        if len(self.offset) != NUM_SENSORS:
-            raise ConfigurationError(f"offset must hold {NUM_SENSORS} values (m), one a sensor")
-        if self.drift_rate > 0 and self.drift_max == 0:
-            raise ConfigurationError(
-                f"drift_rate ({self.drift_rate} m/sqrt(s)) needs drift_max > 0: the drift is "
-                "bounded by drift_max"
-            )
         if not self.ranging_time <= self.period:
             raise ConfigurationError(
                 f"ranging_time ({self.ranging_time} s) must not exceed period ({self.period} s)"
@@ -133,22 +120,28 @@ class ToFToolSensor(LeafSystem):
     the first) and the paper's 3 x 3 grid of that reading: `detections` and
     `detection_errors` (9 each, 0 or 1, row-major: row sensor i = 1..3, column sensor
     j = 4..6; tof_sensing).
-    A return reads true range + offset + drift, plus noise from
+    A return reads what `errors` (ToFErrors, drawn) make of the true range (ErrorReadings:
+    crosstalk, offset, drift), plus noise from
     np.random.default_rng((seed, k)) for range k, quantised. The drift (a reflected random
     walk, see DriftStep) advances once a period from np.random.default_rng((seed, k, 1)).
     Geometry of the tool's own model instance is not seen (its cones look away from it by
     construction).
     """
 
-    def __init__(self, plant: MultibodyPlant, config: ToFToolConfig) -> None:
+    def __init__(
+        self, plant: MultibodyPlant, config: ToFToolConfig, errors: ToFErrors | None = None
+    ) -> None:
         """plant: a finalized plant registered with the SceneGraph whose QueryObject the
-        `query_object` input carries (the station's); bad arguments raise
-        ConfigurationError naming them."""
+        `query_object` input carries (the station's); errors: the tool's drawn ToFErrors
+        (None: an exact tool); bad arguments raise ConfigurationError naming them."""
         super().__init__()
         CheckPlant("plant", plant, scene_graph=True)
         CheckInstance("config", config, ToFToolConfig)
         config.Validate()
+        errors = DrawErrors(errors or ToFErrors(), None, "errors")
+        errors.Validate()
         self._config = config
+        self._errors = errors
         frames = [GetScopedFrame(plant, name, "tof sensor_frames") for name in config.sensor_frames]
         instance = frames[0].model_instance()
         ignored = {
@@ -199,11 +192,9 @@ class ToFToolSensor(LeafSystem):
         """Range k from the geometry at the context's time, as a state reading."""
         c = self._config
         t = context.get_time()
-        bias = np.asarray(c.offset) + drift
         rng = np.random.default_rng((c.seed or 0, k))
-        ranges, valid = Measure(
-            self.TrueRanges(context) + bias, rng, c.noise_std, c.quantization, c.max_range
-        )
+        readings = ErrorReadings(self.TrueRanges(context), self._errors, drift)
+        ranges, valid = Measure(readings, rng, c.noise_std, c.quantization, c.max_range)
         available = k * c.period if k * c.period > t else t
         return np.concatenate([ranges, valid, np.full(NUM_SENSORS, t), [available]])
 
@@ -213,12 +204,12 @@ class ToFToolSensor(LeafSystem):
         state.set_value(self._pending, self._Read(context, k, drift))
 
     def _Measure(self, context: Context, state: DiscreteValues) -> None:
-        c = self._config
+        c, e = self._config, self._errors
         k = round((context.get_time() + c.ranging_time / 2) / c.period)
         drift = context.get_discrete_state(self._drift).value()
-        if c.drift_rate > 0:
+        if e.drift_rate > 0:
             rng = np.random.default_rng((c.seed or 0, k, 1))
-            drift = DriftStep(drift, rng, c.drift_rate, c.period, c.drift_max)
+            drift = DriftStep(drift, rng, e.drift_rate, c.period, e.drift_max)
             state.set_value(self._drift, drift)
         state.set_value(self._published, context.get_discrete_state(self._pending).value())
         state.set_value(self._pending, self._Read(context, k, drift))
