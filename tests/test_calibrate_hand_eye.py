@@ -14,6 +14,9 @@ from pydrake.math import RigidTransform, RollPitchYaw
 
 from guidedarm.diagrams.calibration.board_assets import DEFAULT_BOARD_FILE
 from guidedarm.diagrams.calibration.calibration_files import LoadBoardSpec, LoadHandEye
+from guidedarm.diagrams.calibration.simulated_cell import TrueIntrinsics
+from guidedarm.diagrams.cli.command_run import LoadScenario
+from guidedarm.diagrams.task_run import WithErrorsDrawn
 from guidedarm.diagrams.tasks.panel_files import IntrinsicsFromCameraConfig, LoadCameraIntrinsics
 from guidedarm.systems.calibration.board_projection import BoardPhotos
 from guidedarm.systems.calibration.calibration_views import CalibrationViews
@@ -144,32 +147,31 @@ def test_bad_hand_eye_input_is_one_line(run_cli, recorded, tmp_path, case, messa
 
 @pytest.mark.slow
 def test_simulated_camera_and_hand_eye_calibration(run_cli, tmp_path):
-    """The simulated rover arm photographs the cell's board (8 views at 1x rendering): the
-    camera's intrinsics within 0.5 % and 3 px of the station's camera, and from the same
-    photos and recorded poses the mount within 0.5 mm and 0.2 deg."""
-    out = tmp_path / "camera"
-    code, stdout, err = run_cli(
-        "calibrate",
-        "camera",
-        "panel_operation",
-        "--out",
-        out,
-        "--views",
-        8,
-        "--set",
+    """The simulated rover arm photographs the cell's board (8 views at 1x rendering) with a
+    camera whose true optics and mount differ from its file (the c920 preset's errors and a
+    k1 = -0.2 lens): intrinsics within 0.5 % and 3 px of the truth, k1 within 0.02; from the
+    same photos and recorded poses the mount within 0.5 mm and 0.2 deg of the true one."""
+    settings = [
         "supersampling=1",
+        "random_seed=3",
+        "station.errors_preset=c920",
+        "station.errors.cameras.camera.distortion=[-0.2, 0.06, 0, 0, 0]",
+    ]
+    out = tmp_path / "camera"
+    flags = [a for s in settings for a in ("--set", s)]
+    code, stdout, err = run_cli(
+        "calibrate", "camera", "panel_operation", "--out", out, "--views", 8, *flags
     )
     assert code == 0, err
-    assert "fx" in stdout and "truth" in stdout and "residual" in stdout
+    assert "truth" in stdout and "residual" in stdout
+    _, scenario, _ = LoadScenario("panel_operation", settings)
+    scenario = WithErrorsDrawn(scenario)
+    errors = scenario.station.errors.cameras["camera"]
+    truth = TrueIntrinsics(IntrinsicsFromCameraConfig(scenario.station.cameras["camera"]), errors)
     fit = LoadCameraIntrinsics(out / "camera.yaml")
-    from guidedarm.diagrams.cli.command_run import LoadScenario
-
-    _, scenario, _ = LoadScenario("panel_operation", [])
-    truth = IntrinsicsFromCameraConfig(scenario.station.cameras["camera"])
     assert abs(fit.fx / truth.fx - 1) < 0.005 and abs(fit.fy / truth.fy - 1) < 0.005
     assert abs(fit.cx - truth.cx) < 3 and abs(fit.cy - truth.cy) < 3
-    assert abs(fit.distortion[0]) < 0.02
-    # The same photos and poses, offline: X_PC is the nominal mount (identity in F).
+    assert abs(fit.distortion[0] - truth.distortion[0]) < 0.02
     he = tmp_path / "hand_eye"
     code, stdout, err = run_cli(
         "calibrate",
@@ -186,6 +188,7 @@ def test_simulated_camera_and_hand_eye_calibration(run_cli, tmp_path):
         he,
     )
     assert code == 0, err
-    X_PC = _LoadX_PC(he / "hand_eye.yaml")
-    assert np.linalg.norm(X_PC.translation()) < 0.5e-3
-    assert np.degrees(X_PC.rotation().ToAngleAxis().angle()) < 0.2
+    # The camera frame's nominal pose on its mount is the identity (X_PB, X_BC).
+    error = errors.X_mount_error.GetDeterministicValue().inverse() @ _LoadX_PC(he / "hand_eye.yaml")
+    assert np.linalg.norm(error.translation()) < 0.5e-3
+    assert np.degrees(error.rotation().ToAngleAxis().angle()) < 0.2

@@ -26,13 +26,15 @@ from guidedarm.diagrams.calibration.board_assets import DEFAULT_BOARD_FILE
 from guidedarm.diagrams.calibration.calibration_files import LoadBoardSpec
 from guidedarm.diagrams.station.scenario import StationScenario
 from guidedarm.diagrams.station.station import MakeStation
-from guidedarm.diagrams.tasks.panel_files import (
-    IntrinsicsFromCameraConfig,
-    SupersampledCameraConfig,
+from guidedarm.diagrams.task_run import WithErrorsDrawn
+from guidedarm.diagrams.tasks.panel_files import IntrinsicsFromCameraConfig
+from guidedarm.diagrams.tasks.panel_operation import (
+    PanelOperationScenario,
+    SupersampledStation,
 )
-from guidedarm.diagrams.tasks.panel_operation import PanelOperationScenario
 from guidedarm.diagrams.tasks.panel_operation_builder import MakeCameraArmKinematics
 from guidedarm.systems.calibration.calibration_views import CalibrationViews
+from guidedarm.systems.cell_errors.camera_errors import CameraErrors
 from guidedarm.systems.errors import ConfigurationError
 from guidedarm.systems.markers.image_degradation import DegradationConfig, ImageDegradation
 from guidedarm.systems.markers.marker_pose_estimator_math import CameraIntrinsics
@@ -64,13 +66,16 @@ class SimulatedCalibrationCell:
                 "calibration in simulation needs a panel_operation scenario (an arm carrying "
                 f"a camera in front of a panel), got task '{getattr(scenario, 'task', '?')}'"
             )
+        scenario = WithErrorsDrawn(scenario)
         self.scenario = scenario
         self.spec = LoadBoardSpec(DEFAULT_BOARD_FILE)
         camera = scenario.station.cameras[scenario.camera]
         k = scenario.supersampling
         self.nominal_intrinsics: CameraIntrinsics = IntrinsicsFromCameraConfig(camera)
         self.estimator_intrinsics = scenario.EstimatorIntrinsics() or self.nominal_intrinsics
-        station_scenario = self._StationWithBoard(scenario, SupersampledCameraConfig(camera, k))
+        station_scenario = self._StationWithBoard(
+            scenario, SupersampledStation(scenario.station, scenario.camera, camera, k)
+        )
         self.kinematics = MakeCameraArmKinematics(
             station_scenario, scenario.arm, scenario.camera, scenario.tip_frame
         )
@@ -95,12 +100,13 @@ class SimulatedCalibrationCell:
             config.X_PB.GetDeterministicValue() @ config.X_BC.GetDeterministicValue()
         )
         self.mount_frame = config.X_PB.base_frame
-        # The truth of the simulated cell: the station renders what its CameraConfig says
-        # and mounts the camera where X_PB says.
-        self.true_intrinsics = self.nominal_intrinsics
-        self.true_X_FC = self.X_FC_nominal
+        # The truth of the simulated cell: the camera file's intrinsics and the nominal
+        # mount, with the drawn station.errors of the camera.
+        errors = scenario.station.errors.cameras.get(scenario.camera, CameraErrors())
+        self.true_intrinsics = TrueIntrinsics(self.nominal_intrinsics, errors)
+        self.true_X_FC = self.X_FC_nominal @ errors.X_mount_error.GetDeterministicValue()
 
-    def _StationWithBoard(self, scenario, camera) -> StationScenario:
+    def _StationWithBoard(self, scenario, station: StationScenario) -> StationScenario:
         width, height = self.spec.size_m()
         X_plate_B = RigidTransform(
             RollPitchYaw(np.pi, 0, 0), [0.06 - width / 2, height / 2 - 0.0125, BOARD_STANDOFF_M]
@@ -119,10 +125,7 @@ class SimulatedCalibrationCell:
                 )
             ),
         ]
-        cameras = {**scenario.station.cameras, scenario.camera: camera}
-        return dataclasses.replace(
-            scenario.station, directives=[*scenario.station.directives, *board], cameras=cameras
-        )
+        return dataclasses.replace(station, directives=[*station.directives, *board])
 
     def Photos(self, count: int, seed: int) -> list[SimulatedView]:
         """`count` views of the board (the camera's believed pose X_BC from CalibrationViews,
@@ -167,3 +170,18 @@ class SimulatedCalibrationCell:
         )
         X_WF = self.kinematics.X_WC(q_measured) @ self.X_FC_nominal.inverse()
         return SimulatedView(name, image, np.array(q_measured), X_WF)
+
+
+def TrueIntrinsics(nominal: CameraIntrinsics, errors: CameraErrors) -> CameraIntrinsics:
+    """The intrinsics of the images the station renders: the camera file's plus the drawn
+    focal and principal point errors, with the drawn lens distortion."""
+    dfx, dfy = errors.focal_error_px or (0.0, 0.0)
+    dcx, dcy = errors.principal_point_error_px or (0.0, 0.0)
+    return dataclasses.replace(
+        nominal,
+        fx=nominal.fx + dfx,
+        fy=nominal.fy + dfy,
+        cx=nominal.cx + dcx,
+        cy=nominal.cy + dcy,
+        distortion=list(errors.distortion) or [0.0] * 5,
+    )

@@ -262,7 +262,7 @@ class PanelOperationRun:
         scenario = self.scenario
         k = scenario.supersampling
         camera = scenario.station.cameras[scenario.camera]
-        station_scenario = _replace_camera(scenario.station, scenario.camera, camera, k)
+        station_scenario = SupersampledStation(scenario.station, scenario.camera, camera, k)
         builder = DiagramBuilder()
         self.station = builder.AddNamedSystem(
             "station", MakeStation(station_scenario, self.context.meshcat)
@@ -400,7 +400,7 @@ class PanelOperationRun:
 TRUE_LOG_PERIOD = 0.01
 
 
-def _replace_camera(station: StationScenario, name: str, camera, k: int) -> StationScenario:
+def SupersampledStation(station: StationScenario, name: str, camera, k: int) -> StationScenario:
     """The station with camera `name` rendering k times its resolution, its pixel errors
     (station.errors.cameras, drawn) scaled with it."""
     cameras = dict(station.cameras)
