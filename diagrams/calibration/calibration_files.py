@@ -12,6 +12,7 @@ from pydrake.common.schema import Transform
 from pydrake.math import RigidTransform, RollPitchYaw
 
 from guidedarm.diagrams.scenario_loading import ScenarioError, load_typed, read_raw_scenario
+from guidedarm.diagrams.station.model_paths import MODELS_DIR
 from guidedarm.systems.calibration.charuco_board import BoardSpec
 from guidedarm.systems.markers.marker_pose_estimator_math import CameraIntrinsics
 
@@ -30,6 +31,26 @@ def LoadHandEye(path: str | Path) -> HandEyeFile:
     if not path.is_file():
         raise ScenarioError(f"file not found: {path}")
     return load_typed(HandEyeFile, read_raw_scenario(path), str(path))
+
+
+@dataclass
+class ToFOffsetsFile:
+    """tof_offsets.yaml: how much each of the six sensors reads too long (m), the amount
+    the ToF tool's calibration_file subtracts."""
+
+    offset: list[float] = field(default_factory=lambda: [0.0] * 6)
+
+
+def LoadToFOffsets(path: str | Path) -> np.ndarray:
+    """The six offsets (m) of a tof_offsets.yaml (relative to models/ or absolute),
+    refused unless six values within +-0.1 m (the sensor's range)."""
+    path = MODELS_DIR / path
+    if not path.is_file():
+        raise ScenarioError(f"file not found: {path}")
+    offsets = load_typed(ToFOffsetsFile, read_raw_scenario(path), str(path)).offset
+    if len(offsets) != 6 or not all(abs(v) <= 0.1 for v in offsets):
+        raise ScenarioError(f"{path}: offset must hold 6 values within +-0.1 m, got {offsets}")
+    return np.asarray(offsets, float)
 
 
 def LoadBoardSpec(path: str | Path) -> BoardSpec:

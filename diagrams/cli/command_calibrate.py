@@ -10,8 +10,12 @@ data (photos, arm poses, ToF readings) and write the files the scenarios read.
       --out OUT
       the camera's pose on the arm (OUT/hand_eye.yaml: X_PC) from recorded photos and poses;
   calibrate hand-eye SCENARIO --out DIR
-      the same in simulation, printed beside the true mount.
-A SCENARIO is a panel_operation scenario (name or file) with `--set key=value` overrides.
+      the same in simulation, printed beside the true mount;
+  calibrate tof SCENARIO --out DIR
+      each ToF sensor's offset against a flat target (DIR/tof_offsets.yaml), in simulation,
+      printed beside the drawn truth.
+SCENARIO is a panel_operation scenario for camera and hand-eye, one with a ToF tool (e.g.
+path_following) for tof, by name or file, with `--set key=value` overrides.
 """
 
 from __future__ import annotations
@@ -57,6 +61,11 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     hand_eye.add_argument("--camera", type=Path, help="CAMERA.yaml of the camera")
     hand_eye.add_argument("--out", type=Path, required=True, help="output directory")
     hand_eye.set_defaults(func=calibrate_hand_eye_command)
+    tof = kinds.add_parser("tof", help="ToF sensors' offsets against a flat target")
+    tof.add_argument("scenario", help="scenario with one ToF tool (name or file)")
+    tof.add_argument("--out", type=Path, required=True, help="output directory")
+    AddOverridesArgument(tof, "override a scenario key")
+    tof.set_defaults(func=calibrate_tof_command)
 
 
 def _AddSimulationArguments(parser: argparse.ArgumentParser) -> None:
@@ -155,4 +164,16 @@ def calibrate_hand_eye_command(args: argparse.Namespace) -> int:
         print(f"  {name:10s} board pose scatter {p:8.3f} mm {r:8.4f} deg")
     for name, why in rejected.items():
         print(f"  rejected {name}: {why}")
+    return 0
+
+
+def calibrate_tof_command(args: argparse.Namespace) -> int:
+    from guidedarm.diagrams.calibration.tof_calibration import CalibrateToFInSimulation
+    from guidedarm.diagrams.cli.command_run import LoadScenario
+
+    _, scenario, _ = LoadScenario(args.scenario, args.overrides)
+    PrepareOutputDirectory(args.out)
+    lines = CalibrateToFInSimulation(scenario, args.out)
+    print(f"wrote {args.out / 'tof_offsets.yaml'}")
+    print("\n".join(lines))
     return 0
