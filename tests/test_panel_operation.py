@@ -143,10 +143,20 @@ def test_estimator_camera_file_is_the_estimators_model(tmp_path, run_cli):
         "width: 1920\nheight: 1080\nfx: 1362.5\nfy: 1361.0\ncx: 961.0\ncy: 538.0\n"
         "distortion: [-0.2, 0.07, 0.0, 0.0, 0.0]\n"
     )
-    run = _run(tmp_path, [f"estimator_camera_file={camera}"])
+    mount = tmp_path / "hand_eye.yaml"
+    mount.write_text(
+        "X_PC:\n  translation: [0.001, -0.002, 0.003]\n  rotation: !Rpy { deg: [0.5, 0, 0] }\n"
+        "  base_frame: rover_gripper::camera\n"
+    )
+    run = _run(tmp_path, [f"estimator_camera_file={camera}", f"camera_mount_file={mount}"])
     estimator = run.diagram.GetSubsystemByName("marker_pose_estimator")
     assert estimator.solver.intrinsics.fx == 1362.5
     assert estimator.solver.intrinsics.distortion == [-0.2, 0.07, 0.0, 0.0, 0.0]
+    # The controller's camera sits where the mount file says, in the mount frame.
+    q = run.kinematics.plant.GetPositions(run.kinematics.plant.CreateDefaultContext())
+    X_WF = run.kinematics.camera_frame.CalcPoseInWorld(run.kinematics.plant.CreateDefaultContext())
+    X_FC = X_WF.inverse() @ run.kinematics.X_WC(q)
+    np.testing.assert_allclose(X_FC.translation(), [0.001, -0.002, 0.003], atol=1e-12)
     small = tmp_path / "small.yaml"
     small.write_text("width: 640\nheight: 480\nfx: 500\nfy: 500\ncx: 319.5\ncy: 239.5\n")
     for path, message in (
@@ -160,5 +170,20 @@ def test_estimator_camera_file_is_the_estimators_model(tmp_path, run_cli):
             tmp_path / "out",
             "--set",
             f"estimator_camera_file={path}",
+        )
+        assert code == 2 and message in err and len(err.strip().splitlines()) == 1, err
+    other = tmp_path / "other_mount.yaml"
+    other.write_text(mount.read_text().replace("rover_gripper::camera", "world"))
+    for path, message in (
+        (other, "X_PC is in world, the camera's X_PB in rover_gripper::camera"),
+        (tmp_path / "missing.yaml", "file not found"),
+    ):
+        code, _, err = run_cli(
+            "run",
+            "panel_operation",
+            "--out",
+            tmp_path / "out",
+            "--set",
+            f"camera_mount_file={path}",
         )
         assert code == 2 and message in err and len(err.strip().splitlines()) == 1, err

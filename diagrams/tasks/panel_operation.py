@@ -55,6 +55,7 @@ from guidedarm.diagrams.station.station import MakeStation
 from guidedarm.diagrams.tasks.panel_assets import COVER_CLOSED_M
 from guidedarm.diagrams.tasks.panel_camera_rig import LookAt
 from guidedarm.diagrams.tasks.panel_files import (
+    LoadCameraMount,
     LoadEstimatorIntrinsics,
     LoadPanelSpec,
     SupersampledCameraConfig,
@@ -153,6 +154,10 @@ class PanelOperationScenario:
         distortion, e.g. written by `guidedarm calibrate camera`) relative to models/ or
         absolute, of the camera's width x height; empty: derived from the station's
         CameraConfig (no distortion).
+    camera_mount_file: the controller's belief of where the camera sits on the arm, a
+        hand_eye.yaml (`guidedarm calibrate hand-eye`: X_PC in the frame the camera's X_PB
+        names) relative to models/ or absolute; empty: the camera's X_PB X_BC. The
+        simulated camera stays where X_PB (and station.errors) put it.
     panel_model: the panel's model instance in the directives.
     supersampling: the camera renders this many times its resolution, and
         ImageDegradation averages it back (1..8; degradation.supersampling must stay 1;
@@ -177,6 +182,7 @@ class PanelOperationScenario:
     tip_frame: str = "rover_gripper::gripper_tip"
     panel_file: str = "panel/panel.yaml"
     estimator_camera_file: str = ""
+    camera_mount_file: str = ""
     panel_model: str = "panel"
     supersampling: int = InRange(1, 8, 3)
     degradation: DegradationConfig = field(default_factory=DegradationConfig)
@@ -200,7 +206,13 @@ class PanelOperationScenario:
             self.degradation, self.station.cameras[self.camera], self.supersampling
         )
         self.EstimatorIntrinsics()
+        self.CameraMount()
         _CheckModeKeys(self)
+
+    def CameraMount(self) -> RigidTransform | None:
+        """X_PC of camera_mount_file (None when empty), refused when its base_frame is
+        not the camera's X_PB.base_frame."""
+        return LoadCameraMount(self.camera_mount_file, self.station.cameras[self.camera])
 
     def EstimatorIntrinsics(self) -> CameraIntrinsics | None:
         """The estimator's camera model (estimator_camera_file), None when derived."""
@@ -290,6 +302,7 @@ class PanelOperationRun:
             ),
             planner=planner,
             intrinsics=scenario.EstimatorIntrinsics(),
+            camera_mount=scenario.CameraMount(),
         )
         self.sequencer = systems.sequencer
         self.kinematics = systems.kinematics
