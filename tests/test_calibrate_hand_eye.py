@@ -110,35 +110,11 @@ def test_bad_hand_eye_input_is_one_line(run_cli, recorded, tmp_path, case, messa
         # but the check refuses before that
         rows = [lines[0]] + [f"p{i}.png,0.5,0,0.5,0,0,{10 * i}" for i in range(8)]
         poses.write_text("\n".join(rows) + "\n")
-    if case == "mixed":
-        code, out, err = run_cli(
-            "calibrate",
-            "hand-eye",
-            "panel_operation",
-            "--images",
-            recorded,
-            "--poses",
-            poses,
-            "--board",
-            DEFAULT_BOARD_FILE,
-            "--camera",
-            recorded / "camera.yaml",
-            "--out",
-            tmp_path,
-        )
-    elif case == "missing":
-        code, out, err = run_cli(
-            "calibrate",
-            "hand-eye",
-            "--images",
-            recorded,
-            "--poses",
-            poses,
-            "--board",
-            DEFAULT_BOARD_FILE,
-            "--out",
-            tmp_path,
-        )
+    if case in ("mixed", "missing"):
+        files = ["--images", recorded, "--poses", poses, "--board", DEFAULT_BOARD_FILE]
+        if case == "mixed":
+            files = ["panel_operation", *files, "--camera", recorded / "camera.yaml"]
+        code, out, err = run_cli("calibrate", "hand-eye", *files, "--out", tmp_path)
     else:
         code, out, err = _Offline(run_cli, recorded, tmp_path / "out", poses=poses)
     assert code == 2 and out == "", err

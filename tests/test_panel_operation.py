@@ -159,31 +159,15 @@ def test_estimator_camera_file_is_the_estimators_model(tmp_path, run_cli):
     np.testing.assert_allclose(X_FC.translation(), [0.001, -0.002, 0.003], atol=1e-12)
     small = tmp_path / "small.yaml"
     small.write_text("width: 640\nheight: 480\nfx: 500\nfy: 500\ncx: 319.5\ncy: 239.5\n")
-    for path, message in (
-        (small, "is for 640 x 480 px images, camera 'camera' renders 1920 x 1080"),
-        (tmp_path / "missing.yaml", "file not found"),
-    ):
-        code, _, err = run_cli(
-            "run",
-            "panel_operation",
-            "--out",
-            tmp_path / "out",
-            "--set",
-            f"estimator_camera_file={path}",
-        )
-        assert code == 2 and message in err and len(err.strip().splitlines()) == 1, err
     other = tmp_path / "other_mount.yaml"
     other.write_text(mount.read_text().replace("rover_gripper::camera", "world"))
-    for path, message in (
-        (other, "X_PC is in world, the camera's X_PB in rover_gripper::camera"),
-        (tmp_path / "missing.yaml", "file not found"),
+    for key, path, message in (
+        ("estimator_camera_file", small, "is for 640 x 480 px images, camera 'camera' renders"),
+        ("estimator_camera_file", tmp_path / "missing.yaml", "file not found"),
+        ("camera_mount_file", other, "X_PC is in world, the camera's X_PB in rover_gripper"),
+        ("camera_mount_file", tmp_path / "missing.yaml", "file not found"),
     ):
         code, _, err = run_cli(
-            "run",
-            "panel_operation",
-            "--out",
-            tmp_path / "out",
-            "--set",
-            f"camera_mount_file={path}",
+            "run", "panel_operation", "--out", tmp_path / "out", "--set", f"{key}={path}"
         )
         assert code == 2 and message in err and len(err.strip().splitlines()) == 1, err

@@ -125,9 +125,9 @@ def _PlotCoverage(views, calibration, width, height, coverage: float, path: Path
     figure, axis = plt.subplots(figsize=(8, 8 * height / width + 0.8))
     for v in _Used(views, calibration):
         axis.plot(v.pixels[:, 0], v.pixels[:, 1], ".", ms=3, label=v.name)
+    axis.plot([0, width, width, 0, 0], [0, 0, height, height, 0], "k-", lw=1)
     axis.set_xlim(0, width)
     axis.set_ylim(height, 0)
-    axis.set_aspect("equal")
     axis.set_xlabel("u (px)")
     axis.set_ylabel("v (px)")
     axis.set_title("board corners used, one colour per image")
