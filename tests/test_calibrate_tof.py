@@ -46,10 +46,11 @@ def test_offsets_within_half_a_millimetre_and_taken_out_by_the_calibration_file(
             ["station.tof_tools.tof.calibration_file=/nonexistent/tof_offsets.yaml"],
             "key 'station.tof_tools.tof.calibration_file': file not found",
         ),
+        ("path_following", ["--hardware"], "calibrate tof --hardware is not implemented"),
     ],
 )
 def test_bad_tof_input_is_one_line(run_cli, tmp_path, scenario, settings, message):
-    flags = [a for s in settings for a in ("--set", s)]
+    flags = [a for s in settings for a in ("--set", s)] if settings != ["--hardware"] else settings
     code, out, err = run_cli("calibrate", "tof", scenario, "--out", tmp_path, *flags)
     assert code == 2 and out == "", err
     assert len(err.strip().splitlines()) == 1 and message in err, err

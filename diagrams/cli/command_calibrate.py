@@ -64,6 +64,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     tof = kinds.add_parser("tof", help="ToF sensors' offsets against a flat target")
     tof.add_argument("scenario", help="scenario with one ToF tool (name or file)")
     tof.add_argument("--out", type=Path, required=True, help="output directory")
+    tof.add_argument("--hardware", action="store_true", help="on the real tool (not yet)")
     AddOverridesArgument(tof, "override a scenario key")
     tof.set_defaults(func=calibrate_tof_command)
 
@@ -171,6 +172,12 @@ def calibrate_tof_command(args: argparse.Namespace) -> int:
     from guidedarm.diagrams.calibration.tof_calibration import CalibrateToFInSimulation
     from guidedarm.diagrams.cli.command_run import LoadScenario
 
+    if args.hardware:
+        raise ConfigurationError(
+            "calibrate tof --hardware is not implemented: record ~40 readings per sensor "
+            "and distance against a white target and write tof_offsets.yaml by hand "
+            "(docs/calibration.md)"
+        )
     _, scenario, _ = LoadScenario(args.scenario, args.overrides)
     PrepareOutputDirectory(args.out)
     lines = CalibrateToFInSimulation(scenario, args.out)
