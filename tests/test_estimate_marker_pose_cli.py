@@ -13,6 +13,8 @@ from pydrake.systems.sensors import CameraConfig
 
 from guidedarm.diagrams.tasks.panel_camera_rig import LookAt, PanelCameraRig
 from guidedarm.diagrams.tasks.panel_files import DEFAULT_CAMERA_FILE, DEFAULT_PANEL_FILE
+from guidedarm.systems.calibration.board_projection import DistortPinholeImage
+from guidedarm.systems.markers.marker_pose_estimator_math import CameraIntrinsics
 
 C920 = "{width: 1920, height: 1080, focal: !FocalLength {x: 1360.2, y: 1360.2}}"
 X_PC = LookAt([0.02, -0.01, 0.28], [0.06, 0.0, 0.0])
@@ -44,7 +46,18 @@ def test_prints_pose_of_rendered_panel(run_cli, files):
     )
     assert code == 0, err
     result = json.loads(out)
-    assert set(result) == {"X_CP", "ids", "reprojection_error_px", "valid"}
+    assert set(result) == {
+        "X_CP",
+        "ids",
+        "reprojection_error_px",
+        "std_mm",
+        "std_deg",
+        "model_check",
+        "valid",
+        "why_invalid",
+    }
+    assert max(result["std_mm"]) < 0.5 and max(result["std_deg"]) < 0.5
+    assert result["model_check"]["fits"] is True and result["why_invalid"] == ""
     assert result["ids"] == [7, 42] and result["valid"] is True
     X_CP = np.array(result["X_CP"])
     assert X_CP.shape == (4, 4)
@@ -120,3 +133,49 @@ def test_example_camera_file_is_accepted(run_cli, files):
         DEFAULT_PANEL_FILE,
     )
     assert code == 0 and json.loads(out)["valid"]
+
+
+def test_distorted_image_with_a_zero_distortion_file_is_not_valid(run_cli, tmp_path):
+    """The issue's case: a lens with k1 = -0.25, k2 = 0.08 seen through a camera file
+    without distortion fits to ~1 px but 7 deg off; the model check refuses it, and the
+    right file gives a valid pose within 1 mm and 0.5 deg of the truth."""
+    k = 3
+    fine = CameraConfig(width=1920 * k, height=1080 * k)
+    fine.focal = CameraConfig.FocalLength(x=1360.2 * k, y=1360.2 * k)
+    rig = PanelCameraRig(fine, supersampling=1)
+    X_PC_far = LookAt([0.06, 0.0, 0.45], [0.0, 0.05, 0.0])
+    lens = CameraIntrinsics(
+        fx=1360.2, fy=1360.2, cx=959.5, cy=539.5, distortion=[-0.25, 0.08, 0.0, 0.0, 0.0]
+    )
+    image = DistortPinholeImage(rig.Render(X_PC_far), lens, k)
+    cv2.imwrite(str(tmp_path / "distorted.png"), cv2.cvtColor(image, cv2.COLOR_RGBA2BGR))
+    results = {}
+    for name, distortion in (("zero", [0.0] * 5), ("right", lens.distortion)):
+        camera = dataclasses.replace(lens, distortion=distortion)
+        path = tmp_path / f"{name}.yaml"
+        path.write_text("".join(f"{key}: {v}\n" for key, v in dataclasses.asdict(camera).items()))
+        code, out, _ = run_cli(
+            "estimate-marker-pose",
+            tmp_path / "distorted.png",
+            "--camera",
+            path,
+            "--panel",
+            DEFAULT_PANEL_FILE,
+        )
+        results[name] = (code, json.loads(out))
+    code, zero = results["zero"]
+    assert code == 1 and zero["valid"] is False and zero["reprojection_error_px"] < 2
+    assert (
+        zero["model_check"]["fits"] is False
+        and "the corners ask for k1 = -0.2" in zero["why_invalid"]
+    )
+    code, right = results["right"]
+    assert code == 0 and right["valid"] is True and right["model_check"]["fits"] is True
+    X_CP, truth = np.array(right["X_CP"]), X_PC_far.inverse().GetAsMatrix4()
+    assert np.linalg.norm(X_CP[:3, 3] - truth[:3, 3]) < 1e-3
+    angle = np.arccos((np.trace(X_CP[:3, :3].T @ truth[:3, :3]) - 1) / 2)
+    assert np.degrees(angle) < 0.5
+    wrong = np.arccos(
+        np.clip((np.trace(np.array(zero["X_CP"])[:3, :3].T @ truth[:3, :3]) - 1) / 2, -1, 1)
+    )
+    assert np.degrees(wrong) > 3  # the pose the check refuses is really off

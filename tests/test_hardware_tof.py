@@ -205,3 +205,17 @@ def test_each_line_is_stamped_when_it_arrives():
     )
     assert np.all(delays >= 0) and np.all(np.array(stamps[:-1]) < written[1:])
     assert np.median(delays) < 0.025
+
+
+def test_driver_subtracts_the_calibrated_offsets_from_valid_ranges():
+    """The ToF tool's calibration_file offsets leave the driver's valid ranges shorter by
+    them; an invalid sensor keeps the no-return range."""
+    collector = ToFLineCollector()
+    offset = np.array([0.001, -0.002, 0.003, 0.0, 0.004, -0.001])
+    driver = ToFDriver(collector, 0.02, 10.0, no_return_range=0.1, calibration_offset=offset)
+    collector.Feed((GOOD + "\r\n").encode())
+    simulator = Simulator(driver)
+    simulator.AdvanceTo(0.05)
+    ranges = driver.GetOutputPort("ranges").Eval(simulator.get_context())
+    expected = np.where(STATUS == 0, 1e-3 * RANGES_MM - offset, 0.1)
+    np.testing.assert_allclose(ranges, expected)

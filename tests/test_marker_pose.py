@@ -145,6 +145,8 @@ def test_estimator_system_outputs(solver, rig):
     assert estimator.GetOutputPort("ids").Eval(estimator_context) == [7, 42]
     assert estimator.GetOutputPort("valid").Eval(estimator_context)[0] == 1.0
     assert 0 < estimator.GetOutputPort("reprojection_error_px").Eval(estimator_context)[0] < 1
+    std = estimator.GetOutputPort("pose_std").Eval(estimator_context)
+    assert np.all(std > 0) and np.all(std[:3] < 0.5) and np.all(std[3:] < 0.5)
 
 
 def test_degradation_is_seeded_and_integrates_pixels():

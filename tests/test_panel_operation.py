@@ -153,3 +153,41 @@ def test_the_shipped_scenario_loads_with_either_motion():
     assert PanelPlannerConfig().parameters.position_tolerance == 1e-4
     assert PanelPlannerConfig().parameters.orientation_tolerance == 1e-4
     assert PlannerBaseFrame(scenario) == "rover_arm::base"
+
+
+def test_estimator_camera_file_is_the_estimators_model(tmp_path, run_cli):
+    """estimator_camera_file replaces the model derived from the station's CameraConfig;
+    a file for another image size is refused at load."""
+    camera = tmp_path / "calibrated.yaml"
+    camera.write_text(
+        "width: 1920\nheight: 1080\nfx: 1362.5\nfy: 1361.0\ncx: 961.0\ncy: 538.0\n"
+        "distortion: [-0.2, 0.07, 0.0, 0.0, 0.0]\n"
+    )
+    mount = tmp_path / "hand_eye.yaml"
+    mount.write_text(
+        "X_PC:\n  translation: [0.001, -0.002, 0.003]\n  rotation: !Rpy { deg: [0.5, 0, 0] }\n"
+        "  base_frame: rover_gripper::camera\n"
+    )
+    run = _run(tmp_path, [f"estimator_camera_file={camera}", f"camera_mount_file={mount}"])
+    estimator = run.diagram.GetSubsystemByName("marker_pose_estimator")
+    assert estimator.solver.intrinsics.fx == 1362.5
+    assert estimator.solver.intrinsics.distortion == [-0.2, 0.07, 0.0, 0.0, 0.0]
+    # The controller's camera sits where the mount file says, in the mount frame.
+    q = run.kinematics.plant.GetPositions(run.kinematics.plant.CreateDefaultContext())
+    X_WF = run.kinematics.camera_frame.CalcPoseInWorld(run.kinematics.plant.CreateDefaultContext())
+    X_FC = X_WF.inverse() @ run.kinematics.X_WC(q)
+    np.testing.assert_allclose(X_FC.translation(), [0.001, -0.002, 0.003], atol=1e-12)
+    small = tmp_path / "small.yaml"
+    small.write_text("width: 640\nheight: 480\nfx: 500\nfy: 500\ncx: 319.5\ncy: 239.5\n")
+    other = tmp_path / "other_mount.yaml"
+    other.write_text(mount.read_text().replace("rover_gripper::camera", "world"))
+    for key, path, message in (
+        ("estimator_camera_file", small, "is for 640 x 480 px images, camera 'camera' renders"),
+        ("estimator_camera_file", tmp_path / "missing.yaml", "file not found"),
+        ("camera_mount_file", other, "X_PC is in world, the camera's X_PB in rover_gripper"),
+        ("camera_mount_file", tmp_path / "missing.yaml", "file not found"),
+    ):
+        code, _, err = run_cli(
+            "run", "panel_operation", "--out", tmp_path / "out", "--set", f"{key}={path}"
+        )
+        assert code == 2 and message in err and len(err.strip().splitlines()) == 1, err

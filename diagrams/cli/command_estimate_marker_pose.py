@@ -1,7 +1,10 @@
 """`guidedarm estimate-marker-pose IMAGE --camera CAMERA.yaml --panel PANEL.yaml`.
 
 Prints the pose of the panel in the camera frame as JSON: `X_CP` (4 x 4 homogeneous
-matrix, metres), `ids` (known markers used), `reprojection_error_px` (RMS), `valid`.
+matrix, metres), `ids` (known markers used), `reprojection_error_px` (RMS), `std_mm` and
+`std_deg` (the pose's standard deviations along and about the camera's x y z axes),
+`model_check` (the k1 the corners ask for beside the camera file's; null with one marker),
+`valid` and `why_invalid`.
 Exit codes: 0 valid pose, 1 markers found but the pose is not trustworthy, 2 bad input
 (unreadable image, size not matching the camera file, no marker, bad YAML).
 """
@@ -10,6 +13,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import math
 from pathlib import Path
 
 import cv2
@@ -51,11 +55,29 @@ def estimate_command(args: argparse.Namespace) -> int:
             f"no marker of the panel ({panel.dictionary} ids {known}) found in {args.image}"
         )
     X_CP = estimate.X_CP.GetAsMatrix4().tolist() if estimate.X_CP is not None else None
+    check = estimate.model_check
     result = {
         "X_CP": X_CP,
         "ids": estimate.ids,
         "reprojection_error_px": round(estimate.reprojection_error_px, 4),
+        "std_mm": _Rounded(estimate.std_mm),
+        "std_deg": _Rounded(estimate.std_deg),
+        "model_check": None
+        if check is None
+        else {
+            "fitted_k1": round(check.fitted_k1, 4),
+            "fitted_k1_std": round(check.fitted_k1_std, 4),
+            "file_k1": check.file_k1,
+            "explained_px": round(check.explained_px, 3),
+            "fits": check.fits,
+        },
         "valid": estimate.valid,
+        "why_invalid": estimate.why_invalid,
     }
     print(json.dumps(result))
     return 0 if estimate.valid else INVALID_POSE
+
+
+def _Rounded(values: list[float]) -> list[float | None]:
+    """Rounded to 4 decimals; an infinite deviation (an undetermined pose) as null."""
+    return [round(v, 4) if math.isfinite(v) else None for v in values]

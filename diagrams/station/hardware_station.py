@@ -127,6 +127,7 @@ def MakeHardwareStation(scenario: StationScenario, meshcat: Meshcat | None = Non
             tool.max_range,
             grid,
             latency=latency,
+            calibration_offset=scenario.ToFCalibration(name),
         )
         builder.AddNamedSystem(f"{name}.driver", system)
         for port in TOF_PORTS:

@@ -4,12 +4,14 @@ import dataclasses
 import math
 from dataclasses import dataclass, field
 
+import numpy as np
 from pydrake.multibody.parsing import ModelDirective
 from pydrake.multibody.plant import MultibodyPlantConfig
 from pydrake.systems.analysis import SimulatorConfig
 from pydrake.systems.sensors import CameraConfig
 from pydrake.visualization import VisualizationConfig
 
+from guidedarm.diagrams.calibration.calibration_files import LoadToFOffsets
 from guidedarm.diagrams.station.hardware_config import HardwareConfig
 from guidedarm.diagrams.station.station_errors import (
     CheckErrorKeys,
@@ -25,6 +27,7 @@ from guidedarm.systems.config_checks import (
     FieldError,
     InRange,
 )
+from guidedarm.systems.errors import ConfigurationError
 from guidedarm.systems.path_following.hose_geometry import HoseConfig
 from guidedarm.systems.tof.tof_tool_sensor import ToFToolConfig
 
@@ -163,6 +166,16 @@ class StationScenario:
         CheckErrorKeys(self.errors, known)
         for name in PresetNames(self.errors_preset):
             CheckErrorKeys(LoadPreset(name), known)
+        for name in self.tof_tools:
+            try:
+                self.ToFCalibration(name)
+            except ConfigurationError as e:
+                raise FieldError(f"tof_tools.{name}.calibration_file", str(e)) from None
+
+    def ToFCalibration(self, name: str) -> np.ndarray | None:
+        """The six calibrated offsets (m) of tof_tools[name].calibration_file, None without."""
+        calibration_file = self.tof_tools[name].calibration_file
+        return LoadToFOffsets(calibration_file) if calibration_file else None
 
     def WithErrorsDrawn(self, random_seed: int | None) -> "StationScenario":
         """A copy whose `errors` are the presets and errors combined and drawn from

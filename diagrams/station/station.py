@@ -86,7 +86,8 @@ def MakeStation(
     for name in scenario.tof_tools:
         tof = scenario.ToFTool(name)
         sensor = builder.AddNamedSystem(
-            f"{name}.sensor", ToFToolSensor(plant, tof, errors.tof_tools.get(name))
+            f"{name}.sensor",
+            ToFToolSensor(plant, tof, errors.tof_tools.get(name), scenario.ToFCalibration(name)),
         )
         builder.Connect(scene_graph.get_query_output_port(), sensor.get_input_port())
         for port in TOF_PORTS:

@@ -9,6 +9,7 @@ from __future__ import annotations
 import copy
 from pathlib import Path
 
+from pydrake.math import RigidTransform
 from pydrake.systems.sensors import CameraConfig
 
 from guidedarm.diagrams.scenario_loading import ScenarioError, load_typed, read_raw_scenario
@@ -28,6 +29,40 @@ DEFAULT_CAMERA_FILE = MODELS_PANEL_DIR / "c920_camera.yaml"
 def LoadCameraIntrinsics(path: str | Path) -> CameraIntrinsics:
     """The intrinsics in a CAMERA.yaml file."""
     return load_typed(CameraIntrinsics, _ReadMapping(path), str(path))
+
+
+def LoadEstimatorIntrinsics(
+    camera_file: str, camera: CameraConfig, camera_name: str
+) -> CameraIntrinsics | None:
+    """The estimator's camera model in `camera_file` (relative to models/ or absolute; None
+    when empty), refused unless it is for the images of `camera` (width x height)."""
+    if not camera_file:
+        return None
+    intrinsics = LoadCameraIntrinsics(MODELS_DIR / camera_file)
+    if (intrinsics.width, intrinsics.height) != (camera.width, camera.height):
+        raise ConfigurationError(
+            f"estimator_camera_file {camera_file} is for {intrinsics.width} x "
+            f"{intrinsics.height} px images, camera '{camera_name}' renders "
+            f"{camera.width} x {camera.height}"
+        )
+    return intrinsics
+
+
+def LoadCameraMount(mount_file: str, camera: CameraConfig) -> RigidTransform | None:
+    """X_PC of a hand_eye.yaml `mount_file` (relative to models/ or absolute; None when
+    empty), refused when it names another base frame than the camera's X_PB."""
+    if not mount_file:
+        return None
+    # Imported here: the calibration files import the marker files' schema.
+    from guidedarm.diagrams.calibration.calibration_files import LoadHandEye
+
+    X_PC = LoadHandEye(MODELS_DIR / mount_file).X_PC
+    if X_PC.base_frame and X_PC.base_frame != camera.X_PB.base_frame:
+        raise ConfigurationError(
+            f"camera_mount_file {mount_file}: X_PC is in {X_PC.base_frame}, the camera's "
+            f"X_PB in {camera.X_PB.base_frame}"
+        )
+    return X_PC.GetDeterministicValue()
 
 
 def LoadPanelSpec(path: str | Path) -> PanelSpec:

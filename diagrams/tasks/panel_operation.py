@@ -56,6 +56,8 @@ from guidedarm.diagrams.tasks.cell_collisions import CellCollisions, ModelNames
 from guidedarm.diagrams.tasks.panel_assets import COVER_CLOSED_M
 from guidedarm.diagrams.tasks.panel_camera_rig import LookAt
 from guidedarm.diagrams.tasks.panel_files import (
+    LoadCameraMount,
+    LoadEstimatorIntrinsics,
     LoadPanelSpec,
     SupersampledCameraConfig,
 )
@@ -84,6 +86,7 @@ from guidedarm.systems.markers.image_degradation import (
     DegradationConfig,
     SeededDegradation,
 )
+from guidedarm.systems.markers.marker_pose_estimator_math import CameraIntrinsics
 from guidedarm.systems.markers.panel_operation_math import (
     PanelOperationConfig,
     PlannerFrames,
@@ -149,6 +152,14 @@ class PanelOperationScenario:
     camera: the key of station.cameras on the arm (1920 x 1080 C920 by default).
     tip_frame: the scoped frame T that presses (gripper tip).
     panel_file: PANEL.yaml relative to models/.
+    estimator_camera_file: the estimator's camera model, a CAMERA.yaml (intrinsics and
+        distortion, e.g. written by `guidedarm calibrate camera`) relative to models/ or
+        absolute, of the camera's width x height; empty: derived from the station's
+        CameraConfig (no distortion).
+    camera_mount_file: the controller's belief of where the camera sits on the arm, a
+        hand_eye.yaml (`guidedarm calibrate hand-eye`: X_PC in the frame the camera's X_PB
+        names) relative to models/ or absolute; empty: the camera's X_PB X_BC. The
+        simulated camera stays where X_PB (and station.errors) put it.
     panel_model: the panel's model instance in the directives.
     supersampling: the camera renders this many times its resolution, and
         ImageDegradation averages it back (1..8; degradation.supersampling must stay 1;
@@ -172,6 +183,8 @@ class PanelOperationScenario:
     camera: str = "camera"
     tip_frame: str = "rover_gripper::gripper_tip"
     panel_file: str = "panel/panel.yaml"
+    estimator_camera_file: str = ""
+    camera_mount_file: str = ""
     panel_model: str = "panel"
     supersampling: int = InRange(1, 8, 3)
     degradation: DegradationConfig = field(default_factory=DegradationConfig)
@@ -194,7 +207,20 @@ class PanelOperationScenario:
         CheckRenderedSupersampling(
             self.degradation, self.station.cameras[self.camera], self.supersampling
         )
+        self.EstimatorIntrinsics()
+        self.CameraMount()
         _CheckModeKeys(self)
+
+    def CameraMount(self) -> RigidTransform | None:
+        """X_PC of camera_mount_file (None when empty), refused when its base_frame is
+        not the camera's X_PB.base_frame."""
+        return LoadCameraMount(self.camera_mount_file, self.station.cameras[self.camera])
+
+    def EstimatorIntrinsics(self) -> CameraIntrinsics | None:
+        """The estimator's camera model (estimator_camera_file), None when derived."""
+        return LoadEstimatorIntrinsics(
+            self.estimator_camera_file, self.station.cameras[self.camera], self.camera
+        )
 
 
 def _CheckModeKeys(scenario: PanelOperationScenario) -> None:
@@ -250,7 +276,7 @@ class PanelOperationRun:
         scenario = self.scenario
         k = scenario.supersampling
         camera = scenario.station.cameras[scenario.camera]
-        station_scenario = _replace_camera(scenario.station, scenario.camera, camera, k)
+        station_scenario = SupersampledStation(scenario.station, scenario.camera, camera, k)
         builder = DiagramBuilder()
         self.station = builder.AddNamedSystem(
             "station", MakeStation(station_scenario, self.context.meshcat)
@@ -277,6 +303,8 @@ class PanelOperationRun:
                 SeededDegradation(scenario.degradation, scenario.random_seed), supersampling=k
             ),
             planner=planner,
+            intrinsics=scenario.EstimatorIntrinsics(),
+            camera_mount=scenario.CameraMount(),
         )
         self.sequencer = systems.sequencer
         self.kinematics = systems.kinematics
@@ -406,7 +434,7 @@ class PanelOperationRun:
 TRUE_LOG_PERIOD = 0.01
 
 
-def _replace_camera(station: StationScenario, name: str, camera, k: int) -> StationScenario:
+def SupersampledStation(station: StationScenario, name: str, camera, k: int) -> StationScenario:
     """The station with camera `name` rendering k times its resolution, its pixel errors
     (station.errors.cameras, drawn) scaled with it."""
     cameras = dict(station.cameras)

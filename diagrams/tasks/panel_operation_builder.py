@@ -19,6 +19,7 @@ from __future__ import annotations
 import numbers
 from dataclasses import dataclass
 
+from pydrake.math import RigidTransform
 from pydrake.systems.framework import DiagramBuilder, System
 
 from guidedarm.diagrams.builder_checks import CheckStationWiring
@@ -62,7 +63,11 @@ class PanelOperationSystems:
 
 
 def MakeCameraArmKinematics(
-    station_scenario: StationScenario, arm: str, camera: str, tip_frame: str
+    station_scenario: StationScenario,
+    arm: str,
+    camera: str,
+    tip_frame: str,
+    X_FC: RigidTransform | None = None,
 ) -> CameraArmKinematics:
     """Camera and tip kinematics of `arm` on its controller plant.
 
@@ -98,7 +103,9 @@ def MakeCameraArmKinematics(
             f"the camera and tip must be welded to arm '{arm}' (the controller plant has "
             f"{plant.num_positions()} positions, the arm {arm_joints})"
         )
-    X_FC = config.X_PB.GetDeterministicValue() @ config.X_BC.GetDeterministicValue()
+    if X_FC is None:
+        X_FC = config.X_PB.GetDeterministicValue() @ config.X_BC.GetDeterministicValue()
+    CheckInstance("X_FC", X_FC, RigidTransform)
     return CameraArmKinematics(
         plant,
         GetScopedFrame(plant, camera_frame, f"cameras.{camera}.X_PB.base_frame"),
@@ -121,6 +128,7 @@ def AddPanelOperation(
     degradation: DegradationConfig | None = None,
     intrinsics: CameraIntrinsics | None = None,
     planner: tuple[AccelerationPlanner, PlannerFrames] | None = None,
+    camera_mount: RigidTransform | None = None,
 ) -> PanelOperationSystems:
     """Adds the panel operation to `builder` and connects it to `station`.
 
@@ -137,7 +145,9 @@ def AddPanelOperation(
     sees; default: those of the station's rendered camera reduced by k (VTK's pixel
     centres). planner: an AccelerationPlanner made with `accept_tasks=True` and its
     frames, required when operation.motion is "planner"; the sequencer then sends each
-    move as a task and the planner streams the arm's commands.
+    move as a task and the planner streams the arm's commands. camera_mount: the camera
+    frame C in the frame its X_PB names, as the controller believes it (e.g. a calibrated
+    hand_eye.yaml's X_PC); default: the camera's X_PB X_BC.
     """
     CheckInstance("station_scenario", station_scenario, StationScenario)
     CheckInstance("panel", panel, PanelSpec)
@@ -159,7 +169,7 @@ def AddPanelOperation(
         raise ConfigurationError(
             'an AccelerationPlanner is needed exactly when operation.motion is "planner"'
         )
-    kinematics = MakeCameraArmKinematics(station_scenario, arm, camera, tip_frame)
+    kinematics = MakeCameraArmKinematics(station_scenario, arm, camera, tip_frame, camera_mount)
     CheckStationWiring(
         builder,
         station,

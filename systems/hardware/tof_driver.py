@@ -20,11 +20,11 @@ import time
 import numpy as np
 from pydrake.systems.framework import BasicVector, Context, DiscreteValues, LeafSystem
 
-from guidedarm.systems.config_checks import NON_NEGATIVE, POSITIVE, CheckArgument
+from guidedarm.systems.config_checks import NON_NEGATIVE, POSITIVE, CheckArgument, CheckVector
 from guidedarm.systems.hardware.arm_link import FailStoppingAllArms
 from guidedarm.systems.hardware.tof_protocol import NUM_SENSORS, ToFLineCollector
 from guidedarm.systems.tof.tof_tool_sensor import DeclareGridOutputs
-from guidedarm.systems.tof.tof_tool_sensor_math import DetectionGrid
+from guidedarm.systems.tof.tof_tool_sensor_math import CalibratedRanges, DetectionGrid
 
 # The state: ranges (6, m), valid (6), measured_at (6, s), the held line's host receive time.
 _RANGES, _VALID, _MEASURED_AT = (slice(k * NUM_SENSORS, (k + 1) * NUM_SENSORS) for k in range(3))
@@ -37,7 +37,9 @@ class ToFDriver(LeafSystem):
     status is 0, else 0) and `measured_at` (s, diagram time of the reading's measurement
     instant; see the module docstring). Before the first reading: no_return_range, valid 0,
     measured_at -1. With a `grid`, also `detections` and `detection_errors` as
-    ToFToolSensor has them. latency: measurement instant to the host's receipt (s)."""
+    ToFToolSensor has them. latency: measurement instant to the host's receipt (s).
+    calibration_offset: six offsets (m) subtracted from every valid range (the tool's
+    calibration_file; None: none)."""
 
     def __init__(
         self,
@@ -47,6 +49,7 @@ class ToFDriver(LeafSystem):
         no_return_range: float = 0.1,
         grid: DetectionGrid | None = None,
         latency: float = 0.0,
+        calibration_offset: np.ndarray | None = None,
     ) -> None:
         super().__init__()
         for name, value in (
@@ -62,6 +65,11 @@ class ToFDriver(LeafSystem):
         self._start: float | None = None
         self._no_return_range = no_return_range
         n = NUM_SENSORS
+        self._calibration = CheckVector(
+            "calibration_offset",
+            np.zeros(n) if calibration_offset is None else calibration_offset,
+            n,
+        )
         self._state = self.DeclareDiscreteState(
             np.r_[np.full(n, no_return_range), np.zeros(n), np.full(n, -1.0), -np.inf]
         )
@@ -97,7 +105,10 @@ class ToFDriver(LeafSystem):
         held = context.get_discrete_state(self._state).value()
         if latest is not None and latest[1] != held[_RECEIVED]:
             reading, received = latest
-            ranges = np.where(reading.valid > 0, reading.ranges, self._no_return_range)
+            valid = reading.valid > 0
+            ranges = CalibratedRanges(
+                np.where(valid, reading.ranges, self._no_return_range), valid, self._calibration
+            )
             measured_at = context.get_time() - (now - received) - self._latency
             state.set_value(
                 self._state,

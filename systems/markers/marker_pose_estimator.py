@@ -25,7 +25,10 @@ class MarkerPoseEstimator(LeafSystem):
     Input port: `color_image` (ImageRgba8U, the camera's size).
     Output ports: `X_CP` (RigidTransform, m; identity when invalid), `ids` (list[int] of the
     known markers used), `reprojection_error_px` (1-vector, RMS px, -1 when no marker),
-    `valid` (1-vector, 1.0 or 0.0), `estimate` (the whole MarkerPoseEstimate).
+    `valid` (1-vector, 1.0 or 0.0: a reprojection error within bounds and a camera model
+    that fits the image), `pose_std` (6-vector: the standard deviations of p_CP along C's
+    x y z in mm, then of the rotation about C's x y z in deg; infinite without a pose),
+    `estimate` (the whole MarkerPoseEstimate, with the model check).
     """
 
     def __init__(self, solver: MarkerPoseSolver) -> None:
@@ -59,6 +62,7 @@ class MarkerPoseEstimator(LeafSystem):
             prerequisites_of_calc=depends,
         )
         self.DeclareVectorOutputPort("valid", 1, self.CalcValid, prerequisites_of_calc=depends)
+        self.DeclareVectorOutputPort("pose_std", 6, self.CalcPoseStd, prerequisites_of_calc=depends)
 
     @property
     def solver(self) -> MarkerPoseSolver:
@@ -84,3 +88,8 @@ class MarkerPoseEstimator(LeafSystem):
 
     def CalcValid(self, context: Context, output: BasicVector) -> None:
         output.SetAtIndex(0, 1.0 if self._Get(context).valid else 0.0)
+
+    def CalcPoseStd(self, context: Context, output: BasicVector) -> None:
+        estimate = self._Get(context)
+        std = [*estimate.std_mm, *estimate.std_deg]
+        output.SetFromVector(std if len(std) == 6 else np.full(6, np.inf))

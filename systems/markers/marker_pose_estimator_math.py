@@ -28,6 +28,11 @@ from pydrake.math import RigidTransform, RotationMatrix
 
 from guidedarm.systems.config_checks import CheckFields, CheckInstance, InRange, Positive
 from guidedarm.systems.errors import ConfigurationError
+from guidedarm.systems.markers.pose_uncertainty import (
+    CheckRadialModel,
+    ModelCheck,
+    PoseStdDevs,
+)
 
 # A pose whose corners reproject worse than this (RMS, pixels) is reported invalid: it means
 # a misdetection or a wrong camera file, not image noise (rendered images give ~0.1 px).
@@ -131,12 +136,19 @@ class PanelSpec:
 @dataclass
 class MarkerPoseEstimate:
     """X_CP (None when no known marker was found), the known ids used, the RMS reprojection
-    error of their corners (px, -1 if none) and whether the pose is trustworthy."""
+    error of their corners (px, -1 if none) and whether the pose is trustworthy; with a
+    pose, its standard deviations (std_mm: p_CP along C's x y z; std_deg: the rotation
+    about C's axes; pose_uncertainty.py) and the camera model check (model_check: None
+    with one marker; `why_invalid` says why a pose is not valid)."""
 
     X_CP: RigidTransform | None
     ids: list[int]
     reprojection_error_px: float
     valid: bool
+    std_mm: list[float] = field(default_factory=list)
+    std_deg: list[float] = field(default_factory=list)
+    model_check: ModelCheck | None = None
+    why_invalid: str = ""
 
 
 def GetDictionary(name: str) -> cv2.aruco.Dictionary:
@@ -241,7 +253,17 @@ class MarkerPoseSolver:
         if not np.isfinite(error):
             return MarkerPoseEstimate(None, ids, -1.0, False)
         X_CP = RigidTransform(RotationMatrix(cv2.Rodrigues(rvec)[0]), tvec.ravel())
-        return MarkerPoseEstimate(X_CP, ids, error, error <= MAX_VALID_REPROJECTION_ERROR_PX)
+        std_mm, std_deg = PoseStdDevs(points_P, pixels, rvec, tvec, self._K, self._dist)
+        size = (self.intrinsics.width, self.intrinsics.height)
+        check = CheckRadialModel(points_P, pixels, rvec, tvec, self._K, self._dist, size)
+        why = ""
+        if error > MAX_VALID_REPROJECTION_ERROR_PX:
+            why = (
+                f"reprojection error {error:.2f} px, more than {MAX_VALID_REPROJECTION_ERROR_PX} px"
+            )
+        elif check is not None and not check.fits:
+            why = check.Why()
+        return MarkerPoseEstimate(X_CP, ids, error, not why, std_mm, std_deg, check, why)
 
     def _ippe_square(self, marker_id: int, pixels: np.ndarray) -> list[tuple]:
         """Both IPPE-square poses of one marker, expressed as panel poses (rvec, tvec of P)."""

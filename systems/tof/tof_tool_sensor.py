@@ -21,6 +21,7 @@ from guidedarm.systems.cell_errors.distributions import DrawErrors
 from guidedarm.systems.config_checks import (
     CheckFields,
     CheckInstance,
+    CheckVector,
     InRange,
     NonNegative,
     Positive,
@@ -30,6 +31,7 @@ from guidedarm.systems.plant_frames import CheckPlant, GetScopedFrame
 from guidedarm.systems.tof.primitive_ray_casting import SceneRayCaster, SensorMount
 from guidedarm.systems.tof.tof_errors import ErrorReadings, ToFErrors
 from guidedarm.systems.tof.tof_tool_sensor_math import (
+    CalibratedRanges,
     ConeRays,
     DetectionGrid,
     DriftStep,
@@ -63,6 +65,10 @@ class ToFToolConfig:
         about 10 ms). At most `period`.
     rings: rings of rays sampling each cone (1 + 3 rings (rings + 1) rays; at most 20,
         1261 rays a sensor: each reading casts every ray).
+    calibration_file: the sensors' calibrated offsets, a tof_offsets.yaml written by
+        `guidedarm calibrate tof` (relative to models/ or absolute; '' none): its six
+        `offset` values (m) are subtracted from every valid reading, by the simulated
+        sensor and by the hardware driver alike.
     """
 
     sensor_frames: list[str] = field(default_factory=_default_frames)
@@ -76,6 +82,7 @@ class ToFToolConfig:
     period: float = Positive(0.02)
     ranging_time: float = NonNegative(0.010)
     rings: int = InRange(0, 20, 2)
+    calibration_file: str = ""
 
     def Validate(self) -> None:
         """Raises ConfigurationError naming the first bad field."""
@@ -129,11 +136,17 @@ class ToFToolSensor(LeafSystem):
     """
 
     def __init__(
-        self, plant: MultibodyPlant, config: ToFToolConfig, errors: ToFErrors | None = None
+        self,
+        plant: MultibodyPlant,
+        config: ToFToolConfig,
+        errors: ToFErrors | None = None,
+        calibration_offset: np.ndarray | None = None,
     ) -> None:
         """plant: a finalized plant registered with the SceneGraph whose QueryObject the
         `query_object` input carries (the station's); errors: the tool's drawn ToFErrors
-        (None: an exact tool); bad arguments raise ConfigurationError naming them."""
+        (None: an exact tool); calibration_offset: six offsets (m) subtracted from every
+        valid reading (config.calibration_file's; None: none); bad arguments raise
+        ConfigurationError naming them."""
         super().__init__()
         CheckPlant("plant", plant, scene_graph=True)
         CheckInstance("config", config, ToFToolConfig)
@@ -142,6 +155,11 @@ class ToFToolSensor(LeafSystem):
         errors.Validate()
         self._config = config
         self._errors = errors
+        self._calibration = CheckVector(
+            "calibration_offset",
+            np.zeros(NUM_SENSORS) if calibration_offset is None else calibration_offset,
+            NUM_SENSORS,
+        )
         frames = [GetScopedFrame(plant, name, "tof sensor_frames") for name in config.sensor_frames]
         instance = frames[0].model_instance()
         ignored = {
@@ -195,6 +213,7 @@ class ToFToolSensor(LeafSystem):
         rng = np.random.default_rng((c.seed or 0, k))
         readings = ErrorReadings(self.TrueRanges(context), self._errors, drift)
         ranges, valid = Measure(readings, rng, c.noise_std, c.quantization, c.max_range)
+        ranges = CalibratedRanges(ranges, valid, self._calibration)
         available = k * c.period if k * c.period > t else t
         return np.concatenate([ranges, valid, np.full(NUM_SENSORS, t), [available]])
 

@@ -153,6 +153,13 @@ def Measure(
     return np.where(valid, noisy, max_range), valid
 
 
+def CalibratedRanges(ranges: np.ndarray, valid: np.ndarray, offset: np.ndarray) -> np.ndarray:
+    """Readings (m) with each sensor's calibrated offset (m, how much it reads too long;
+    `guidedarm calibrate tof`) subtracted where valid; an invalid reading keeps the device's
+    report (its limit)."""
+    return np.where(valid, ranges - offset, ranges)
+
+
 def DriftStep(
     drift: np.ndarray, rng: np.random.Generator, rate: float, dt: float, bound: float
 ) -> np.ndarray:
