@@ -104,7 +104,8 @@ def CheckMeshcatArguments(args: argparse.Namespace) -> None:
 def LoadScenario(name_or_path: str | Path, overrides: list[str]) -> tuple[Any, Any, str]:
     """Returns (task, typed scenario, scenario name) for a scenario and `--set` overrides
     (a list of `key=value` strings), after the task's checks of the scenario: its types and
-    bounds, its Validate() (the rules between its keys) and the task's check_overrides."""
+    bounds, its Validate() (the rules between its keys) and the task's check_overrides;
+    the scenario is the task's resolved one (TaskDefinition.resolve)."""
     CheckInstance("name_or_path", name_or_path, (str, Path))
     path = resolve_scenario_path(name_or_path)
     parsed = parse_overrides(overrides)
@@ -116,6 +117,8 @@ def LoadScenario(name_or_path: str | Path, overrides: list[str]) -> tuple[Any, A
     scenario = load_typed(task.scenario_type, raw, str(path), parsed.keys())
     if task.check_overrides is not None:
         task.check_overrides(scenario, parsed.keys())
+    if task.resolve is not None:
+        scenario = task.resolve(scenario)
     return task, scenario, path.stem
 
 

@@ -115,18 +115,18 @@ def RunMarkerView(scenario: MarkerViewScenario, context: RunContext) -> dict[str
 
 # The numbers of RunMarkerView's summary (TaskDefinition.metrics); `ids.#` are the ids of
 # the markers found.
-MARKER_VIEW_METRICS = (
-    "reference_mm",
-    "vision_mm",
-    "abs_error_mm",
-    "rel_error_pct",
-    "reference_deg",
-    "vision_deg",
-    "abs_angle_error_deg",
-    "rotation_error_deg",
-    "reprojection_error_px",
-    "ids.#",
-)
+MARKER_VIEW_METRICS = {
+    "reference_mm": ("mm", "true distance of the camera from the panel frame P"),
+    "vision_mm": ("mm", "the estimated distance (the norm of the estimated X_CP's translation)"),
+    "abs_error_mm": ("mm", "|vision_mm - reference_mm|"),
+    "rel_error_pct": ("%", "abs_error_mm over reference_mm"),
+    "reference_deg": ("deg", "true turn of the camera about P's y axis (angle_deg)"),
+    "vision_deg": ("deg", "the estimated turn about P's y axis"),
+    "abs_angle_error_deg": ("deg", "|vision_deg - reference_deg|"),
+    "rotation_error_deg": ("deg", "angle of the rotation between estimated and true X_CP"),
+    "reprojection_error_px": ("px", "RMS distance of the detected corners from the reprojected"),
+    "ids.#": ("id", "the ids of the markers found, one element each"),
+}
 
 TASK = TaskDefinition(
     name="marker_view",
