@@ -14,6 +14,7 @@ are the estimator's errors:
 A view without a valid pose is a failed run (RunFailedError).
 """
 
+import dataclasses
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -23,8 +24,9 @@ from pydrake.systems.sensors import CameraConfig
 
 from guidedarm.diagrams.run_context import RunContext
 from guidedarm.diagrams.station.scenario import UNSUPPORTED_CAMERA_FIELDS, UnreadCameraKey
+from guidedarm.diagrams.tasks.panel_assets import GeneratedPanelModel
 from guidedarm.diagrams.tasks.panel_camera_rig import LookAt, PanelCameraRig
-from guidedarm.diagrams.tasks.panel_files import DEFAULT_PANEL_FILE, LoadPanelSpec
+from guidedarm.diagrams.tasks.panel_files import LoadPanelSpec, RecordedPanelFile, ResolvePanelFile
 from guidedarm.diagrams.tasks.registry import TaskDefinition
 from guidedarm.systems.config_checks import CheckFields, InRange
 from guidedarm.systems.errors import ConfigurationError, RunFailedError
@@ -53,6 +55,9 @@ class MarkerViewScenario:
     degradation: lighting, blur, noise (its supersampling must stay 1: the top-level key
         sets it; its noise seed is the scenario's random_seed).
     random_seed: the scenario's random seed (the image noise).
+    panel_file: the PANEL.yaml the view shows and the estimator reads: a path, absolute or
+        relative to the working directory, or a name under models/ (its model is
+        generated from it).
     """
 
     task: str = "marker_view"
@@ -62,11 +67,14 @@ class MarkerViewScenario:
     supersampling: int = InRange(1, 8, 3)
     degradation: DegradationConfig = field(default_factory=DegradationConfig)
     random_seed: int = 0
+    panel_file: str = "panel/panel.yaml"
 
     def Validate(self) -> None:
-        """Checked at load (CheckConfig): the fields' bounds, the rendered size, and no key
-        the view does not read (UNREAD_CAMERA_KEYS, degradation.supersampling)."""
+        """Checked at load (CheckConfig): the fields' bounds, the rendered size, no key
+        the view does not read (UNREAD_CAMERA_KEYS, degradation.supersampling) and the
+        panel file."""
         CheckFields(self)
+        LoadPanelSpec(ResolvePanelFile(self.panel_file))
         changed = UnreadCameraKey(self.camera, UNREAD_CAMERA_KEYS)
         if changed:
             raise ConfigurationError(
@@ -78,8 +86,11 @@ class MarkerViewScenario:
 
 def RunMarkerView(scenario: MarkerViewScenario, context: RunContext) -> dict[str, Any]:
     """Renders the view, estimates the panel pose and returns the errors (see above)."""
-    rig = PanelCameraRig(scenario.camera, scenario.supersampling)
-    solver = MarkerPoseSolver(rig.intrinsics, LoadPanelSpec(DEFAULT_PANEL_FILE))
+    panel_file = ResolvePanelFile(scenario.panel_file)
+    rig = PanelCameraRig(
+        scenario.camera, scenario.supersampling, str(GeneratedPanelModel(panel_file))
+    )
+    solver = MarkerPoseSolver(rig.intrinsics, LoadPanelSpec(panel_file))
     a = np.radians(scenario.angle_deg)
     d = scenario.distance_m
     X_PC = LookAt(d * np.array([np.sin(a), 0.0, np.cos(a)]), [0.0, 0.0, 0.0])
@@ -135,4 +146,7 @@ TASK = TaskDefinition(
     description="estimate the marker panel's pose from one free-camera view (markers paper)",
     simulates=False,
     metrics=MARKER_VIEW_METRICS,
+    resolve=lambda scenario: dataclasses.replace(
+        scenario, panel_file=RecordedPanelFile(scenario.panel_file)
+    ),
 )

@@ -43,13 +43,14 @@ from pydrake.systems.primitives import VectorLogSink
 
 from guidedarm.diagrams.overlays.panel_overlays import AddPanelOverlays
 from guidedarm.diagrams.run_context import RunContext
-from guidedarm.diagrams.station.model_paths import MODELS_DIR
 from guidedarm.diagrams.station.scenario import StationScenario
 from guidedarm.diagrams.station.station import MakeStation
-from guidedarm.diagrams.tasks.panel_assets import COVER_CLOSED_M
+from guidedarm.diagrams.tasks.panel_assets import COVER_CLOSED_M, WithGeneratedPanel
 from guidedarm.diagrams.tasks.panel_camera_rig import LookAt
 from guidedarm.diagrams.tasks.panel_files import (
     LoadPanelSpec,
+    RecordedPanelFile,
+    ResolvePanelFile,
     SupersampledCameraConfig,
 )
 from guidedarm.diagrams.tasks.panel_operation_builder import AddPanelOperation
@@ -139,8 +140,11 @@ class PanelOperationScenario:
     switch: 1-based index into the panel file's switches.
     camera: the key of station.cameras on the arm (1920 x 1080 C920 by default).
     tip_frame: the scoped frame T that presses (gripper tip).
-    panel_file: PANEL.yaml relative to models/.
-    panel_model: the panel's model instance in the directives.
+    panel_file: the PANEL.yaml (markers, switches): a path, absolute or relative to the
+        working directory, or a name under models/. It drives both the estimator and the
+        simulated scene: the model of `panel_model` is generated from it at load.
+    panel_model: the panel's model instance in the directives (its model is replaced by
+        the one generated from panel_file).
     supersampling: the camera renders this many times its resolution, and
         ImageDegradation averages it back (1..8; degradation.supersampling must stay 1;
         width x height x supersampling^2 <= MAX_RENDER_PIXELS).
@@ -185,6 +189,12 @@ class PanelOperationScenario:
         CheckRenderedSupersampling(
             self.degradation, self.station.cameras[self.camera], self.supersampling
         )
+        panel = LoadPanelSpec(ResolvePanelFile(self.panel_file))
+        if not self.switch <= len(panel.switches):
+            raise ConfigurationError(
+                f"switch must be 1 .. {len(panel.switches)}, got {self.switch} (the switches "
+                f"of {self.panel_file})"
+            )
         _CheckModeKeys(self)
 
 
@@ -234,23 +244,23 @@ class PanelOperationRun:
         self.context = context
         CheckInstance("scenario", scenario, PanelOperationScenario)
         CheckConfig(scenario)
-        self.panel = LoadPanelSpec(MODELS_DIR / scenario.panel_file)
+        self.panel_file = ResolvePanelFile(scenario.panel_file)
+        self.panel = LoadPanelSpec(self.panel_file)
         self._Build()
 
     def _Build(self) -> None:
         scenario = self.scenario
         k = scenario.supersampling
         camera = scenario.station.cameras[scenario.camera]
-        station_scenario = _replace_camera(scenario.station, scenario.camera, camera, k)
+        station_scenario = WithGeneratedPanel(
+            _replace_camera(scenario.station, scenario.camera, camera, k),
+            scenario.panel_model,
+            self.panel_file,
+        )
         builder = DiagramBuilder()
         self.station = builder.AddNamedSystem(
             "station", MakeStation(station_scenario, self.context.meshcat)
         )
-        plant = self.station.GetSubsystemByName("plant")
-        if not plant.HasModelInstanceNamed(scenario.panel_model):
-            raise ConfigurationError(
-                f"panel_model: no model instance '{scenario.panel_model}' in station.directives"
-            )
         planner = None
         if scenario.operation.motion == "planner":
             planner = _MakePlanner(scenario)
@@ -424,4 +434,7 @@ TASK = TaskDefinition(
     description="rover arm presses a panel switch guided by markers (Annusewicz-Mistal et al.)",
     metrics=PANEL_OPERATION_METRICS,
     check_run=CheckRun,
+    resolve=lambda scenario: dataclasses.replace(
+        scenario, panel_file=RecordedPanelFile(scenario.panel_file)
+    ),
 )
