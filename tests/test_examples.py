@@ -34,19 +34,3 @@ def test_my_leaf_system_passes_its_own_pytest_run():
         "-m", "pytest", "-q", "-p", "no:cacheprovider", str(EXAMPLES / "test_my_leaf_system.py")
     )
     assert re.search(r"\b2 passed\b", out), out
-
-
-def test_replay_of_your_diagram(tmp_path):
-    """Your own LeafSystem beside the station and the planner; the replay page it saves
-    holds the waypoint overlays and the arm's recorded motion."""
-    from replay_commands import Replay
-
-    page = tmp_path / "my_replay.html"
-    out = _run(str(EXAMPLES / "replay_of_your_diagram.py"), str(page))
-    T, speed = map(float, re.search(r"T = (\S+) s; largest TCP speed (\S+) m/s", out).groups())
-    assert 0 < T < 5.0
-    assert 0.1 < speed < 2.0  # 60 deg/s joints move the tool at under 2 m/s
-    replay = Replay(page)
-    assert len(replay.Paths("/overlays/waypoints/")) >= 3
-    moving = [key for key in replay.tracks if key[0].startswith("/drake/") and "ur10e" in key[0]]
-    assert moving, "the arm's motion is not in the recording"

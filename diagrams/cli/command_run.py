@@ -154,7 +154,7 @@ def run_command(args: argparse.Namespace) -> int:
     except KeyboardInterrupt as e:  # arrived as RunTask returned: the run still gets a summary
         metrics = {"success": False, "failure": InterruptedFailure(e)}
     with DeferredInterrupts():  # the run is over; what it did is written whole
-        metrics = {"scenario": name, "task": task.name, **metrics, **RunProvenance()}
+        metrics = {"scenario": name, "task": task.name, **metrics, **RunProvenance(args.argv)}
         context.write_summary(metrics)
         _print_summary(metrics, context)
     if args.meshcat:
@@ -168,10 +168,12 @@ def run_command(args: argparse.Namespace) -> int:
     return 0
 
 
-def RunProvenance() -> dict[str, Any]:
-    """What summary.json records of how the run was made: the command line and version."""
+def RunProvenance(argv: list[str] | None = None) -> dict[str, Any]:
+    """What summary.json records of how the run was made: the command line (`argv`, the
+    arguments given to main; default the process's) and the version."""
+    argv = sys.argv[1:] if argv is None else argv
     return {
-        "command": " ".join(shlex.quote(a) for a in ["guidedarm", *sys.argv[1:]]),
+        "command": " ".join(shlex.quote(a) for a in ["guidedarm", *argv]),
         "version": importlib.metadata.version("guidedarm"),
     }
 

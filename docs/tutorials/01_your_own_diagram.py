@@ -23,6 +23,8 @@
 
 # %%
 import html
+import os
+import tempfile
 
 import numpy as np
 from IPython.display import display
@@ -36,6 +38,8 @@ from guidedarm.diagrams.station.scenario import StationScenario
 from guidedarm.diagrams.station.station import MakeStation
 from guidedarm.diagrams.station.station_plant import MakeMultibodyPlant
 from guidedarm.diagrams.tasks.planner_builder import MakeAccelerationPlanner
+
+os.chdir(tempfile.mkdtemp(prefix="guidedarm-tutorial-"))  # the files it writes go here
 
 # %% [markdown]
 # The station's scenario: Drake model directives (the models come from guidedarm's

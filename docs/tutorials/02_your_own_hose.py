@@ -23,6 +23,8 @@
 
 # %%
 import html
+import os
+import tempfile
 from pathlib import Path
 
 import numpy as np
@@ -37,6 +39,8 @@ from guidedarm.diagrams.tasks.path_following_setup import MakeSetup
 from guidedarm.systems.errors import ConfigurationError
 from guidedarm.systems.path_following.hose_reach import CalcArmReach, ToolClearance
 from guidedarm.systems.plant_frames import GetScopedFrame
+
+os.chdir(tempfile.mkdtemp(prefix="guidedarm-tutorial-"))  # the files it writes go here
 
 # %% [markdown]
 # ## The hose

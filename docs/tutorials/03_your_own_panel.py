@@ -23,11 +23,15 @@
 # %%
 import html
 import json
+import os
+import tempfile
 from pathlib import Path
 
 from IPython.display import Image, display
 
 from guidedarm.diagrams.cli.main import main
+
+os.chdir(tempfile.mkdtemp(prefix="guidedarm-tutorial-"))  # the files it writes go here
 
 # %% [markdown]
 # ## The panel file

@@ -21,6 +21,8 @@
 
 # %%
 import html
+import os
+import tempfile
 from pathlib import Path
 
 import pandas as pd
@@ -28,6 +30,8 @@ from IPython.display import display
 
 from guidedarm.diagrams.campaigns.report import MeanInterval
 from guidedarm.diagrams.cli.main import main
+
+os.chdir(tempfile.mkdtemp(prefix="guidedarm-tutorial-"))  # the files it writes go here
 
 # %% [markdown]
 # ## The campaign file
