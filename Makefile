@@ -7,12 +7,12 @@ BIN := $(VENV)/bin
 STAMP := $(VENV)/.installed
 DEMO_SCENARIOS ?= ur10e_waypoints mz04d_waypoints rover_arm_waypoints path_following path_following_continuous panel_operation ur10e_joint_tour
 
-.PHONY: demo test test-stress lint bench picture clean
+.PHONY: demo test test-stress lint bench picture docs clean
 
 $(STAMP): pyproject.toml
 	test -x $(BIN)/python || $(PYTHON) -m venv $(VENV)
 	$(BIN)/pip install --quiet --upgrade pip
-	$(BIN)/pip install --quiet -e '.[test]'
+	$(BIN)/pip install --quiet -e '.[test,docs]'
 	touch $(STAMP)
 
 demo: $(STAMP)
@@ -57,8 +57,14 @@ lint: $(STAMP)
 bench: $(STAMP)
 	@for b in tests/benchmarks/bench_*.py; do echo "== $$b"; $(BIN)/python $$b; done
 
+# The documentation site into site/ (strict: any warning fails), the tutorials executed
+# so that their pages show their outputs.
+docs: $(STAMP)
+	NO_MKDOCS_2_WARNING=1 GUIDEDARM_DOCS_EXECUTE=true $(BIN)/mkdocs build --strict
+	@echo "make docs: wrote the site to site/ (open site/index.html)"
+
 picture: $(STAMP)
 	$(BIN)/guidedarm picture docs/guidedarm.png
 
 clean:
-	rm -rf $(VENV) runs .pytest_cache
+		rm -rf $(VENV) runs site .pytest_cache

@@ -145,22 +145,15 @@ class RunContext:
         return path
 
     def start_recording(self) -> None:
-        """Starts recording the Meshcat animation (call before simulating). Without a live
-        page, poses and properties go into the recording only: sending each to the page
-        too would cost the loop time (and Meshcat's thread a core) for nobody to see."""
+        """Starts recording the Meshcat animation (StartReplay; call before simulating)."""
         if self.meshcat is not None:
-            self.meshcat.StartRecording(
-                frames_per_second=30.0, set_visualizations_while_recording=self.live
-            )
+            StartReplay(self.meshcat, live=self.live)
 
     def write_replay(self) -> Path | None:
-        """Publishes the recorded animation and writes it as a self-contained HTML page."""
+        """Writes the recorded animation as DIR/replay.html (SaveReplay)."""
         if self.meshcat is None:
             return None
-        self.meshcat.StopRecording()
-        self.meshcat.PublishRecording()
-        path = self.out_dir / REPLAY_FILE
-        path.write_text(self.meshcat.StaticHtml())
+        path = SaveReplay(self.meshcat, self.out_dir / REPLAY_FILE)
         self.written.append(path)
         return path
 
@@ -208,6 +201,26 @@ def MakeMeshcat(serve: bool = False, host: str = "localhost") -> Meshcat:
         raise ConfigurationError(f"Meshcat cannot listen on host '{host}': {e}") from None
     finally:
         drake_log.setLevel(level)
+
+
+def StartReplay(meshcat: Meshcat, live: bool = False) -> None:
+    """Starts recording everything drawn in `meshcat` (a MeshcatVisualizer, the station's
+    visualization, overlays) into an animation, at 30 frames/s of simulated time: call it
+    before simulating, then SaveReplay. With live=False poses and properties go into the
+    recording only, which saves the simulation the cost of sending each to a page nobody
+    watches; live=True also shows them on the served page."""
+    meshcat.StartRecording(frames_per_second=30.0, set_visualizations_while_recording=live)
+
+
+def SaveReplay(meshcat: Meshcat, path: str | Path) -> Path:
+    """Stops the recording StartReplay began and writes it, with the scene, to `path` as a
+    self-contained HTML page a browser opens offline (its three.js scripts are inlined);
+    returns the path."""
+    meshcat.StopRecording()
+    meshcat.PublishRecording()
+    path = Path(path)
+    path.write_text(meshcat.StaticHtml())
+    return path
 
 
 def ServeMeshcat(meshcat: Meshcat, wait_s: float | None = None) -> None:

@@ -264,18 +264,30 @@ def load_typed(
 def _NamingTheOverride(error: ScenarioError, source: str, overridden: list[str]) -> ScenarioError:
     """`error` ("SOURCE: key 'K': ...") as "--set key 'K': ..." when K came from --set, and
     as "SOURCE with --set K.x: key 'K': ..." when a rule between K's fields refuses it and
-    some of them came from --set."""
+    some of them came from --set. A check that names the key first ("SOURCE: K must be
+    ...") becomes "--set K must be ..." when K came from --set."""
     text = str(error)
     named = re.match(re.escape(source) + r": (?:unknown )?key '([^']*)'", text)
     if named is None:
+        leading = re.match(re.escape(source) + r": ([\w.]+)\b", text)
+        if leading and _IsOverridden(leading.group(1), overridden):
+            return ScenarioError("--set " + text[len(source) + 2 :])
         return error
     key = named.group(1)
-    if any(key == k or key.startswith((f"{k}.", f"{k}[")) for k in overridden):
+    if _IsOverridden(key, overridden):
         return ScenarioError("--set " + text[len(source) + 2 :])
     inside = [k for k in overridden if k.startswith((f"{key}.", f"{key}["))]
+    field = re.match(r"([\w.]+)\b", text[named.end() + 2 :])
+    if field and _IsOverridden(f"{key}.{field.group(1)}", overridden):
+        return ScenarioError(f"--set {key}.{text[named.end() + 2 :]}")
     if inside:
         return ScenarioError(f"{source} with --set {', '.join(inside)}: {text[len(source) + 2 :]}")
     return error
+
+
+def _IsOverridden(key: str, overridden: list[str]) -> bool:
+    """Whether the dotted `key` is one of the `overridden` keys or lies under one."""
+    return any(key == k or key.startswith((f"{k}.", f"{k}[")) for k in overridden)
 
 
 def _refuse_replaced_keys(schema: Any, raw: dict[str, Any], source: str) -> None:

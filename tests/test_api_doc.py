@@ -132,3 +132,51 @@ def test_the_port_reader_matches_built_systems():
             system.get_output_port(i).get_name() for i in range(system.num_output_ports())
         }
         assert DeclaredPorts(type(system)) == ports, type(system).__name__
+
+
+BUILDER = re.compile(r"(Make|Add|Start|Save)[A-Z]\w*$")
+
+
+def _DiagramModules():
+    """The modules a user builds diagrams from: guidedarm.diagrams without the CLI and the
+    campaign engine (their functions are commands, not builders)."""
+    import guidedarm.diagrams as diagrams_package
+
+    for info in pkgutil.walk_packages(diagrams_package.__path__, "guidedarm.diagrams."):
+        if not info.name.startswith(("guidedarm.diagrams.cli", "guidedarm.diagrams.campaigns")):
+            yield importlib.import_module(info.name)
+
+
+def test_every_public_builder_is_in_the_api_doc():
+    text = (REPO / "docs" / "api.md").read_text()
+    builders = {
+        name
+        for module in _DiagramModules()
+        for name, function in vars(module).items()
+        if inspect.isfunction(function)
+        and function.__module__ == module.__name__
+        and BUILDER.match(name)
+    }
+    assert {"AddWaypointOverlays", "SaveReplay", "MakeStation"} <= builders
+    listed = set(re.findall(r"`(\w+)[`(]", text)) | set(re.findall(r"^### .*", text, re.M))
+    assert (
+        sorted(b for b in builders if b not in listed and not re.search(rf"### .*\b{b}\b", text))
+        == []
+    )
+
+
+def test_every_overlay_system_and_its_ports_are_in_the_api_doc():
+    text = (REPO / "docs" / "api.md").read_text()
+    overlays = {
+        name: cls
+        for module in _DiagramModules()
+        for name, cls in vars(module).items()
+        if inspect.isclass(cls)
+        and issubclass(cls, LeafSystem)
+        and cls.__module__ == module.__name__
+    }
+    assert "FrameTrailOverlay" in overlays
+    for name, cls in overlays.items():
+        assert f"`{name}(" in text, f"docs/api.md does not list {name}"
+        missing = sorted(p for p in DeclaredPorts(cls) if f"`{p}`" not in text)
+        assert missing == [], f"docs/api.md: ports {missing} of {name} are not listed"

@@ -1,6 +1,6 @@
 """Bad input of every command and every schema section: one line on stderr, exit 2, never a
 traceback, a Drake "Failure at", a summary or a silent wrong result (the run contract in
-README.md). Most cases run in-process through main(); a few through real subprocesses,
+docs/usage.md). Most cases run in-process through main(); a few through real subprocesses,
 among them those that aborted natively before the validation layer."""
 
 from __future__ import annotations

@@ -96,3 +96,21 @@ def test_unknown_target_is_one_line(run_cli):
     assert code == 2
     assert len(err.strip().splitlines()) == 1
     assert "unknown task or scenario 'nosuch' (tasks: joint_tour" in err
+
+
+@pytest.mark.parametrize("task", sorted(AvailableTasks()))
+def test_every_metric_of_every_task_has_a_unit_and_a_meaning(task):
+    docs = AvailableTasks()[task].MetricDocs()
+    assert docs
+    assert [name for name, (unit, meaning) in docs.items() if not unit or len(meaning) < 10] == []
+
+
+def test_describe_metrics_defines_each_summary_key(run_cli):
+    code, out, _ = run_cli("describe", "path_following_continuous", "--metrics")
+    assert code == 0
+    rows = {line.split()[0]: line.split(maxsplit=2)[1:] for line in out.splitlines()[2:]}
+    assert rows["lost_steps"][0] == "count" and "did not detect the hose" in rows["lost_steps"][1]
+    assert rows["tracking_error_mean_mm"][0] == "mm"
+    assert {"success", "failure", "wall_time_s", "sim_time_s"} <= rows.keys()
+    code, _, err = run_cli("describe", "path_following", "--metrics", "--set", "motion=continuous")
+    assert code == 2 and "--set has no effect with --metrics" in err

@@ -146,3 +146,34 @@ def test_a_rule_between_fields_names_the_set_that_broke_it():
         "path_following.yaml with --set continuous.look_ahead: key 'continuous': continuous: "
         "need loss_distance < look_ahead"
     )
+
+
+@pytest.mark.parametrize(
+    "scenario, override, expected",
+    [
+        (
+            "path_following",
+            "motion=continuos",
+            "--set motion must be one of ('joint_trajectory', 'planner', 'continuous')",
+        ),
+        ("ur10e_waypoints", "limits=fast", "--set limits must be one of"),
+        ("panel_operation", "operation.motion=teleport", "--set operation.motion must be one of"),
+    ],
+)
+def test_a_refused_set_value_names_the_flag_not_the_scenario_file(scenario, override, expected):
+    with pytest.raises(ConfigurationError) as error:
+        LoadScenario(scenario, [override])
+    assert str(error.value).startswith(expected), str(error.value)
+    assert ".yaml" not in str(error.value)
+
+
+def test_a_path_csv_clears_the_path_it_replaces(tmp_path):
+    from guidedarm.diagrams.run_labels import RunTitle
+
+    hose = tmp_path / "my_hose.csv"
+    hose.write_text("x,y,z\n0.24,-0.28,0.11\n0.24,-0.18,0.11\n0.24,-0.08,0.11\n")
+    overrides = [f"path_csv={hose}"]
+    _, scenario, name = LoadScenario("path_following", overrides)
+    assert scenario.path == "" and scenario.path_csv == str(hose)
+    title = RunTitle(name, scenario, overrides)
+    assert "paper_path" not in title and "my_hose.csv" in title

@@ -1,10 +1,13 @@
-"""DIR/report.html: a campaign's success rate, its plots and its table, in one offline page.
+"""DIR/report.html: a campaign's success rate, its comparisons and its table, in one
+offline page.
 
-Plots (inline SVG): every column that is one of the task's numeric metrics
-(TaskDefinition.metrics, the names a campaign's `metrics` are checked against) against
-every axis with more than one value;
-numeric axes on a linear scale, other axes (text, lists) as categories. Success rate
-overall and per value of each axis.
+For every column that is one of the task's numeric metrics (TaskDefinition.metrics, the
+names a campaign's `metrics` are checked against) and every axis with more than one
+value: a box plot of the metric per value of that axis (inline SVG), the jobs drawn over
+it as points coloured by the value of another axis (the next one with more than one
+value), failed jobs as crosses; and a table of the metric's mean with its 95 % interval
+(Student's t over the jobs of that value) per axis value. Success rate overall and per
+value of each axis.
 """
 
 from __future__ import annotations
@@ -12,6 +15,7 @@ from __future__ import annotations
 import html
 import io
 import json
+import math
 from collections import defaultdict
 from pathlib import Path
 from typing import Any
@@ -23,6 +27,29 @@ from guidedarm.diagrams.tasks.registry import TaskDefinition
 
 REPORT_FILE = "report.html"
 MAX_PLOTS = 60
+# Student's t quantile 0.975 by degrees of freedom 1..30; beyond, 1.96 + 2.4 / df is
+# within 0.002 of it.
+T_975 = (
+    12.706, 4.303, 3.182, 2.776, 2.571, 2.447, 2.365, 2.306, 2.262, 2.228,
+    2.201, 2.179, 2.160, 2.145, 2.131, 2.120, 2.110, 2.101, 2.093, 2.086,
+    2.080, 2.074, 2.069, 2.064, 2.060, 2.056, 2.052, 2.048, 2.045, 2.042,
+)  # fmt: skip
+PALETTE = ("tab:blue", "tab:orange", "tab:green", "tab:purple", "tab:brown", "tab:pink")
+
+
+def MeanInterval(values: list[float]) -> tuple[float, float, int]:
+    """(mean, half-width of its 95 % confidence interval, count) of `values`, the interval
+    from Student's t with count - 1 degrees of freedom (nan for fewer than 2 values)."""
+    n = len(values)
+    if n == 0:
+        return math.nan, math.nan, 0
+    mean = math.fsum(values) / n
+    if n < 2:
+        return mean, math.nan, n
+    std = math.sqrt(math.fsum((v - mean) ** 2 for v in values) / (n - 1))
+    df = n - 1
+    t = T_975[df - 1] if df <= len(T_975) else 1.96 + 2.4 / df
+    return mean, t * std / math.sqrt(n), n
 
 
 def WriteReport(
@@ -53,9 +80,10 @@ def WriteReport(
     ]
     plots = [(m, a) for m in metrics for a in axes][:MAX_PLOTS]
     if plots:
-        parts.append("<h2>Metrics against the axes</h2><div>")
-        parts += [_PlotSvg(rows, metric, axis) for metric, axis in plots]
+        parts.append("<h2>Metrics by axis</h2><div>")
+        parts += [_PlotSvg(rows, metric, axis, _ColourAxis(axes, axis)) for metric, axis in plots]
         parts.append("</div>")
+        parts.append(_MeansTables(rows, metrics, axes))
     parts.append("<h2>Results</h2>" + _Table(table.columns, rows))
     page = (
         "<!DOCTYPE html><html><head><meta charset='utf-8'>"
@@ -95,31 +123,90 @@ def _SuccessByAxis(rows: list[dict[str, Any]], axes: list[str]) -> str:
     return "".join(out)
 
 
-def _PlotSvg(rows: list[dict[str, Any]], metric: str, axis: str) -> str:
-    numeric = all(_Number(r.get(axis)) is not None for r in rows)
-    categories = sorted({_Key(r.get(axis)) for r in rows})  # every value, with a point or not
-    points = [(r.get(axis), _Number(r.get(metric)), r.get("success") is True) for r in rows]
-    points = [p for p in points if p[1] is not None]
-    figure, ax = plt.subplots(figsize=(4.2, 3.0))
-    for ok, colour, label in ((True, "tab:blue", "success"), (False, "tab:red", "failed")):
-        chosen = [p for p in points if p[2] == ok]
-        if not chosen:
+def _ColourAxis(axes: list[str], axis: str) -> str | None:
+    """The axis that colours the points of a plot grouped by `axis`: the next one."""
+    others = axes[axes.index(axis) + 1 :] + axes[: axes.index(axis)]
+    return others[0] if others else None
+
+
+def _AxisValues(rows: list[dict[str, Any]], axis: str) -> list[str]:
+    """Every value of `axis` (as keys), numbers in numeric order, others sorted."""
+    keys = {_Key(r.get(axis)): r.get(axis) for r in rows}
+    if all(_Number(v) is not None for v in keys.values()):
+        return sorted(keys, key=lambda k: _Number(keys[k]))
+    return sorted(keys)
+
+
+def _PlotSvg(rows: list[dict[str, Any]], metric: str, axis: str, colour_axis: str | None) -> str:
+    """A box per value of `axis` (successful jobs), every job's point over it, coloured by
+    its value of `colour_axis`; failed jobs as red crosses."""
+    values = _AxisValues(rows, axis)
+    colours = _AxisValues(rows, colour_axis) if colour_axis else []
+    figure, ax = plt.subplots(figsize=(4.6, 3.2))
+    boxes = [
+        [_Number(r.get(metric)) for r in rows if _Key(r.get(axis)) == v and r.get("success")]
+        for v in values
+    ]
+    boxes = [[y for y in box if y is not None] for box in boxes]
+    ax.boxplot(boxes, positions=range(len(values)), widths=0.5, showfliers=False)
+    seen = defaultdict(int)  # points per box so far: they spread across its width
+    labelled = set()
+    for r in rows:
+        y = _Number(r.get(metric))
+        if y is None:
             continue
-        xs = [_Number(x) if numeric else categories.index(_Key(x)) for x, _, _ in chosen]
-        ax.plot(xs, [y for _, y, _ in chosen], "o", color=colour, label=label, alpha=0.7)
-    if not numeric:
-        ax.set_xticks(range(len(categories)))
-        ax.set_xticklabels([c[:12] for c in categories], rotation=45, ha="right", fontsize=7)
+        i = values.index(_Key(r.get(axis)))
+        x = i + 0.3 * ((seen[i] * 0.618) % 1.0 - 0.5)
+        seen[i] += 1
+        if r.get("success") is not True:
+            ax.plot(x, y, "x", color="tab:red", label=None if "f" in labelled else "failed")
+            labelled.add("f")
+            continue
+        key = _Key(r.get(colour_axis)) if colour_axis else ""
+        colour = PALETTE[colours.index(key) % len(PALETTE)] if colour_axis else PALETTE[0]
+        label = f"{colour_axis} = {key[:10]}" if colour_axis and key not in labelled else None
+        labelled.add(key)
+        ax.plot(x, y, "o", color=colour, alpha=0.75, markersize=4, label=label)
+    ax.set_xticks(range(len(values)))
+    ax.set_xticklabels([v[:12] for v in values], rotation=45, ha="right", fontsize=7)
     ax.set_xlabel(axis)
     ax.set_ylabel(metric)
     ax.grid(True, alpha=0.3)
-    ax.legend(fontsize=7)
+    if labelled:
+        ax.legend(fontsize=6)
     figure.tight_layout()
     buffer = io.StringIO()
     figure.savefig(buffer, format="svg")
     plt.close(figure)
     svg = buffer.getvalue()
     return svg[svg.index("<svg") :]
+
+
+def _MeansTables(rows: list[dict[str, Any]], metrics: list[str], axes: list[str]) -> str:
+    """Per axis, a table: each value's mean of each metric +- its 95 % interval (n), over
+    the successful jobs."""
+    out = ["<h2>Means and 95 % intervals by axis value (successful jobs)</h2>"]
+    for axis in axes:
+        head = "".join(f"<th>{html.escape(m)}</th>" for m in metrics)
+        body = []
+        for value in _AxisValues(rows, axis):
+            cells = []
+            for metric in metrics:
+                numbers = [
+                    _Number(r.get(metric))
+                    for r in rows
+                    if _Key(r.get(axis)) == value and r.get("success") is True
+                ]
+                mean, half, n = MeanInterval([y for y in numbers if y is not None])
+                text = (
+                    ""
+                    if n == 0
+                    else f"{mean:.4g}" + (f" ± {half:.2g}" if not math.isnan(half) else "")
+                )
+                cells.append(f"<td>{html.escape(text)} ({n})</td>")
+            body.append(f"<tr><td>{html.escape(value)}</td>{''.join(cells)}</tr>")
+        out.append(f"<table><tr><th>{html.escape(axis)}</th>{head}</tr>{''.join(body)}</table><br>")
+    return "".join(out)
 
 
 def _Table(columns: list[str], rows: list[dict[str, Any]]) -> str:

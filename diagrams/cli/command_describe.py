@@ -12,9 +12,12 @@ the scenario's value with `--set` overrides applied) and one line of documentati
   pydrake has none.
 
 Mappings keyed by name (`station.arms`, `station.cameras`, ...) list each entry of the
-scenario, or `<name>` with the entry type's defaults when the mapping is empty. A last line
-lists the numbers the task's summary.json can carry (TaskDefinition.metrics, dotted names,
-`#` for a list's elements).
+scenario, or `<name>` with the entry type's defaults when the mapping is empty.
+
+`--metrics` lists instead every key of the task's summary.json with its unit and meaning
+(TaskDefinition.metrics, RUN_METRICS and SUMMARY_KEYS), and for an accuracy metric
+whether it is measured on the true cell or from what the controller believes
+(TaskDefinition.MetricSource).
 """
 
 from __future__ import annotations
@@ -37,7 +40,7 @@ from pydrake.geometry import Rgba
 
 from guidedarm.diagrams.cli.command_run import LoadScenario
 from guidedarm.diagrams.scenario_loading import AddOverridesArgument, list_named_scenarios
-from guidedarm.diagrams.tasks.registry import AvailableTasks
+from guidedarm.diagrams.tasks.registry import SUMMARY_KEYS, AvailableTasks, TaskDefinition
 from guidedarm.systems.errors import ConfigurationError
 
 TASK_DOC = "the task this scenario runs (diagrams/tasks/<task>.py)"
@@ -86,6 +89,11 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         action="store_true",
         help="show the schema's defaults instead of the scenario's values",
     )
+    parser.add_argument(
+        "--metrics",
+        action="store_true",
+        help="list every key of the task's summary.json with its unit and meaning instead",
+    )
     AddOverridesArgument(parser, "override a scenario key before describing it")
     parser.set_defaults(func=describe_command)
 
@@ -94,9 +102,11 @@ def describe_command(args: argparse.Namespace) -> int:
     tasks = AvailableTasks()
     scenarios = list_named_scenarios()
     task_only = args.target in tasks and args.target not in scenarios
-    if args.overrides and (args.defaults or task_only):
-        # The schema's defaults do not read a scenario's --set values.
+    if args.overrides and (args.defaults or args.metrics or task_only):
+        # The schema's defaults and the metrics do not read a scenario's --set values.
         shown = "--defaults" if args.defaults else f"task '{args.target}' (its defaults)"
+        if args.metrics:
+            raise ConfigurationError("--set has no effect with --metrics (a task's metrics)")
         raise ConfigurationError(f"--set has no effect with {shown}: describe a scenario")
     if task_only:
         task, scenario, name = tasks[args.target], None, None
@@ -107,6 +117,8 @@ def describe_command(args: argparse.Namespace) -> int:
         )
     else:
         task, scenario, name = LoadScenario(args.target, args.overrides)
+    if args.metrics:
+        return _Print(MetricRows(task))
     if scenario is None or args.defaults:
         scenario = task.scenario_type()
         print(f"task {task.name} ({task.description}): defaults of {type(scenario).__name__}")
@@ -116,10 +128,26 @@ def describe_command(args: argparse.Namespace) -> int:
     widths = [min(max(len(getattr(r, a)) for r in rows), w) for a, w in WIDTHS]
     lines = [_Row(["key", "type", "value", "doc"], widths)]
     lines += [_Row([r.key, r.type, r.value, r.doc], widths) for r in rows]
-    lines += ["", f"metrics of task {task.name} (summary.json):"]
-    for metric in task.KnownMetrics():
-        source = task.MetricSource(metric)
-        lines.append(f"  {metric}" + (f": {source}" if source else ""))
+    return _Print(lines)
+
+
+def MetricRows(task: TaskDefinition) -> list[str]:
+    """The lines of `describe --metrics`: every summary.json key of the task (a list's
+    elements as `name.#`) with its unit and meaning."""
+    docs = {**SUMMARY_KEYS, **task.MetricDocs()}
+    width = max(len(k) for k in docs)
+    unit_width = max(len(u) for u, _ in docs.values())
+    lines = [f"summary.json of task {task.name} ({task.description})"]
+    lines.append(f"{'key':{width}}  {'unit':{unit_width}}  meaning")
+    for key, (unit, doc) in docs.items():
+        source = task.MetricSource(key) if key in task.metrics else ""
+        lines.append(
+            f"{key:{width}}  {unit:{unit_width}}  {doc}" + (f" [{source}]" if source else "")
+        )
+    return lines
+
+
+def _Print(lines: list[str]) -> int:
     try:
         print("\n".join(lines), flush=True)
     except BrokenPipeError:

@@ -29,6 +29,7 @@ from guidedarm.diagrams.campaigns.campaign import CampaignConfig, LoadCampaign
 from guidedarm.diagrams.campaigns.jobs import ExpandJobs
 from guidedarm.diagrams.campaigns.sweep import MakeSweepOptions, Sweep
 from guidedarm.diagrams.run_context import RunContext
+from guidedarm.diagrams.tasks.panel_files import RecordedPanelFile
 from guidedarm.systems.config_checks import FieldError
 from guidedarm.systems.errors import ConfigurationError
 from guidedarm.systems.markers.image_degradation import DegradationConfig
@@ -57,6 +58,11 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     parser.add_argument("--noise", type=float, default=0.0, help="noise std (grey levels)")
     parser.add_argument("--blur", type=float, default=0.0, help="blur sigma (px)")
     parser.add_argument("--lighting", type=float, default=1.0, help="brightness scale")
+    parser.add_argument(
+        "--panel",
+        help="your own PANEL.yaml (a path, or a name under models/; default the paper's panel): "
+        "every job's scene and estimator use it",
+    )
     parser.add_argument("--workers", type=int, help="local worker processes (default: cores)")
     parser.add_argument("--scheduler", metavar="ADDRESS", help="an existing Dask scheduler")
     parser.set_defaults(func=study_command)
@@ -73,7 +79,7 @@ def study_command(args: argparse.Namespace) -> int:
     except FieldError as e:
         raise ConfigurationError(f"{DEGRADATION_FLAGS.get(e.key, e.key)}: {e.why}") from None
     # Every campaign of the study is checked before the first one runs.
-    studied = [StudyCampaign(name, degradation) for name in CAMPAIGNS[args.study]]
+    studied = [StudyCampaign(name, degradation, args.panel) for name in CAMPAIGNS[args.study]]
     checked = [(campaign, folder, ExpandJobs(campaign)) for campaign, folder in studied]
     context = RunContext(out_dir=args.out or Path("runs") / "marker_study")
     results = []
@@ -111,18 +117,26 @@ def _UnexpectedFailure(row: dict[str, Any]) -> bool:
     return row["success"] is not True and not aborted
 
 
-def StudyCampaign(name: str, degradation: DegradationConfig) -> tuple[CampaignConfig, str]:
+def StudyCampaign(
+    name: str, degradation: DegradationConfig, panel_file: str | None = None
+) -> tuple[CampaignConfig, str]:
     """The campaign `name` with the images of every job degraded as `degradation` (its seed
-    left to each job's random_seed), and its folder under DIR."""
+    left to each job's random_seed) and, given a panel_file, every job on that panel, and
+    its folder under DIR (named after both)."""
     campaign = LoadCampaign(name)
-    if degradation == DegradationConfig():
-        return campaign, name
-    campaign.set.update({f"degradation.{k}": getattr(degradation, k) for k in DEGRADATION_FLAGS})
+    folder = name
+    if panel_file is not None:
+        campaign.set["panel_file"] = RecordedPanelFile(panel_file)
+        folder += f"_{Path(panel_file).stem}"
+    if degradation != DegradationConfig():
+        campaign.set.update(
+            {f"degradation.{k}": getattr(degradation, k) for k in DEGRADATION_FLAGS}
+        )
+        folder += "_" + "_".join(
+            f"{flag[2:]}{getattr(degradation, k):g}" for k, flag in DEGRADATION_FLAGS.items()
+        )
     campaign.Validate()
-    suffix = "_".join(
-        f"{flag[2:]}{getattr(degradation, k):g}" for k, flag in DEGRADATION_FLAGS.items()
-    )
-    return campaign, f"{name}_{suffix}"
+    return campaign, folder
 
 
 def DistanceTable(context: RunContext, straight: Rows, angled: Rows) -> dict:

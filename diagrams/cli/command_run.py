@@ -104,7 +104,8 @@ def CheckMeshcatArguments(args: argparse.Namespace) -> None:
 def LoadScenario(name_or_path: str | Path, overrides: list[str]) -> tuple[Any, Any, str]:
     """Returns (task, typed scenario, scenario name) for a scenario and `--set` overrides
     (a list of `key=value` strings), after the task's checks of the scenario: its types and
-    bounds, its Validate() (the rules between its keys) and the task's check_overrides."""
+    bounds, its Validate() (the rules between its keys) and the task's check_overrides;
+    the scenario is the task's resolved one (TaskDefinition.resolve)."""
     CheckInstance("name_or_path", name_or_path, (str, Path))
     path = resolve_scenario_path(name_or_path)
     parsed = parse_overrides(overrides)
@@ -116,6 +117,8 @@ def LoadScenario(name_or_path: str | Path, overrides: list[str]) -> tuple[Any, A
     scenario = load_typed(task.scenario_type, raw, str(path), parsed.keys())
     if task.check_overrides is not None:
         task.check_overrides(scenario, parsed.keys())
+    if task.resolve is not None:
+        scenario = task.resolve(scenario)
     return task, scenario, path.stem
 
 
@@ -151,7 +154,7 @@ def run_command(args: argparse.Namespace) -> int:
     except KeyboardInterrupt as e:  # arrived as RunTask returned: the run still gets a summary
         metrics = {"success": False, "failure": InterruptedFailure(e)}
     with DeferredInterrupts():  # the run is over; what it did is written whole
-        metrics = {"scenario": name, "task": task.name, **metrics, **RunProvenance()}
+        metrics = {"scenario": name, "task": task.name, **metrics, **RunProvenance(args.argv)}
         context.write_summary(metrics)
         _print_summary(metrics, context)
     if args.meshcat:
@@ -165,10 +168,12 @@ def run_command(args: argparse.Namespace) -> int:
     return 0
 
 
-def RunProvenance() -> dict[str, Any]:
-    """What summary.json records of how the run was made: the command line and version."""
+def RunProvenance(argv: list[str] | None = None) -> dict[str, Any]:
+    """What summary.json records of how the run was made: the command line (`argv`, the
+    arguments given to main; default the process's) and the version."""
+    argv = sys.argv[1:] if argv is None else argv
     return {
-        "command": " ".join(shlex.quote(a) for a in ["guidedarm", *sys.argv[1:]]),
+        "command": " ".join(shlex.quote(a) for a in ["guidedarm", *argv]),
         "version": importlib.metadata.version("guidedarm"),
     }
 

@@ -57,6 +57,7 @@ def main(argv: list[str] | None = None) -> int:
         InstallInterruptHandlers()
     try:
         args = MakeArgumentParser().parse_args(argv)
+        args.argv = list(sys.argv[1:] if argv is None else argv)  # for the run's summary
         code = int(args.func(args) or 0)
         sys.stdout.flush()  # a closed pipe shows here, not at interpreter exit
         return code

@@ -206,13 +206,25 @@ def _Derivative(trajectory: PiecewisePolynomial, times: np.ndarray, order: int) 
 
 
 # The numbers of RunJointTour's summary (TaskDefinition.metrics).
-JOINT_TOUR_METRICS = (
-    "sim_time_s",
-    "tracking_error_max_rad",
-    "tracking_delay_s",
-    "final_error_rad",
-    "true_final_error_rad",
-)
+JOINT_TOUR_METRICS = {
+    "sim_time_s": ("s", "simulated time of the run"),
+    "tracking_error_max_rad": (
+        "rad",
+        "largest distance, on any joint, of the measured arm from the commanded tour, "
+        "compared at tracking_delay_s",
+    ),
+    "tracking_delay_s": (
+        "s",
+        "the delay of the measured arm behind the commands that fits it best (0 to 0.1 s; "
+        "0 in simulation)",
+    ),
+    "final_error_rad": ("rad", "largest joint distance of the measured arm from the last waypoint"),
+    "true_final_error_rad": (
+        "rad",
+        "largest distance of the true arm's joints (the measured ones less the cell's joint "
+        "offsets) from the last waypoint",
+    ),
+}
 
 TASK = TaskDefinition(
     name="joint_tour",

@@ -14,6 +14,7 @@ are the estimator's errors:
 A view without a valid pose is a failed run (RunFailedError).
 """
 
+import dataclasses
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -23,8 +24,9 @@ from pydrake.systems.sensors import CameraConfig
 
 from guidedarm.diagrams.run_context import RunContext
 from guidedarm.diagrams.station.scenario import UNSUPPORTED_CAMERA_FIELDS, UnreadCameraKey
+from guidedarm.diagrams.tasks.panel_assets import GeneratedPanelModel
 from guidedarm.diagrams.tasks.panel_camera_rig import LookAt, PanelCameraRig
-from guidedarm.diagrams.tasks.panel_files import DEFAULT_PANEL_FILE, LoadPanelSpec
+from guidedarm.diagrams.tasks.panel_files import LoadPanelSpec, RecordedPanelFile, ResolvePanelFile
 from guidedarm.diagrams.tasks.registry import TaskDefinition
 from guidedarm.systems.cell_errors.camera_errors import CameraErrors
 from guidedarm.systems.cell_errors.distributions import DrawErrors
@@ -58,6 +60,9 @@ class MarkerViewScenario:
     camera_errors: how the real camera differs from `camera` (CameraErrors, the fields
         of station.errors.cameras.<camera>; numbers or distributions drawn from
         random_seed): it renders through them, the estimator uses `camera`.
+    panel_file: the PANEL.yaml the view shows and the estimator reads: a path, absolute or
+        relative to the working directory, or a name under models/ (its model is
+        generated from it).
     """
 
     task: str = "marker_view"
@@ -68,11 +73,14 @@ class MarkerViewScenario:
     degradation: DegradationConfig = field(default_factory=DegradationConfig)
     random_seed: int = 0
     camera_errors: CameraErrors = field(default_factory=CameraErrors)
+    panel_file: str = "panel/panel.yaml"
 
     def Validate(self) -> None:
-        """Checked at load (CheckConfig): the fields' bounds, the rendered size, and no key
-        the view does not read (UNREAD_CAMERA_KEYS, degradation.supersampling)."""
+        """Checked at load (CheckConfig): the fields' bounds, the rendered size, no key
+        the view does not read (UNREAD_CAMERA_KEYS, degradation.supersampling) and the
+        panel file."""
         CheckFields(self)
+        LoadPanelSpec(ResolvePanelFile(self.panel_file))
         changed = UnreadCameraKey(self.camera, UNREAD_CAMERA_KEYS)
         if changed:
             raise ConfigurationError(
@@ -84,10 +92,14 @@ class MarkerViewScenario:
 
 def RunMarkerView(scenario: MarkerViewScenario, context: RunContext) -> dict[str, Any]:
     """Renders the view, estimates the panel pose and returns the errors (see above)."""
+    panel_file = ResolvePanelFile(scenario.panel_file)
     rig = PanelCameraRig(
-        scenario.camera, scenario.supersampling, errors=DrawErrors(scenario.camera_errors, None)
+        scenario.camera,
+        scenario.supersampling,
+        str(GeneratedPanelModel(panel_file)),
+        errors=DrawErrors(scenario.camera_errors, None),
     )
-    solver = MarkerPoseSolver(rig.intrinsics, LoadPanelSpec(DEFAULT_PANEL_FILE))
+    solver = MarkerPoseSolver(rig.intrinsics, LoadPanelSpec(panel_file))
     a = np.radians(scenario.angle_deg)
     d = scenario.distance_m
     X_PC = LookAt(d * np.array([np.sin(a), 0.0, np.cos(a)]), [0.0, 0.0, 0.0])
@@ -123,18 +135,18 @@ def RunMarkerView(scenario: MarkerViewScenario, context: RunContext) -> dict[str
 
 # The numbers of RunMarkerView's summary (TaskDefinition.metrics); `ids.#` are the ids of
 # the markers found.
-MARKER_VIEW_METRICS = (
-    "reference_mm",
-    "vision_mm",
-    "abs_error_mm",
-    "rel_error_pct",
-    "reference_deg",
-    "vision_deg",
-    "abs_angle_error_deg",
-    "rotation_error_deg",
-    "reprojection_error_px",
-    "ids.#",
-)
+MARKER_VIEW_METRICS = {
+    "reference_mm": ("mm", "true distance of the camera from the panel frame P"),
+    "vision_mm": ("mm", "the estimated distance (the norm of the estimated X_CP's translation)"),
+    "abs_error_mm": ("mm", "|vision_mm - reference_mm|"),
+    "rel_error_pct": ("%", "abs_error_mm over reference_mm"),
+    "reference_deg": ("deg", "true turn of the camera about P's y axis (angle_deg)"),
+    "vision_deg": ("deg", "the estimated turn about P's y axis"),
+    "abs_angle_error_deg": ("deg", "|vision_deg - reference_deg|"),
+    "rotation_error_deg": ("deg", "angle of the rotation between estimated and true X_CP"),
+    "reprojection_error_px": ("px", "RMS distance of the detected corners from the reprojected"),
+    "ids.#": ("id", "the ids of the markers found, one element each"),
+}
 
 TASK = TaskDefinition(
     name="marker_view",
@@ -150,5 +162,8 @@ TASK = TaskDefinition(
         "rotation_error_deg",
         "reference_mm",
         "reference_deg",
+    ),
+    resolve=lambda scenario: dataclasses.replace(
+        scenario, panel_file=RecordedPanelFile(scenario.panel_file)
     ),
 )

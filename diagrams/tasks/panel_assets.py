@@ -8,19 +8,33 @@ along z_P, latching, with damping: pressing it in past `on_travel_m` switches it
 a marker cover (visual only, on a prismatic joint along z_P, hidden behind the plate at
 q = 0 and in front of the markers at q = COVER_CLOSED_M) used to study marker occlusion.
 
-Run `.venv/bin/python -m guidedarm.diagrams.tasks.panel_assets` after editing panel.yaml.
+The tasks generate the model of their own panel file when they load it
+(GeneratedPanelModel, WithGeneratedPanel), so a panel file is all a user writes. The
+shipped models/panel/panel.sdf serves the model directives that name it
+(models/directives/panel_scene.dmd.yaml); run
+`.venv/bin/python -m guidedarm.diagrams.tasks.panel_assets` after editing panel.yaml.
 """
 
 from __future__ import annotations
 
 import argparse
+import dataclasses
+import hashlib
+import shutil
+import tempfile
 from pathlib import Path
 
 import cv2
 import numpy as np
+from pydrake.common.yaml import yaml_dump_typed
 from pydrake.math import RollPitchYaw
+from pydrake.multibody.parsing import FlattenModelDirectives, ModelDirectives
+from pydrake.multibody.plant import MultibodyPlant
 
+from guidedarm.diagrams.station.model_paths import MakeParser
+from guidedarm.diagrams.station.scenario import StationScenario
 from guidedarm.diagrams.tasks.panel_files import DEFAULT_PANEL_FILE, LoadPanelSpec
+from guidedarm.systems.errors import ConfigurationError
 from guidedarm.systems.markers.marker_pose_estimator_math import GetDictionary, PanelSpec
 
 TEXTURE_CELL_PX = 100  # pixels per marker cell in the textures
@@ -60,6 +74,48 @@ def WritePanelAssets(panel_file: Path = DEFAULT_PANEL_FILE, out_dir: Path | None
     (out_dir / "panel.sdf").write_text(PanelSdf(panel))
     written.append(out_dir / "panel.sdf")
     return written
+
+
+def GeneratedPanelModel(panel_file: str | Path) -> Path:
+    """The panel.sdf generated from `panel_file` (with its marker textures and meshes) in a
+    cache folder named by a hash of all it is generated from. It is written once, into a
+    staging folder renamed into place, so parallel runs of one panel share it."""
+    panel = LoadPanelSpec(panel_file)
+    source = f"{TEXTURE_CELL_PX}\n{yaml_dump_typed(panel)}\n{PanelSdf(panel)}"
+    key = hashlib.sha256(source.encode()).hexdigest()[:20]
+    folder = Path(tempfile.gettempdir()) / "guidedarm-panels" / key
+    if not (folder / "panel.sdf").is_file():
+        folder.parent.mkdir(parents=True, exist_ok=True)
+        staging = Path(tempfile.mkdtemp(dir=folder.parent))
+        WritePanelAssets(panel_file, staging)
+        try:
+            staging.rename(folder)
+        except OSError:  # another process put the same model there first
+            shutil.rmtree(staging, ignore_errors=True)
+    return folder / "panel.sdf"
+
+
+def WithGeneratedPanel(
+    station: StationScenario, panel_model: str, panel_file: str | Path
+) -> StationScenario:
+    """`station` with its model directives flattened and the model instance `panel_model`
+    loaded from the model generated from `panel_file` (GeneratedPanelModel), so that the
+    simulated scene shows the markers and switches the estimator and the sequencer read.
+    ConfigurationError when the directives add no model of that name."""
+    package_map = MakeParser(MultibodyPlant(0.0)).package_map()
+    try:
+        flat = FlattenModelDirectives(ModelDirectives(directives=station.directives), package_map)
+    except Exception as e:
+        raise ConfigurationError(f"station.directives: {str(e).splitlines()[0]}") from None
+    models = [d.add_model for d in flat.directives if d.add_model]
+    panels = [m for m in models if m.name == panel_model]
+    if not panels:
+        raise ConfigurationError(
+            f"panel_model: no model instance '{panel_model}' in station.directives "
+            f"(have {sorted(m.name for m in models)})"
+        )
+    panels[0].file = GeneratedPanelModel(panel_file).as_uri()
+    return dataclasses.replace(station, directives=flat.directives)
 
 
 def PanelSdf(panel: PanelSpec) -> str:

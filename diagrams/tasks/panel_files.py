@@ -26,6 +26,28 @@ DEFAULT_PANEL_FILE = MODELS_PANEL_DIR / "panel.yaml"
 DEFAULT_CAMERA_FILE = MODELS_PANEL_DIR / "c920_camera.yaml"
 
 
+def ResolvePanelFile(name: str | Path) -> Path:
+    """A panel file given as a path (absolute, or relative to the working directory) or as
+    a name under models/ (e.g. `panel/panel.yaml`); ConfigurationError when neither is a
+    file."""
+    path = Path(name).expanduser()
+    if path.is_file():
+        return path.resolve()
+    if not path.is_absolute() and (MODELS_DIR / path).is_file():
+        return MODELS_DIR / path
+    raise ConfigurationError(
+        f"panel_file '{name}': file not found (give a path, absolute or relative to the "
+        "working directory, or a name under models/ such as panel/panel.yaml)"
+    )
+
+
+def RecordedPanelFile(name: str) -> str:
+    """The panel file as a run's scenario.yaml records it: a name under models/ as given,
+    a path made absolute, so that the file repeats the run from any directory."""
+    path = ResolvePanelFile(name)
+    return name if path == MODELS_DIR / name else str(path)
+
+
 def LoadCameraIntrinsics(path: str | Path) -> CameraIntrinsics:
     """The intrinsics in a CAMERA.yaml file."""
     return load_typed(CameraIntrinsics, _ReadMapping(path), str(path))

@@ -49,16 +49,17 @@ from pydrake.systems.primitives import VectorLogSink
 
 from guidedarm.diagrams.overlays.panel_overlays import AddPanelOverlays
 from guidedarm.diagrams.run_context import RunContext
-from guidedarm.diagrams.station.model_paths import MODELS_DIR
 from guidedarm.diagrams.station.scenario import StationScenario
 from guidedarm.diagrams.station.station import MakeStation
 from guidedarm.diagrams.tasks.cell_collisions import CellCollisions, ModelNames
-from guidedarm.diagrams.tasks.panel_assets import COVER_CLOSED_M
+from guidedarm.diagrams.tasks.panel_assets import COVER_CLOSED_M, WithGeneratedPanel
 from guidedarm.diagrams.tasks.panel_camera_rig import LookAt
 from guidedarm.diagrams.tasks.panel_files import (
     LoadCameraMount,
     LoadEstimatorIntrinsics,
     LoadPanelSpec,
+    RecordedPanelFile,
+    ResolvePanelFile,
     SupersampledCameraConfig,
 )
 from guidedarm.diagrams.tasks.panel_operation_builder import AddPanelOperation
@@ -151,7 +152,9 @@ class PanelOperationScenario:
     switch: 1-based index into the panel file's switches.
     camera: the key of station.cameras on the arm (1920 x 1080 C920 by default).
     tip_frame: the scoped frame T that presses (gripper tip).
-    panel_file: PANEL.yaml relative to models/.
+    panel_file: the PANEL.yaml (markers, switches): a path, absolute or relative to the
+        working directory, or a name under models/. It drives both the estimator and the
+        simulated scene: the model of `panel_model` is generated from it at load.
     estimator_camera_file: the estimator's camera model, a CAMERA.yaml (intrinsics and
         distortion, e.g. written by `guidedarm calibrate camera`) relative to models/ or
         absolute, of the camera's width x height; empty: derived from the station's
@@ -160,7 +163,8 @@ class PanelOperationScenario:
         hand_eye.yaml (`guidedarm calibrate hand-eye`: X_PC in the frame the camera's X_PB
         names) relative to models/ or absolute; empty: the camera's X_PB X_BC. The
         simulated camera stays where X_PB (and station.errors) put it.
-    panel_model: the panel's model instance in the directives.
+    panel_model: the panel's model instance in the directives (its model is replaced by
+        the one generated from panel_file).
     supersampling: the camera renders this many times its resolution, and
         ImageDegradation averages it back (1..8; degradation.supersampling must stay 1;
         width x height x supersampling^2 <= MAX_RENDER_PIXELS).
@@ -209,6 +213,12 @@ class PanelOperationScenario:
         )
         self.EstimatorIntrinsics()
         self.CameraMount()
+        panel = LoadPanelSpec(ResolvePanelFile(self.panel_file))
+        if not self.switch <= len(panel.switches):
+            raise ConfigurationError(
+                f"switch must be 1 .. {len(panel.switches)}, got {self.switch} (the switches "
+                f"of {self.panel_file})"
+            )
         _CheckModeKeys(self)
 
     def CameraMount(self) -> RigidTransform | None:
@@ -269,23 +279,23 @@ class PanelOperationRun:
         self.context = context
         CheckInstance("scenario", scenario, PanelOperationScenario)
         CheckConfig(scenario)
-        self.panel = LoadPanelSpec(MODELS_DIR / scenario.panel_file)
+        self.panel_file = ResolvePanelFile(scenario.panel_file)
+        self.panel = LoadPanelSpec(self.panel_file)
         self._Build()
 
     def _Build(self) -> None:
         scenario = self.scenario
         k = scenario.supersampling
         camera = scenario.station.cameras[scenario.camera]
-        station_scenario = SupersampledStation(scenario.station, scenario.camera, camera, k)
+        station_scenario = WithGeneratedPanel(
+            SupersampledStation(scenario.station, scenario.camera, camera, k),
+            scenario.panel_model,
+            self.panel_file,
+        )
         builder = DiagramBuilder()
         self.station = builder.AddNamedSystem(
             "station", MakeStation(station_scenario, self.context.meshcat)
         )
-        plant = self.station.GetSubsystemByName("plant")
-        if not plant.HasModelInstanceNamed(scenario.panel_model):
-            raise ConfigurationError(
-                f"panel_model: no model instance '{scenario.panel_model}' in station.directives"
-            )
         planner = None
         if scenario.operation.motion == "planner":
             planner = _MakePlanner(scenario)
@@ -344,8 +354,9 @@ class PanelOperationRun:
             self.joint_log.get_input_port(),
         )
         # The true plant's state (ground truth), for the true_ metrics.
+        true_plant = self.station.GetSubsystemByName("plant")
         self.true_log = builder.AddNamedSystem(
-            "true_state_log", VectorLogSink(plant.num_multibody_states(), TRUE_LOG_PERIOD)
+            "true_state_log", VectorLogSink(true_plant.num_multibody_states(), TRUE_LOG_PERIOD)
         )
         builder.Connect(
             self.station.GetOutputPort("sim.plant_state"), self.true_log.get_input_port()
@@ -500,4 +511,7 @@ TASK = TaskDefinition(
     metrics=PANEL_OPERATION_METRICS,
     ground_truth_metrics=("switch_travel_mm.#", "press_target_W_mm.#"),
     check_run=CheckRun,
+    resolve=lambda scenario: dataclasses.replace(
+        scenario, panel_file=RecordedPanelFile(scenario.panel_file)
+    ),
 )

@@ -13,7 +13,11 @@ from pydrake.systems.framework import Context
 
 from guidedarm.diagrams.plots import PlotJointSeries
 from guidedarm.diagrams.tasks.planner_builder import SymmetricLimit
-from guidedarm.diagrams.tasks.trajectory_csv import JointMotionMetrics, WriteTrajectoryCsv
+from guidedarm.diagrams.tasks.trajectory_csv import (
+    JOINT_MOTION_METRICS,
+    JointMotionMetrics,
+    WriteTrajectoryCsv,
+)
 from guidedarm.systems.markers.panel_operation import SequencerState
 
 if TYPE_CHECKING:
@@ -47,35 +51,51 @@ def PlotPanelOperation(run: PanelOperationRun, state: SequencerState, context: C
 
 # The numbers of PanelOperationMetrics's summary (TaskDefinition.metrics); a measurement
 # record's distance_mm, p_CP_mm and estimate_error_mm exist when its estimate was valid.
-PANEL_OPERATION_METRICS = (
-    "switch",
-    "switch_pressed",
-    "switch_travel_mm.#",
-    "base_position_error_mm",
-    "base_camera_distance_mm",
-    "press_error_mm.x",
-    "press_error_mm.y",
-    "press_error_mm.z",
-    "press_tip_W_mm.#",
-    "press_target_W_mm.#",
-    "true_base_position_error_mm",
-    "true_press_error_mm.x",
-    "true_press_error_mm.y",
-    "true_press_error_mm.z",
-    "true_press_tip_W_mm.#",
-    "measurements.#.true_estimate_error_mm",
-    "measurements.#.t_s",
-    "measurements.#.ids.#",
-    "measurements.#.reprojection_error_px",
-    "measurements.#.distance_mm",
-    "measurements.#.p_CP_mm.#",
-    "measurements.#.estimate_error_mm",
-    "lost_measurements",
-    "joint_limit_distance_min_rad",
-    "oscillation_rate_max",
-    "cell_contacts",
-    "sim_time_s",
-)
+PANEL_OPERATION_METRICS = {
+    "switch": ("index", "the switch to press (1-based, the panel file's order)"),
+    "switch_pressed": (
+        "index",
+        "the switch whose cap travelled past its on-travel (a list when several, null when none)",
+    ),
+    "switch_travel_mm.#": ("mm", "each switch cap's travel into the panel at the end"),
+    "base_position_error_mm": (
+        "mm",
+        "distance of the camera, at the base point, from where it should be (truth)",
+    ),
+    "base_camera_distance_mm": (
+        "mm",
+        "the camera's true distance from the panel at the base point",
+    ),
+    "press_error_mm.x": ("mm", "|error| of the tip at the press along P's x axis (truth)"),
+    "press_error_mm.y": ("mm", "|error| of the tip at the press along P's y axis"),
+    "press_error_mm.z": ("mm", "|error| of the tip at the press along P's z axis (depth)"),
+    "press_tip_W_mm.#": ("mm", "the tip's position at the press, world frame"),
+    "press_target_W_mm.#": ("mm", "the press target's true position, world frame"),
+    "true_base_position_error_mm": (
+        "mm",
+        "base_position_error_mm of the true camera (the true arm and camera mount)",
+    ),
+    "true_press_error_mm.x": ("mm", "press_error_mm.x of the true tip (the true arm)"),
+    "true_press_error_mm.y": ("mm", "press_error_mm.y of the true tip"),
+    "true_press_error_mm.z": ("mm", "press_error_mm.z of the true tip"),
+    "true_press_tip_W_mm.#": ("mm", "the true tip's position at the press, world frame"),
+    "measurements.#.t_s": ("s", "simulated time of each image analysed"),
+    "measurements.#.ids.#": ("id", "the marker ids found in that image"),
+    "measurements.#.reprojection_error_px": ("px", "its PnP's RMS corner reprojection error"),
+    "measurements.#.distance_mm": ("mm", "its estimated camera distance from P (valid only)"),
+    "measurements.#.p_CP_mm.#": ("mm", "its estimated position of P in the camera frame C"),
+    "measurements.#.estimate_error_mm": (
+        "mm",
+        "that estimate's distance from P seen from where the controller believes the camera is",
+    ),
+    "measurements.#.true_estimate_error_mm": (
+        "mm",
+        "that estimate's distance from P seen from the true camera",
+    ),
+    "lost_measurements": ("count", "images analysed without a valid marker pose"),
+    **JOINT_MOTION_METRICS,
+    "sim_time_s": ("s", "simulated time of the run"),
+}
 
 
 def PanelOperationMetrics(

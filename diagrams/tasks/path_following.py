@@ -212,16 +212,31 @@ def CheckOverrides(scenario: PathFollowingScenario, keys: Collection[str]) -> No
                 )
 
 
+def WithoutReplacedPath(scenario: PathFollowingScenario) -> PathFollowingScenario:
+    """The scenario with `path` cleared when `path_csv` (which replaces it) is set."""
+    return dataclasses.replace(scenario, path="") if scenario.path_csv else scenario
+
+
 # The numbers of RunPathFollowing's summary (TaskDefinition.metrics); the repeatability
 # figures only with repeat_random_seed.
-PATH_FOLLOWING_METRICS = (
-    *GROUND_TRUTH_METRICS,
-    "collisions",
-    "sim_time_s",
-    "realtime_factor",
-    "repeatability_mean_mm",
-    "repeatability_max_mm",
-)
+PATH_FOLLOWING_METRICS = {
+    **GROUND_TRUTH_METRICS,
+    "collisions": (
+        "count",
+        "steps during which the robot penetrated the hose (joint samples every 20 ms); any "
+        "fails the run",
+    ),
+    "sim_time_s": ("s", "simulated time of the run"),
+    "realtime_factor": ("ratio", "simulated over wall-clock time of the follower's loop"),
+    "repeatability_mean_mm": (
+        "mm",
+        "with repeat_random_seed: mean distance between the detected paths of the two runs",
+    ),
+    "repeatability_max_mm": (
+        "mm",
+        "with repeat_random_seed: largest distance between the two detected paths",
+    ),
+}
 
 TASK = TaskDefinition(
     name="path_following",
@@ -232,4 +247,5 @@ TASK = TaskDefinition(
     check_overrides=CheckOverrides,
     metrics=PATH_FOLLOWING_METRICS,
     check_run=CheckRun,
+    resolve=WithoutReplacedPath,
 )

@@ -96,19 +96,44 @@ class CenterlineMatch:
 
 
 # The numbers of Metrics (the last three not with continuous motion).
-GROUND_TRUTH_METRICS = (
-    "steps",
-    "coverage",
-    "tracking_error_mean_mm",
-    "tracking_error_max_mm",
-    "detected_path_error_mean_mm",
-    "detected_path_error_max_mm",
-    "average_speed_mm_s",
-    "lost_steps",
-    "recoveries",
-    "ik_time_median_ms",
-    "ik_time_p99_ms",
-)
+GROUND_TRUTH_METRICS = {
+    "steps": (
+        "count",
+        "the follower's steps (one ToF reading and move each); with motion continuous its "
+        "ToF readings",
+    ),
+    "coverage": (
+        "fraction",
+        f"share of the hose's centerline within {1000 * TRACKING_BOUND:.0f} mm of a tool "
+        "centre O matched near it",
+    ),
+    "tracking_error_mean_mm": (
+        "mm",
+        "mean distance of the tool centre O from the true centerline over the steps "
+        "(steps beyond either end of the hose left out)",
+    ),
+    "tracking_error_max_mm": ("mm", "largest distance of O from the true centerline"),
+    "detected_path_error_mean_mm": (
+        "mm",
+        "mean distance of the detected hose point S from the true centerline, over the "
+        "steps that detected the hose",
+    ),
+    "detected_path_error_max_mm": ("mm", "largest distance of S from the true centerline"),
+    "average_speed_mm_s": (
+        "mm/s",
+        "hose length followed (the farthest arc length reached within "
+        f"{1000 * TRACKING_BOUND:.0f} mm of the hose) over the time it took",
+    ),
+    "lost_steps": (
+        "count",
+        "steps (continuous: readings) in which the tool did not detect the hose: no "
+        "error-free grid point or no estimate; the search past the hose's end and a "
+        "recovery's retries count, so a successful run has some",
+    ),
+    "recoveries": ("count", "retries after losing the hose that found it again (stop-and-go)"),
+    "ik_time_median_ms": ("ms", "median wall-clock time of one IK solve per step (stop-and-go)"),
+    "ik_time_p99_ms": ("ms", "99th percentile of that time (stop-and-go)"),
+}
 
 
 def Metrics(records: np.ndarray, centerline: np.ndarray, continuous: bool = False) -> dict:

@@ -44,6 +44,11 @@ from guidedarm.systems.path_following.hose_geometry import (
     ResolveCenterlinePath,
     WriteCenterline,
 )
+from guidedarm.systems.path_following.hose_reach import (
+    CalcArmReach,
+    CheckHoseReachable,
+    ToolClearance,
+)
 from guidedarm.systems.path_following.joint_moves import MotionLimits
 from guidedarm.systems.path_following.path_follower_math import (
     FollowerConfig,
@@ -129,6 +134,17 @@ def MakeSetup(scenario: PathFollowingScenario, out_dir: Path | None = None) -> S
     mount = ToolMount.FromTransform(_ToolInGripper(solver.plant, scenario.gripper_frame, tof))
     q_home = ArmInitialPosition(solver.plant, scenario.arm, station.arms[scenario.arm])
     centerline_B, source = _LoadHose(scenario, workspace, solver, mount, q_home, out_dir)
+    tool_frame = GetScopedFrame(solver.plant, tof.tool_frame, "tof tool_frame")
+    CheckHoseReachable(
+        centerline_B,
+        X_WB,
+        workspace,
+        CalcArmReach(
+            solver.plant, GetArmInstance(solver.plant, scenario.arm), solver.frame, solver.p_FQ
+        ),
+        ToolClearance(solver.plant, tool_frame),
+        scenario.arm,
+    )
     _ResolveHose(scenario, station, source, base_frame)
     centerline = X_WB.multiply(centerline_B.T).T
     q_start = StartPosition(solver, mount, centerline, q_home)

@@ -4,8 +4,8 @@ from __future__ import annotations
 
 import importlib
 import pkgutil
-from collections.abc import Callable, Collection
-from dataclasses import dataclass
+from collections.abc import Callable, Collection, Mapping
+from dataclasses import dataclass, field
 from typing import Any
 
 import guidedarm.diagrams.tasks as tasks_package
@@ -16,8 +16,25 @@ from guidedarm.systems.errors import ConfigurationError
 
 # A list's elements in a metric's dotted name: `waypoint_distance_m.#`.
 LIST_INDEX = "#"
-# What RunTask adds to every task's metrics: the run's wall-clock time (s).
-RUN_METRICS = ("wall_time_s",)
+
+# A metric's documentation: its unit and what it measures (`guidedarm describe --metrics`).
+MetricDoc = tuple[str, str]
+
+# What RunTask adds to every task's metrics.
+RUN_METRICS: dict[str, MetricDoc] = {
+    "wall_time_s": ("s", "wall-clock time of the whole run (setup, simulation, report)"),
+}
+
+# The keys of every summary.json beside the task's metrics (`guidedarm run` writes them).
+SUMMARY_KEYS: dict[str, MetricDoc] = {
+    "scenario": ("text", "the scenario's name or file"),
+    "task": ("text", "the task it ran"),
+    "success": ("bool", "the run did what the task asks; false when `failure` is set"),
+    "failure": ("text", "null, or one line naming why the run failed and when"),
+    "command": ("text", "the command line of the run"),
+    "version": ("text", "guidedarm's version"),
+}
+
 # Where RunTask writes the run's drawn cell errors (station.errors) in the summary: the
 # cell of the run, not a metric.
 ERRORS_KEY = "errors"
@@ -51,12 +68,16 @@ class TaskDefinition:
     check_run(scenario, flags), when given, refuses (ConfigurationError) a scenario the
     task cannot run with these RunFlags (e.g. path following's kinematic executor with
     --hardware); CheckRun calls it before anything of the run is written.
+    resolve(scenario), when given, returns the scenario as it runs, with a key that another
+    key replaces cleared (e.g. path following's `path` under `path_csv`), so that the run's
+    scenario.yaml and figure titles show only what the run used.
+    metrics: every number its summary.json can carry, by dotted name (a list's elements as
+    `name.#`; RUN_METRICS are added to every task's), with its MetricDoc (unit, meaning):
+    what a campaign may collect, its report plots and `guidedarm describe TASK --metrics`
+    prints. tests/test_sweep.py compares the names with real runs.
     ground_truth_metrics: metrics measured against the simulation's truth that have no
     `true_` prefix (e.g. marker_view's errors against the rendered pose); `guidedarm
-    describe` lists each metric's source (MetricSource).
-    metrics: the dotted names of every number its summary.json can carry (a list's
-    elements as `name.#`; RUN_METRICS are added to every task's): what a campaign may
-    collect and its report plots. tests/test_sweep.py compares them with real runs.
+    describe --metrics` lists each metric's source (MetricSource).
     """
 
     name: str
@@ -66,8 +87,9 @@ class TaskDefinition:
     station: Callable[[Any], Any] | None = None
     check_overrides: Callable[[Any, Collection[str]], None] | None = None
     simulates: bool = True
-    metrics: tuple[str, ...] = ()
+    metrics: Mapping[str, MetricDoc] = field(default_factory=dict, hash=False)
     check_run: Callable[[Any, RunFlags], None] | None = None
+    resolve: Callable[[Any], Any] | None = None
     ground_truth_metrics: tuple[str, ...] = ()
 
     def MetricSource(self, name: str) -> str:
@@ -113,6 +135,11 @@ class TaskDefinition:
     def Station(self, scenario: Any) -> Any:
         """The station scenario a run of `scenario` builds (see the class docstring)."""
         return self.station(scenario) if self.station else scenario.station
+
+    def MetricDocs(self) -> dict[str, MetricDoc]:
+        """Every metric of its summary, RUN_METRICS included, with its unit and meaning,
+        sorted by name."""
+        return dict(sorted({**self.metrics, **RUN_METRICS}.items()))
 
     def KnownMetrics(self) -> list[str]:
         """The metric names of its summary, RUN_METRICS included, sorted."""

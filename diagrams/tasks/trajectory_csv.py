@@ -57,6 +57,24 @@ def FiniteDifferences(times: np.ndarray, q: np.ndarray) -> tuple[np.ndarray, np.
     return qd, np.gradient(qd, times, axis=0)
 
 
+# The docs of JointMotionMetrics's and CountContacts's figures (TaskDefinition.metrics).
+JOINT_MOTION_METRICS = {
+    "joint_limit_distance_min_rad": (
+        "rad",
+        "smallest distance of a commanded joint from its position limit (negative: past it)",
+    ),
+    "oscillation_rate_max": (
+        "1/s",
+        "largest rate of sign reversals of a commanded joint acceleration above 10 % of its "
+        "limit (the oscillation measure, docs/planner.md)",
+    ),
+    "cell_contacts": (
+        "count",
+        "contact episodes of the measured arm with its cell or itself (sampled every 20 ms)",
+    ),
+}
+
+
 def JointMotionMetrics(
     q: np.ndarray,
     qdd: np.ndarray,

@@ -25,7 +25,11 @@ from guidedarm.diagrams.tasks.planner_builder import MakeAccelerationPlanner, Sy
 from guidedarm.diagrams.tasks.planner_plots import PlotScaling, PlotTcpPath
 from guidedarm.diagrams.tasks.registry import TaskDefinition
 from guidedarm.diagrams.tasks.tracking import DelayedTrackingError, SampledCommands
-from guidedarm.diagrams.tasks.trajectory_csv import JointMotionMetrics, WriteTrajectoryCsv
+from guidedarm.diagrams.tasks.trajectory_csv import (
+    JOINT_MOTION_METRICS,
+    JointMotionMetrics,
+    WriteTrajectoryCsv,
+)
 from guidedarm.systems.config_checks import (
     CheckConfig,
     CheckFields,
@@ -260,27 +264,43 @@ def RunWaypoints(scenario: WaypointsScenario, context: RunContext) -> dict[str, 
 
 # The numbers of RunWaypoints's summary (TaskDefinition.metrics): TrajectoryMetrics's and
 # the simulated time; the tracking errors need the measured joints.
-WAYPOINTS_METRICS = (
-    "sim_time_s",
-    "T_s",
-    "qd_max",
-    "qd_min",
-    "qdd_max",
-    "qdd_min",
-    "final_error_m",
-    "true_final_error_m",
-    "c_min",
-    "waypoint_distance_m.#",
-    "qdd_step_max",
-    "braking_steps",
-    "joint_limit_distance_min_rad",
-    "oscillation_rate_max",
-    "handover_time_s",
-    "tracking_error_max_rad",
-    "tcp_tracking_error_max_m",
-    "tracking_delay_s",
-    "cell_contacts",
-)
+WAYPOINTS_METRICS = {
+    "sim_time_s": ("s", "simulated time of the run"),
+    "T_s": (
+        "s",
+        "the task's time: the first instant the TCP is within epsilon of the last waypoint",
+    ),
+    "qd_max": ("rad/s", "largest commanded joint velocity, any joint"),
+    "qd_min": ("rad/s", "smallest (most negative) commanded joint velocity"),
+    "qdd_max": ("rad/s^2", "largest commanded joint acceleration"),
+    "qdd_min": ("rad/s^2", "smallest commanded joint acceleration"),
+    "final_error_m": ("m", "TCP distance from the last waypoint at T_s (commanded trajectory)"),
+    "true_final_error_m": (
+        "m",
+        "the true TCP's distance from the last waypoint at the end (the true cell's arm)",
+    ),
+    "c_min": ("ratio", "smallest acceleration scaling c(t) after the start (1: never scaled)"),
+    "waypoint_distance_m.#": ("m", "closest approach of the commanded TCP to each waypoint"),
+    "qdd_step_max": ("rad/s^2", "largest change of a commanded acceleration in one step"),
+    "braking_steps": ("count", "steps on the robust mode's braking fallback"),
+    "handover_time_s": (
+        "s",
+        "when the robust mode handed over to joint space (-1: never; docs/planner.md)",
+    ),
+    **JOINT_MOTION_METRICS,
+    "tracking_error_max_rad": (
+        "rad",
+        "largest joint distance of the measured arm from the commands, at tracking_delay_s",
+    ),
+    "tcp_tracking_error_max_m": (
+        "m",
+        "largest TCP distance of the measured from the commanded path",
+    ),
+    "tracking_delay_s": (
+        "s",
+        "the delay of the measured arm behind the commands that fits it best (0 in simulation)",
+    ),
+}
 
 
 def TrajectoryMetrics(
