@@ -150,7 +150,7 @@ def _PlotSvg(rows: list[dict[str, Any]], metric: str, axis: str, colour_axis: st
     boxes = [[y for y in box if y is not None] for box in boxes]
     ax.boxplot(boxes, positions=range(len(values)), widths=0.5, showfliers=False)
     seen = defaultdict(int)  # points per box so far: they spread across its width
-    labelled = set()
+    labels: set[str] = set()  # each legend entry once
     for r in rows:
         y = _Number(r.get(metric))
         if y is None:
@@ -159,20 +159,18 @@ def _PlotSvg(rows: list[dict[str, Any]], metric: str, axis: str, colour_axis: st
         x = i + 0.3 * ((seen[i] * 0.618) % 1.0 - 0.5)
         seen[i] += 1
         if r.get("success") is not True:
-            ax.plot(x, y, "x", color="tab:red", label=None if "f" in labelled else "failed")
-            labelled.add("f")
+            ax.plot(x, y, "x", color="tab:red", label=_Once("failed", labels))
             continue
         key = _Key(r.get(colour_axis)) if colour_axis else ""
         colour = PALETTE[colours.index(key) % len(PALETTE)] if colour_axis else PALETTE[0]
-        label = f"{colour_axis} = {key[:10]}" if colour_axis and key not in labelled else None
-        labelled.add(key)
+        label = _Once(f"{colour_axis} = {key[:10]}", labels) if colour_axis else None
         ax.plot(x, y, "o", color=colour, alpha=0.75, markersize=4, label=label)
     ax.set_xticks(range(len(values)))
     ax.set_xticklabels([v[:12] for v in values], rotation=45, ha="right", fontsize=7)
     ax.set_xlabel(axis)
     ax.set_ylabel(metric)
     ax.grid(True, alpha=0.3)
-    if labelled:
+    if labels:
         ax.legend(fontsize=6)
     figure.tight_layout()
     buffer = io.StringIO()
@@ -180,6 +178,14 @@ def _PlotSvg(rows: list[dict[str, Any]], metric: str, axis: str, colour_axis: st
     plt.close(figure)
     svg = buffer.getvalue()
     return svg[svg.index("<svg") :]
+
+
+def _Once(label: str, labels: set[str]) -> str | None:
+    """`label` the first time it is asked for (then kept in `labels`), else None."""
+    if label in labels:
+        return None
+    labels.add(label)
+    return label
 
 
 def _MeansTables(rows: list[dict[str, Any]], metrics: list[str], axes: list[str]) -> str:
