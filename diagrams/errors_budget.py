@@ -111,11 +111,13 @@ def RunBudget(
     runs: int,
     progress: Callable[[str], None] = lambda _: None,
     each_source: bool = True,
+    done: Callable[[list[BudgetRow], list[tuple[str, int, str, float]]], None] | None = None,
 ) -> tuple[list[BudgetRow], list[tuple[str, int, str, float]]]:
     """Runs `scenario` `runs` times (random_seed 0..runs-1) with every source, then (with
     `each_source`) with each source alone, and returns the statistics of every accuracy
-    metric (a numeric metric with `error` in its name) per configuration, and every run's
-    values as (source, random_seed, metric, value)."""
+    metric (_AccuracyMetrics) per configuration, and every run's
+    values as (source, random_seed, metric, value). `done`, when given, receives both after
+    each configuration (so that a long budget's finished part is kept)."""
     if not hasattr(scenario, "random_seed"):
         raise ConfigurationError(f"task {task.name} has no random_seed to draw errors from")
     rows, values = [], []
@@ -128,6 +130,8 @@ def RunBudget(
                 summaries.append(RunTask(task, configured, RunContext(Path(out), quiet=True)))
             values += [(source, seed, *v) for v in _AccuracyMetrics(summaries[-1])]
         rows += _Statistics(source, summaries)
+        if done is not None:
+            done(rows, values)
     return rows, values
 
 
@@ -186,8 +190,13 @@ def FormatBudget(rows: list[BudgetRow]) -> str:
 
 
 def _AccuracyMetrics(summary: dict[str, Any]) -> list[tuple[str, float]]:
-    """(name, value) of a summary's accuracy metrics: its numbers with `error` in the name."""
-    return [(name, value) for name, value in _Scalars(summary) if "error" in name]
+    """(name, value) of a summary's accuracy metrics: its numbers whose name says `error`
+    or `repeatability`."""
+    return [
+        (name, value)
+        for name, value in _Scalars(summary)
+        if "error" in name or "repeatability" in name
+    ]
 
 
 def _Statistics(source: str, summaries: list[dict[str, Any]]) -> list[BudgetRow]:

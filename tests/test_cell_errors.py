@@ -255,3 +255,42 @@ def test_link_errors_move_the_true_arm_s_joint_frames():
     parent = nominal.GetFrameByName("shoulder_pan_joint_parent")
     R_WF = parent.CalcPoseInWorld(nominal.CreateDefaultContext()).rotation()
     np.testing.assert_allclose(tools[1] - tools[0], R_WF @ [0.002, 0.0, 0.0], atol=1e-12)
+
+
+def test_a_compliant_base_tilts_until_its_springs_hold_the_arm(tmp_path):
+    """The rover arm held at its start on a base with 5000 N m/rad tilt springs: after
+    1 s each tilt's spring torque balances gravity's and the contact's on it (within 2 %),
+    the tilt is not zero, and the arm keeps its six joints and ports."""
+    from pydrake.systems.analysis import Simulator
+
+    from guidedarm.diagrams.station.station import MakeStation
+
+    sets = [
+        "station.errors.arms.rover_arm.base_stiffness=[5000, 5000]",
+        "station.errors.arms.rover_arm.base_damping=[300, 300]",
+    ]
+    _, scenario, _ = LoadScenario("rover_arm_waypoints", sets)
+    station = MakeStation(scenario.station)
+    simulator = Simulator(station)
+    context = simulator.get_mutable_context()
+    q0 = station.GetOutputPort("rover_arm.position_measured").Eval(context)
+    station.GetInputPort("rover_arm.position_commanded").FixValue(context, q0)
+    simulator.AdvanceTo(1.0)
+    plant = station.GetSubsystemByName("plant")
+    plant_context = plant.GetMyContextFromRoot(context)
+    gravity = plant.CalcGravityGeneralizedForces(plant_context)
+    compliance = plant.GetModelInstanceByName("rover_arm_base_compliance")
+    contact = plant.get_generalized_contact_forces_output_port(compliance).Eval(plant_context)
+    assert len(q0) == 6
+    for i, axis in enumerate("xy"):
+        joint = plant.GetJointByName(f"rover_arm_base_tilt_{axis}")
+        angle = joint.get_angle(plant_context)
+        tau = gravity[joint.velocity_start()] + contact[i]
+        assert abs(5000 * angle - tau) <= 0.02 * abs(tau) + 1e-3
+    assert (
+        max(
+            abs(plant.GetJointByName(f"rover_arm_base_tilt_{a}").get_angle(plant_context))
+            for a in "xy"
+        )
+        > 1e-4
+    )

@@ -50,6 +50,7 @@ def errors_budget_command(args: argparse.Namespace) -> int:
         args.runs,
         lambda text: print(f"  {text}", flush=True),
         each_source=not args.all_only,
+        done=lambda rows, values: WriteBudget(rows, values, out_dir),
     )
     print(FormatBudget(rows))
     print("wrote:")

@@ -1,12 +1,20 @@
-"""An arm's link geometry errors in an unfinalized plant: each revolute joint re-attached to
-its parent link at its true pose (the simulated station's plant only)."""
+"""An arm's link geometry errors and a compliant base in an unfinalized plant: each
+revolute joint re-attached to its parent link at its true pose, the base's weld replaced
+by a sprung tilt (the simulated station's plant only)."""
 
 from __future__ import annotations
 
 import numpy as np
 from pydrake.math import RigidTransform
 from pydrake.multibody.plant import MultibodyPlant
-from pydrake.multibody.tree import FixedOffsetFrame, JointActuatorIndex, RevoluteJoint
+from pydrake.multibody.tree import (
+    FixedOffsetFrame,
+    Frame,
+    JointActuatorIndex,
+    RevoluteJoint,
+    RevoluteSpring,
+    SpatialInertia,
+)
 
 from guidedarm.systems.errors import ConfigurationError
 
@@ -85,3 +93,43 @@ def _AddJoint(plant: MultibodyPlant, spec: dict, X_error: RigidTransform) -> Non
         actuator = plant.AddJointActuator(name, joint, effort)
         actuator.set_default_gear_ratio(gear)
         actuator.set_default_rotor_inertia(rotor)
+
+
+# The small body between the two tilt joints of a compliant base (kg, m): it carries no
+# load of its own, only enough inertia for the plant's mass matrix.
+_TILT_BODY_MASS = 0.01
+_TILT_BODY_RADIUS = 0.01
+
+
+def AddCompliantBase(
+    plant: MultibodyPlant,
+    arm: str,
+    parent: Frame,
+    X_PC: RigidTransform,
+    child: Frame,
+    stiffness: list[float],
+    damping: list[float],
+) -> None:
+    """Joins `child` (the arm's base frame) to `parent` at X_PC through a tilt about the
+    weld frame's x axis and then its y axis, each a revolute joint with Drake's
+    RevoluteSpring (`stiffness`, N m/rad) and joint damping (N m s/rad), in their own
+    model instance `<arm>_base_compliance` (the arm keeps its joints): the base tilts as
+    the arm's weight moves over it. Unfinalized `plant`."""
+    instance = plant.AddModelInstance(f"{arm}_base_compliance")
+    inertia = SpatialInertia.SolidSphereWithMass(_TILT_BODY_MASS, _TILT_BODY_RADIUS)
+    # Each joint belongs to its child body's model instance: both tilts end on bodies of
+    # the compliance instance, and a weld (no position) joins the arm's base to the last.
+    bodies = [plant.AddRigidBody(f"{arm}_base_tilt_{axis}", instance, inertia) for axis in "xy"]
+    weld = plant.AddFrame(FixedOffsetFrame(f"{arm}_base_weld", parent, X_PC, instance))
+    frame_P = weld
+    for axis, body, k, c in zip("xy", bodies, stiffness, damping, strict=True):
+        joint = plant.AddJoint(
+            RevoluteJoint(f"{arm}_base_tilt_{axis}", frame_P, body.body_frame(), _Axis(axis), c)
+        )
+        plant.AddForceElement(RevoluteSpring(joint, 0.0, k))
+        frame_P = body.body_frame()
+    plant.WeldFrames(frame_P, child)
+
+
+def _Axis(name: str) -> np.ndarray:
+    return np.eye(3)["xyz".index(name)]

@@ -43,12 +43,18 @@ class ArmErrors:
         encoder reads the motor side (systems/cell_errors/joint_encoder.py).
     link_errors: per revolute joint, the true pose of its frame on its parent link in
         the nominal one (the links' length and twist errors; m, rad); empty: none.
+    base_stiffness: [k_x, k_y], the stiffness of a tilt of the arm's base about the x
+        and y axes of the weld that holds it (N m/rad; a rover's suspension), each a
+        revolute joint with a spring; empty: the base is welded (rigid).
+    base_damping: [c_x, c_y], the damping of those tilts (N m s/rad).
     """
 
     joint_offset: VectorError = field(default_factory=list)
     encoder_resolution: ScalarError = 0.0
     joint_stiffness: VectorError = field(default_factory=list)
     link_errors: list[Transform] = field(default_factory=list)
+    base_stiffness: VectorError = field(default_factory=list)
+    base_damping: VectorError = field(default_factory=list)
 
     def Validate(self) -> None:
         """Raises ConfigurationError naming the first bad field (drawn values only)."""
@@ -59,6 +65,12 @@ class ArmErrors:
             )
         if isinstance(self.joint_stiffness, list) and not all(k > 0 for k in self.joint_stiffness):
             raise ConfigurationError("joint_stiffness: every stiffness must be > 0 (N m/rad)")
+        for name in ("base_stiffness", "base_damping"):
+            values = getattr(self, name)
+            if isinstance(values, list) and values and len(values) != 2:
+                raise ConfigurationError(f"{name} must hold 2 values (x, y), got {len(values)}")
+        if bool(self.base_stiffness) != bool(self.base_damping):
+            raise ConfigurationError("base_stiffness and base_damping go together")
         if any(X.base_frame for X in self.link_errors):
             raise ConfigurationError("link_errors: base_frame cannot be set (each is in its joint)")
 

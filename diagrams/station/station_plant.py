@@ -24,7 +24,7 @@ from pydrake.multibody.parsing import (
 from pydrake.multibody.plant import MultibodyPlant
 from pydrake.multibody.tree import ModelInstanceIndex
 
-from guidedarm.diagrams.station.link_errors import MoveJointFrames
+from guidedarm.diagrams.station.link_errors import AddCompliantBase, MoveJointFrames
 from guidedarm.diagrams.station.model_paths import MakeParser
 from guidedarm.diagrams.station.scenario import ArmConfig, StationScenario
 from guidedarm.diagrams.station.station_errors import ArmErrors, ModelErrors
@@ -86,10 +86,25 @@ def AddStationModels(
         directives = _KeepInstances(scenario, model_instance_names)
     if model_errors:
         directives = _MovedWelds(scenario, directives, model_errors)
+    compliant = {a: e for a, e in (arm_errors or {}).items() if len(e.base_stiffness)}
+    bases = []
+    if compliant:
+        directives, bases = _CutBaseWelds(directives, list(compliant))
     try:
         ProcessModelDirectives(ModelDirectives(directives=directives), MakeParser(plant))
     except Exception as e:
         raise _DirectivesError(e) from None
+    for arm, parent, X_PC, child in bases:
+        errors = compliant[arm]
+        AddCompliantBase(
+            plant,
+            arm,
+            GetScopedFrame(plant, parent, f"errors.arms.{arm}"),
+            X_PC,
+            GetScopedFrame(plant, child, f"errors.arms.{arm}"),
+            list(errors.base_stiffness),
+            list(errors.base_damping),
+        )
     for arm, errors in (arm_errors or {}).items():
         if errors.link_errors:
             X_errors = [X.GetDeterministicValue() for X in errors.link_errors]
@@ -247,6 +262,29 @@ def _MovedWelds(
             "directives (X_error moves a welded model)"
         )
     return flat.directives
+
+
+def _CutBaseWelds(
+    directives: list[ModelDirective], arms: list[str]
+) -> tuple[list[ModelDirective], list[tuple[str, str, RigidTransform, str]]]:
+    """The flattened directives without the weld that holds each arm of `arms` (the weld
+    whose child is in the arm), and those welds as (arm, parent, X_PC, child)."""
+    package_map = MakeParser(MultibodyPlant(0.0)).package_map()
+    flat = FlattenModelDirectives(ModelDirectives(directives=directives), package_map)
+    kept, cut = [], []
+    for directive in flat.directives:
+        weld = directive.add_weld
+        if weld and _Instance(weld.child) in arms:
+            X_PC = weld.X_PC.GetDeterministicValue() if weld.X_PC else RigidTransform()
+            cut.append((_Instance(weld.child), weld.parent, X_PC, weld.child))
+        else:
+            kept.append(directive)
+    missing = sorted(set(arms) - {arm for arm, *_ in cut})
+    if missing:
+        raise ConfigurationError(
+            f"errors.arms.{missing[0]}.base_stiffness: no weld holds the arm's base"
+        )
+    return kept, cut
 
 
 def _DirectivesError(e: Exception) -> ConfigurationError:

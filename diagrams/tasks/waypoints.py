@@ -217,9 +217,13 @@ def RunWaypoints(scenario: WaypointsScenario, context: RunContext) -> dict[str, 
             f"the measured TCP strayed {tracking:.4g} m from the commanded one "
             f"(max_tracking_error {scenario.max_tracking_error} m)"
         )
-    X_BT = TruePose(station, root, scenario.base_frame, scenario.tool_frame)
-    if X_BT is not None:
-        true_error = np.linalg.norm(X_BT.translation() - setup.planning.waypoints[-1, :3])
+    X_WT = TruePose(station, root, "world", scenario.tool_frame)
+    if X_WT is not None:
+        # The waypoints are in the nominal base frame: where the base is meant to be.
+        kinematics = setup.planning.kinematics
+        X_WB = kinematics.base_frame.CalcPoseInWorld(kinematics.plant.CreateDefaultContext())
+        p_BT = X_WB.inverse() @ X_WT.translation()
+        true_error = np.linalg.norm(p_BT - setup.planning.waypoints[-1, :3])
         metrics["true_final_error_m"] = float(true_error)
     context.headline.update(metrics)
     SavePlannerFigures(context, scenario, setup, trajectory, measured)

@@ -51,9 +51,11 @@ def MakeLensRemap(K: np.ndarray, distortion: np.ndarray, width: int, height: int
     K_render[0, 2] += left
     K_render[1, 2] += top
     fine_x, fine_y = _Interpolate(us, vs, pinhole, width, height)
+    fine_x += np.float32(left)
+    fine_y += np.float32(top)
     return LensRemap(
-        (fine_x + left).astype(np.float32),
-        (fine_y + top).astype(np.float32),
+        fine_x,
+        fine_y,
         render_width,
         render_height,
         K_render,
@@ -75,16 +77,19 @@ def DistortPixels(points_px: np.ndarray, K: np.ndarray, distortion: np.ndarray) 
 
 
 def _Interpolate(us, vs, coarse, width, height):
-    """The coarse grid's values (len(vs) x len(us) x 2) at every pixel, bilinearly."""
-    u = np.arange(width, dtype=float)
-    v = np.arange(height, dtype=float)
-    i = np.clip(np.searchsorted(us, u, side="right") - 1, 0, len(us) - 2)
+    """The coarse grid's values (len(vs) x len(us) x 2) at every pixel, bilinearly: first
+    along v for each grid column, then along u, in float32 (a supersampled camera's maps
+    have tens of millions of pixels)."""
+    coarse = coarse.astype(np.float32)
+    v = np.arange(height, dtype=np.float32)
     j = np.clip(np.searchsorted(vs, v, side="right") - 1, 0, len(vs) - 2)
-    a = ((u - us[i]) / (us[i + 1] - us[i]))[None, :, None]
-    b = ((v - vs[j]) / (vs[j + 1] - vs[j]))[:, None, None]
-    c00 = coarse[j][:, i]
-    c01 = coarse[j][:, i + 1]
-    c10 = coarse[j + 1][:, i]
-    c11 = coarse[j + 1][:, i + 1]
-    fine = (1 - b) * ((1 - a) * c00 + a * c01) + b * ((1 - a) * c10 + a * c11)
-    return fine[..., 0], fine[..., 1]
+    b = ((v - vs[j]) / (vs[j + 1] - vs[j])).astype(np.float32)[:, None, None]
+    columns = (1 - b) * coarse[j] + b * coarse[j + 1]  # height x len(us) x 2
+    u = np.arange(width, dtype=np.float32)
+    i = np.clip(np.searchsorted(us, u, side="right") - 1, 0, len(us) - 2)
+    a = ((u - us[i]) / (us[i + 1] - us[i])).astype(np.float32)
+    fine = []
+    for channel in range(2):
+        values = columns[:, :, channel]
+        fine.append(values[:, i] * (1 - a) + values[:, i + 1] * a)
+    return fine[0], fine[1]
