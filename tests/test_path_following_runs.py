@@ -125,7 +125,8 @@ def _cli(tmp_path, capsys, *args) -> tuple[int, str]:
         ("x,y,z\n0.3,0.0,0.1\n0.3,zero,0.1\n", "not three numbers"),
         ("0.3,0.0,0.1\n0.3,0.05,0.1\n", "too short"),
         ("0.3,0.0,0.1\n0.9,0.0,0.1\n", "is outside the workspace (x [-0.55, 0.55]"),
-        ("0.50,0.50,0.1\n0.50,0.30,0.1\n", "start pose out of reach"),
+        ("0.50,0.50,0.1\n0.50,0.30,0.1\n", "the ToF tool needs 59 mm of clearance"),
+        ("0.49,0.49,0.1\n0.49,0.29,0.1\n", "start pose out of reach"),
     ],
 )
 def test_bad_centerlines_end_with_one_line(tmp_path, capsys, text, message):
