@@ -111,7 +111,14 @@ def test_check_move_to_start_and_run_a_ur10e_from_power_on(tmp_path):
     the arm within the run's tolerance; the run then succeeds."""
     cell = UrCell(TOUR, "--lockstep", "--set", f"station.arms.ur10e.initial_position={AWAY}")
     host = f"station.hardware.arms.ur10e.host={cell.host}"
-    lockstep = ("--set", "station.hardware.arms.ur10e.lockstep=true")  # load-independent
+    # Lockstep: load-independent motion; a generous watchdog, as the link waits for each
+    # sample and a host stall must not end a run that is not about wall-clock time.
+    lockstep = (
+        "--set",
+        "station.hardware.arms.ur10e.lockstep=true",
+        "--set",
+        "station.hardware.arms.ur10e.watchdog=5",
+    )
     try:
         check = _Guidedarm("hardware-check", TOUR, "--set", host)
         assert check.returncode == 0, check.stdout + check.stderr
