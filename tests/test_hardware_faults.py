@@ -311,10 +311,10 @@ ARM_FAULTS = {
     # loaded machine, more.
     "freeze": "("
     + FAULT.format(device="mz04d")
-    + r"link quiet for (0\.[5-9]|[1-9])\d* s \(watchdog 0\.5 s\) "
+    + r"link quiet for (0\.[5-9]|[1-9]\.)\d* s \(watchdog 0\.5 s\) "
     + r"\(stopping it also failed: no reply to STOP within 0\.25 s\)|"
     + FAULT.format(device="tof")
-    + r"no valid line for (0\.[5-9]|[1-9])\d* s \(watchdog 0\.5 s, [01] lines rejected\) "
+    + r"no valid line for (0\.[5-9]|[1-9]\.)\d* s \(watchdog 0\.5 s, [01] lines rejected\) "
     + r"\(stopping it also failed: mz04d: no reply to STOP within 0\.25 s\))",
     "pendant": FAULT.format(device="mz04d")
     + r"controller refused: 'NG E05 stopped; send RESET before SERVO'; arm stopped",
