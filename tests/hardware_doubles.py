@@ -109,7 +109,9 @@ class FreezingNachiController:
     def __init__(
         self, q0: np.ndarray, answers: float = np.inf, clock_step: float | None = None
     ) -> None:
-        self.logic = NachiControllerLogic(np.full(6, -np.pi), np.full(6, np.pi), q0)
+        self.logic = NachiControllerLogic(
+            np.full(6, -np.pi), np.full(6, np.pi), q0, servo_timeout=RELAXED_SERVO_TIMEOUT
+        )
         self._server = socket.create_server(("127.0.0.1", 0))
         self.port = self._server.getsockname()[1]
         self.frozen = False
