@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import copy
 import dataclasses
+import functools
 import json
 
 import numpy as np
@@ -230,3 +231,34 @@ def test_marker_cover_hides_the_markers(rig, solver):
         rig.SetCover(False)
     assert not covered.valid and covered.ids == []
     assert solver.estimate(rig.Render(X_PC)).ids == [7, 42]
+
+
+def test_marker_view_estimates_with_the_lens_of_its_camera_file(run_cli, tmp_path, monkeypatch):
+    """A real lens (camera_errors.distortion) estimated with a camera file that models it
+    (given relative to the working directory) is accurate; scenario.yaml records the file
+    by its absolute path, and a file for another image size is refused before the run."""
+    lens = [-0.25, 0.08, 0.0, 0.0, 0.0]
+    camera = DEFAULT_CAMERA_FILE.read_text().replace(
+        "distortion: [0.0, 0.0, 0.0, 0.0, 0.0]", f"distortion: {lens}"
+    )
+    assert str(lens) in camera
+    monkeypatch.chdir(tmp_path)
+    (tmp_path / "lens.yaml").write_text(camera)
+    lens_set = ("--set", f"camera_errors.distortion={lens}", "--set", "supersampling=1")
+    out = tmp_path / "run"
+    code, _, err = run_cli(
+        "run", "marker_view", "--out", out, *lens_set, "--set", "estimator_camera_file=lens.yaml"
+    )
+    assert code == 0, err
+    summary = json.loads((out / "summary.json").read_text())
+    assert summary["abs_error_mm"] < 1.0 and summary["rotation_error_deg"] < 0.5
+    assert str(tmp_path / "lens.yaml") in (out / "scenario.yaml").read_text()
+    small = {"width: 1920": "width: 640", "height: 1080": "height: 480"}
+    small |= {"cx: 959.5": "cx: 319.5", "cy: 539.5": "cy: 239.5"}
+    (tmp_path / "small.yaml").write_text(
+        functools.reduce(lambda text, kv: text.replace(*kv), small.items(), camera)
+    )
+    code, _, err = run_cli(
+        "run", "marker_view", "--out", tmp_path / "b", "--set", "estimator_camera_file=small.yaml"
+    )
+    assert code == 2 and "is for 640 x 480 px images" in err

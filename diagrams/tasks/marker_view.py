@@ -14,7 +14,6 @@ are the estimator's errors:
 A view without a valid pose is a failed run (RunFailedError).
 """
 
-import dataclasses
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -26,7 +25,12 @@ from guidedarm.diagrams.run_context import RunContext
 from guidedarm.diagrams.station.scenario import UNSUPPORTED_CAMERA_FIELDS, UnreadCameraKey
 from guidedarm.diagrams.tasks.panel_assets import GeneratedPanelModel
 from guidedarm.diagrams.tasks.panel_camera_rig import LookAt, PanelCameraRig
-from guidedarm.diagrams.tasks.panel_files import LoadPanelSpec, RecordedPanelFile, ResolvePanelFile
+from guidedarm.diagrams.tasks.panel_files import (
+    LoadEstimatorIntrinsics,
+    LoadPanelSpec,
+    RecordedCameraFiles,
+    ResolvePanelFile,
+)
 from guidedarm.diagrams.tasks.registry import TaskDefinition
 from guidedarm.systems.cell_errors.camera_errors import CameraErrors
 from guidedarm.systems.cell_errors.distributions import DrawErrors
@@ -63,6 +67,10 @@ class MarkerViewScenario:
     panel_file: the PANEL.yaml the view shows and the estimator reads: a path, absolute or
         relative to the working directory, or a name under models/ (its model is
         generated from it).
+    estimator_camera_file: the estimator's camera model, a CAMERA.yaml (e.g. written by
+        `guidedarm calibrate camera`; a path, absolute or relative to the working
+        directory, or a name under models/) of the camera's width x height; empty: the
+        intrinsics of `camera` (no distortion).
     """
 
     task: str = "marker_view"
@@ -74,6 +82,7 @@ class MarkerViewScenario:
     random_seed: int = 0
     camera_errors: CameraErrors = field(default_factory=CameraErrors)
     panel_file: str = "panel/panel.yaml"
+    estimator_camera_file: str = ""
 
     def Validate(self) -> None:
         """Checked at load (CheckConfig): the fields' bounds, the rendered size, no key
@@ -81,6 +90,7 @@ class MarkerViewScenario:
         panel file."""
         CheckFields(self)
         LoadPanelSpec(ResolvePanelFile(self.panel_file))
+        LoadEstimatorIntrinsics(self.estimator_camera_file, self.camera, "camera")
         changed = UnreadCameraKey(self.camera, UNREAD_CAMERA_KEYS)
         if changed:
             raise ConfigurationError(
@@ -99,7 +109,8 @@ def RunMarkerView(scenario: MarkerViewScenario, context: RunContext) -> dict[str
         str(GeneratedPanelModel(panel_file)),
         errors=DrawErrors(scenario.camera_errors, None),
     )
-    solver = MarkerPoseSolver(rig.intrinsics, LoadPanelSpec(panel_file))
+    estimator = LoadEstimatorIntrinsics(scenario.estimator_camera_file, scenario.camera, "camera")
+    solver = MarkerPoseSolver(estimator or rig.intrinsics, LoadPanelSpec(panel_file))
     a = np.radians(scenario.angle_deg)
     d = scenario.distance_m
     X_PC = LookAt(d * np.array([np.sin(a), 0.0, np.cos(a)]), [0.0, 0.0, 0.0])
@@ -163,7 +174,5 @@ TASK = TaskDefinition(
         "reference_mm",
         "reference_deg",
     ),
-    resolve=lambda scenario: dataclasses.replace(
-        scenario, panel_file=RecordedPanelFile(scenario.panel_file)
-    ),
+    resolve=RecordedCameraFiles,
 )

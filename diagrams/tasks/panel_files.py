@@ -7,7 +7,9 @@ type fails with one line naming the file and the key."""
 from __future__ import annotations
 
 import copy
+import dataclasses
 from pathlib import Path
+from typing import Any
 
 from pydrake.math import RigidTransform
 from pydrake.systems.sensors import CameraConfig
@@ -26,9 +28,9 @@ DEFAULT_PANEL_FILE = MODELS_PANEL_DIR / "panel.yaml"
 DEFAULT_CAMERA_FILE = MODELS_PANEL_DIR / "c920_camera.yaml"
 
 
-def ResolvePanelFile(name: str | Path) -> Path:
-    """A panel file given as a path (absolute, or relative to the working directory) or as
-    a name under models/ (e.g. `panel/panel.yaml`); ConfigurationError when neither is a
+def ResolveModelFile(key: str, name: str | Path, example: str) -> Path:
+    """A file given as a path (absolute, or relative to the working directory) or as a name
+    under models/ (e.g. `example`); ConfigurationError naming `key` when neither is a
     file."""
     path = Path(name).expanduser()
     if path.is_file():
@@ -36,16 +38,46 @@ def ResolvePanelFile(name: str | Path) -> Path:
     if not path.is_absolute() and (MODELS_DIR / path).is_file():
         return MODELS_DIR / path
     raise ConfigurationError(
-        f"panel_file '{name}': file not found (give a path, absolute or relative to the "
-        "working directory, or a name under models/ such as panel/panel.yaml)"
+        f"{key} '{name}': file not found (give a path, absolute or relative to the "
+        f"working directory, or a name under models/ such as {example})"
     )
 
 
-def RecordedPanelFile(name: str) -> str:
-    """The panel file as a run's scenario.yaml records it: a name under models/ as given,
-    a path made absolute, so that the file repeats the run from any directory."""
-    path = ResolvePanelFile(name)
+def ResolvePanelFile(name: str | Path) -> Path:
+    """The PANEL.yaml `name` (ResolveModelFile of panel_file)."""
+    return ResolveModelFile("panel_file", name, "panel/panel.yaml")
+
+
+def RecordedModelFile(key: str, name: str, example: str) -> str:
+    """A file setting as a run's scenario.yaml records it: empty as empty, a name under
+    models/ as given, a path made absolute, so that the file repeats the run from any
+    directory."""
+    if not name:
+        return name
+    path = ResolveModelFile(key, name, example)
     return name if path == MODELS_DIR / name else str(path)
+
+
+def RecordedPanelFile(name: str) -> str:
+    """The panel file as a run's scenario.yaml records it (RecordedModelFile)."""
+    return RecordedModelFile("panel_file", name, "panel/panel.yaml")
+
+
+def RecordedCameraFiles(scenario: Any) -> Any:
+    """`scenario` with its panel_file and its estimator's camera files (where it has them)
+    as a run's scenario.yaml records them (RecordedModelFile)."""
+    files = {"panel_file": RecordedPanelFile(scenario.panel_file)}
+    for key, example in CAMERA_FILE_EXAMPLES.items():
+        if hasattr(scenario, key):
+            files[key] = RecordedModelFile(key, getattr(scenario, key), example)
+    return dataclasses.replace(scenario, **files)
+
+
+# The estimator's camera files a scenario may name, with an example name of each.
+CAMERA_FILE_EXAMPLES = {
+    "estimator_camera_file": "panel/c920_camera.yaml",
+    "camera_mount_file": "hand_eye.yaml",
+}
 
 
 def LoadCameraIntrinsics(path: str | Path) -> CameraIntrinsics:
@@ -56,11 +88,13 @@ def LoadCameraIntrinsics(path: str | Path) -> CameraIntrinsics:
 def LoadEstimatorIntrinsics(
     camera_file: str, camera: CameraConfig, camera_name: str
 ) -> CameraIntrinsics | None:
-    """The estimator's camera model in `camera_file` (relative to models/ or absolute; None
-    when empty), refused unless it is for the images of `camera` (width x height)."""
+    """The estimator's camera model in `camera_file` (a path, absolute or relative to the
+    working directory, or a name under models/; None when empty), refused unless it is
+    for the images of `camera` (width x height)."""
     if not camera_file:
         return None
-    intrinsics = LoadCameraIntrinsics(MODELS_DIR / camera_file)
+    path = ResolveModelFile("estimator_camera_file", camera_file, "panel/c920_camera.yaml")
+    intrinsics = LoadCameraIntrinsics(path)
     if (intrinsics.width, intrinsics.height) != (camera.width, camera.height):
         raise ConfigurationError(
             f"estimator_camera_file {camera_file} is for {intrinsics.width} x "
@@ -71,14 +105,15 @@ def LoadEstimatorIntrinsics(
 
 
 def LoadCameraMount(mount_file: str, camera: CameraConfig) -> RigidTransform | None:
-    """X_PC of a hand_eye.yaml `mount_file` (relative to models/ or absolute; None when
-    empty), refused when it names another base frame than the camera's X_PB."""
+    """X_PC of a hand_eye.yaml `mount_file` (a path, absolute or relative to the working
+    directory, or a name under models/; None when empty), refused when it names another
+    base frame than the camera's X_PB."""
     if not mount_file:
         return None
     # Imported here: the calibration files import the marker files' schema.
     from guidedarm.diagrams.calibration.calibration_files import LoadHandEye
 
-    X_PC = LoadHandEye(MODELS_DIR / mount_file).X_PC
+    X_PC = LoadHandEye(ResolveModelFile("camera_mount_file", mount_file, "hand_eye.yaml")).X_PC
     if X_PC.base_frame and X_PC.base_frame != camera.X_PB.base_frame:
         raise ConfigurationError(
             f"camera_mount_file {mount_file}: X_PC is in {X_PC.base_frame}, the camera's "

@@ -58,7 +58,7 @@ from guidedarm.diagrams.tasks.panel_files import (
     LoadCameraMount,
     LoadEstimatorIntrinsics,
     LoadPanelSpec,
-    RecordedPanelFile,
+    RecordedCameraFiles,
     ResolvePanelFile,
     SupersampledCameraConfig,
 )
@@ -156,12 +156,13 @@ class PanelOperationScenario:
         working directory, or a name under models/. It drives both the estimator and the
         simulated scene: the model of `panel_model` is generated from it at load.
     estimator_camera_file: the estimator's camera model, a CAMERA.yaml (intrinsics and
-        distortion, e.g. written by `guidedarm calibrate camera`) relative to models/ or
-        absolute, of the camera's width x height; empty: derived from the station's
+        distortion, e.g. written by `guidedarm calibrate camera`): a path, absolute or
+        relative to the working directory, or a name under models/, of the camera's
+        width x height; empty: derived from the station's
         CameraConfig (no distortion).
     camera_mount_file: the controller's belief of where the camera sits on the arm, a
         hand_eye.yaml (`guidedarm calibrate hand-eye`: X_PC in the frame the camera's X_PB
-        names) relative to models/ or absolute; empty: the camera's X_PB X_BC. The
+        names), given as estimator_camera_file is; empty: the camera's X_PB X_BC. The
         simulated camera stays where X_PB (and station.errors) put it.
     panel_model: the panel's model instance in the directives (its model is replaced by
         the one generated from panel_file).
@@ -511,7 +512,5 @@ TASK = TaskDefinition(
     metrics=PANEL_OPERATION_METRICS,
     ground_truth_metrics=("switch_travel_mm.#", "press_target_W_mm.#"),
     check_run=CheckRun,
-    resolve=lambda scenario: dataclasses.replace(
-        scenario, panel_file=RecordedPanelFile(scenario.panel_file)
-    ),
+    resolve=RecordedCameraFiles,
 )
