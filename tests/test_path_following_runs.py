@@ -82,12 +82,13 @@ def test_ranging_halves_the_errors(station_runs):
 
 
 def _unreachable_centerline(path: Path) -> None:
-    """A straight hose from within reach (0.34 m from the base axis, 0.1 m high) rising to
-    the cell's corner, 0.76 m out and 0.7 m high, where no arm pose holds the tool over it:
-    60-65 steps in, no IK solution exists."""
+    """A straight hose from within reach (0.34 m from the base axis, 0.1 m high) rising
+    towards the cell's corner, 0.66 m out and 0.75 m high (clear of the walls by more than
+    the tool's clearance), where no arm pose holds the tool over it: part way up, no IK
+    solution exists."""
     from guidedarm.systems.path_following.hose_geometry import WriteCenterline
 
-    a, b = np.array([0.30, 0.15, 0.10]), np.array([0.54, 0.54, 0.70])
+    a, b = np.array([0.30, 0.15, 0.10]), np.array([0.47, 0.47, 0.75])
     WriteCenterline(a + (b - a) * np.linspace(0.0, 1.0, 65)[:, None], path)
 
 
@@ -167,7 +168,7 @@ def test_moves_through_the_acceleration_level_planner(tmp_path, capsys):
         ),
         ("station.hose.frame=world", "station.hose.frame 'world' conflicts with base_frame"),
         ("station.hose.centerline=paper_path_2", "conflicts with the task's hose"),
-        ("workspace.z=[0.2, 0.1]", "key 'workspace': z must be [lower, upper] with lower <"),
+        ("workspace.z=[0.2, 0.1]", "--set workspace.z must be [lower, upper] with lower <"),
         ("path=random_-1", "expected random_<seed>, a seed of digits 0-9"),
         (
             "base_frame=mz04d::mz04d_link1",
