@@ -579,6 +579,12 @@ BAD_INPUTS = [
     ("study-nan-noise", ["marker-study", "tilt", "--noise", "nan"], "--noise: must be a finite"),
     ("study-negative-blur", ["marker-study", "tilt", "--blur", "-1"], "--blur: must be >= 0"),
     ("study-zero-lighting", ["marker-study", "tilt", "--lighting", "0"], "--lighting"),
+    ("study-short-lens", ["marker-study", "tilt", "--lens", "1,2"], "--lens: five finite numbers"),
+    (
+        "study-missing-camera-file",
+        ["marker-study", "tilt", "--camera-file", "nope.yaml"],
+        "--camera-file 'nope.yaml': file not found",
+    ),
     ("study-text-noise", ["marker-study", "tilt", "--noise", "loud"], "invalid float"),
     ("study-out-file", ["marker-study", "tilt", "--out", "{f}/afile"], "is a file"),
     ("compare-wrong-task", ["compare-planners", "--scenario", JT], "needs a waypoints"),

@@ -262,3 +262,20 @@ def test_marker_view_estimates_with_the_lens_of_its_camera_file(run_cli, tmp_pat
         "run", "marker_view", "--out", tmp_path / "b", "--set", "estimator_camera_file=small.yaml"
     )
     assert code == 2 and "is for 640 x 480 px images" in err
+
+
+@pytest.mark.parametrize("name", ["marker_tilt", "marker_press"])
+def test_study_jobs_take_the_camera_file_and_the_real_lens(name, tmp_path):
+    """marker-study --camera-file / --lens: every job of a marker_view or a panel campaign
+    estimates with the file and renders through the lens, each at its task's key."""
+    from guidedarm.diagrams.cli.command_marker_study import StudyCamera
+
+    lens = (-0.25, 0.08, 0.0, 0.0, 0.0)
+    camera = StudyCamera(str(DEFAULT_CAMERA_FILE), lens)
+    campaign, folder = StudyCampaign(name, DegradationConfig(), None, camera)
+    jobs = ExpandJobs(campaign)  # every job loads against its task's schema
+    assert jobs
+    for job in jobs:
+        assert f"estimator_camera_file: {DEFAULT_CAMERA_FILE}" in job.scenario_yaml
+        assert "distortion: [-0.25, 0.08, 0.0, 0.0, 0.0]" in job.scenario_yaml
+    assert folder == f"{name}_c920_camera_lens-0.25_0.08_0_0_0"

@@ -22,6 +22,7 @@ from __future__ import annotations
 
 import argparse
 import math
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
@@ -29,7 +30,7 @@ from guidedarm.diagrams.campaigns.campaign import CampaignConfig, LoadCampaign
 from guidedarm.diagrams.campaigns.jobs import ExpandJobs
 from guidedarm.diagrams.campaigns.sweep import MakeSweepOptions, Sweep
 from guidedarm.diagrams.run_context import RunContext
-from guidedarm.diagrams.tasks.panel_files import RecordedPanelFile
+from guidedarm.diagrams.tasks.panel_files import RecordedModelFile, RecordedPanelFile
 from guidedarm.systems.config_checks import FieldError
 from guidedarm.systems.errors import ConfigurationError
 from guidedarm.systems.markers.image_degradation import DegradationConfig
@@ -63,6 +64,18 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         help="your own PANEL.yaml (a path, or a name under models/; default the paper's panel): "
         "every job's scene and estimator use it",
     )
+    parser.add_argument(
+        "--camera-file",
+        help="the estimator's camera model, a CAMERA.yaml (e.g. from `guidedarm calibrate "
+        "camera`; a path, or a name under models/): every job's estimator_camera_file",
+    )
+    parser.add_argument(
+        "--lens",
+        type=_Lens,
+        metavar="K1,K2,P1,P2,K3",
+        help="the real camera's lens (OpenCV distortion), which the estimator does not know "
+        "unless --camera-file models it: every job renders through it (camera_errors)",
+    )
     parser.add_argument("--workers", type=int, help="local worker processes (default: cores)")
     parser.add_argument("--scheduler", metavar="ADDRESS", help="an existing Dask scheduler")
     parser.set_defaults(func=study_command)
@@ -79,7 +92,10 @@ def study_command(args: argparse.Namespace) -> int:
     except FieldError as e:
         raise ConfigurationError(f"{DEGRADATION_FLAGS.get(e.key, e.key)}: {e.why}") from None
     # Every campaign of the study is checked before the first one runs.
-    studied = [StudyCampaign(name, degradation, args.panel) for name in CAMPAIGNS[args.study]]
+    camera = StudyCamera(args.camera_file, args.lens)
+    studied = [
+        StudyCampaign(name, degradation, args.panel, camera) for name in CAMPAIGNS[args.study]
+    ]
     checked = [(campaign, folder, ExpandJobs(campaign)) for campaign, folder in studied]
     context = RunContext(out_dir=args.out or Path("runs") / "marker_study")
     results = []
@@ -117,17 +133,57 @@ def _UnexpectedFailure(row: dict[str, Any]) -> bool:
     return row["success"] is not True and not aborted
 
 
+@dataclass(frozen=True)
+class StudyCamera:
+    """The camera of a study's jobs: the estimator's camera file and the real lens
+    (k1 k2 p1 p2 k3), each None for the scenario's own."""
+
+    camera_file: str | None = None
+    lens: tuple[float, ...] | None = None
+
+
+# Where each task of a study takes the real camera's lens.
+LENS_KEYS = {
+    "marker_view": "camera_errors.distortion",
+    "panel_operation": "station.errors.cameras.camera.distortion",
+}
+
+
+def _Lens(text: str) -> tuple[float, ...]:
+    """--lens K1,K2,P1,P2,K3 as five numbers."""
+    try:
+        values = tuple(float(v) for v in text.split(","))
+    except ValueError:
+        values = ()
+    if len(values) != 5 or not all(math.isfinite(v) for v in values):
+        raise argparse.ArgumentTypeError(f"five finite numbers K1,K2,P1,P2,K3, got '{text}'")
+    return values
+
+
 def StudyCampaign(
-    name: str, degradation: DegradationConfig, panel_file: str | None = None
+    name: str,
+    degradation: DegradationConfig,
+    panel_file: str | None = None,
+    camera: StudyCamera | None = None,
 ) -> tuple[CampaignConfig, str]:
     """The campaign `name` with the images of every job degraded as `degradation` (its seed
-    left to each job's random_seed) and, given a panel_file, every job on that panel, and
-    its folder under DIR (named after both)."""
+    left to each job's random_seed) and, given a panel_file, every job on that panel, given
+    a camera, every job's estimator camera file and real lens as it says, and its folder
+    under DIR (named after them)."""
     campaign = LoadCampaign(name)
     folder = name
     if panel_file is not None:
         campaign.set["panel_file"] = RecordedPanelFile(panel_file)
         folder += f"_{Path(panel_file).stem}"
+    camera = camera or StudyCamera()
+    if camera.camera_file is not None:
+        campaign.set["estimator_camera_file"] = RecordedModelFile(
+            "--camera-file", camera.camera_file, "panel/c920_camera.yaml"
+        )
+        folder += f"_{Path(camera.camera_file).stem}"
+    if camera.lens is not None:
+        campaign.set[LENS_KEYS[campaign.scenario]] = list(camera.lens)
+        folder += "_lens" + "_".join(f"{k:g}" for k in camera.lens)
     if degradation != DegradationConfig():
         campaign.set.update(
             {f"degradation.{k}": getattr(degradation, k) for k in DEGRADATION_FLAGS}
