@@ -14,7 +14,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from hardware_doubles import RELAXED_SERVO_TIMEOUT, Mz04dScenario, WaitUntil
+from hardware_doubles import LOADED_MACHINE_BOUND, RELAXED_SERVO_TIMEOUT, Mz04dScenario, WaitUntil
 from pydrake.systems.analysis import Simulator
 from pydrake.systems.framework import DiagramBuilder
 from pydrake.systems.primitives import ConstantVectorSource, TrajectorySource
@@ -182,8 +182,9 @@ def test_stop_from_the_pendant_fails_the_run_and_a_new_run_resets_it(
         assert pendant.recv(16) == b"OK\n"
     with pytest.raises(
         HardwareFaultError,
+        # A host too busy to keep the samples fresh adds why no command went out since.
         match=f"mz04d at t = .*: controller refused: 'NG E05 stopped; send RESET before "
-        f"{word}'; arm stopped$",
+        f"{word}'( \\(no command sent for .*\\))?; arm stopped$",
     ):
         simulator.AdvanceTo(1.0)
     assert emulator.logic.State() == "STOPPED"
@@ -268,6 +269,6 @@ def test_ctrl_c_stops_the_robot(emulator, tmp_path):
     moves_before = emulator.logic.moves
     assert WaitUntil(lambda: emulator.logic.moves > moves_before)  # it is streaming
     process.send_signal(signal.SIGINT)
-    _, stderr = process.communicate(timeout=10)
+    _, stderr = process.communicate(timeout=12 * LOADED_MACHINE_BOUND)
     assert "KeyboardInterrupt" in stderr
     assert emulator.logic.stops == 1 and emulator.logic.State() == "STOPPED"

@@ -20,7 +20,11 @@ import threading
 import guidedarm.diagrams.cli as cli_package
 from guidedarm.diagrams.interrupts import DeferredInterrupts, InstallInterruptHandlers
 from guidedarm.systems.errors import ConfigurationError, DrakeCheckFailure, GuidedArmError
-from guidedarm.systems.hardware.arm_link import CloseAllArmLinks, ReportStopErrors
+from guidedarm.systems.hardware.arm_link import (
+    CloseAllArmLinks,
+    ReportStopErrors,
+    VendorThreadsAlive,
+)
 
 EXIT_RUN_FAILED = 1
 EXIT_BAD_INPUT = 2
@@ -52,7 +56,21 @@ def MakeArgumentParser() -> argparse.ArgumentParser:
 
 
 def main(argv: list[str] | None = None) -> int:
-    """Entry point of the `guidedarm` console script."""
+    """Entry point of the `guidedarm` console script (argv None: the process is the
+    command's) and of in-process calls (argv given)."""
+    code = _Command(argv)
+    if argv is None and VendorThreadsAlive():
+        # A thread is still inside a vendor library (a controller that stopped answering
+        # its disconnect): the interpreter's teardown could destroy what that thread uses
+        # and crash the process after its summary was written. End it without teardown.
+        sys.stdout.flush()
+        sys.stderr.flush()
+        os._exit(code)
+    return code
+
+
+def _Command(argv: list[str] | None) -> int:
+    """Parses argv (None: sys.argv) and runs the subcommand; returns the exit code."""
     if threading.current_thread() is threading.main_thread():
         InstallInterruptHandlers()
     try:

@@ -71,6 +71,21 @@ class ArmLink(Protocol):
 
 _open_links: weakref.WeakSet = weakref.WeakSet()  # not yet stopped
 _unclosed_links: weakref.WeakSet = weakref.WeakSet()
+_vendor_threads: weakref.WeakSet = weakref.WeakSet()
+
+
+def RegisterVendorThread(thread: threading.Thread) -> None:
+    """Remembers a thread that calls into a vendor's native library (a link's I/O thread, a
+    bounded call left behind on a controller that stopped answering), for
+    VendorThreadsAlive."""
+    _vendor_threads.add(thread)
+
+
+def VendorThreadsAlive() -> bool:
+    """Whether a thread registered with RegisterVendorThread still runs: then the process
+    cannot be finalized safely (the interpreter's teardown would destroy objects that a
+    native thread still uses) and must end without it (os._exit)."""
+    return any(thread.is_alive() for thread in list(_vendor_threads))
 
 
 def RegisterArmLink(link: ArmLink) -> None:

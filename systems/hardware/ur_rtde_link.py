@@ -44,6 +44,7 @@ from guidedarm.systems.hardware.arm_link import (
     JointSample,
     LatestSample,
     RegisterArmLink,
+    RegisterVendorThread,
     UnregisterArmLink,
 )
 
@@ -125,6 +126,7 @@ class UrRtdeLink:
         self._latest = LatestSample()
         self._closing = threading.Event()
         self._thread = threading.Thread(target=self._Poll, name=f"{name}-rtde", daemon=True)
+        RegisterVendorThread(self._thread)
         self._thread.start()
         RegisterArmLink(self)
 
@@ -205,9 +207,12 @@ class UrRtdeLink:
         """servoStop, confirmed by the controller within `stop_timeout` s: the vendor call
         waits up to 300 s for a controller that stopped answering (it releases the GIL,
         so it waits in a thread of its own, left behind if it does not return)."""
-        stopped = _CallWithin(
-            lambda: self._control.servoStop(SERVO_STOP_DECELERATION), self._stop_timeout
-        )
+
+        def servo_stop() -> bool:
+            with self._command_lock:  # the vendor interface is not safe across threads
+                return self._control.servoStop(SERVO_STOP_DECELERATION)
+
+        stopped = _CallWithin(servo_stop, self._stop_timeout)
         if stopped is None:
             raise TimeoutError(f"servoStop unconfirmed within {self._stop_timeout} s")
         # The client refuses every command once the program has stopped (its watchdog,
@@ -216,16 +221,22 @@ class UrRtdeLink:
             raise RuntimeError("servoStop not accepted by the controller")
 
     def close(self) -> None:
-        """Ends the poll thread, then disconnects and ends the control script, giving the
-        vendor calls (each of which can wait minutes on a dead controller) 1 s together."""
+        """Ends the poll thread, then disconnects and ends the control script and drops both
+        vendor interfaces (their destructors run here, not in the interpreter's teardown),
+        giving the vendor calls (each of which can wait minutes on a dead controller)
+        CLOSE_TIMEOUT s together. A call still running then is left behind
+        (VendorThreadsAlive)."""
         self._closing.set()
         UnregisterArmLink(self)
-        self._thread.join(timeout=1.0)
 
         def release() -> None:
-            for call in (self._receive.disconnect, self._control.stopScript):
-                with contextlib.suppress(Exception):  # closing a dead vendor interface
-                    call()
+            # The poll thread's receive calls must end before the interface is disconnected.
+            self._thread.join()
+            with contextlib.suppress(Exception):  # closing a dead vendor interface
+                self._receive.disconnect()
+            with self._command_lock, contextlib.suppress(Exception):
+                self._control.stopScript()
+            self._receive = self._control = None
 
         _CallWithin(release, CLOSE_TIMEOUT)
 
@@ -242,6 +253,7 @@ def _CallWithin(call, timeout: float):
             result.append((None, e))
 
     thread = threading.Thread(target=run, name="ur-rtde-call", daemon=True)
+    RegisterVendorThread(thread)
     thread.start()
     thread.join(timeout)
     if not result:
