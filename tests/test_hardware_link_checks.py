@@ -67,8 +67,8 @@ def test_an_idle_tof_device_is_refused_before_any_arm_connects(tmp_path):
         os.close(master)
         os.close(slave)
     assert line == (
-        f"guidedarm: error: tof: {device} opened, but no valid line within 0.5 s (its "
-        "watchdog; 0 lines rejected): is the tool powered and streaming on that device?"
+        f"guidedarm: error: tof: {device} opened, but no valid line within 2.0 s (0 lines "
+        "rejected): is the tool powered and streaming on that device?"
     )
     assert not (tmp_path / "run" / "summary.json").exists()
 

@@ -1,6 +1,6 @@
 """Checks every link of a hardware station makes before anything moves: each hardware entry
 names a device of the scenario, each ToF tool delivers valid lines, each camera a frame of
-the scenario's size, each within its deadline. A link that does not is refused with one
+the scenario's size, each within FirstDeliveryWait. A link that does not is refused with one
 line naming it (ConfigurationError: exit 2, no run). The arms prove themselves in
 ArmDriver (a plausible joint sample within the watchdog).
 """
@@ -20,6 +20,18 @@ from guidedarm.systems.hardware.tof_protocol import ToFLineCollector, ToFReading
 
 HARDWARE_SECTIONS = ("arms", "cameras", "tof_tools")
 POLL = 0.002  # s between looks at a link that has not delivered yet
+# s: the least a link check waits for a device's first line or frame, whatever its
+# watchdog (which bounds the gaps between deliveries during a run). A device may start
+# later than it opens: a BLE tool streams once its notifications are subscribed, a
+# microcontroller board that resets when its serial port opens boots first, a camera
+# settles its exposure; and a host briefly busy elsewhere must not refuse a good link.
+FIRST_DELIVERY_WAIT = 2.0
+
+
+def FirstDeliveryWait(watchdog: float) -> float:
+    """How long (s) a link check waits for a device's first delivery."""
+    return max(watchdog, FIRST_DELIVERY_WAIT)
+
 
 T = TypeVar("T")
 
@@ -53,27 +65,29 @@ def WaitFor(latest: Callable[[], T | None], deadline: float) -> T | None:
     return value
 
 
-def ProveToFTool(collector: ToFLineCollector, device: str, deadline: float) -> ToFReading:
+def ProveToFTool(collector: ToFLineCollector, device: str, watchdog: float) -> ToFReading:
     """The first valid line (six sensors, checksum, ranges and status codes in range) of
-    the tool within `deadline` s, else ConfigurationError naming the tool and its device."""
-    first = WaitFor(collector.latest, deadline)
+    the tool within FirstDeliveryWait(watchdog) s, else ConfigurationError naming the tool
+    and its device."""
+    wait = FirstDeliveryWait(watchdog)
+    first = WaitFor(collector.latest, wait)
     if first is None:
         raise ConfigurationError(
-            f"{collector.name}: {device} opened, but no valid line within {deadline} s "
-            f"(its watchdog; {collector.rejected} lines rejected): is the tool powered and "
+            f"{collector.name}: {device} opened, but no valid line within {wait} s "
+            f"({collector.rejected} lines rejected): is the tool powered and "
             "streaming on that device?"
         )
     return first[0]
 
 
-def ProveCamera(name: str, grabber: FrameGrabber, width: int, height: int, deadline: float):
-    """The first frame (RGBA array) of the camera within `deadline` s and of the scenario's
-    size, else ConfigurationError naming the camera and its source."""
-    first = WaitFor(grabber.latest, deadline)
+def ProveCamera(name: str, grabber: FrameGrabber, width: int, height: int, watchdog: float):
+    """The first frame (RGBA array) of the camera within FirstDeliveryWait(watchdog) s and
+    of the scenario's size, else ConfigurationError naming the camera and its source."""
+    wait = FirstDeliveryWait(watchdog)
+    first = WaitFor(grabber.latest, wait)
     if first is None:
         raise ConfigurationError(
-            f"{name}: camera '{grabber.source}' opened, but no frame within {deadline} s "
-            "(its watchdog)"
+            f"{name}: camera '{grabber.source}' opened, but no frame within {wait} s"
         )
     frame = first[0]
     if (frame.shape[1], frame.shape[0]) != (width, height):
