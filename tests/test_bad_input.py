@@ -232,12 +232,43 @@ BAD_INPUTS = [
         "driver-lockstep-move",
         Run(
             PF,
-            "station.hardware.arms.mz04d={{driver: nachi_tcp, command_mode: move, lockstep: true}}",
+            "station.hardware.arms.mz04d=!NachiDriver {{command_mode: move, lockstep: true}}",
             flags=("--hardware",),
         ),
         "lockstep': applies to command_mode 'stream' only",
     ),
     ("tof-driver-baudrate", Run(PF, "station.hardware.tof_tools.tof.baudrate=0"), "baudrate'"),
+    (
+        "driver-key-replaced",
+        Run(PF, "station.hardware.arms.mz04d={{driver: nachi_tcp}}"),
+        "mz04d.driver': replaced by the entry's YAML tag: write `mz04d: !NachiDriver {...}`",
+    ),
+    (
+        "transport-key-replaced",
+        Run(PF, "station.hardware.tof_tools.tof.transport=ble"),
+        "tof.transport': replaced by the entry's YAML tag: write `tof: !ToFBleDriver {...}`",
+    ),
+    (
+        "driver-unknown-tag",
+        Run(PF, "station.hardware.arms.mz04d=!KukaRsiDriver {{}}"),
+        "unknown tag !KukaRsiDriver (known: !UrRtdeDriver, !NachiDriver)",
+    ),
+    (
+        "driver-field-of-another-driver",
+        Run(PF, "station.hardware.arms.mz04d.gain=1000"),
+        "unknown key 'station.hardware.arms.mz04d.gain' (known keys: acceleration_limits, "
+        "command_mode, host, lockstep, port, stale_after, watchdog)",
+    ),
+    (
+        "tof-ble-baudrate",
+        Run(PF, "station.hardware.tof_tools.tof=!ToFBleDriver {{address: x, baudrate: 9600}}"),
+        "unknown key 'station.hardware.tof_tools.tof.baudrate'",
+    ),
+    (
+        "driver-command-mode-choice",
+        Run(PF, "station.hardware.arms.mz04d.command_mode=servo"),
+        "command_mode': 'servo' is not one of 'stream', 'move'",
+    ),
     ("camera-driver-watchdog", Run(PF, "station.hardware.cameras.c.watchdog=-2"), "watchdog'"),
     ("hose-zero-diameter", Run(PF, "station.hose.diameter=0"), "station.hose.diameter"),
     ("hose-centerline-ignored", Run(PF, "station.hose.centerline={f}/binary_hose.csv"), "'path'"),
@@ -401,7 +432,6 @@ BAD_INPUTS = [
         Run(
             PF,
             "motion=continuous",
-            "station.hardware.arms.mz04d.driver=nachi_tcp",
             "station.hardware.arms.mz04d.command_mode=move",
             flags=("--hardware",),
         ),
@@ -412,7 +442,6 @@ BAD_INPUTS = [
         Run(
             PF,
             "motion=continuous",
-            "station.hardware.arms.mz04d.driver=nachi_tcp",
             flags=("--hardware",),
         ),
         "must equal station.arms.mz04d.control_period",
@@ -693,7 +722,7 @@ BAD_INPUTS = [
     ),
     (
         "hardware-keys-without-hardware",
-        Run(PF, "station.hardware.arms.mz04d={{port: 1}}"),
+        Run(PF, "station.hardware.arms.mz04d=!NachiDriver {{port: 1}}"),
         "station.hardware.arms.mz04d has no effect without --hardware",
     ),
     (

@@ -169,8 +169,14 @@ def DescribeScenario(scenario: Any) -> list[KeyDoc]:
 
 def FieldDocs(cls: type) -> dict[str, str]:
     """The `name: text` entries of a dataclass docstring, by field name (see the module
-    docstring); fields without an entry are absent."""
-    return dict(_FieldDocs(cls))
+    docstring, or of a base class's for an inherited field); fields without an entry are
+    absent."""
+    docs: dict[str, str] = {}
+    for klass in cls.__mro__:
+        if dataclasses.is_dataclass(klass):
+            for name, doc in _FieldDocs(klass):
+                docs.setdefault(name, doc)
+    return docs
 
 
 @functools.cache
@@ -212,6 +218,14 @@ def _DescribeStruct(cls: type, value: Any, prefix: str, rows: list[KeyDoc]) -> N
 
 def _Describe(schema: Any, value: Any, key: str, doc: str, rows: list[KeyDoc]) -> None:
     """Adds the row of `key` (and of its nested keys) to rows."""
+    variants = _Variants(schema)
+    if variants:
+        # A tagged union: the entry's own type, or each type for an empty mapping.
+        for cls in [type(value)] if value is not None else variants:
+            shown = value if value is not None else cls()
+            rows.append(KeyDoc(key, f"!{cls.__name__}", "", doc or _FirstSentence(cls.__doc__)))
+            _DescribeFields(cls, shown, f"{key}.", rows)
+        return
     nested = _NestedType(schema)
     if nested is not None and not doc:
         doc = _FirstSentence(nested.__doc__)
@@ -248,6 +262,12 @@ def _NestedType(schema: Any) -> type | None:
     return None
 
 
+def _Variants(schema: Any) -> list[type]:
+    """The dataclasses of a tagged union (a Union of two or more dataclasses), else []."""
+    members = [m for m in _UnionMembers(schema) if m is not type(None)]
+    return members if len(members) > 1 and all(map(dataclasses.is_dataclass, members)) else []
+
+
 def _UnionMembers(schema: Any) -> tuple:
     if typing.get_origin(schema) in (typing.Union, types.UnionType):
         return typing.get_args(schema)
@@ -255,12 +275,16 @@ def _UnionMembers(schema: Any) -> tuple:
 
 
 def _Default(schema: Any) -> Any:
+    if _Variants(schema):
+        return None  # _Describe lists each type of the union
     nested = _NestedType(schema)
     return nested() if nested is not None else schema()
 
 
 def _TypeName(schema: Any) -> str:
     origin = typing.get_origin(schema)
+    if origin is typing.Literal:
+        return " | ".join(repr(a) for a in typing.get_args(schema))
     if origin in (typing.Union, types.UnionType):
         names = [_TypeName(m) for m in typing.get_args(schema)]
         return " | ".join(dict.fromkeys(n for n in names if not n.startswith("_")))

@@ -20,7 +20,7 @@ from guidedarm.diagrams.cli.emulate_ur import EmulateUr
 from guidedarm.diagrams.station.hardware_config import (
     CheckPort,
     ListenHostProblem,
-    ToFDriverConfig,
+    ToFLinkSettings,
 )
 from guidedarm.diagrams.station.model_paths import MODELS_DIR
 from guidedarm.diagrams.station.scenario import ArmConfig, StationScenario
@@ -36,7 +36,7 @@ from guidedarm.systems.hardware.nachi_protocol import DEFAULT_PORT
 from guidedarm.systems.hardware.tof_emulator import ToFEmulator
 from guidedarm.systems.tof.tof_tool_sensor import ToFToolConfig
 
-DEFAULT_TOF_LATENCY = ToFDriverConfig().latency  # s, as the driver assumes by default
+DEFAULT_TOF_LATENCY = ToFLinkSettings().latency  # s, as the driver assumes by default
 NO_TARGET_STATUS = 11  # VL6180X "max signal to noise ratio": nothing returned in range
 # The frames of an arm's model the Nachi emulator reads the flange pose from (X_BF).
 NACHI_FRAMES = ("base", "flange")
@@ -96,7 +96,7 @@ class ToFTap:
     """Writes each range of the station's `<tool>.ranges`/`valid` (m, status codes) as a
     ToFEmulator line `latency` s after it becomes available (every sensor `period` s, at
     k period; the end of its ranging): the tool's readout and transfer, which the hardware
-    ToFDriver subtracts (ToFDriverConfig.latency) together with half the ranging time to
+    ToFDriver subtracts (ToFLinkSettings.latency) together with half the ranging time to
     recover the measurement instant. It runs in the simulation thread at every step, so
     the lines keep the emulated arm's time: the station steps in real time, within a step
     (2 ms) of the host clock while it keeps up."""

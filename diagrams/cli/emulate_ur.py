@@ -15,7 +15,7 @@ import argparse
 import numpy as np
 from pydrake.multibody.parsing import LoadModelDirectives
 
-from guidedarm.diagrams.station.hardware_config import ListenHostProblem, ToFDriverConfig
+from guidedarm.diagrams.station.hardware_config import ListenHostProblem, ToFLinkSettings
 from guidedarm.diagrams.station.model_paths import MODELS_DIR
 from guidedarm.diagrams.station.scenario import ArmConfig, StationScenario
 from guidedarm.systems.errors import ConfigurationError
@@ -66,7 +66,7 @@ def StartUrEmulator(
     arm: str,
     host: str,
     servo_acceleration: float = DEFAULT_SERVO_ACCELERATION,
-    tof_latency: float = ToFDriverConfig().latency,
+    tof_latency: float = ToFLinkSettings().latency,
     lockstep: bool = False,
 ) -> tuple[UrEmulator, dict[str, ToFEmulator]]:
     """The UR emulator for `arm` of the station (UrEmulator's `lockstep`) and a ToF
@@ -96,7 +96,7 @@ def EmulateUr(args: argparse.Namespace) -> int:
         args.arm or DEFAULT_ARM,
         args.host,
         args.servo_acceleration or DEFAULT_SERVO_ACCELERATION,
-        ToFDriverConfig().latency if args.tof_latency is None else args.tof_latency,
+        ToFLinkSettings().latency if args.tof_latency is None else args.tof_latency,
         args.lockstep,
     )
     print(f"ur: {args.arm or DEFAULT_ARM} listening on {args.host} (RTDE 30004, dashboard "

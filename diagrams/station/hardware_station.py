@@ -15,7 +15,7 @@ from pydrake.systems.framework import Context, Diagram, DiagramBuilder, OutputPo
 from pydrake.systems.primitives import ConstantVectorSource, MatrixGain, Multiplexer
 from pydrake.systems.rendering import MultibodyPositionToGeometryPose
 
-from guidedarm.diagrams.station.hardware_config import ArmDriverConfig
+from guidedarm.diagrams.station.hardware_config import ArmDriverConfig, UrRtdeDriver
 from guidedarm.diagrams.station.link_checks import (
     CheckHardwareEntries,
     ProveCamera,
@@ -38,7 +38,6 @@ from guidedarm.systems.hardware.nachi_link import NachiLink
 from guidedarm.systems.hardware.opencv_camera import FrameGrabber, OpenCvCamera
 from guidedarm.systems.hardware.tof_driver import ToFDriver
 from guidedarm.systems.hardware.tof_protocol import ToFLineCollector
-from guidedarm.systems.hardware.tof_transports import BleTransport, SerialTransport
 from guidedarm.systems.hardware.ur_rtde_link import OpenUrRtde
 from guidedarm.systems.tof.tof_tool_sensor import TOF_PORTS, MakeDetectionGrid
 
@@ -113,11 +112,8 @@ def MakeHardwareStation(scenario: StationScenario, meshcat: Meshcat | None = Non
         tool = scenario.ToFTool(name)
         config = hardware.tof_tools[name]
         collector = ToFLineCollector(name)
-        if config.transport == "serial":
-            SerialTransport(collector, config.device, config.baudrate)
-        else:
-            BleTransport(collector, config.device)
-        ProveToFTool(collector, config.device, config.watchdog)
+        config.Open(collector)
+        ProveToFTool(collector, config.Label(), config.watchdog)
         grid = MakeDetectionGrid(plant, tool)
         latency = tool.ranging_time / 2 + config.latency
         system = ToFDriver(
@@ -162,7 +158,7 @@ def MakeHardwareStation(scenario: StationScenario, meshcat: Meshcat | None = Non
 
 
 def _OpenArmLink(name: str, config: ArmDriverConfig, period: float) -> ArmLink:
-    if config.driver == "ur_rtde":
+    if isinstance(config, UrRtdeDriver):
         return OpenUrRtde(
             name,
             config.host,
