@@ -521,7 +521,11 @@ BAD_INPUTS = [
     ("start-distance-order", Run(PO, "start.distance_m=[0.4,0.3]"), "distance_m must be"),
     ("start-tilt-range", Run(PO, "start.max_tilt_deg=90"), "[0, 90)"),
     ("operation-nan-distance", Run(PO, "operation.base_distance_m=.nan"), "base_distance_m"),
-    ("operation-motion", Run(PO, "operation.motion=teleport"), "motion must be one of"),
+    (
+        "operation-motion",
+        Run(PO, "operation.motion=teleport"),
+        "operation.motion': 'teleport' is not one of",
+    ),
     ("degradation-noise", Run(PO, "degradation.noise_std=-1"), "degradation.noise_std"),
     ("panel-planner-inf", Run(PO, "planner.max_joint_velocity=[.inf]"), "max_joint_velocity[0]"),
     ("panel-file-missing", Run(PO, "panel_file=panel/nope.yaml"), "file not found"),

@@ -157,7 +157,11 @@ def test_a_rule_between_fields_names_the_set_that_broke_it():
             "--set motion must be one of ('joint_trajectory', 'planner', 'continuous')",
         ),
         ("ur10e_waypoints", "limits=fast", "--set limits must be one of"),
-        ("panel_operation", "operation.motion=teleport", "--set operation.motion must be one of"),
+        (
+            "panel_operation",
+            "operation.motion=teleport",
+            "--set key 'operation.motion': 'teleport' is not one of",
+        ),
     ],
 )
 def test_a_refused_set_value_names_the_flag_not_the_scenario_file(scenario, override, expected):

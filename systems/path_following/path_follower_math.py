@@ -20,18 +20,23 @@ good) and the follower stops there.
 """
 
 import math
+import typing
 from dataclasses import dataclass, field, replace
+from typing import Literal
 
 import numpy as np
 from pydrake.math import RigidTransform, RollPitchYaw, RotationMatrix
 
-from guidedarm.systems.config_checks import CheckFields, InRange, Positive
+from guidedarm.systems.config_checks import CheckFields, InRange, Positive, TextChoices
 from guidedarm.systems.errors import ConfigurationError
 
-ESTIMATORS = ("grid", "ranging")
-STEERINGS = ("paper", "centring")
+Estimator = Literal["grid", "ranging"]
+Steering = Literal["paper", "centring"]
+ESTIMATORS = typing.get_args(Estimator)
+STEERINGS = typing.get_args(Steering)
 
 
+@TextChoices
 @dataclass
 class FollowerConfig:
     """Parameters of the path follower (m, deg).
@@ -55,8 +60,8 @@ class FollowerConfig:
     max_steps: the run stops with a failure after this many steps.
     """
 
-    estimator: str = ""
-    steering: str = ""
+    estimator: Literal["", Estimator] = ""
+    steering: Literal["", Steering] = ""
     long_step: float = Positive(0.015)
     short_step: float = Positive(0.010)
     rotation_reduction: float = InRange(0.0, 1.0, 0.0, high_open=True)
@@ -83,12 +88,6 @@ class FollowerConfig:
         """Raises ConfigurationError naming the first bad parameter (the automatic values,
         an empty estimator or steering and zeros, are accepted)."""
         CheckFields(self)
-        if self.steering not in ("", *STEERINGS):
-            raise ConfigurationError(f"steering must be one of {STEERINGS}, got '{self.steering}'")
-        if self.estimator not in ("", *ESTIMATORS):
-            raise ConfigurationError(
-                f"estimator must be one of {ESTIMATORS}, got '{self.estimator}'"
-            )
         if not self.short_step <= self.long_step:
             raise ConfigurationError("need short_step <= long_step")
 
