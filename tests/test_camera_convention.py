@@ -21,7 +21,7 @@ from pydrake.math import RigidTransform
 from pydrake.systems.framework import DiagramBuilder
 
 from guidedarm.diagrams.cli.command_run import LoadScenario
-from guidedarm.diagrams.tasks.panel_files import (
+from guidedarm.diagrams.panel.panel_files import (
     DEFAULT_CAMERA_FILE,
     IntrinsicsFromCameraConfig,
     LoadCameraIntrinsics,

@@ -22,8 +22,8 @@ from guidedarm.diagrams.overlays.overlay_geometry import (
     RecordedPose,
 )
 from guidedarm.diagrams.overlays.tof_tool_overlay import ToFToolOverlay
+from guidedarm.diagrams.panel.panel_files import DEFAULT_CAMERA_FILE, LoadCameraIntrinsics
 from guidedarm.diagrams.station.station_plant import MakeMultibodyPlant
-from guidedarm.diagrams.tasks.panel_files import DEFAULT_CAMERA_FILE, LoadCameraIntrinsics
 from guidedarm.systems.plant_frames import GetScopedFrame
 from guidedarm.systems.tof.tof_tool_sensor import MakeDetectionGrid
 from guidedarm.systems.tof.tof_tool_sensor_math import ConeRays

@@ -7,11 +7,8 @@ import pytest
 
 from guidedarm.diagrams.cli.command_run import LoadScenario
 from guidedarm.diagrams.run_context import RunContext
-from guidedarm.diagrams.tasks.panel_operation import (
-    PanelOperationRun,
-    PanelPlannerConfig,
-    PlannerBaseFrame,
-)
+from guidedarm.diagrams.tasks.panel_operation import PanelOperationRun, PanelPlannerConfig
+from guidedarm.diagrams.tasks.panel_operation.run import PlannerBaseFrame
 
 
 def _run(tmp_path, overrides):

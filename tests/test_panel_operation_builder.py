@@ -9,9 +9,9 @@ from pydrake.math import RigidTransform, RollPitchYaw
 from pydrake.systems.framework import DiagramBuilder
 
 from guidedarm.diagrams.cli.command_run import LoadScenario
+from guidedarm.diagrams.panel.panel_files import DEFAULT_PANEL_FILE, LoadPanelSpec
 from guidedarm.diagrams.station.station import MakeStation
-from guidedarm.diagrams.tasks.panel_files import DEFAULT_PANEL_FILE, LoadPanelSpec
-from guidedarm.diagrams.tasks.panel_operation_builder import (
+from guidedarm.diagrams.tasks.panel_operation.builder import (
     AddPanelOperation,
     MakeCameraArmKinematics,
 )

@@ -1,4 +1,4 @@
-"""The replay drawn after the loop (diagrams/tasks/path_following_replay.py) is the replay
+"""The replay drawn after the loop (diagrams/tasks/path_following/replay.py) is the replay
 the loop draws when a live page watches it: the same objects and the same animation."""
 
 from pathlib import Path

@@ -33,9 +33,9 @@ from guidedarm.diagrams.calibration.hand_eye_calibration import (
     ReadPoses,
     WriteHandEye,
 )
+from guidedarm.diagrams.panel.panel_files import LoadCameraIntrinsics
 from guidedarm.diagrams.run_context import PrepareOutputDirectory
 from guidedarm.diagrams.scenario_loading import AddOverridesArgument
-from guidedarm.diagrams.tasks.panel_files import LoadCameraIntrinsics
 from guidedarm.systems.calibration.camera_calibration_math import CameraCalibration
 from guidedarm.systems.errors import ConfigurationError
 

@@ -99,7 +99,7 @@ def RunOne(path: str, motion: str, estimator: str) -> dict:
 def Breakdown(path: str) -> None:
     """Prints the loop's and each per-tick system's CPU seconds per simulated second."""
     from guidedarm.diagrams.cli.main import main as guidedarm_main
-    from guidedarm.diagrams.tasks import path_following_execution
+    from guidedarm.diagrams.tasks.path_following import execution as path_following_execution
     from guidedarm.systems.path_following import continuous_follower, differential_ik_servo
     from guidedarm.systems.tof import tof_tool_sensor
 
@@ -181,7 +181,7 @@ def Floor(path: str, seconds: float = 4.0) -> None:
 
     from guidedarm.diagrams.cli.command_run import LoadScenario
     from guidedarm.diagrams.station.station import MakeStation
-    from guidedarm.diagrams.tasks.path_following_setup import MakeSetup
+    from guidedarm.diagrams.tasks.path_following.setup import MakeSetup
 
     settings = [f"path={path}", "motion=continuous", *Overrides(sys.argv)[1::2]]
     setup = MakeSetup(LoadScenario("path_following", settings)[1])
