@@ -21,11 +21,11 @@ import cv2
 import numpy as np
 import pytest
 
-from guidedarm.diagrams.cli.command_run import LoadScenario, RunTask
 from guidedarm.diagrams.panel.panel_files import DEFAULT_PANEL_FILE
 from guidedarm.diagrams.run_context import MakeMeshcat, RunContext
 from guidedarm.diagrams.scenario_loading import list_named_scenarios
-from guidedarm.diagrams.tasks.registry import TaskDefinition
+from guidedarm.diagrams.task_run import RunTask
+from guidedarm.diagrams.tasks.registry import LoadScenario, TaskDefinition
 from guidedarm.systems.config_checks import CheckConfig, FieldError
 from guidedarm.systems.errors import ConfigurationError, RunFailedError
 from guidedarm.systems.path_following.hose_geometry import ReadCenterline

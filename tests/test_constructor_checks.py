@@ -171,8 +171,8 @@ def test_a_bad_argument_is_refused_naming_it(make, key, why):
 
 
 def test_the_path_follower_refuses_a_bad_period():
-    from guidedarm.diagrams.cli.command_run import LoadScenario
     from guidedarm.diagrams.tasks.path_following.setup import MakeSetup
+    from guidedarm.diagrams.tasks.registry import LoadScenario
     from guidedarm.systems.path_following.path_follower import PathFollower
 
     _, scenario, _ = LoadScenario("path_following", [])

@@ -19,7 +19,6 @@ from pydrake.systems.sensors import CameraConfig, ImageRgba8U
 
 from guidedarm.diagrams.campaigns.jobs import ExpandJobs
 from guidedarm.diagrams.cli.command_marker_study import CAMPAIGNS, STUDIES, StudyCampaign
-from guidedarm.diagrams.cli.command_run import LoadScenario
 from guidedarm.diagrams.panel.panel_assets import WritePanelAssets
 from guidedarm.diagrams.panel.panel_camera_rig import LookAt, PanelCameraRig
 from guidedarm.diagrams.panel.panel_files import (
@@ -28,7 +27,7 @@ from guidedarm.diagrams.panel.panel_files import (
     LoadCameraIntrinsics,
     LoadPanelSpec,
 )
-from guidedarm.diagrams.tasks.registry import GetTask, NumericMetricNames
+from guidedarm.diagrams.tasks.registry import GetTask, LoadScenario, NumericMetricNames
 from guidedarm.systems.errors import ConfigurationError
 from guidedarm.systems.markers.image_degradation import (
     DegradationConfig,

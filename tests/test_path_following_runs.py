@@ -15,9 +15,9 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from guidedarm.diagrams.cli.command_run import LoadScenario
 from guidedarm.diagrams.cli.main import main
 from guidedarm.diagrams.run_context import RunContext
+from guidedarm.diagrams.tasks.registry import LoadScenario
 
 PAPER = ["paper_path_1", "paper_path_2", "paper_path_3", "paper_path_4"]
 

@@ -8,9 +8,9 @@ from pydrake.math import RigidTransform, RollPitchYaw, RotationMatrix
 from pydrake.multibody.plant import AddMultibodyPlantSceneGraph, CoulombFriction
 from pydrake.systems.framework import DiagramBuilder
 
-from guidedarm.diagrams.cli.command_run import LoadScenario
 from guidedarm.diagrams.tasks.path_following.builder import MakeKinematicStation
 from guidedarm.diagrams.tasks.path_following.setup import MakeSetup
+from guidedarm.diagrams.tasks.registry import LoadScenario
 from guidedarm.systems.path_following.path_follower_math import OrientationFromVector
 from guidedarm.systems.tof.primitive_ray_casting import (
     FirstHits,

@@ -179,9 +179,9 @@ def Floor(path: str, seconds: float = 4.0) -> None:
     from pydrake.systems.framework import DiagramBuilder
     from pydrake.systems.primitives import ConstantVectorSource
 
-    from guidedarm.diagrams.cli.command_run import LoadScenario
     from guidedarm.diagrams.station.station import MakeStation
     from guidedarm.diagrams.tasks.path_following.setup import MakeSetup
+    from guidedarm.diagrams.tasks.registry import LoadScenario
 
     settings = [f"path={path}", "motion=continuous", *Overrides(sys.argv)[1::2]]
     setup = MakeSetup(LoadScenario("path_following", settings)[1])
@@ -204,7 +204,7 @@ def Floor(path: str, seconds: float = 4.0) -> None:
 _HEADLESS_RUN = """
 import sys, tempfile
 from pathlib import Path
-from guidedarm.diagrams.cli.command_run import LoadScenario
+from guidedarm.diagrams.tasks.registry import LoadScenario
 from guidedarm.diagrams.run_context import RunContext
 from guidedarm.diagrams.task_run import RunTask
 task, scenario, _ = LoadScenario("path_following", sys.argv[1:])
