@@ -21,11 +21,11 @@ import cv2
 import numpy as np
 import pytest
 
-from guidedarm.diagrams.cli.command_run import LoadScenario, RunTask
+from guidedarm.diagrams.panel.panel_files import DEFAULT_PANEL_FILE
 from guidedarm.diagrams.run_context import MakeMeshcat, RunContext
 from guidedarm.diagrams.scenario_loading import list_named_scenarios
-from guidedarm.diagrams.tasks.panel_files import DEFAULT_PANEL_FILE
-from guidedarm.diagrams.tasks.registry import TaskDefinition
+from guidedarm.diagrams.task_run import RunTask
+from guidedarm.diagrams.tasks.registry import LoadScenario, TaskDefinition
 from guidedarm.systems.config_checks import CheckConfig, FieldError
 from guidedarm.systems.errors import ConfigurationError, RunFailedError
 from guidedarm.systems.path_following.hose_geometry import ReadCenterline
@@ -1089,7 +1089,7 @@ def test_public_builders_refuse_bad_arguments_in_one_line():
     wrong type (an AttributeError deep inside) are refused by name."""
     from guidedarm.diagrams.station.station import MakeStation
     from guidedarm.diagrams.station.station_plant import MakeMultibodyPlant
-    from guidedarm.diagrams.tasks.planner_builder import MakeAccelerationPlanner
+    from guidedarm.diagrams.tasks.common.planner_builder import MakeAccelerationPlanner
     from guidedarm.systems.path_following.tool_pose_ik_math import (
         ToolPoseIkConfig,
         ToolPoseSolver,

@@ -9,19 +9,16 @@ import pytest
 from pydrake.systems.framework import DiagramBuilder
 from pydrake.systems.primitives import ConstantVectorSource, PassThrough
 
-from guidedarm.diagrams.cli.command_run import LoadScenario
+from guidedarm.diagrams.panel.panel_files import DEFAULT_PANEL_FILE, LoadPanelSpec
 from guidedarm.diagrams.scenario_loading import list_named_scenarios
 from guidedarm.diagrams.station.scenario import ArmConfig, StationScenario
 from guidedarm.diagrams.station.scene_views import SceneDirectives
 from guidedarm.diagrams.station.station import MakeStation
 from guidedarm.diagrams.station.station_plant import MakeMultibodyPlant
-from guidedarm.diagrams.tasks.panel_files import DEFAULT_PANEL_FILE, LoadPanelSpec
-from guidedarm.diagrams.tasks.panel_operation_builder import AddPanelOperation
-from guidedarm.diagrams.tasks.path_following_diagram import (
-    AddPathFollowing,
-    MakeKinematicStation,
-)
-from guidedarm.diagrams.tasks.path_following_setup import MakeSetup
+from guidedarm.diagrams.tasks.panel_operation.builder import AddPanelOperation
+from guidedarm.diagrams.tasks.path_following.builder import AddPathFollowing, MakeKinematicStation
+from guidedarm.diagrams.tasks.path_following.setup import MakeSetup
+from guidedarm.diagrams.tasks.registry import LoadScenario
 from guidedarm.systems.config_checks import CheckConfig
 from guidedarm.systems.errors import ConfigurationError
 

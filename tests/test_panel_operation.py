@@ -5,13 +5,10 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from guidedarm.diagrams.cli.command_run import LoadScenario
 from guidedarm.diagrams.run_context import RunContext
-from guidedarm.diagrams.tasks.panel_operation import (
-    PanelOperationRun,
-    PanelPlannerConfig,
-    PlannerBaseFrame,
-)
+from guidedarm.diagrams.tasks.panel_operation import PanelOperationRun, PanelPlannerConfig
+from guidedarm.diagrams.tasks.panel_operation.run import PlannerBaseFrame
+from guidedarm.diagrams.tasks.registry import LoadScenario
 
 
 def _run(tmp_path, overrides):

@@ -38,12 +38,17 @@ import numpy as np
 from pydrake.common.schema import Rotation
 from pydrake.geometry import Rgba
 
-from guidedarm.diagrams.cli.command_run import LoadScenario
 from guidedarm.diagrams.scenario_loading import AddOverridesArgument, list_named_scenarios
-from guidedarm.diagrams.tasks.registry import SUMMARY_KEYS, AvailableTasks, TaskDefinition
+from guidedarm.diagrams.tasks.registry import (
+    SUMMARY_KEYS,
+    GetTask,
+    LoadScenario,
+    TaskDefinition,
+    TaskNames,
+)
 from guidedarm.systems.errors import ConfigurationError
 
-TASK_DOC = "the task this scenario runs (diagrams/tasks/<task>.py)"
+TASK_DOC = "the task this scenario runs (diagrams/tasks/<task>/)"
 
 # Drake structs shown as one value, not expanded into their fields.
 LEAF_STRUCTS = (Rgba, Rotation)
@@ -99,7 +104,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
 
 
 def describe_command(args: argparse.Namespace) -> int:
-    tasks = AvailableTasks()
+    tasks = TaskNames()
     scenarios = list_named_scenarios()
     task_only = args.target in tasks and args.target not in scenarios
     if args.overrides and (args.defaults or args.metrics or task_only):
@@ -109,10 +114,10 @@ def describe_command(args: argparse.Namespace) -> int:
             raise ConfigurationError("--set has no effect with --metrics (a task's metrics)")
         raise ConfigurationError(f"--set has no effect with {shown}: describe a scenario")
     if task_only:
-        task, scenario, name = tasks[args.target], None, None
+        task, scenario, name = GetTask(args.target), None, None
     elif args.target not in scenarios and not args.target.endswith((".yaml", ".yml")):
         raise ConfigurationError(
-            f"unknown task or scenario '{args.target}' (tasks: {', '.join(sorted(tasks))}; "
+            f"unknown task or scenario '{args.target}' (tasks: {', '.join(tasks)}; "
             f"scenarios: {', '.join(scenarios)})"
         )
     else:

@@ -12,7 +12,7 @@ from guidedarm.systems.config_checks import CheckFields, InRange, Positive, Text
 from guidedarm.systems.errors import ConfigurationError
 
 # The fields only one mode reads (the rest both): a task refuses them set away from their
-# defaults under the other mode (diagrams/tasks/waypoints.py).
+# defaults under the other mode (diagrams/tasks/waypoints/scenario.py).
 ROBUST_ONLY_FIELDS = (
     "robust_recovery_rate",
     "damping_threshold",

@@ -28,16 +28,13 @@ from guidedarm.diagrams.run_context import AdvanceWithProgress, RunContext
 from guidedarm.diagrams.station.hardware_station import CheckArmAtStart
 from guidedarm.diagrams.station.station import MakeStation
 from guidedarm.diagrams.task_run import InterruptedFailure
-from guidedarm.diagrams.tasks.path_following_diagram import (
-    AddPathFollowing,
-    MakeKinematicStation,
-)
-from guidedarm.diagrams.tasks.path_following_replay import (
+from guidedarm.diagrams.tasks.path_following.builder import AddPathFollowing, MakeKinematicStation
+from guidedarm.diagrams.tasks.path_following.replay import (
     AddReplayLogs,
     AddSetupOverlays,
     DrawReplay,
 )
-from guidedarm.diagrams.tasks.path_following_setup import Setup
+from guidedarm.diagrams.tasks.path_following.setup import Setup
 from guidedarm.systems.errors import RunFailedError
 
 # Joint samples for the contact check (s): the tool moves 1 mm between two at 50 mm/s.

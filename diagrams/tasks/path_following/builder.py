@@ -35,7 +35,7 @@ from guidedarm.diagrams.builder_checks import CheckStationWiring
 from guidedarm.diagrams.station.scenario import StationScenario
 from guidedarm.diagrams.station.station import AddMeshcatVisualization
 from guidedarm.diagrams.station.station_plant import GetArmInstance, MakeMultibodyPlant
-from guidedarm.diagrams.tasks.path_following_setup import Setup
+from guidedarm.diagrams.tasks.path_following.setup import Setup
 from guidedarm.systems.config_checks import CheckConfig, CheckInstance
 from guidedarm.systems.errors import ConfigurationError
 from guidedarm.systems.path_following.continuous_follower import ContinuousFollower
@@ -44,10 +44,7 @@ from guidedarm.systems.path_following.joint_moves import MovePlanner
 from guidedarm.systems.path_following.path_follower import PathFollower
 from guidedarm.systems.path_following.planner_moves import PlannerMoves
 from guidedarm.systems.path_following.tool_pose_ik import ToolPoseIk
-from guidedarm.systems.planning.acceleration_planner_math import (
-    AccelerationPlanning,
-    ArmKinematics,
-)
+from guidedarm.systems.planning.acceleration_planner_math import AccelerationPlanning, ArmKinematics
 from guidedarm.systems.plant_frames import GetScopedFrame
 from guidedarm.systems.tof.tof_tool_sensor import TOF_PORTS, ToFToolSensor
 
