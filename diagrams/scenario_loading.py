@@ -210,13 +210,16 @@ def _Times(count: int) -> str:
     return "twice" if count == 2 else f"{count} times"
 
 
-# Keys a scenario no longer has, and what replaced them: a scenario has one `random_seed`
-# from which every component draws its own stream (ToF noise, start pose, image noise); a
-# component's own seed left in a scenario (e.g. `degradation.seed`) must agree with it.
+# Keys a task scenario no longer has: (the key that replaced it, why). A scenario has one
+# `random_seed` from which every component draws its own stream (ToF noise, start pose,
+# image noise); a component's own seed left in a scenario (e.g. `degradation.seed`) must
+# agree with it. Path following has one `estimator`, read by every motion.
+_ONE_SEED = "one random seed per scenario; every component draws its own stream from it"
 REPLACED_KEYS = {
-    "seed": "random_seed",
-    "repeat_seed": "repeat_random_seed",
-    "start.seed": "random_seed",
+    "seed": ("random_seed", _ONE_SEED),
+    "repeat_seed": ("repeat_random_seed", _ONE_SEED),
+    "start.seed": ("random_seed", _ONE_SEED),
+    "follower.estimator": ("estimator", "one hose estimator per run, read by every motion"),
 }
 
 
@@ -308,15 +311,12 @@ def _refuse_replaced_keys(schema: Any, raw: dict[str, Any], source: str) -> None
     have a `random_seed`)."""
     if not (dataclasses.is_dataclass(schema) and "random_seed" in schema.__dataclass_fields__):
         return
-    for dotted, replacement in REPLACED_KEYS.items():
+    for dotted, (replacement, why) in REPLACED_KEYS.items():
         node: Any = raw
         for part in dotted.split("."):
             node = node.get(part, _MISSING) if isinstance(node, dict) else _MISSING
         if node is not _MISSING:
-            raise ScenarioError(
-                f"{source}: key '{dotted}' was replaced by '{replacement}' (one random seed per "
-                "scenario; every component draws its own stream from it)"
-            )
+            raise ScenarioError(f"{source}: key '{dotted}' was replaced by '{replacement}' ({why})")
 
 
 _MISSING = object()

@@ -379,8 +379,9 @@ BAD_INPUTS = [
     ("path-nan-tool-speed", Run(PF, "tool_speed=.nan"), "tool_speed"),
     ("path-inf-time", Run(PF, "max_time=.inf"), "max_time"),
     ("path-coverage-range", Run(PF, "min_coverage=1.5"), "in [0, 1]"),
-    ("path-executor", Run(PF, "executor=teleport"), "executor must be one of"),
-    ("path-motion", Run(PF, "motion=teleport"), "motion must be one of"),
+    ("path-executor", Run(PF, "executor=teleport"), "'executor': 'teleport' is not one of"),
+    ("path-motion", Run(PF, "motion=teleport"), "'motion': 'teleport' is not one of"),
+    ("path-estimator", Run(PF, "estimator=lidar"), "'estimator': 'lidar' is not one of"),
     ("continuous-speed", Run(PF, "continuous.speed=0"), "continuous.speed': must be > 0"),
     ("continuous-nan-gain", Run(PF, "continuous.servo_gain=.nan"), "continuous.servo_gain"),
     ("continuous-roll-weight", Run(PF, "continuous.roll_weight=2"), "continuous.roll_weight"),
@@ -494,7 +495,11 @@ BAD_INPUTS = [
     ("follower-steps", Run(PF, "follower.long_step=0.001"), "short_step <= long_step"),
     ("follower-reduction", Run(PF, "follower.rotation_reduction=1"), "[0, 1)"),
     ("follower-readings", Run(PF, "follower.readings=-2"), "follower.readings"),
-    ("follower-estimator-ignored", Run(PF, "follower.estimator=ranging"), "'estimator'"),
+    (
+        "follower-estimator-replaced",
+        Run(PF, "follower.estimator=ranging"),
+        "key 'follower.estimator' was replaced by 'estimator'",
+    ),
     ("ik-walls-gone", Run(PF, "ik.z_min=0.1"), "unknown key 'ik.z_min'"),
     ("ik-nan-tolerance", Run(PF, "ik.position_tolerance=.nan"), "ik.position_tolerance"),
     ("ik-down-axis", Run(PF, "ik.down_axis=[0,0,0]"), "nonzero 3-vector"),
@@ -746,7 +751,7 @@ BAD_INPUTS = [
     ),
     (
         "panel-ignores-hardware-section",
-        Run(PO, "station.hardware.arms.rover_arm={{port: 1}}", flags=("--hardware",)),
+        Run(PO, "station.hardware.arms.rover_arm=!NachiDriver {{port: 1}}", flags=("--hardware",)),
         "'station.hardware.arms' has no effect on panel_operation",
     ),
     (

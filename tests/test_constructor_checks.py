@@ -177,15 +177,15 @@ def test_the_path_follower_refuses_a_bad_period():
 
     _, scenario, _ = LoadScenario("path_following", [])
     s = MakeSetup(scenario)
-    PathFollower(s.params, s.mount, s.grid, s.q_start, s.motion, s.period)
+    PathFollower(s.follower, s.estimator, s.mount, s.grid, s.q_start, s.limits, s.period)
     for period, why in ((0.0, "> 0"), (-0.02, "> 0"), (NAN, "a finite number")):
         with pytest.raises(ConfigurationError, match=f"key 'period': must be {why}, got"):
-            PathFollower(s.params, s.mount, s.grid, s.q_start, s.motion, period)
-    motion = dataclasses.replace(s.motion, tool_speed=NAN)
+            PathFollower(s.follower, s.estimator, s.mount, s.grid, s.q_start, s.limits, period)
+    limits = dataclasses.replace(s.limits, tool_speed=NAN)
     with pytest.raises(ConfigurationError, match="key 'tool_speed'"):
-        PathFollower(s.params, s.mount, s.grid, s.q_start, motion, s.period)
+        PathFollower(s.follower, s.estimator, s.mount, s.grid, s.q_start, limits, s.period)
     with pytest.raises(ConfigurationError, match="key 'q_initial\\[0\\]'"):
-        PathFollower(s.params, s.mount, s.grid, [NAN] * 6, s.motion, s.period)
+        PathFollower(s.follower, s.estimator, s.mount, s.grid, [NAN] * 6, s.limits, s.period)
 
 
 def test_the_good_defaults_still_build():

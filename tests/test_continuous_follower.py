@@ -407,7 +407,7 @@ def _FollowerOnAHeldArm(ranges: list[float] | None = None):
     tool, or `ranges` (6, m) in place of its ranges."""
     from pydrake.systems.primitives import ConstantVectorSource
 
-    from guidedarm.diagrams.tasks.path_following.builder import MakeKinematicStation
+    from guidedarm.diagrams.station.kinematic_station import MakeKinematicStation
     from guidedarm.diagrams.tasks.path_following.setup import MakeSetup
     from guidedarm.diagrams.tasks.registry import LoadScenario
     from guidedarm.systems.path_following.continuous_follower import ContinuousFollower

@@ -100,5 +100,5 @@ def test_commands_stay_within_speed_and_acceleration_limits(blind_run):
     setup, _, q = blind_run
     v = np.diff(q, axis=0) / DT
     a = np.diff(v, axis=0) / DT
-    assert np.max(np.abs(v)) <= setup.motion.max_joint_speed + 1e-6
-    assert np.max(np.abs(a)) <= setup.motion.max_joint_acceleration * 1.05
+    assert np.max(np.abs(v)) <= setup.limits.max_joint_speed + 1e-6
+    assert np.max(np.abs(a)) <= setup.limits.max_joint_acceleration * 1.05

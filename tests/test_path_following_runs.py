@@ -157,11 +157,11 @@ def test_moves_through_the_acceleration_level_planner(tmp_path, capsys):
 @pytest.mark.parametrize(
     "override, message",
     [
-        ("motion=teleport", "motion must be one of ('joint_trajectory', 'planner', 'continuous')"),
+        ("motion=teleport", "key 'motion': 'teleport' is not one of 'joint_trajectory', 'planner'"),
         ("follower.readings=-1", "key 'follower.readings': must be >= 0"),
         ("max_joint_acceleration=0", "key 'max_joint_acceleration': must be > 0"),
         ("station.tof_tools.tof.cone_angle_deg=0", "cone_angle_deg': must be in (0, 180)"),
-        ("follower.estimator=ranging", "conflicts with the top-level key 'estimator' ('grid')"),
+        ("follower.estimator=ranging", "key 'follower.estimator' was replaced by 'estimator'"),
         (
             "station.tof_tools.tof.seed=3",
             "tof.seed (3) conflicts with the scenario's 'random_seed'",
@@ -212,7 +212,6 @@ def test_values_the_task_derives_are_taken_when_they_agree(tmp_path):
             "station.tof_tools.tof.target_radius=0.012",
             "station.hose.centerline=paper_path_1",
             "station.hose.frame=mz04d::base",
-            "follower.estimator=grid",
         ],
     )
     setup = MakeSetup(scenario, tmp_path)

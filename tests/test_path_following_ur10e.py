@@ -10,7 +10,7 @@ from pydrake.math import RigidTransform, RollPitchYaw
 from pydrake.multibody.parsing import LoadModelDirectivesFromString
 
 from guidedarm.diagrams.run_context import RunContext
-from guidedarm.diagrams.tasks.path_following.builder import MakeKinematicStation
+from guidedarm.diagrams.station.kinematic_station import MakeKinematicStation
 from guidedarm.diagrams.tasks.path_following.setup import MakeSetup
 from guidedarm.diagrams.tasks.registry import LoadScenario
 from guidedarm.systems.path_following.hose_geometry import ReadCenterline, WriteCenterline

@@ -36,8 +36,8 @@ def test_a_retrace_and_turn_ends_on_the_ik_pose_within_the_limits(planner_moves)
     dt = np.diff(move.times)
     qd = np.diff(move.q, axis=0) / dt[:, None]
     qdd = np.diff(qd, axis=0) / dt[1:, None]
-    assert np.max(np.abs(qd)) <= setup.motion.max_joint_speed + 1e-6
-    assert np.max(np.abs(qdd)) <= setup.motion.max_joint_acceleration + 1e-6
+    assert np.max(np.abs(qd)) <= setup.limits.max_joint_speed + 1e-6
+    assert np.max(np.abs(qdd)) <= setup.limits.max_joint_acceleration + 1e-6
     # It passes the middle stop (the start pose) on the way.
     assert np.min(np.max(np.abs(move.q - q0), axis=1)) < 0.002
 

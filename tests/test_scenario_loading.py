@@ -154,7 +154,8 @@ def test_a_rule_between_fields_names_the_set_that_broke_it():
         (
             "path_following",
             "motion=continuos",
-            "--set motion must be one of ('joint_trajectory', 'planner', 'continuous')",
+            "--set key 'motion': 'continuos' is not one of 'joint_trajectory', 'planner', "
+            "'continuous'",
         ),
         ("ur10e_waypoints", "limits=fast", "--set limits must be one of"),
         (

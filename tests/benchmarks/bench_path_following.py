@@ -12,7 +12,7 @@ from tempfile import TemporaryDirectory
 import numpy as np
 
 from guidedarm.diagrams.run_context import RunContext
-from guidedarm.diagrams.tasks.path_following.builder import MakeKinematicStation
+from guidedarm.diagrams.station.kinematic_station import MakeKinematicStation
 from guidedarm.diagrams.tasks.path_following.setup import MakeSetup
 from guidedarm.diagrams.tasks.registry import LoadScenario
 from guidedarm.systems.tof.tof_tool_sensor_math import RayCaster

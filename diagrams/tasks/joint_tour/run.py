@@ -17,13 +17,13 @@ from pydrake.trajectories import PiecewisePolynomial
 from guidedarm.diagrams.overlays.joint_tour_overlays import AddJointTourOverlays
 from guidedarm.diagrams.plots import PlotJointSeries
 from guidedarm.diagrams.run_context import AdvanceWithProgress, RunContext
-from guidedarm.diagrams.station.hardware_station import CheckArmAtStart
 from guidedarm.diagrams.station.station import MakeStation, TrueArmPositions
 from guidedarm.diagrams.station.station_plant import (
     ArmInitialPosition,
     CheckJointPositions,
     MakeMultibodyPlant,
 )
+from guidedarm.diagrams.tasks.common.start_pose import CheckArmAtStart
 from guidedarm.diagrams.tasks.common.tracking import DelayedTrackingError
 from guidedarm.diagrams.tasks.common.trajectory_csv import WriteTrajectoryCsv
 from guidedarm.diagrams.tasks.joint_tour.scenario import JointTourScenario

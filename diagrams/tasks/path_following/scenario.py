@@ -2,22 +2,32 @@
 keys, checked at load."""
 
 from dataclasses import dataclass, field
+from typing import Literal
 
 from guidedarm.diagrams.station.scenario import ArmConfig, StationScenario
-from guidedarm.systems.config_checks import ChangedKey, CheckFields, InRange, Positive
+from guidedarm.systems.config_checks import (
+    ChangedKey,
+    CheckFields,
+    InRange,
+    Positive,
+    TextChoices,
+)
 from guidedarm.systems.errors import ConfigurationError
 from guidedarm.systems.path_following.continuous_follower_math import ContinuousConfig
 from guidedarm.systems.path_following.hose_geometry import RandomPathConfig
-from guidedarm.systems.path_following.path_follower_math import FollowerConfig
+from guidedarm.systems.path_following.path_follower_math import Estimator, FollowerConfig
 from guidedarm.systems.path_following.tool_pose_ik_math import ToolPoseIkConfig
 from guidedarm.systems.path_following.workspace import WorkspaceConfig
 from guidedarm.systems.planning.acceleration_planner_config import CheckModeFields
 from guidedarm.systems.planning.acceleration_planner_math import PlannerConfig
 
-EXECUTORS = ("station", "kinematic")
-MOVES = ("joint_trajectory", "planner", "continuous")
+# How the arm is simulated: the station (servos, dynamics) or the kinematic station.
+Executor = Literal["station", "kinematic"]
+# How the arm moves between readings.
+Motion = Literal["joint_trajectory", "planner", "continuous"]
 
 
+@TextChoices
 @dataclass
 class PathFollowingScenario:
     """path: `paper_path_N`, another name in models/hoses/, or `random_<seed>`;
@@ -26,7 +36,8 @@ class PathFollowingScenario:
     the arm stay in; unset: the hose's own (models/hoses/NAME.yaml, or a NAME.yaml beside
     the CSV), else the paper's cell (x, y in [-0.55, 0.55], z >= 0.005);
     random_path: the region and shape of random paths (inside the workspace);
-    estimator: `grid` (the paper's) or `ranging`; random_seed: the scenario's random seed
+    estimator: the hose estimator of every reading, `grid` (the paper's) or `ranging`
+    (the follower's automatic settings depend on it); random_seed: the scenario's random seed
     (the ToF noise); repeat_random_seed: when set, a second run with this random seed is
     overlaid (repeatability); executor: `station`
     or `kinematic`; motion: how the arm moves, `joint_trajectory` (rest-to-rest joint moves
@@ -46,14 +57,14 @@ class PathFollowingScenario:
     path_csv: str = ""
     workspace: WorkspaceConfig | None = None
     random_path: RandomPathConfig = field(default_factory=RandomPathConfig)
-    estimator: str = "grid"
+    estimator: Estimator = "grid"
     random_seed: int = 0
     repeat_random_seed: int | None = None
-    executor: str = "station"
+    executor: Executor = "station"
     tool_speed: float = Positive(0.05)
     max_joint_speed: float = Positive(1.0)
     max_joint_acceleration: float = Positive(5.0)
-    motion: str = "joint_trajectory"
+    motion: Motion = "joint_trajectory"
     planner: PlannerConfig = field(default_factory=PlannerConfig)
     continuous: ContinuousConfig = field(default_factory=ContinuousConfig)
     period: float = Positive(0.01)
@@ -69,7 +80,7 @@ class PathFollowingScenario:
 
     def Validate(self) -> None:
         """Checked at load (CheckConfig): the fields' bounds, then the rules between the
-        keys (CheckScenarioRules: choices, the arm and ToF tool in the station, keys the
+        keys (CheckScenarioRules: the arm and ToF tool in the station, keys the
         chosen motion or executor would not read)."""
         CheckFields(self)
         CheckScenarioRules(self)
@@ -78,15 +89,6 @@ class PathFollowingScenario:
 def CheckScenarioRules(scenario: PathFollowingScenario) -> None:
     """The rules between the scenario's keys (PathFollowingScenario.Validate, after the
     fields' bounds)."""
-    if scenario.executor not in EXECUTORS:
-        raise ConfigurationError(f"executor must be one of {EXECUTORS}, got '{scenario.executor}'")
-    if scenario.motion not in MOVES:
-        raise ConfigurationError(f"motion must be one of {MOVES}, got '{scenario.motion}'")
-    if scenario.follower.estimator not in ("", scenario.estimator):
-        raise ConfigurationError(
-            f"follower.estimator '{scenario.follower.estimator}' conflicts with the top-level "
-            f"key 'estimator' ('{scenario.estimator}'): set that only"
-        )
     if scenario.arm not in scenario.station.arms or scenario.tof not in scenario.station.tof_tools:
         raise ConfigurationError(
             f"station must define arms.{scenario.arm} and tof_tools.{scenario.tof}"
@@ -144,8 +146,6 @@ def _CheckMotionKeys(scenario: PathFollowingScenario) -> None:
         if scenario.motion in motions:
             continue
         changed = ChangedKey(_Dotted(scenario, key), _Dotted(defaults, key), key)
-        if key == "follower" and changed == "follower.estimator":
-            continue
         if changed:
             raise ConfigurationError(
                 f"'{changed}' has no effect with motion={scenario.motion} (it is read only "

@@ -2,11 +2,12 @@
 
 `MakeSetup` reads the scenario without changing it. It loads the hose (a named path, a
 CSV file, or a seeded random path) in the arm's base frame B, checks it against the
-workspace, builds the IK on a controller plant of the arm and what it carries
-(MakeMultibodyPlant), solves the start pose, and returns a copy of the station scenario
-with what the task derives filled in: the hose's centerline and frame, the ToF noise seed
-and target radius, and the arm's start position. A scenario value that the task would
-have to change instead is refused with one line naming both keys.
+workspace, builds the station's plant once and from it the IK on a controller plant of
+the arm and what it carries (MakeMultibodyPlant), solves the start pose, and returns a
+copy of the station scenario with what the task derives filled in: the hose's centerline
+and frame, the ToF noise seed and target radius, and the arm's start position. A scenario
+value that the task would have to change instead is refused with one line naming both
+keys.
 """
 
 from __future__ import annotations
@@ -32,7 +33,7 @@ from guidedarm.diagrams.station.station_plant import (
     GetArmInstance,
     MakeMultibodyPlant,
 )
-from guidedarm.diagrams.tasks.path_following.scenario import PathFollowingScenario
+from guidedarm.diagrams.tasks.path_following.scenario import Motion, PathFollowingScenario
 from guidedarm.systems.config_checks import CheckConfig, CheckInstance
 from guidedarm.systems.errors import ConfigurationError, GuidedArmError
 from guidedarm.systems.path_following.continuous_follower_math import ContinuousConfig
@@ -51,6 +52,7 @@ from guidedarm.systems.path_following.hose_reach import (
 )
 from guidedarm.systems.path_following.joint_moves import MotionLimits
 from guidedarm.systems.path_following.path_follower_math import (
+    Estimator,
     FollowerConfig,
     OrientationFromVector,
     ToolMount,
@@ -73,9 +75,10 @@ class Setup:
         name) and the ToF tool's key in station.tof_tools.
     base_frame, X_WB: the arm's base frame B (scoped name) and its pose in the world.
     workspace: the walls (m, frame B).
-    params: the follower's resolved parameters; motion: move limits; moves: `joint_trajectory`,
-        `planner` (with `planner`) or `continuous` (with `continuous`); period: follower and
-        IK tick (s); max_time (s).
+    estimator: the hose estimator, `grid` or `ranging`; follower: the follower's parameters
+        (PathFollower resolves them for the estimator); limits: move limits; motion:
+        `joint_trajectory`, `planner` (with `planner`) or `continuous` (with
+        `continuous`); period: follower and IK tick (s); max_time (s).
     centerline_B, centerline: the hose's centerline (N, 3; m) in B and in W; hose_source:
         the CSV or named path it came from.
     solver: the IK (on the controller plant); mount: X_GT as the paper's l_e and angles;
@@ -89,9 +92,10 @@ class Setup:
     base_frame: str
     X_WB: RigidTransform
     workspace: WorkspaceConfig
-    params: FollowerConfig
-    motion: MotionLimits
-    moves: str
+    estimator: Estimator
+    follower: FollowerConfig
+    limits: MotionLimits
+    motion: Motion
     planner: PlannerConfig
     continuous: ContinuousConfig
     period: float
@@ -114,13 +118,20 @@ def MakeSetup(scenario: PathFollowingScenario, out_dir: Path | None = None) -> S
     CheckConfig(scenario)
     station = copy.deepcopy(scenario.station)
     base_frame = scenario.base_frame or f"{scenario.arm}::base"
-    X_WB = FixedFramePose(station, base_frame, "base_frame")
+    plant = MakeMultibodyPlant(station)
+    X_WB = FixedFramePose(plant, base_frame, "base_frame")
     workspace = _Workspace(scenario)
     tof = station.tof_tools[scenario.tof]
     _ResolveToF(scenario, station)
-    params = dataclasses.replace(scenario.follower, estimator=scenario.estimator).Resolved()
     solver = MakeSolver(
-        station, scenario.arm, scenario.gripper_frame, scenario.tof, scenario.ik, workspace, X_WB
+        station,
+        plant,
+        scenario.arm,
+        scenario.gripper_frame,
+        scenario.tof,
+        scenario.ik,
+        workspace,
+        X_WB,
     )
     mount = ToolMount.FromTransform(_ToolInGripper(solver.plant, scenario.gripper_frame, tof))
     q_home = ArmInitialPosition(solver.plant, scenario.arm, station.arms[scenario.arm])
@@ -148,13 +159,14 @@ def MakeSetup(scenario: PathFollowingScenario, out_dir: Path | None = None) -> S
         base_frame=base_frame,
         X_WB=X_WB,
         workspace=workspace,
-        params=params,
-        motion=MotionLimits(
+        estimator=scenario.estimator,
+        follower=scenario.follower,
+        limits=MotionLimits(
             scenario.tool_speed,
             scenario.max_joint_speed,
             max_joint_acceleration=scenario.max_joint_acceleration,
         ),
-        moves=scenario.motion,
+        motion=scenario.motion,
         planner=scenario.planner,
         continuous=scenario.continuous,
         period=scenario.period,
@@ -278,6 +290,7 @@ def _RandomHoseFile(centerline_B: np.ndarray, out_dir: Path | None) -> Path:
 
 def MakeSolver(
     station: StationScenario,
+    plant: MultibodyPlant,
     arm: str,
     gripper_frame: str,
     tool_name: str,
@@ -286,9 +299,11 @@ def MakeSolver(
     X_WB: RigidTransform,
 ) -> ToolPoseSolver:
     """The IK of the gripper frame G holding the ToF tool's centre O on target, on a
-    controller plant of the arm and what it carries (MakeMultibodyPlant, no hose), with the
-    workspace walls in the base frame B (pose X_WB)."""
-    plant = MakeMultibodyPlant(station, ArmAndAttachments(MakeMultibodyPlant(station), arm))
+    controller plant of the arm and what it carries (MakeMultibodyPlant, no hose; `plant`:
+    the station's, MakeMultibodyPlant(station)), with the workspace walls in the base
+    frame B (pose X_WB)."""
+    names = ArmAndAttachments(plant, arm)
+    plant = MakeMultibodyPlant(station, names, whole=plant)
     gripper = GetScopedFrame(plant, gripper_frame, "gripper_frame")
     tof = station.tof_tools[tool_name]
     tool = GetScopedFrame(plant, tof.tool_frame, f"station.tof_tools.{tool_name}.tool_frame")
