@@ -21,8 +21,6 @@ from __future__ import annotations
 import argparse
 import dataclasses
 import re
-import types
-import typing
 from collections.abc import Iterable
 from pathlib import Path
 from typing import Any, TypeVar
@@ -30,16 +28,19 @@ from typing import Any, TypeVar
 import yaml
 from pydrake.common.yaml import yaml_dump, yaml_load_data, yaml_load_typed
 
+from guidedarm.diagrams.scenario_schema import (
+    CheckRawNode,
+    FirstLine,
+    JoinKey,
+    ScenarioError,
+)
+from guidedarm.diagrams.station.hardware_config import RefuseReplacedDriverKeys
 from guidedarm.systems.config_checks import CheckConfig, FieldError
 from guidedarm.systems.errors import ConfigurationError
 
 SCENARIO_DIR = Path(__file__).resolve().parent / "scenarios"
 
 T = TypeVar("T")
-
-
-class ScenarioError(ConfigurationError):
-    """A scenario file or override is malformed; the message names the file and the key."""
 
 
 def resolve_scenario_path(name_or_path: str) -> Path:
@@ -100,7 +101,7 @@ def parse_overrides(items: list[str]) -> dict[str, Any]:
             overrides[key] = yaml_load_data(text)["value"]
         except Exception as e:  # the YAML parser's own message is the useful part
             raise ScenarioError(
-                f"--set {key}: cannot parse value '{value}': {_first_line(e)}"
+                f"--set {key}: cannot parse value '{value}': {FirstLine(e)}"
             ) from None
         RefuseDuplicateKeys(value, f"--set {key}", lines=False)
         given.setdefault(key, []).append(value)
@@ -149,7 +150,7 @@ def read_raw_scenario(path: Path) -> dict[str, Any]:
         text = Path(path).read_text()
         raw = yaml_load_data(text)
     except Exception as e:
-        raise ScenarioError(f"{path}: malformed YAML: {_first_line(e)}") from None
+        raise ScenarioError(f"{path}: malformed YAML: {FirstLine(e)}") from None
     RefuseDuplicateKeys(text, str(path))
     if not isinstance(raw, dict):
         raise ScenarioError(f"{path}: the top level must be a mapping of scenario keys")
@@ -192,10 +193,10 @@ def _FindDuplicateKey(node: Any, key: str, seen: set[int]) -> tuple[str, list[in
             if name_node.tag == "tag:yaml.org,2002:merge":
                 continue
             where.setdefault(name, []).append(name_node.start_mark.line + 1)
-            children.append((_join(key, name), value))
+            children.append((JoinKey(key, name), value))
         for name, found in where.items():
             if len(found) > 1:
-                return _join(key, name), found
+                return JoinKey(key, name), found
     else:
         return None
     for child_key, child in children:
@@ -209,13 +210,16 @@ def _Times(count: int) -> str:
     return "twice" if count == 2 else f"{count} times"
 
 
-# Keys a scenario no longer has, and what replaced them: a scenario has one `random_seed`
-# from which every component draws its own stream (ToF noise, start pose, image noise); a
-# component's own seed left in a scenario (e.g. `degradation.seed`) must agree with it.
+# Keys a task scenario no longer has: (the key that replaced it, why). A scenario has one
+# `random_seed` from which every component draws its own stream (ToF noise, start pose,
+# image noise); a component's own seed left in a scenario (e.g. `degradation.seed`) must
+# agree with it. Path following has one `estimator`, read by every motion.
+_ONE_SEED = "one random seed per scenario; every component draws its own stream from it"
 REPLACED_KEYS = {
-    "seed": "random_seed",
-    "repeat_seed": "repeat_random_seed",
-    "start.seed": "random_seed",
+    "seed": ("random_seed", _ONE_SEED),
+    "repeat_seed": ("repeat_random_seed", _ONE_SEED),
+    "start.seed": ("random_seed", _ONE_SEED),
+    "follower.estimator": ("estimator", "one hose estimator per run, read by every motion"),
 }
 
 
@@ -238,6 +242,17 @@ def _refuse_moved_keys(raw: dict[str, Any], source: str) -> None:
                 )
 
 
+def _refuse_driver_keys(raw: dict[str, Any], source: str) -> None:
+    """An arm's `driver` or a ToF tool's `transport` under station.hardware is refused
+    naming the YAML tag that replaced it (RefuseReplacedDriverKeys)."""
+    station = raw.get("station")
+    if isinstance(station, dict):
+        try:
+            RefuseReplacedDriverKeys(station.get("hardware"), "station.hardware")
+        except FieldError as e:
+            raise ScenarioError(f"{source}: {e}") from None
+
+
 def load_typed(
     schema: type[T], raw: dict[str, Any], source: str, overridden: Iterable[str] = ()
 ) -> T:
@@ -247,11 +262,12 @@ def load_typed(
     try:
         _refuse_replaced_keys(schema, raw, source)
         _refuse_moved_keys(raw, source)
-        _check_node(schema, raw, "", source)
+        _refuse_driver_keys(raw, source)
+        CheckRawNode(schema, raw, "", source)
         try:
             typed = yaml_load_typed(schema=schema, data=yaml_dump(raw))
         except Exception as e:
-            raise ScenarioError(f"{source}: {_first_line(e)}") from None
+            raise ScenarioError(f"{source}: {FirstLine(e)}") from None
         try:
             CheckConfig(typed)
         except ConfigurationError as e:
@@ -295,121 +311,12 @@ def _refuse_replaced_keys(schema: Any, raw: dict[str, Any], source: str) -> None
     have a `random_seed`)."""
     if not (dataclasses.is_dataclass(schema) and "random_seed" in schema.__dataclass_fields__):
         return
-    for dotted, replacement in REPLACED_KEYS.items():
+    for dotted, (replacement, why) in REPLACED_KEYS.items():
         node: Any = raw
         for part in dotted.split("."):
             node = node.get(part, _MISSING) if isinstance(node, dict) else _MISSING
         if node is not _MISSING:
-            raise ScenarioError(
-                f"{source}: key '{dotted}' was replaced by '{replacement}' (one random seed per "
-                "scenario; every component draws its own stream from it)"
-            )
+            raise ScenarioError(f"{source}: key '{dotted}' was replaced by '{replacement}' ({why})")
 
 
 _MISSING = object()
-
-
-def _check_node(schema: Any, value: Any, key: str, source: str) -> None:
-    """Walks `value` against `schema` so that errors name the dotted key (Drake's don't)."""
-
-    def fail(why: str) -> None:
-        raise ScenarioError(f"{source}: key '{key or '<top>'}': {why}")
-
-    origin = typing.get_origin(schema)
-    if origin in (typing.Union, types.UnionType):
-        members = typing.get_args(schema)
-        if value is None and type(None) in members:
-            return
-        errors = []
-        for member in (m for m in members if m is not type(None)):
-            try:
-                _check_node(member, value, key, source)
-                return
-            except ScenarioError as e:
-                errors.append(str(e))
-        fail(f"matches none of {[getattr(m, '__name__', str(m)) for m in members]}")
-    if origin is list:
-        if not isinstance(value, list):
-            fail(f"expected a list, got {value!r}")
-        (item_schema,) = typing.get_args(schema) or (Any,)
-        for i, item in enumerate(value):
-            _check_node(item_schema, item, f"{key}[{i}]", source)
-        return
-    if origin is dict:
-        if not isinstance(value, dict):
-            fail(f"expected a mapping, got {value!r}")
-        _, item_schema = typing.get_args(schema) or (str, Any)
-        for name, item in value.items():
-            _check_node(item_schema, item, _join(key, str(name)), source)
-        return
-    if dataclasses.is_dataclass(schema):
-        if not isinstance(value, dict):
-            fail(f"expected a mapping of {schema.__name__} fields, got {value!r}")
-        hints = typing.get_type_hints(schema)
-        known = {f.name for f in dataclasses.fields(schema)}
-        for name, item in value.items():
-            if name not in known:
-                raise ScenarioError(
-                    f"{source}: unknown key '{_join(key, name)}' "
-                    f"(known keys: {', '.join(sorted(known))})"
-                )
-            _check_node(hints[name], item, _join(key, name), source)
-        return
-    if schema is bool:
-        if not isinstance(value, bool):
-            fail(f"expected true or false, got {value!r}")
-    elif schema is float:
-        number = isinstance(value, int | float) or (isinstance(value, str) and _is_number(value))
-        if isinstance(value, bool) or not number:
-            fail(f"expected a number, got {value!r}")
-    elif schema is int:
-        if isinstance(value, bool) or not isinstance(value, int):
-            fail(f"expected an integer, got {value!r}")
-    elif schema is str:
-        if not isinstance(value, str):
-            fail(f"expected a string, got {value!r}")
-    elif hasattr(schema, "__fields__"):
-        _check_bound_struct(schema, value, key, source)
-
-
-def _check_bound_struct(schema: Any, value: Any, key: str, source: str) -> None:
-    """Drake's C++ structs (CameraConfig, Transform, ...): check field by field."""
-    if not isinstance(value, dict):
-        raise ScenarioError(f"{source}: key '{key}': expected a mapping of {schema.__name__}")
-    fields = {f.name: f.type for f in schema.__fields__}
-    for name, item in value.items():
-        if name == "_tag":
-            continue
-        if name not in fields:
-            raise ScenarioError(
-                f"{source}: unknown key '{_join(key, name)}' "
-                f"(known keys: {', '.join(sorted(fields))})"
-            )
-        if hasattr(fields[name], "__fields__"):
-            _check_bound_struct(fields[name], item, _join(key, name), source)
-            continue
-        try:
-            yaml_load_typed(schema=schema, data=yaml_dump({name: item}))
-        except Exception as e:
-            text = _first_line(e)
-            if "incompatible function arguments" in text:
-                text = f"wrong shape or type: {item!r}"
-            raise ScenarioError(f"{source}: key '{_join(key, name)}': {text}") from None
-
-
-def _is_number(text: str) -> bool:
-    """Whether YAML text that was read as a string is a number (`1e-3`, `nan`)."""
-    try:
-        float(text)
-    except ValueError:
-        return False
-    return True
-
-
-def _join(prefix: str, name: str) -> str:
-    return f"{prefix}.{name}" if prefix else name
-
-
-def _first_line(error: Exception) -> str:
-    lines = [line.strip() for line in str(error).splitlines() if line.strip()]
-    return lines[0] if lines else type(error).__name__

@@ -18,13 +18,13 @@ from pydrake.common.yaml import yaml_load_typed
 from pydrake.math import RollPitchYaw
 from pydrake.systems.framework import DiagramBuilder
 
-from guidedarm.diagrams.station.scenario import StationScenario
-from guidedarm.diagrams.station.station import MakeStation
-from guidedarm.diagrams.tasks.panel_files import (
+from guidedarm.diagrams.panel.panel_files import (
     DEFAULT_PANEL_FILE,
     IntrinsicsFromCameraConfig,
     LoadPanelSpec,
 )
+from guidedarm.diagrams.station.scenario import StationScenario
+from guidedarm.diagrams.station.station import MakeStation
 from guidedarm.systems.markers.marker_pose_estimator import MarkerPoseEstimator
 from guidedarm.systems.markers.marker_pose_estimator_math import MarkerPoseSolver
 

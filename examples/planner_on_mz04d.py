@@ -22,7 +22,7 @@ from guidedarm.diagrams.overlays.waypoint_overlays import AddWaypointOverlays
 from guidedarm.diagrams.run_context import MakeMeshcat, SaveReplay, StartReplay
 from guidedarm.diagrams.station.scenario import ArmConfig, StationScenario
 from guidedarm.diagrams.station.station import MakeStation
-from guidedarm.diagrams.tasks.planner_builder import MakeAccelerationPlanner
+from guidedarm.diagrams.tasks.common.planner_builder import MakeAccelerationPlanner
 from guidedarm.systems.planning.acceleration_planner_state import PlannerState
 
 scenario = StationScenario(

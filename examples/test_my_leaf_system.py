@@ -11,8 +11,8 @@ Run:  .venv/bin/pytest examples/test_my_leaf_system.py
 import numpy as np
 from pydrake.systems.sensors import CameraConfig, ImageRgba8U
 
-from guidedarm.diagrams.tasks.panel_camera_rig import LookAt, PanelCameraRig
-from guidedarm.diagrams.tasks.panel_files import DEFAULT_PANEL_FILE, LoadPanelSpec
+from guidedarm.diagrams.panel.panel_camera_rig import LookAt, PanelCameraRig
+from guidedarm.diagrams.panel.panel_files import DEFAULT_PANEL_FILE, LoadPanelSpec
 from guidedarm.systems.markers.image_degradation import DegradationConfig, ImageDegradation
 from guidedarm.systems.markers.marker_pose_estimator import MarkerPoseEstimator
 from guidedarm.systems.markers.marker_pose_estimator_math import MarkerPoseSolver

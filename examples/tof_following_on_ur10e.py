@@ -20,10 +20,10 @@ from pydrake.systems.primitives import LogVectorOutput
 from guidedarm.diagrams.scenario_loading import SCENARIO_DIR
 from guidedarm.diagrams.station.station import MakeStation
 from guidedarm.diagrams.tasks.path_following import PathFollowingScenario
-from guidedarm.diagrams.tasks.path_following_diagram import AddPathFollowing
-from guidedarm.diagrams.tasks.path_following_execution import LastRecordPerStep
-from guidedarm.diagrams.tasks.path_following_report import Metrics
-from guidedarm.diagrams.tasks.path_following_setup import MakeSetup
+from guidedarm.diagrams.tasks.path_following.builder import AddPathFollowing
+from guidedarm.diagrams.tasks.path_following.execution import LastRecordPerStep
+from guidedarm.diagrams.tasks.path_following.report import Metrics
+from guidedarm.diagrams.tasks.path_following.setup import MakeSetup
 
 parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
 parser.add_argument("--estimator", choices=["grid", "ranging"], default="grid")

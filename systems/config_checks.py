@@ -13,12 +13,17 @@ Every scenario, camera and panel file is checked by CheckConfig right after its 
     or a float (not a bool), a bool a bool, a str a str, list[T] a list (tuple, array) of
     T, dict[K, V] a dict of V, `T | None` None or a T, a config class an instance of it;
     other annotations are not checked;
+  - a text choice is annotated `typing.Literal["a", "b"]` and holds one of its values;
+    its class is decorated with TextChoices, which lets pydrake's yaml_load_typed (that
+    knows no Literal) read the field as a str;
   - Drake's structs inside a schema (MultibodyPlantConfig, SimulatorConfig, CameraConfig,
     Transform, ...) are walked the same way, with the bounds of DRAKE_BOUNDS and the
     checks of DRAKE_CHECKS;
   - a dataclass with a `Validate()` method is checked by it: Validate() calls
     CheckFields(self) first, then checks the rules between its fields.
-Every comparison is written so that NaN fails it (`not value > low`).
+Every comparison is written so that NaN fails it (`not value > low`). The bounds are
+declared with systems/config_bounds.py, those of Drake's structs in
+systems/drake_config_checks.py.
 Errors are FieldError: one line naming the dotted key, e.g. `key 'station.arms.ur10e.kp':
 must be > 0, got nan`.
 """
@@ -27,103 +32,51 @@ from __future__ import annotations
 
 import dataclasses
 import functools
-import math
 import numbers
 import types
 import typing
-from collections.abc import Callable
-from dataclasses import MISSING, dataclass
 from typing import Any
 
 import numpy as np
-from pydrake.geometry import Rgba
-from pydrake.multibody.plant import MultibodyPlantConfig
-from pydrake.systems.analysis import GetIntegrationSchemes, SimulatorConfig
-from pydrake.systems.sensors import CameraConfig
-from pydrake.visualization import VisualizationConfig
 
+from guidedarm.systems.config_bounds import (
+    BOUND_KEY,
+    FINITE,
+    MAX_JOINT_POSITION,
+    NON_NEGATIVE,
+    POSITIVE,
+    Bound,
+    Bounded,
+    FieldError,
+    InRange,
+    NonNegative,
+    Positive,
+)
+from guidedarm.systems.drake_config_checks import DRAKE_BOUNDS, DRAKE_CHECKS
 from guidedarm.systems.errors import ConfigurationError
 
-_BOUND = "guidedarm.bound"
-
-
-class FieldError(ConfigurationError):
-    """A config value is out of its bounds; `key` is its dotted path in the config tree."""
-
-    def __init__(self, key: str, why: str) -> None:
-        self.key = key
-        self.why = why
-        super().__init__(f"key '{key}': {why}" if key else why)
-
-
-@dataclass(frozen=True)
-class Bound:
-    """An interval for a number (both ends included unless open), and whether +-inf is
-    admissible."""
-
-    low: float = -math.inf
-    high: float = math.inf
-    low_open: bool = False
-    high_open: bool = False
-    allow_inf: bool = False
-
-    def Violation(self, value: float) -> str | None:
-        """Why `value` is out of bounds, or None; NaN is always out."""
-        if not (self.allow_inf or math.isfinite(value)):
-            return f"must be a finite number, got {value}"
-        above = value > self.low if self.low_open else value >= self.low
-        below = value < self.high if self.high_open else value <= self.high
-        if not (above and below):
-            return f"must be {self}, got {value}"
-        return None
-
-    def __str__(self) -> str:
-        if self.high == math.inf:
-            return f"{'>' if self.low_open else '>='} {self.low:g}"
-        if self.low == -math.inf:
-            return f"{'<' if self.high_open else '<='} {self.high:g}"
-        left, right = "(" if self.low_open else "[", ")" if self.high_open else "]"
-        return f"in {left}{self.low:g}, {self.high:g}{right}"
-
-
-FINITE = Bound()
-POSITIVE = Bound(low=0.0, low_open=True)
-NON_NEGATIVE = Bound(low=0.0)
-UNIT_INTERVAL = Bound(low=0.0, high=1.0)
-# A joint position (rad) beyond two turns either way is no joint of our arms (UR10e joints
-# span +-2 pi); it bounds every joint vector of a scenario.
-MAX_JOINT_POSITION = 4 * math.pi
-# The most pixels a camera renders (width x height, after supersampling): 64 MP, above
-# the 1920 x 1080 x 3^2 = 18.7 MP of the shipped panel camera; beyond, VTK's buffers fail.
-MAX_RENDER_PIXELS = 64_000_000
-
-
-def Positive(default: Any = MISSING, *, factory: Any = MISSING, allow_inf: bool = False) -> Any:
-    """A dataclass field whose value (or each element) must be > 0."""
-    return Bounded(Bound(low=0.0, low_open=True, allow_inf=allow_inf), default, factory)
-
-
-def NonNegative(default: Any = MISSING, *, factory: Any = MISSING) -> Any:
-    """A dataclass field whose value (or each element) must be >= 0."""
-    return Bounded(NON_NEGATIVE, default, factory)
-
-
-def InRange(
-    low: float,
-    high: float,
-    default: Any = MISSING,
-    *,
-    factory: Any = MISSING,
-    low_open: bool = False,
-    high_open: bool = False,
-) -> Any:
-    """A dataclass field whose value (or each element) must lie between low and high."""
-    return Bounded(Bound(low, high, low_open, high_open), default, factory)
-
-
-def Bounded(bound: Bound, default: Any = MISSING, factory: Any = MISSING) -> Any:
-    """A dataclass field carrying `bound` (see the module docstring)."""
-    return dataclasses.field(default=default, default_factory=factory, metadata={_BOUND: bound})
+# The field helpers and bounds are used with the checks: one import for both.
+__all__ = [
+    "FINITE",
+    "MAX_JOINT_POSITION",
+    "NON_NEGATIVE",
+    "POSITIVE",
+    "Bound",
+    "Bounded",
+    "ChangedKey",
+    "CheckArgument",
+    "CheckConfig",
+    "CheckFields",
+    "CheckInstance",
+    "CheckNames",
+    "CheckVector",
+    "ChoiceViolation",
+    "FieldError",
+    "InRange",
+    "NonNegative",
+    "Positive",
+    "TextChoices",
+]
 
 
 def CheckConfig(config: Any, key: str = "") -> None:
@@ -217,6 +170,32 @@ def CheckNames(name: str, value: Any) -> None:
             raise FieldError(f"{name}[{i}]", f"expected a name, got {item!r}")
 
 
+def TextChoices(cls: type) -> type:
+    """Class decorator of a config dataclass whose text choices are `typing.Literal`
+    fields: pydrake's yaml_load_typed reads a field by its dataclass Field.type and knows
+    no Literal, so that type becomes `str` (or `str | None`); the annotation keeps the
+    Literal, which CheckFields enforces (a value outside it is refused naming the key and
+    the values allowed)."""
+    for f in dataclasses.fields(cls):
+        hint = f.type
+        optional = typing.get_origin(hint) in (typing.Union, types.UnionType)
+        inner = [a for a in typing.get_args(hint) if a is not type(None)] if optional else [hint]
+        if len(inner) == 1 and typing.get_origin(inner[0]) is typing.Literal:
+            f.type = str | None if optional else str
+    return cls
+
+
+def ChoiceViolation(value: Any, annotation: Any) -> str | None:
+    """Why `value` is not one of the values of the `typing.Literal` annotation, or None
+    (also None when `annotation` is no Literal)."""
+    if typing.get_origin(annotation) is not typing.Literal:
+        return None
+    choices = typing.get_args(annotation)
+    if value in choices and isinstance(value, str):
+        return None
+    return f"{value!r} is not one of {', '.join(repr(c) for c in choices)}"
+
+
 @functools.cache
 def _TypeHints(cls: type) -> dict[str, Any]:
     """The resolved field annotations of a dataclass type ({} if they cannot be resolved)."""
@@ -233,14 +212,20 @@ def _CheckType(value: Any, annotation: Any) -> None:
     if origin in (typing.Union, types.UnionType):
         if value is None and type(None) in args:
             return
+        options = [a for a in args if a is not type(None)]
+        if all(dataclasses.is_dataclass(a) for a in options) and not isinstance(
+            value, tuple(options)
+        ):  # a tagged union (Drake's variant) holds one of its classes
+            names = " or ".join(a.__name__ for a in options)
+            raise FieldError("", f"expected {names}, got {value!r}")
         errors = []
-        for option in (a for a in args if a is not type(None)):
+        for option in options:
             try:
                 return _CheckType(value, option)
             except FieldError as e:
                 errors.append(e)
         raise errors[0]
-    why = _Mismatch(value, annotation, origin)
+    why = ChoiceViolation(value, annotation) or _Mismatch(value, annotation, origin)
     if why is not None:
         raise FieldError("", why)
     if origin in (list, dict) and args:
@@ -278,7 +263,7 @@ def _Mismatch(value: Any, annotation: Any, origin: Any) -> str | None:
 def _Fields(config: Any) -> list[tuple[str, Any, Bound | None]]:
     if dataclasses.is_dataclass(config):
         return [
-            (f.name, getattr(config, f.name), f.metadata.get(_BOUND))
+            (f.name, getattr(config, f.name), f.metadata.get(BOUND_KEY))
             for f in dataclasses.fields(config)
         ]
     bounds = DRAKE_BOUNDS.get(type(config), {})
@@ -331,88 +316,3 @@ def _Under(prefix: str, error: ConfigurationError) -> FieldError:
         return FieldError(prefix, error.why)
     joiner = "" if error.key.startswith("[") else "."
     return FieldError(f"{prefix}{joiner}{error.key}", error.why)
-
-
-def _CheckCamera(config: CameraConfig) -> None:
-    CheckRenderSize(config, 1)
-    try:
-        config.MakeCameras()
-    except Exception as e:  # Drake lists every problem, one per line
-        raise FieldError("", " ".join(str(e).split())) from None
-
-
-def CheckRenderSize(config: CameraConfig, supersampling: int, key: str = "") -> None:
-    """Refuses a camera whose rendered image (width x height x supersampling^2) exceeds
-    MAX_RENDER_PIXELS; `key` names the supersampling in the message."""
-    pixels = config.width * config.height * supersampling**2
-    if pixels > MAX_RENDER_PIXELS:
-        by = f" x {key}^2 ({supersampling**2})" if key else ""
-        raise FieldError(
-            "",
-            f"renders {config.width} x {config.height}{by} = {pixels:,} pixels, more than "
-            f"{MAX_RENDER_PIXELS:,}",
-        )
-
-
-def _CheckPlantConfig(config: MultibodyPlantConfig) -> None:
-    # Drake reads these names only when a plant is built; an empty one checks them.
-    from pydrake.multibody.plant import AddMultibodyPlant
-    from pydrake.systems.framework import DiagramBuilder
-
-    try:
-        AddMultibodyPlant(config, DiagramBuilder())
-    except Exception as e:
-        raise FieldError("", str(e).strip().splitlines()[0]) from None
-
-
-def _CheckSimulatorConfig(config: SimulatorConfig) -> None:
-    schemes = GetIntegrationSchemes()
-    if config.integration_scheme not in schemes:
-        raise FieldError(
-            "integration_scheme",
-            f"unknown scheme '{config.integration_scheme}' (known: {', '.join(schemes)})",
-        )
-
-
-# Bounds of the numeric fields of Drake's structs used inside our schemas (their floats
-# are finite and their ints >= 0 by the general rules): a plant steps at most 0.1 s (0
-# is continuous), a camera is at most 16384 pixels wide or high.
-DRAKE_BOUNDS: dict[type, dict[str, Bound]] = {
-    MultibodyPlantConfig: {
-        "time_step": Bound(0.0, 0.1),
-        "penetration_allowance": POSITIVE,
-        "stiction_tolerance": POSITIVE,
-        "sap_near_rigid_threshold": NON_NEGATIVE,
-    },
-    SimulatorConfig: {
-        "max_step_size": POSITIVE,
-        "accuracy": POSITIVE,
-        "start_time": NON_NEGATIVE,
-        "target_realtime_rate": NON_NEGATIVE,
-    },
-    CameraConfig: {
-        "width": Bound(1, 16384),
-        "height": Bound(1, 16384),
-        "clipping_near": POSITIVE,
-        "clipping_far": POSITIVE,
-        "z_near": POSITIVE,
-        "z_far": POSITIVE,
-        "fps": POSITIVE,
-        "capture_offset": NON_NEGATIVE,
-        "output_delay": NON_NEGATIVE,
-    },
-    CameraConfig.FocalLength: {"x": POSITIVE, "y": POSITIVE},
-    CameraConfig.FovDegrees: {
-        "x": Bound(0.0, 180.0, True, True),
-        "y": Bound(0.0, 180.0, True, True),
-    },
-    VisualizationConfig: {"publish_period": POSITIVE, "initial_proximity_alpha": UNIT_INTERVAL},
-    Rgba: {"rgba": UNIT_INTERVAL},
-}
-
-# Rules between the fields of Drake's structs, checked after their bounds.
-DRAKE_CHECKS: dict[type, Callable[[Any], None]] = {
-    CameraConfig: _CheckCamera,
-    MultibodyPlantConfig: _CheckPlantConfig,
-    SimulatorConfig: _CheckSimulatorConfig,
-}

@@ -8,7 +8,7 @@ import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from guidedarm.diagrams.cli.command_run import LoadScenario
+from guidedarm.diagrams.tasks.registry import LoadScenario
 from guidedarm.diagrams.tasks.waypoints import MakePlannerSetup
 from guidedarm.systems.planning.acceleration_planner_kinematics import PlanningError
 from guidedarm.systems.planning.acceleration_planner_limits import JerkWindow, StepBounds

@@ -8,8 +8,8 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 from pydrake.math import RollPitchYaw, RotationMatrix
 
-from guidedarm.diagrams.cli.command_run import LoadScenario
 from guidedarm.diagrams.cli.main import main
+from guidedarm.diagrams.tasks.registry import LoadScenario
 from guidedarm.diagrams.tasks.waypoints import MakePlannerSetup
 from guidedarm.systems.planning.acceleration_planner_kinematics import (
     DampedSolve,

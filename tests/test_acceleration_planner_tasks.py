@@ -6,7 +6,7 @@ from pydrake.systems.analysis import Simulator
 from pydrake.systems.framework import DiagramBuilder
 from pydrake.systems.primitives import ConstantVectorSource, VectorLogSink
 
-from guidedarm.diagrams.cli.command_run import LoadScenario
+from guidedarm.diagrams.tasks.registry import LoadScenario
 from guidedarm.diagrams.tasks.waypoints import MakePlannerSetup
 from guidedarm.systems.planning.acceleration_planner import AccelerationPlanner
 from guidedarm.systems.planning.acceleration_planner_kinematics import WrapAngle

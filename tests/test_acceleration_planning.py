@@ -5,7 +5,7 @@ import numpy as np
 import pytest
 from pydrake.math import RollPitchYaw, RotationMatrix
 
-from guidedarm.diagrams.cli.command_run import LoadScenario
+from guidedarm.diagrams.tasks.registry import LoadScenario
 from guidedarm.diagrams.tasks.waypoints import MakePlannerSetup
 from guidedarm.systems.errors import ConfigurationError
 from guidedarm.systems.planning.acceleration_planner_kinematics import (

@@ -108,8 +108,8 @@ def test_every_leaf_system_and_port_is_in_the_api_doc(name):
 
 def test_the_port_reader_matches_built_systems():
     """Static reading = the ports of real instances (all variants of conditional ones)."""
-    from guidedarm.diagrams.cli.command_run import LoadScenario
     from guidedarm.diagrams.station.station import MakeStation
+    from guidedarm.diagrams.tasks.registry import LoadScenario
     from guidedarm.systems.markers.image_degradation import DegradationConfig, ImageDegradation
     from guidedarm.systems.markers.marker_pose_estimator import MarkerPoseEstimator
     from guidedarm.systems.markers.marker_pose_estimator_math import (

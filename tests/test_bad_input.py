@@ -21,11 +21,11 @@ import cv2
 import numpy as np
 import pytest
 
-from guidedarm.diagrams.cli.command_run import LoadScenario, RunTask
+from guidedarm.diagrams.panel.panel_files import DEFAULT_PANEL_FILE
 from guidedarm.diagrams.run_context import MakeMeshcat, RunContext
 from guidedarm.diagrams.scenario_loading import list_named_scenarios
-from guidedarm.diagrams.tasks.panel_files import DEFAULT_PANEL_FILE
-from guidedarm.diagrams.tasks.registry import TaskDefinition
+from guidedarm.diagrams.task_run import RunTask
+from guidedarm.diagrams.tasks.registry import LoadScenario, TaskDefinition
 from guidedarm.systems.config_checks import CheckConfig, FieldError
 from guidedarm.systems.errors import ConfigurationError, RunFailedError
 from guidedarm.systems.path_following.hose_geometry import ReadCenterline
@@ -232,12 +232,43 @@ BAD_INPUTS = [
         "driver-lockstep-move",
         Run(
             PF,
-            "station.hardware.arms.mz04d={{driver: nachi_tcp, command_mode: move, lockstep: true}}",
+            "station.hardware.arms.mz04d=!NachiDriver {{command_mode: move, lockstep: true}}",
             flags=("--hardware",),
         ),
         "lockstep': applies to command_mode 'stream' only",
     ),
     ("tof-driver-baudrate", Run(PF, "station.hardware.tof_tools.tof.baudrate=0"), "baudrate'"),
+    (
+        "driver-key-replaced",
+        Run(PF, "station.hardware.arms.mz04d={{driver: nachi_tcp}}"),
+        "mz04d.driver': replaced by the entry's YAML tag: write `mz04d: !NachiDriver {...}`",
+    ),
+    (
+        "transport-key-replaced",
+        Run(PF, "station.hardware.tof_tools.tof.transport=ble"),
+        "tof.transport': replaced by the entry's YAML tag: write `tof: !ToFBleDriver {...}`",
+    ),
+    (
+        "driver-unknown-tag",
+        Run(PF, "station.hardware.arms.mz04d=!KukaRsiDriver {{}}"),
+        "unknown tag !KukaRsiDriver (known: !UrRtdeDriver, !NachiDriver)",
+    ),
+    (
+        "driver-field-of-another-driver",
+        Run(PF, "station.hardware.arms.mz04d.gain=1000"),
+        "unknown key 'station.hardware.arms.mz04d.gain' (known keys: acceleration_limits, "
+        "command_mode, host, lockstep, port, stale_after, watchdog)",
+    ),
+    (
+        "tof-ble-baudrate",
+        Run(PF, "station.hardware.tof_tools.tof=!ToFBleDriver {{address: x, baudrate: 9600}}"),
+        "unknown key 'station.hardware.tof_tools.tof.baudrate'",
+    ),
+    (
+        "driver-command-mode-choice",
+        Run(PF, "station.hardware.arms.mz04d.command_mode=servo"),
+        "command_mode': 'servo' is not one of 'stream', 'move'",
+    ),
     ("camera-driver-watchdog", Run(PF, "station.hardware.cameras.c.watchdog=-2"), "watchdog'"),
     ("hose-zero-diameter", Run(PF, "station.hose.diameter=0"), "station.hose.diameter"),
     ("hose-centerline-ignored", Run(PF, "station.hose.centerline={f}/binary_hose.csv"), "'path'"),
@@ -348,8 +379,9 @@ BAD_INPUTS = [
     ("path-nan-tool-speed", Run(PF, "tool_speed=.nan"), "tool_speed"),
     ("path-inf-time", Run(PF, "max_time=.inf"), "max_time"),
     ("path-coverage-range", Run(PF, "min_coverage=1.5"), "in [0, 1]"),
-    ("path-executor", Run(PF, "executor=teleport"), "executor must be one of"),
-    ("path-motion", Run(PF, "motion=teleport"), "motion must be one of"),
+    ("path-executor", Run(PF, "executor=teleport"), "'executor': 'teleport' is not one of"),
+    ("path-motion", Run(PF, "motion=teleport"), "'motion': 'teleport' is not one of"),
+    ("path-estimator", Run(PF, "estimator=lidar"), "'estimator': 'lidar' is not one of"),
     ("continuous-speed", Run(PF, "continuous.speed=0"), "continuous.speed': must be > 0"),
     ("continuous-nan-gain", Run(PF, "continuous.servo_gain=.nan"), "continuous.servo_gain"),
     ("continuous-roll-weight", Run(PF, "continuous.roll_weight=2"), "continuous.roll_weight"),
@@ -401,7 +433,6 @@ BAD_INPUTS = [
         Run(
             PF,
             "motion=continuous",
-            "station.hardware.arms.mz04d.driver=nachi_tcp",
             "station.hardware.arms.mz04d.command_mode=move",
             flags=("--hardware",),
         ),
@@ -412,7 +443,6 @@ BAD_INPUTS = [
         Run(
             PF,
             "motion=continuous",
-            "station.hardware.arms.mz04d.driver=nachi_tcp",
             flags=("--hardware",),
         ),
         "must equal station.arms.mz04d.control_period",
@@ -465,7 +495,11 @@ BAD_INPUTS = [
     ("follower-steps", Run(PF, "follower.long_step=0.001"), "short_step <= long_step"),
     ("follower-reduction", Run(PF, "follower.rotation_reduction=1"), "[0, 1)"),
     ("follower-readings", Run(PF, "follower.readings=-2"), "follower.readings"),
-    ("follower-estimator-ignored", Run(PF, "follower.estimator=ranging"), "'estimator'"),
+    (
+        "follower-estimator-replaced",
+        Run(PF, "follower.estimator=ranging"),
+        "key 'follower.estimator' was replaced by 'estimator'",
+    ),
     ("ik-walls-gone", Run(PF, "ik.z_min=0.1"), "unknown key 'ik.z_min'"),
     ("ik-nan-tolerance", Run(PF, "ik.position_tolerance=.nan"), "ik.position_tolerance"),
     ("ik-down-axis", Run(PF, "ik.down_axis=[0,0,0]"), "nonzero 3-vector"),
@@ -492,7 +526,11 @@ BAD_INPUTS = [
     ("start-distance-order", Run(PO, "start.distance_m=[0.4,0.3]"), "distance_m must be"),
     ("start-tilt-range", Run(PO, "start.max_tilt_deg=90"), "[0, 90)"),
     ("operation-nan-distance", Run(PO, "operation.base_distance_m=.nan"), "base_distance_m"),
-    ("operation-motion", Run(PO, "operation.motion=teleport"), "motion must be one of"),
+    (
+        "operation-motion",
+        Run(PO, "operation.motion=teleport"),
+        "operation.motion': 'teleport' is not one of",
+    ),
     ("degradation-noise", Run(PO, "degradation.noise_std=-1"), "degradation.noise_std"),
     ("panel-planner-inf", Run(PO, "planner.max_joint_velocity=[.inf]"), "max_joint_velocity[0]"),
     ("panel-file-missing", Run(PO, "panel_file=panel/nope.yaml"), "file not found"),
@@ -693,7 +731,7 @@ BAD_INPUTS = [
     ),
     (
         "hardware-keys-without-hardware",
-        Run(PF, "station.hardware.arms.mz04d={{port: 1}}"),
+        Run(PF, "station.hardware.arms.mz04d=!NachiDriver {{port: 1}}"),
         "station.hardware.arms.mz04d has no effect without --hardware",
     ),
     (
@@ -713,7 +751,7 @@ BAD_INPUTS = [
     ),
     (
         "panel-ignores-hardware-section",
-        Run(PO, "station.hardware.arms.rover_arm={{port: 1}}", flags=("--hardware",)),
+        Run(PO, "station.hardware.arms.rover_arm=!NachiDriver {{port: 1}}", flags=("--hardware",)),
         "'station.hardware.arms' has no effect on panel_operation",
     ),
     (
@@ -1056,7 +1094,7 @@ def test_public_builders_refuse_bad_arguments_in_one_line():
     wrong type (an AttributeError deep inside) are refused by name."""
     from guidedarm.diagrams.station.station import MakeStation
     from guidedarm.diagrams.station.station_plant import MakeMultibodyPlant
-    from guidedarm.diagrams.tasks.planner_builder import MakeAccelerationPlanner
+    from guidedarm.diagrams.tasks.common.planner_builder import MakeAccelerationPlanner
     from guidedarm.systems.path_following.tool_pose_ik_math import (
         ToolPoseIkConfig,
         ToolPoseSolver,

@@ -9,19 +9,17 @@ import pytest
 from pydrake.systems.framework import DiagramBuilder
 from pydrake.systems.primitives import ConstantVectorSource, PassThrough
 
-from guidedarm.diagrams.cli.command_run import LoadScenario
+from guidedarm.diagrams.panel.panel_files import DEFAULT_PANEL_FILE, LoadPanelSpec
 from guidedarm.diagrams.scenario_loading import list_named_scenarios
+from guidedarm.diagrams.station.kinematic_station import MakeKinematicStation
 from guidedarm.diagrams.station.scenario import ArmConfig, StationScenario
 from guidedarm.diagrams.station.scene_views import SceneDirectives
 from guidedarm.diagrams.station.station import MakeStation
 from guidedarm.diagrams.station.station_plant import MakeMultibodyPlant
-from guidedarm.diagrams.tasks.panel_files import DEFAULT_PANEL_FILE, LoadPanelSpec
-from guidedarm.diagrams.tasks.panel_operation_builder import AddPanelOperation
-from guidedarm.diagrams.tasks.path_following_diagram import (
-    AddPathFollowing,
-    MakeKinematicStation,
-)
-from guidedarm.diagrams.tasks.path_following_setup import MakeSetup
+from guidedarm.diagrams.tasks.panel_operation.builder import AddPanelOperation
+from guidedarm.diagrams.tasks.path_following.builder import AddPathFollowing
+from guidedarm.diagrams.tasks.path_following.setup import MakeSetup
+from guidedarm.diagrams.tasks.registry import LoadScenario
 from guidedarm.systems.config_checks import CheckConfig
 from guidedarm.systems.errors import ConfigurationError
 
@@ -183,7 +181,7 @@ def test_load_scenario_refuses_arguments_of_the_wrong_type(name, overrides, mess
         ("ur10e_joint_tour", ["arm=ur5"], "arm 'ur5' is not in station.arms"),
         ("panel_operation", ["camera=webcam"], "camera 'webcam' is not in station.cameras"),
         ("panel_operation", ["arm=ur5"], "arm 'ur5' is not in station.arms"),
-        ("path_following", ["motion=teleport"], "motion must be one of"),
+        ("path_following", ["motion=teleport"], "key 'motion': 'teleport' is not one of"),
         ("path_following", ["tof=tof2"], "station must define arms.mz04d and tof_tools.tof2"),
     ],
 )

@@ -12,7 +12,7 @@ import yaml
 from PIL import Image
 
 from guidedarm.diagrams.calibration.calibration_files import LoadBoardSpec
-from guidedarm.diagrams.tasks.panel_files import LoadCameraIntrinsics
+from guidedarm.diagrams.panel.panel_files import LoadCameraIntrinsics
 from guidedarm.systems.calibration.board_projection import BoardPhotos
 from guidedarm.systems.calibration.calibration_views import CalibrationViews
 from guidedarm.systems.calibration.charuco_board import BoardSpec, CharucoCornerDetector

@@ -20,13 +20,13 @@ from pydrake.geometry import (
 from pydrake.math import RigidTransform
 from pydrake.systems.framework import DiagramBuilder
 
-from guidedarm.diagrams.cli.command_run import LoadScenario
-from guidedarm.diagrams.tasks.panel_files import (
+from guidedarm.diagrams.panel.panel_files import (
     DEFAULT_CAMERA_FILE,
     IntrinsicsFromCameraConfig,
     LoadCameraIntrinsics,
     SupersampledCameraConfig,
 )
+from guidedarm.diagrams.tasks.registry import LoadScenario
 from guidedarm.systems.markers.image_degradation import DegradationConfig, DegradeImage
 
 

@@ -8,7 +8,6 @@ import pytest
 from pydrake.common.schema import Gaussian, GaussianVector, Transform, UniformVector
 from pydrake.common.yaml import yaml_load_typed
 
-from guidedarm.diagrams.cli.command_run import LoadScenario
 from guidedarm.diagrams.cli.main import main
 from guidedarm.diagrams.station.scenario import StationScenario
 from guidedarm.diagrams.station.station_errors import (
@@ -16,7 +15,7 @@ from guidedarm.diagrams.station.station_errors import (
     ModelErrors,
     StationErrors,
 )
-from guidedarm.diagrams.tasks.registry import GetTask, NumericMetricNames
+from guidedarm.diagrams.tasks.registry import GetTask, LoadScenario, NumericMetricNames
 from guidedarm.systems.cell_errors.camera_errors import CameraErrors, MakeTrueCamera
 from guidedarm.systems.cell_errors.distributions import DrawErrors
 from guidedarm.systems.cell_errors.joint_encoder_math import EncoderPositions

@@ -8,10 +8,10 @@ import pytest
 from pydrake.geometry import SceneGraph
 from pydrake.multibody.plant import MultibodyPlant
 
+from guidedarm.diagrams.panel.panel_files import DEFAULT_PANEL_FILE, LoadPanelSpec
 from guidedarm.diagrams.station.scenario import ArmConfig, StationScenario
 from guidedarm.diagrams.station.scene_views import SceneDirectives
 from guidedarm.diagrams.station.station_plant import AddStationModels, MakeMultibodyPlant
-from guidedarm.diagrams.tasks.panel_files import DEFAULT_PANEL_FILE, LoadPanelSpec
 from guidedarm.systems.errors import ConfigurationError
 from guidedarm.systems.markers.image_degradation import DegradationConfig, DegradeImage
 from guidedarm.systems.markers.marker_pose_estimator import MarkerPoseEstimator
@@ -171,21 +171,21 @@ def test_a_bad_argument_is_refused_naming_it(make, key, why):
 
 
 def test_the_path_follower_refuses_a_bad_period():
-    from guidedarm.diagrams.cli.command_run import LoadScenario
-    from guidedarm.diagrams.tasks.path_following_setup import MakeSetup
+    from guidedarm.diagrams.tasks.path_following.setup import MakeSetup
+    from guidedarm.diagrams.tasks.registry import LoadScenario
     from guidedarm.systems.path_following.path_follower import PathFollower
 
     _, scenario, _ = LoadScenario("path_following", [])
     s = MakeSetup(scenario)
-    PathFollower(s.params, s.mount, s.grid, s.q_start, s.motion, s.period)
+    PathFollower(s.follower, s.estimator, s.mount, s.grid, s.q_start, s.limits, s.period)
     for period, why in ((0.0, "> 0"), (-0.02, "> 0"), (NAN, "a finite number")):
         with pytest.raises(ConfigurationError, match=f"key 'period': must be {why}, got"):
-            PathFollower(s.params, s.mount, s.grid, s.q_start, s.motion, period)
-    motion = dataclasses.replace(s.motion, tool_speed=NAN)
+            PathFollower(s.follower, s.estimator, s.mount, s.grid, s.q_start, s.limits, period)
+    limits = dataclasses.replace(s.limits, tool_speed=NAN)
     with pytest.raises(ConfigurationError, match="key 'tool_speed'"):
-        PathFollower(s.params, s.mount, s.grid, s.q_start, motion, s.period)
+        PathFollower(s.follower, s.estimator, s.mount, s.grid, s.q_start, limits, s.period)
     with pytest.raises(ConfigurationError, match="key 'q_initial\\[0\\]'"):
-        PathFollower(s.params, s.mount, s.grid, [NAN] * 6, s.motion, s.period)
+        PathFollower(s.follower, s.estimator, s.mount, s.grid, [NAN] * 6, s.limits, s.period)
 
 
 def test_the_good_defaults_still_build():

@@ -318,8 +318,8 @@ class _RisingTarget(LeafSystem):
 def test_servo_stops_the_arm_at_the_workspace_walls():
     """A target rising through a ceiling 30 mm above the arm's highest body: the servo brakes
     every body origin to a stop inside the walls and says which body reached them."""
-    from guidedarm.diagrams.cli.command_run import LoadScenario
-    from guidedarm.diagrams.tasks.path_following_setup import MakeSetup
+    from guidedarm.diagrams.tasks.path_following.setup import MakeSetup
+    from guidedarm.diagrams.tasks.registry import LoadScenario
     from guidedarm.systems.path_following.differential_ik_servo import DifferentialIkServo
     from guidedarm.systems.path_following.workspace import WorkspaceConfig
     from guidedarm.systems.plant_frames import GetScopedFrame
@@ -407,9 +407,9 @@ def _FollowerOnAHeldArm(ranges: list[float] | None = None):
     tool, or `ranges` (6, m) in place of its ranges."""
     from pydrake.systems.primitives import ConstantVectorSource
 
-    from guidedarm.diagrams.cli.command_run import LoadScenario
-    from guidedarm.diagrams.tasks.path_following_diagram import MakeKinematicStation
-    from guidedarm.diagrams.tasks.path_following_setup import MakeSetup
+    from guidedarm.diagrams.station.kinematic_station import MakeKinematicStation
+    from guidedarm.diagrams.tasks.path_following.setup import MakeSetup
+    from guidedarm.diagrams.tasks.registry import LoadScenario
     from guidedarm.systems.path_following.continuous_follower import ContinuousFollower
     from guidedarm.systems.plant_frames import GetScopedFrame
 

@@ -15,9 +15,9 @@ import pytest
 from browser import CHROMIUM, MISSING, Screenshot
 from replay_commands import Replay
 
-from guidedarm.diagrams.cli.command_run import LoadScenario
 from guidedarm.diagrams.cli.main import main
 from guidedarm.diagrams.demo_index import WriteDemoIndex
+from guidedarm.diagrams.tasks.registry import LoadScenario
 from guidedarm.diagrams.tasks.waypoints import MakePlannerSetup
 from guidedarm.systems.path_following.hose_geometry import DistanceToCenterline, ReadCenterline
 

@@ -8,9 +8,8 @@ import re
 import pytest
 
 from guidedarm.diagrams.cli.command_describe import DescribeScenario, FieldDocs
-from guidedarm.diagrams.cli.command_run import LoadScenario
 from guidedarm.diagrams.scenario_loading import list_named_scenarios
-from guidedarm.diagrams.tasks.registry import AvailableTasks
+from guidedarm.diagrams.tasks.registry import AvailableTasks, LoadScenario
 
 
 def _table(out: str) -> dict[str, list[str]]:

@@ -6,13 +6,10 @@ import numpy as np
 import pytest
 from pydrake.math import RigidTransform
 
-from guidedarm.diagrams.cli.command_run import LoadScenario
-from guidedarm.diagrams.tasks.path_following_setup import MakeSetup
+from guidedarm.diagrams.tasks.path_following.setup import MakeSetup
+from guidedarm.diagrams.tasks.registry import LoadScenario
 from guidedarm.systems.path_following.differential_ik_servo import DifferentialIkServo
-from guidedarm.systems.path_following.differential_ik_servo_math import (
-    ReachBound,
-    SymmetricEigen,
-)
+from guidedarm.systems.path_following.differential_ik_servo_math import ReachBound, SymmetricEigen
 from guidedarm.systems.path_following.workspace import WorkspaceConfig
 from guidedarm.systems.plant_frames import GetScopedFrame
 

@@ -11,8 +11,8 @@ import pytest
 from pydrake.common.yaml import yaml_load_typed
 from pydrake.systems.sensors import CameraConfig
 
-from guidedarm.diagrams.tasks.panel_camera_rig import LookAt, PanelCameraRig
-from guidedarm.diagrams.tasks.panel_files import DEFAULT_CAMERA_FILE, DEFAULT_PANEL_FILE
+from guidedarm.diagrams.panel.panel_camera_rig import LookAt, PanelCameraRig
+from guidedarm.diagrams.panel.panel_files import DEFAULT_CAMERA_FILE, DEFAULT_PANEL_FILE
 from guidedarm.systems.calibration.board_projection import DistortPinholeImage
 from guidedarm.systems.markers.marker_pose_estimator_math import CameraIntrinsics
 

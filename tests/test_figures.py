@@ -4,11 +4,11 @@ from __future__ import annotations
 
 import numpy as np
 
-from guidedarm.diagrams.cli.command_run import LoadScenario
 from guidedarm.diagrams.plots import FinishFigure, PlotJointSeries, plt
 from guidedarm.diagrams.run_context import RunContext
 from guidedarm.diagrams.run_labels import HeadlineText, RunTitle
-from guidedarm.diagrams.tasks.path_following_report import PlotDetectedPath
+from guidedarm.diagrams.tasks.path_following.report import PlotDetectedPath
+from guidedarm.diagrams.tasks.registry import LoadScenario
 from guidedarm.systems.path_following.hose_geometry import ReadCenterline
 
 

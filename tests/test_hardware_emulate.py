@@ -11,7 +11,7 @@ import pytest
 from hardware_doubles import StartNachiEmulator, StopServer
 from pydrake.systems.analysis import Simulator
 
-from guidedarm.diagrams.cli.command_emulate import DEFAULT_TOF_LATENCY, DefaultCell
+from guidedarm.diagrams.emulation import DEFAULT_TOF_LATENCY, DefaultCell
 from guidedarm.diagrams.station.station import MakeStation
 from guidedarm.systems.hardware import nachi_protocol as nachi
 from guidedarm.systems.hardware.nachi_link import NachiLink

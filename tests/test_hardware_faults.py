@@ -39,9 +39,9 @@ from pydrake.systems.analysis import Simulator
 from pydrake.systems.framework import DiagramBuilder
 from pydrake.systems.primitives import ConstantVectorSource
 
-from guidedarm.diagrams.cli.command_run import LoadScenario
 from guidedarm.diagrams.station.model_paths import MakeParser
 from guidedarm.diagrams.tasks.path_following import MakeSetup
+from guidedarm.diagrams.tasks.registry import LoadScenario
 from guidedarm.systems.errors import ConfigurationError, HardwareFaultError
 from guidedarm.systems.hardware.arm_driver import ArmDriver
 from guidedarm.systems.hardware.command_guard import JointLimits
@@ -232,7 +232,7 @@ class Run:
         self.out = out
         out.mkdir()
         arm = (
-            f"{{driver: nachi_tcp, port: {cell.port}, watchdog: {WATCHDOG}, "
+            f"!NachiDriver {{port: {cell.port}, watchdog: {WATCHDOG}, "
             f"stale_after: 0.05, acceleration_limits: {acceleration_limits}}}"
         )
         settings = dict(
@@ -450,7 +450,7 @@ def _RunRefused(*args: str) -> subprocess.CompletedProcess:
                 "ur10e_joint_tour",
                 "--hardware",
                 "--set",
-                "station.hardware.arms.ur10e={driver: ur_rtde, host: 127.0.0.9, "
+                "station.hardware.arms.ur10e=!UrRtdeDriver {host: 127.0.0.9, "
                 "acceleration_limits: [5, 5, 5, 5, 5, 5]}",
             ],
             "ur10e: cannot connect to the UR controller at 127.0.0.9: RTDE 127.0.0.9:30004: "
@@ -474,12 +474,13 @@ def _RunRefused(*args: str) -> subprocess.CompletedProcess:
         ),
         (
             ["run", "path_following", "--hardware", "--set"]
-            + ["station.hardware.arms.mz04d={driver: nachi_tcp, gain: 1000}"],
-            "'station.hardware.arms.mz04d.gain': applies to the ur_rtde driver only",
+            + ["station.hardware.arms.mz04d=!NachiDriver {gain: 1000}"],
+            "unknown key 'station.hardware.arms.mz04d.gain' (known keys: acceleration_limits, "
+            "command_mode, host, lockstep, port, stale_after, watchdog)",
         ),
         (  # a DNS label longer than 63 characters: not a connection error of the socket
             ["run", "path_following", "--hardware", "--set"]
-            + [f"station.hardware.arms.mz04d={{driver: nachi_tcp, host: {'a' * 64}.cell}}"],
+            + [f"station.hardware.arms.mz04d=!NachiDriver {{host: {'a' * 64}.cell}}"],
             f"'station.hardware.arms.mz04d.host': '{'a' * 64}.cell' is not a host name or "
             "address (encoding with 'idna' codec failed (UnicodeError: label empty or too long))",
         ),
@@ -578,7 +579,7 @@ def test_a_joint_tour_arm_away_from_its_start_is_refused_before_any_command(tmp_
     )
     try:
         port = int(emulator.stdout.readline().split(":")[-1])
-        link = f"{{driver: nachi_tcp, port: {port}, acceleration_limits: [5, 5, 5, 5, 5, 5]}}"
+        link = f"!NachiDriver {{port: {port}, acceleration_limits: [5, 5, 5, 5, 5, 5]}}"
         result = _RunRefused(
             "run", "ur10e_joint_tour", "--hardware", "--out", str(tmp_path / "run"),
             "--set", f"station.hardware.arms.ur10e={link}",

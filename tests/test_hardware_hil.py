@@ -40,7 +40,7 @@ def _HardwareSettings(port: int, device: str) -> list[str]:
         "--set",
         "station.simulator_config.target_realtime_rate=1.0",
         "--set",
-        f"station.hardware.arms.mz04d={{driver: nachi_tcp, port: {port}, lockstep: true, "
+        f"station.hardware.arms.mz04d=!NachiDriver {{port: {port}, lockstep: true, "
         f"watchdog: {WATCHDOG}, stale_after: 0.05, acceleration_limits: {ACCELERATION}}}",
         "--set",
         f"station.hardware.tof_tools.tof={{device: {device}, watchdog: {WATCHDOG}}}",
@@ -203,7 +203,7 @@ def test_ur10e_waypoints_on_the_emulator_tracks_within_the_limit(tmp_path):
     try:
         port = int(emulator.stdout.readline().split(":")[-1])
         link = (
-            f"{{driver: nachi_tcp, port: {port}, lockstep: true, watchdog: {WATCHDOG}, "
+            f"!NachiDriver {{port: {port}, lockstep: true, watchdog: {WATCHDOG}, "
             "stale_after: 0.05, acceleration_limits: [5, 5, 5, 5, 5, 5]}"
         )
         run = subprocess.run(

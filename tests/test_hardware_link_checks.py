@@ -23,9 +23,9 @@ from pydrake.systems.primitives import ConstantVectorSource
 from pydrake.systems.sensors import CameraConfig
 
 from guidedarm.diagrams.station.hardware_config import (
-    ArmDriverConfig,
-    CameraDriverConfig,
     HardwareConfig,
+    NachiDriver,
+    OpenCvCameraDriver,
 )
 from guidedarm.diagrams.station.station import MakeStation
 from guidedarm.systems.errors import ConfigurationError, HardwareFaultError
@@ -77,7 +77,7 @@ def test_an_idle_tof_device_is_refused_before_any_arm_connects(tmp_path):
     "entry, message",
     [
         (
-            "station.hardware.arms.ur10e={driver: ur_rtde, host: 127.0.0.9}",
+            "station.hardware.arms.ur10e=!UrRtdeDriver {host: 127.0.0.9}",
             "hardware.arms.ur10e: the scenario has no such arm (its arms: ['mz04d']); remove "
             "the entry",
         ),
@@ -177,8 +177,8 @@ def test_a_camera_with_frames_of_another_size_is_refused_before_any_arm_connects
     video = tmp_path / "camera.avi"
     WriteTestVideo(video, 64, 48, 30.0, 10)
     hardware = HardwareConfig(
-        arms={"mz04d": ArmDriverConfig(driver="nachi_tcp", port=1, acceleration_limits=[10] * 6)},
-        cameras={"camera": CameraDriverConfig(source=str(video))},
+        arms={"mz04d": NachiDriver(port=1, acceleration_limits=[10] * 6)},
+        cameras={"camera": OpenCvCameraDriver(source=str(video))},
     )
     scenario = Mz04dScenario(cameras={"camera": CameraConfig(width=640, height=480)})
     scenario.hardware = hardware

@@ -20,7 +20,7 @@ from pydrake.systems.framework import DiagramBuilder
 from pydrake.systems.primitives import ConstantVectorSource, TrajectorySource
 from pydrake.trajectories import PiecewisePolynomial
 
-from guidedarm.diagrams.station.hardware_config import ArmDriverConfig, HardwareConfig
+from guidedarm.diagrams.station.hardware_config import HardwareConfig, NachiDriver
 from guidedarm.diagrams.station.station import MakeStation
 from guidedarm.systems.errors import ConfigurationError, HardwareFaultError
 from guidedarm.systems.hardware import nachi_protocol as nachi
@@ -102,8 +102,7 @@ def emulator():
 def _Hardware(port: int, watchdog: float = 0.5, command_mode: str = "stream"):
     """Hardware section for the emulator; the watchdog is generous because the emulator
     shares the CPU (and the GIL) with the driver under test."""
-    arm = ArmDriverConfig(
-        driver="nachi_tcp",
+    arm = NachiDriver(
         port=port,
         watchdog=watchdog,
         acceleration_limits=ACCELERATION,

@@ -22,7 +22,7 @@ from pydrake.systems.framework import DiagramBuilder, EventStatus
 from pydrake.systems.primitives import TrajectorySource
 from pydrake.trajectories import PiecewisePolynomial
 
-from guidedarm.diagrams.station.hardware_config import ArmDriverConfig, HardwareConfig
+from guidedarm.diagrams.station.hardware_config import HardwareConfig, NachiDriver
 from guidedarm.diagrams.station.station import MakeStation
 from guidedarm.systems.hardware import nachi_protocol as nachi
 from guidedarm.systems.hardware.arm_link import StopAllArms
@@ -247,8 +247,7 @@ def test_lockstep_advances_the_controller_by_the_targets_intervals_only(lockstep
 def StreamingDiagram(port: int, lockstep: bool = False):
     """The hardware station streaming the sinusoid to the controller at `port` (with the
     arm driver's `lockstep`), at real time."""
-    arm = ArmDriverConfig(
-        driver="nachi_tcp",
+    arm = NachiDriver(
         port=port,
         watchdog=0.5,
         stale_after=0.05,

@@ -14,8 +14,8 @@ from pydrake.systems.framework import DiagramBuilder, EventStatus
 from pydrake.systems.primitives import TrajectorySource
 from pydrake.trajectories import PiecewisePolynomial
 
-from guidedarm.diagrams.cli.command_run import LoadScenario
 from guidedarm.diagrams.station.model_paths import MakeParser
+from guidedarm.diagrams.tasks.registry import LoadScenario
 from guidedarm.diagrams.tasks.waypoints import MakePlannerSetup
 from guidedarm.systems.errors import ConfigurationError, HardwareFaultError
 from guidedarm.systems.hardware.arm_driver import ArmDriver

@@ -14,10 +14,11 @@ from pydrake.systems.analysis import Simulator
 from pydrake.systems.sensors import CameraConfig
 
 from guidedarm.diagrams.station.hardware_config import (
-    ArmDriverConfig,
-    CameraDriverConfig,
     HardwareConfig,
-    ToFDriverConfig,
+    NachiDriver,
+    OpenCvCameraDriver,
+    ToFSerialDriver,
+    UrRtdeDriver,
 )
 from guidedarm.diagrams.station.station import MakeStation
 from guidedarm.systems.errors import ConfigurationError
@@ -65,13 +66,9 @@ def test_sim_and_hardware_stations_export_the_same_ports(devices):
     nachi_port, tof_device, video = devices
     camera = CameraConfig(width=64, height=48, fps=10.0)
     hardware = HardwareConfig(
-        arms={
-            "mz04d": ArmDriverConfig(
-                driver="nachi_tcp", port=nachi_port, acceleration_limits=[20.0] * 6
-            )
-        },
-        cameras={"camera": CameraDriverConfig(source=video)},
-        tof_tools={"tof": ToFDriverConfig(device=tof_device)},
+        arms={"mz04d": NachiDriver(port=nachi_port, acceleration_limits=[20.0] * 6)},
+        cameras={"camera": OpenCvCameraDriver(source=video)},
+        tof_tools={"tof": ToFSerialDriver(device=tof_device)},
     )
     scenario = Mz04dScenario(
         cameras={"camera": camera}, tof_tools={"tof": ToFToolConfig()}, hardware=hardware
@@ -89,17 +86,16 @@ def test_station_without_a_driver_for_an_arm_fails_before_connecting():
         MakeStation(Mz04dScenario(), hardware=True)
 
 
-def test_unknown_driver_is_named():
-    hardware = HardwareConfig(arms={"mz04d": ArmDriverConfig(driver="kuka_rsi")})
-    with pytest.raises(ConfigurationError, match=r"hardware\.arms\.mz04d\.driver': 'kuka_rsi'"):
+def test_a_driver_of_another_device_is_named():
+    hardware = HardwareConfig(arms={"mz04d": OpenCvCameraDriver()})
+    expected = r"hardware\.arms\.mz04d': expected UrRtdeDriver or NachiDriver, got OpenCv"
+    with pytest.raises(ConfigurationError, match=expected):
         MakeStation(Mz04dScenario(hardware=hardware), hardware=True)
 
 
 def test_meshcat_draws_the_measured_configuration(devices):
     nachi_port, _, _ = devices
-    arm = ArmDriverConfig(
-        driver="nachi_tcp", port=nachi_port, watchdog=0.5, acceleration_limits=[20.0] * 6
-    )
+    arm = NachiDriver(port=nachi_port, watchdog=0.5, acceleration_limits=[20.0] * 6)
     scenario = Mz04dScenario(hardware=HardwareConfig(arms={"mz04d": arm}))
     meshcat = Meshcat()
     station = MakeStation(scenario, meshcat, hardware=True)
@@ -120,40 +116,45 @@ def test_meshcat_draws_the_measured_configuration(devices):
     assert meshcat.HasPath("/drake/visualizer/mz04d")
 
 
-NACHI = {"driver": "nachi_tcp", "acceleration_limits": [10.0] * 6}
+LIMITS = {"acceleration_limits": [10.0] * 6}
 
 
 @pytest.mark.parametrize(
-    "arm, tof, message",
+    "driver, arm, tof, message",
     [
-        ({"port": 70000}, {}, r"arms\.mz04d\.port': must be in \[0, 65535\], got 70000"),
-        ({"port": -1}, {}, r"arms\.mz04d\.port': must be in \[0, 65535\], got -1"),
-        ({"host": " "}, {}, r"arms\.mz04d\.host': must not be empty"),
-        ({"watchdog": float("nan")}, {}, r"arms\.mz04d\.watchdog': must be a finite number"),
-        ({"watchdog": 0.0}, {}, r"arms\.mz04d\.watchdog': must be > 0, got 0\.0"),
-        ({"stale_after": 0.6}, {}, r"arms\.mz04d\.stale_after': 0\.6 s exceeds the watchdog"),
         (
+            NachiDriver,
+            {"port": 70000},
+            {},
+            r"arms\.mz04d\.port': must be in \[0, 65535\], got 70000",
+        ),
+        (NachiDriver, {"port": -1}, {}, r"arms\.mz04d\.port': must be in \[0, 65535\], got -1"),
+        (NachiDriver, {"host": " "}, {}, r"arms\.mz04d\.host': must not be empty"),
+        (NachiDriver, {"watchdog": float("nan")}, {}, r"arms\.mz04d\.watchdog': must be a finite"),
+        (NachiDriver, {"watchdog": 0.0}, {}, r"arms\.mz04d\.watchdog': must be > 0, got 0\.0"),
+        (NachiDriver, {"stale_after": 0.6}, {}, r"arms\.mz04d\.stale_after': 0\.6 s exceeds"),
+        (
+            NachiDriver,
             {"acceleration_limits": [1.0] * 5 + [float("inf")]},
             {},
             r"arms\.mz04d\.acceleration_limits\[5\]': must be a finite number, got inf",
         ),
-        ({"gain": 5000.0}, {}, r"arms\.mz04d\.gain': must be in \[100, 2000\], got 5000\.0"),
-        ({"command_mode": "servo"}, {}, r"arms\.mz04d\.command_mode': 'servo' is not one of"),
+        (UrRtdeDriver, {"gain": 5000.0}, {}, r"arms\.mz04d\.gain': must be in \[100, 2000\]"),
         (
-            {"driver": "ur_rtde", "command_mode": "move"},
+            NachiDriver,
+            {"command_mode": "servo"},
             {},
-            r"arms\.mz04d\.command_mode': ur_rtde streams servoJ targets: only 'stream'",
+            r"arms\.mz04d\.command_mode': 'servo' is not one of 'stream', 'move'",
         ),
-        ({"lookahead_time": float("nan")}, {}, r"arms\.mz04d\.lookahead_time': must be a finite"),
-        ({}, {"transport": "usb"}, r"tof_tools\.tof\.transport': 'usb' is not one of"),
-        ({}, {"device": ""}, r"tof_tools\.tof\.device': must not be empty"),
-        ({}, {"watchdog": -1.0}, r"tof_tools\.tof\.watchdog': must be > 0, got -1\.0"),
+        (UrRtdeDriver, {"lookahead_time": float("nan")}, {}, r"arms\.mz04d\.lookahead_time'"),
+        (NachiDriver, {}, {"device": ""}, r"tof_tools\.tof\.device': must not be empty"),
+        (NachiDriver, {}, {"watchdog": -1.0}, r"tof_tools\.tof\.watchdog': must be > 0, got -1"),
     ],
 )
-def test_bad_driver_settings_are_refused_before_connecting(arm, tof, message):
+def test_bad_driver_settings_are_refused_before_connecting(driver, arm, tof, message):
     hardware = HardwareConfig(
-        arms={"mz04d": ArmDriverConfig(**{**NACHI, **arm})},
-        tof_tools={"tof": ToFDriverConfig(**{"device": "/dev/null", **tof})},
+        arms={"mz04d": driver(**{**LIMITS, **arm})},
+        tof_tools={"tof": ToFSerialDriver(**{"device": "/dev/null", **tof})},
     )
     scenario = Mz04dScenario(hardware=hardware, tof_tools={"tof": ToFToolConfig()})
     with pytest.raises(ConfigurationError, match=f"^key 'scenario\\.hardware\\.{message}"):
@@ -163,6 +164,6 @@ def test_bad_driver_settings_are_refused_before_connecting(arm, tof, message):
 def test_unreachable_nachi_controller_is_refused_before_the_run():
     with socket.create_server(("127.0.0.1", 0)) as server:
         port = server.getsockname()[1]  # bound, closed below: nothing listens there
-    hardware = HardwareConfig(arms={"mz04d": ArmDriverConfig(**NACHI, port=port)})
+    hardware = HardwareConfig(arms={"mz04d": NachiDriver(**LIMITS, port=port)})
     with pytest.raises(ConfigurationError, match=f"mz04d: cannot reach 127.0.0.1:{port}: "):
         MakeStation(Mz04dScenario(hardware=hardware), hardware=True)

@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 from pydrake.multibody.plant import MultibodyPlant
 
-from guidedarm.diagrams.tasks.path_following_setup import LoadHoseWorkspace
+from guidedarm.diagrams.tasks.path_following.setup import LoadHoseWorkspace
 from guidedarm.systems.errors import ConfigurationError
 from guidedarm.systems.path_following.hose_geometry import (
     ArcLength,

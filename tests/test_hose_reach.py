@@ -7,9 +7,9 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from guidedarm.diagrams.cli.command_run import LoadScenario
 from guidedarm.diagrams.station.station_plant import GetArmInstance
-from guidedarm.diagrams.tasks.path_following_setup import MakeSetup
+from guidedarm.diagrams.tasks.path_following.setup import MakeSetup
+from guidedarm.diagrams.tasks.registry import LoadScenario
 from guidedarm.systems.path_following.hose_reach import CalcArmReach, ToolClearance
 from guidedarm.systems.plant_frames import GetScopedFrame
 

@@ -19,16 +19,15 @@ from pydrake.systems.sensors import CameraConfig, ImageRgba8U
 
 from guidedarm.diagrams.campaigns.jobs import ExpandJobs
 from guidedarm.diagrams.cli.command_marker_study import CAMPAIGNS, STUDIES, StudyCampaign
-from guidedarm.diagrams.cli.command_run import LoadScenario
-from guidedarm.diagrams.tasks.panel_assets import WritePanelAssets
-from guidedarm.diagrams.tasks.panel_camera_rig import LookAt, PanelCameraRig
-from guidedarm.diagrams.tasks.panel_files import (
+from guidedarm.diagrams.panel.panel_assets import WritePanelAssets
+from guidedarm.diagrams.panel.panel_camera_rig import LookAt, PanelCameraRig
+from guidedarm.diagrams.panel.panel_files import (
     DEFAULT_CAMERA_FILE,
     DEFAULT_PANEL_FILE,
     LoadCameraIntrinsics,
     LoadPanelSpec,
 )
-from guidedarm.diagrams.tasks.registry import GetTask, NumericMetricNames
+from guidedarm.diagrams.tasks.registry import GetTask, LoadScenario, NumericMetricNames
 from guidedarm.systems.errors import ConfigurationError
 from guidedarm.systems.markers.image_degradation import (
     DegradationConfig,

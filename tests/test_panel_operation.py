@@ -5,13 +5,10 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from guidedarm.diagrams.cli.command_run import LoadScenario
 from guidedarm.diagrams.run_context import RunContext
-from guidedarm.diagrams.tasks.panel_operation import (
-    PanelOperationRun,
-    PanelPlannerConfig,
-    PlannerBaseFrame,
-)
+from guidedarm.diagrams.tasks.panel_operation import PanelOperationRun, PanelPlannerConfig
+from guidedarm.diagrams.tasks.panel_operation.run import PlannerBaseFrame
+from guidedarm.diagrams.tasks.registry import LoadScenario
 
 
 def _run(tmp_path, overrides):
@@ -129,8 +126,14 @@ def test_the_start_that_drove_the_planner_into_a_limit_cycle_presses_its_switch(
     [
         ("switch=9", "switch must be 1 .. 3, got 9"),
         ("degradation.supersampling=2", "set the camera's supersampling (>= 1) with the top-level"),
-        ("operation.on_marker_loss=ignore", "on_marker_loss must be 'abort' or 'continue'"),
-        ("operation.motion=teleport", "motion must be one of ('joint_trajectory', 'planner')"),
+        (
+            "operation.on_marker_loss=ignore",
+            "key 'operation.on_marker_loss': 'ignore' is not one of 'abort', 'continue'",
+        ),
+        (
+            "operation.motion=teleport",
+            "key 'operation.motion': 'teleport' is not one of 'joint_trajectory', 'planner'",
+        ),
         ("start.distance_m=near", "key 'start.distance_m': expected a list"),
     ],
 )

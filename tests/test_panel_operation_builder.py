@@ -8,13 +8,13 @@ from pydrake.common.schema import Rotation, Transform
 from pydrake.math import RigidTransform, RollPitchYaw
 from pydrake.systems.framework import DiagramBuilder
 
-from guidedarm.diagrams.cli.command_run import LoadScenario
+from guidedarm.diagrams.panel.panel_files import DEFAULT_PANEL_FILE, LoadPanelSpec
 from guidedarm.diagrams.station.station import MakeStation
-from guidedarm.diagrams.tasks.panel_files import DEFAULT_PANEL_FILE, LoadPanelSpec
-from guidedarm.diagrams.tasks.panel_operation_builder import (
+from guidedarm.diagrams.tasks.panel_operation.builder import (
     AddPanelOperation,
     MakeCameraArmKinematics,
 )
+from guidedarm.diagrams.tasks.registry import LoadScenario
 from guidedarm.systems.errors import ConfigurationError
 from guidedarm.systems.markers.panel_operation_math import PanelOperationConfig
 

@@ -9,9 +9,9 @@ from pydrake.systems.analysis import Simulator
 from pydrake.systems.framework import DiagramBuilder
 from pydrake.systems.primitives import ConstantVectorSource, LogVectorOutput, PassThrough
 
-from guidedarm.diagrams.cli.command_run import LoadScenario
-from guidedarm.diagrams.tasks.path_following_diagram import AddPathFollowing
-from guidedarm.diagrams.tasks.path_following_setup import MakeSetup
+from guidedarm.diagrams.tasks.path_following.builder import AddPathFollowing
+from guidedarm.diagrams.tasks.path_following.setup import MakeSetup
+from guidedarm.diagrams.tasks.registry import LoadScenario
 from guidedarm.systems.path_following.path_follower import DONE
 from guidedarm.systems.planning.acceleration_planner_math import PlanningError
 
@@ -100,5 +100,5 @@ def test_commands_stay_within_speed_and_acceleration_limits(blind_run):
     setup, _, q = blind_run
     v = np.diff(q, axis=0) / DT
     a = np.diff(v, axis=0) / DT
-    assert np.max(np.abs(v)) <= setup.motion.max_joint_speed + 1e-6
-    assert np.max(np.abs(a)) <= setup.motion.max_joint_acceleration * 1.05
+    assert np.max(np.abs(v)) <= setup.limits.max_joint_speed + 1e-6
+    assert np.max(np.abs(a)) <= setup.limits.max_joint_acceleration * 1.05

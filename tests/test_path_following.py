@@ -17,7 +17,7 @@ from guidedarm.systems.path_following.path_follower_math import (
     ToolMount,
 )
 
-PARAMS = FollowerConfig(long_step=0.015, short_step=0.010, lost_limit=2).Resolved()
+PARAMS = FollowerConfig(long_step=0.015, short_step=0.010, lost_limit=2).Resolved("grid")
 
 
 def test_rotation_is_z_y_x():
@@ -65,7 +65,7 @@ def _tool(yaw=0.0, p=(0.3, 0.0, 0.1)):
 def test_long_step_toward_an_offset_detection_eq_9_13_17():
     seed_params = FollowerConfig(
         long_step=0.015, short_step=0.010, steering="paper", rotation_reduction=0.3
-    ).Resolved()
+    ).Resolved("grid")
     X_WT = _tool()
     memory = FollowerMemory(np.array([0.285, 0.0, 0.1]), X_WT)  # O' 15 mm behind
     S_T = np.array([0.0, 0.022, 0.0])  # hose seen at the +y grid point
@@ -157,9 +157,9 @@ def test_lost_again_where_it_was_lost_before_is_the_end():
 
 
 def test_params_are_checked_and_resolved():
-    assert FollowerConfig(estimator="ranging").Resolved().steering == "centring"
-    assert FollowerConfig().Resolved().rotation_reduction == 0.3
-    with pytest.raises(ConfigurationError, match="estimator"):
-        FollowerConfig(estimator="lidar").Resolved()
+    assert FollowerConfig().Resolved("ranging").steering == "centring"
+    assert FollowerConfig().Resolved("grid").rotation_reduction == 0.3
+    with pytest.raises(ConfigurationError, match="key 'estimator': 'lidar' is not one of"):
+        FollowerConfig().Resolved("lidar")
     with pytest.raises(ConfigurationError, match="rotation_reduction"):
-        FollowerConfig(rotation_reduction=1.5).Resolved()
+        FollowerConfig(rotation_reduction=1.5).Resolved("grid")

@@ -1,4 +1,4 @@
-"""The replay drawn after the loop (diagrams/tasks/path_following_replay.py) is the replay
+"""The replay drawn after the loop (diagrams/tasks/path_following/replay.py) is the replay
 the loop draws when a live page watches it: the same objects and the same animation."""
 
 from pathlib import Path
@@ -7,9 +7,9 @@ import numpy as np
 import pytest
 from replay_commands import Replay
 
-from guidedarm.diagrams.cli.command_run import LoadScenario
 from guidedarm.diagrams.run_context import MakeMeshcat, RunContext
 from guidedarm.diagrams.task_run import RunTask
+from guidedarm.diagrams.tasks.registry import LoadScenario
 
 
 def _Replay(out: Path, settings: list[str], live: bool) -> Replay:

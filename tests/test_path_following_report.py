@@ -6,7 +6,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from guidedarm.diagrams.tasks.path_following_report import CenterlineMatch, Metrics
+from guidedarm.diagrams.tasks.path_following.report import CenterlineMatch, Metrics
 from guidedarm.systems.path_following.hose_geometry import ArcLength, Resample
 from guidedarm.systems.path_following.path_follower_math import RECORD_FIELDS
 

@@ -15,9 +15,9 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from guidedarm.diagrams.cli.command_run import LoadScenario
 from guidedarm.diagrams.cli.main import main
 from guidedarm.diagrams.run_context import RunContext
+from guidedarm.diagrams.tasks.registry import LoadScenario
 
 PAPER = ["paper_path_1", "paper_path_2", "paper_path_3", "paper_path_4"]
 
@@ -157,11 +157,11 @@ def test_moves_through_the_acceleration_level_planner(tmp_path, capsys):
 @pytest.mark.parametrize(
     "override, message",
     [
-        ("motion=teleport", "motion must be one of ('joint_trajectory', 'planner', 'continuous')"),
+        ("motion=teleport", "key 'motion': 'teleport' is not one of 'joint_trajectory', 'planner'"),
         ("follower.readings=-1", "key 'follower.readings': must be >= 0"),
         ("max_joint_acceleration=0", "key 'max_joint_acceleration': must be > 0"),
         ("station.tof_tools.tof.cone_angle_deg=0", "cone_angle_deg': must be in (0, 180)"),
-        ("follower.estimator=ranging", "conflicts with the top-level key 'estimator' ('grid')"),
+        ("follower.estimator=ranging", "key 'follower.estimator' was replaced by 'estimator'"),
         (
             "station.tof_tools.tof.seed=3",
             "tof.seed (3) conflicts with the scenario's 'random_seed'",
@@ -202,7 +202,7 @@ def test_path_csv_flag_runs_a_file(tmp_path, capsys):
 def test_values_the_task_derives_are_taken_when_they_agree(tmp_path):
     """Set to what the task derives, the station's ToF seed, hose centerline and frame and
     the follower's estimator are accepted; the setup keeps the ToF target radius given."""
-    from guidedarm.diagrams.tasks.path_following_setup import MakeSetup
+    from guidedarm.diagrams.tasks.path_following.setup import MakeSetup
 
     _, scenario, _ = LoadScenario(
         "path_following",
@@ -212,7 +212,6 @@ def test_values_the_task_derives_are_taken_when_they_agree(tmp_path):
             "station.tof_tools.tof.target_radius=0.012",
             "station.hose.centerline=paper_path_1",
             "station.hose.frame=mz04d::base",
-            "follower.estimator=grid",
         ],
     )
     setup = MakeSetup(scenario, tmp_path)
@@ -227,7 +226,7 @@ def test_a_csv_hose_takes_the_walls_of_its_yaml_beside_it(tmp_path):
     """paper_path_4 (out to x = 0.57 m) as a CSV: refused within the paper's cell, taken
     with a path4.yaml beside it that moves the x wall as models/hoses/paper_path_4.yaml
     does, and an explicit `workspace` wins over both."""
-    from guidedarm.diagrams.tasks.path_following_setup import MakeSetup
+    from guidedarm.diagrams.tasks.path_following.setup import MakeSetup
     from guidedarm.systems.errors import ConfigurationError
     from guidedarm.systems.path_following.hose_geometry import ReadCenterline, WriteCenterline
 
@@ -245,7 +244,7 @@ def test_a_csv_hose_takes_the_walls_of_its_yaml_beside_it(tmp_path):
 def test_an_initial_position_at_the_start_pose_is_kept(tmp_path):
     """An arm already at the start pose (the emulator's, or a real arm brought there) keeps
     its exact joints: the start IK, solved from there, would move it by a few 1e-4 rad."""
-    from guidedarm.diagrams.tasks.path_following_setup import MakeSetup
+    from guidedarm.diagrams.tasks.path_following.setup import MakeSetup
 
     _, scenario, _ = LoadScenario("path_following", [])
     q_start = MakeSetup(scenario, tmp_path).q_start
@@ -258,7 +257,7 @@ def test_a_random_hose_set_up_without_a_folder_is_one_shared_file(monkeypatch, t
     """Without an output folder a random hose's CSV goes to one file named by its content
     (the station reads it back): the same hose twice is the same file, another hose
     another, and nothing else is left in the temporary directory."""
-    from guidedarm.diagrams.tasks.path_following_setup import MakeSetup
+    from guidedarm.diagrams.tasks.path_following.setup import MakeSetup
     from guidedarm.systems.path_following.hose_geometry import ReadCenterline
 
     monkeypatch.setattr(tempfile, "tempdir", str(tmp_path))

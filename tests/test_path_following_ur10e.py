@@ -9,10 +9,10 @@ import pytest
 from pydrake.math import RigidTransform, RollPitchYaw
 from pydrake.multibody.parsing import LoadModelDirectivesFromString
 
-from guidedarm.diagrams.cli.command_run import LoadScenario
 from guidedarm.diagrams.run_context import RunContext
-from guidedarm.diagrams.tasks.path_following_diagram import MakeKinematicStation
-from guidedarm.diagrams.tasks.path_following_setup import MakeSetup
+from guidedarm.diagrams.station.kinematic_station import MakeKinematicStation
+from guidedarm.diagrams.tasks.path_following.setup import MakeSetup
+from guidedarm.diagrams.tasks.registry import LoadScenario
 from guidedarm.systems.path_following.hose_geometry import ReadCenterline, WriteCenterline
 
 SCENARIO = "ur10e_path_following"

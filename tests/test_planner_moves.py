@@ -4,9 +4,9 @@ import numpy as np
 import pytest
 from pydrake.math import RigidTransform, RotationMatrix
 
-from guidedarm.diagrams.cli.command_run import LoadScenario
-from guidedarm.diagrams.tasks.path_following_diagram import MakePlannerMoves
-from guidedarm.diagrams.tasks.path_following_setup import MakeSetup
+from guidedarm.diagrams.tasks.path_following.builder import MakePlannerMoves
+from guidedarm.diagrams.tasks.path_following.setup import MakeSetup
+from guidedarm.diagrams.tasks.registry import LoadScenario
 from guidedarm.systems.planning.acceleration_planner_math import PlanningError
 
 
@@ -36,8 +36,8 @@ def test_a_retrace_and_turn_ends_on_the_ik_pose_within_the_limits(planner_moves)
     dt = np.diff(move.times)
     qd = np.diff(move.q, axis=0) / dt[:, None]
     qdd = np.diff(qd, axis=0) / dt[1:, None]
-    assert np.max(np.abs(qd)) <= setup.motion.max_joint_speed + 1e-6
-    assert np.max(np.abs(qdd)) <= setup.motion.max_joint_acceleration + 1e-6
+    assert np.max(np.abs(qd)) <= setup.limits.max_joint_speed + 1e-6
+    assert np.max(np.abs(qdd)) <= setup.limits.max_joint_acceleration + 1e-6
     # It passes the middle stop (the start pose) on the way.
     assert np.min(np.max(np.abs(move.q - q0), axis=1)) < 0.002
 

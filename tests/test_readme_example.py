@@ -7,7 +7,7 @@ import re
 
 from conftest import REPO
 
-from guidedarm.diagrams.tasks.panel_files import DEFAULT_PANEL_FILE, LoadPanelSpec
+from guidedarm.diagrams.panel.panel_files import DEFAULT_PANEL_FILE, LoadPanelSpec
 
 
 def _examples(relative_path: str) -> list[str]:

@@ -6,8 +6,8 @@ import re
 
 import pytest
 
-from guidedarm.diagrams.cli.command_run import LoadScenario
 from guidedarm.diagrams.scenario_loading import ScenarioError, parse_overrides
+from guidedarm.diagrams.tasks.registry import LoadScenario
 from guidedarm.systems.errors import ConfigurationError
 
 GOOD = """\
@@ -137,8 +137,8 @@ def test_cli_reports_bad_scenario_in_one_line(tmp_path, run_cli):
 def test_a_rule_between_fields_names_the_set_that_broke_it():
     """A --set that breaks a rule between the fields of a section (continuous: loss_distance
     < look_ahead) is named beside the scenario file, not left for the user to guess."""
-    from guidedarm.diagrams.cli.command_run import LoadScenario
     from guidedarm.diagrams.scenario_loading import ScenarioError
+    from guidedarm.diagrams.tasks.registry import LoadScenario
 
     with pytest.raises(ScenarioError) as refused:
         LoadScenario("path_following", ["motion=continuous", "continuous.look_ahead=0.008"])
@@ -154,10 +154,15 @@ def test_a_rule_between_fields_names_the_set_that_broke_it():
         (
             "path_following",
             "motion=continuos",
-            "--set motion must be one of ('joint_trajectory', 'planner', 'continuous')",
+            "--set key 'motion': 'continuos' is not one of 'joint_trajectory', 'planner', "
+            "'continuous'",
         ),
         ("ur10e_waypoints", "limits=fast", "--set limits must be one of"),
-        ("panel_operation", "operation.motion=teleport", "--set operation.motion must be one of"),
+        (
+            "panel_operation",
+            "operation.motion=teleport",
+            "--set key 'operation.motion': 'teleport' is not one of",
+        ),
     ],
 )
 def test_a_refused_set_value_names_the_flag_not_the_scenario_file(scenario, override, expected):

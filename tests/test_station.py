@@ -74,7 +74,7 @@ def test_servo_is_computed_torque_on_the_arm_of_the_whole_plant():
     """The station's servo (InverseDynamics on the controller plant of the arm,
     its gripper and ToF tool) applies tau = M_aa (kp e + kd e_dot) + c_a - tau_g,a of the
     station's own plant, in the arm's actuator order."""
-    from guidedarm.diagrams.cli.command_run import LoadScenario
+    from guidedarm.diagrams.tasks.registry import LoadScenario
 
     task, scenario, _ = LoadScenario("path_following", [])
     config = task.Station(scenario)

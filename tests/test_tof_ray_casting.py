@@ -3,21 +3,14 @@ through the QueryObject, over the paper paths and random hoses, and on each shap
 
 import numpy as np
 import pytest
-from pydrake.geometry import (
-    Box,
-    Capsule,
-    Cylinder,
-    HalfSpace,
-    SceneGraph,
-    Sphere,
-)
+from pydrake.geometry import Box, Capsule, Cylinder, HalfSpace, SceneGraph, Sphere
 from pydrake.math import RigidTransform, RollPitchYaw, RotationMatrix
 from pydrake.multibody.plant import AddMultibodyPlantSceneGraph, CoulombFriction
 from pydrake.systems.framework import DiagramBuilder
 
-from guidedarm.diagrams.cli.command_run import LoadScenario
-from guidedarm.diagrams.tasks.path_following_diagram import MakeKinematicStation
-from guidedarm.diagrams.tasks.path_following_setup import MakeSetup
+from guidedarm.diagrams.station.kinematic_station import MakeKinematicStation
+from guidedarm.diagrams.tasks.path_following.setup import MakeSetup
+from guidedarm.diagrams.tasks.registry import LoadScenario
 from guidedarm.systems.path_following.path_follower_math import OrientationFromVector
 from guidedarm.systems.tof.primitive_ray_casting import (
     FirstHits,

@@ -8,10 +8,10 @@ import pytest
 from pydrake.math import RigidTransform
 from pydrake.multibody.parsing import LoadModelDirectives
 
+from guidedarm.diagrams.station.kinematic_station import MakeKinematicStation
 from guidedarm.diagrams.station.model_paths import MODELS_DIR
 from guidedarm.diagrams.station.scenario import ArmConfig, StationScenario
 from guidedarm.diagrams.station.station_plant import MakeMultibodyPlant
-from guidedarm.diagrams.tasks.path_following_diagram import MakeKinematicStation
 from guidedarm.systems.path_following.hose_geometry import HoseConfig
 from guidedarm.systems.tof.tof_tool_sensor import ToFToolConfig
 from guidedarm.systems.tof.tof_tool_sensor_math import (

@@ -7,15 +7,15 @@ import numpy as np
 import pytest
 
 from guidedarm.diagrams.cli.command_compare_planners import ComparePlanners, TableRow
-from guidedarm.diagrams.cli.command_run import LoadScenario
 from guidedarm.diagrams.cli.main import main
-from guidedarm.diagrams.tasks.registry import GetTask, NumericMetricNames
-from guidedarm.diagrams.tasks.tracking import (
+from guidedarm.diagrams.tasks.common.tracking import (
     MAX_TRACKING_DELAY,
     DelayedTrackingError,
     SampledCommands,
 )
-from guidedarm.diagrams.tasks.waypoints import MakePlannerSetup, TrajectoryMetrics
+from guidedarm.diagrams.tasks.registry import GetTask, LoadScenario, NumericMetricNames
+from guidedarm.diagrams.tasks.waypoints import MakePlannerSetup
+from guidedarm.diagrams.tasks.waypoints.report import TrajectoryMetrics
 from guidedarm.systems.planning.acceleration_planner_math import RunPlanning
 from guidedarm.systems.planning.planner_baselines import TrapezoidProfile
 

@@ -1,5 +1,5 @@
 """The files of the calibration commands: BOARD.yaml in, CAMERA.yaml (as the marker
-estimator reads it, diagrams/tasks/panel_files.py) and hand_eye.yaml out.
+estimator reads it, diagrams/panel/panel_files.py) and hand_eye.yaml out.
 
 No `from __future__ import annotations` here: yaml_load_typed reads HandEyeFile's
 annotations."""

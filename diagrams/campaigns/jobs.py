@@ -15,8 +15,7 @@ from typing import Any
 from pydrake.common.yaml import yaml_dump_typed
 
 from guidedarm.diagrams.campaigns.campaign import DRAW_AXIS, CampaignConfig, CampaignError
-from guidedarm.diagrams.cli.command_run import LoadScenario
-from guidedarm.diagrams.tasks.registry import TaskDefinition
+from guidedarm.diagrams.tasks.registry import LoadScenario, TaskDefinition
 from guidedarm.systems.errors import ConfigurationError
 
 ID_LENGTH = 16

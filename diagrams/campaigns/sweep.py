@@ -16,8 +16,8 @@ from guidedarm.diagrams.campaigns.engine import OpenClient, Outcome, RunJobs
 from guidedarm.diagrams.campaigns.jobs import ExpandJobs, Job
 from guidedarm.diagrams.campaigns.report import WriteReport
 from guidedarm.diagrams.campaigns.results import RESULTS_FILE, ResultsTable
-from guidedarm.diagrams.cli.command_run import PrepareOutputDirectory
 from guidedarm.diagrams.interrupts import DeferredInterrupts
+from guidedarm.diagrams.run_context import PrepareOutputDirectory
 from guidedarm.diagrams.tasks.registry import GetTask
 from guidedarm.systems.errors import ConfigurationError
 

@@ -16,9 +16,9 @@ from pathlib import Path
 from typing import Any
 
 from guidedarm.diagrams.campaigns.jobs import Job
-from guidedarm.diagrams.cli.command_run import LoadScenario
 from guidedarm.diagrams.run_context import RESOLVED_SCENARIO_FILE, RunContext
 from guidedarm.diagrams.task_run import RunTask
+from guidedarm.diagrams.tasks.registry import LoadScenario
 from guidedarm.systems.errors import GuidedArmError
 
 

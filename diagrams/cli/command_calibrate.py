@@ -33,9 +33,9 @@ from guidedarm.diagrams.calibration.hand_eye_calibration import (
     ReadPoses,
     WriteHandEye,
 )
+from guidedarm.diagrams.panel.panel_files import LoadCameraIntrinsics
 from guidedarm.diagrams.run_context import PrepareOutputDirectory
 from guidedarm.diagrams.scenario_loading import AddOverridesArgument
-from guidedarm.diagrams.tasks.panel_files import LoadCameraIntrinsics
 from guidedarm.systems.calibration.camera_calibration_math import CameraCalibration
 from guidedarm.systems.errors import ConfigurationError
 
@@ -100,7 +100,7 @@ def _CheckMode(args: argparse.Namespace, offline: tuple[str, ...]) -> bool:
 def _SimulatedCell(args: argparse.Namespace):
     # Imported here: building a station imports all of Drake's multibody and rendering.
     from guidedarm.diagrams.calibration.simulated_cell import SimulatedCalibrationCell
-    from guidedarm.diagrams.cli.command_run import LoadScenario
+    from guidedarm.diagrams.tasks.registry import LoadScenario
 
     _, scenario, _ = LoadScenario(args.scenario, args.overrides)
     PrepareOutputDirectory(args.out)
@@ -170,7 +170,7 @@ def calibrate_hand_eye_command(args: argparse.Namespace) -> int:
 
 def calibrate_tof_command(args: argparse.Namespace) -> int:
     from guidedarm.diagrams.calibration.tof_calibration import CalibrateToFInSimulation
-    from guidedarm.diagrams.cli.command_run import LoadScenario
+    from guidedarm.diagrams.tasks.registry import LoadScenario
 
     if args.hardware:
         raise ConfigurationError(

@@ -30,10 +30,11 @@ from typing import Any
 
 import numpy as np
 
-from guidedarm.diagrams.cli.command_run import LoadScenario
 from guidedarm.diagrams.run_context import RunContext
 from guidedarm.diagrams.scenario_loading import AddOverridesArgument
-from guidedarm.diagrams.tasks.waypoints import MakePlannerSetup, PlannerSetup, PlotTcpPathsOfJoints
+from guidedarm.diagrams.tasks.registry import LoadScenario
+from guidedarm.diagrams.tasks.waypoints import MakePlannerSetup, PlannerSetup
+from guidedarm.diagrams.tasks.waypoints.report import PlotTcpPathsOfJoints
 from guidedarm.systems.errors import ConfigurationError, GuidedArmError
 from guidedarm.systems.planning.acceleration_planner_math import (
     AccelerationPlanning,

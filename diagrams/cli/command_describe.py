@@ -38,12 +38,17 @@ import numpy as np
 from pydrake.common.schema import Rotation
 from pydrake.geometry import Rgba
 
-from guidedarm.diagrams.cli.command_run import LoadScenario
 from guidedarm.diagrams.scenario_loading import AddOverridesArgument, list_named_scenarios
-from guidedarm.diagrams.tasks.registry import SUMMARY_KEYS, AvailableTasks, TaskDefinition
+from guidedarm.diagrams.tasks.registry import (
+    SUMMARY_KEYS,
+    GetTask,
+    LoadScenario,
+    TaskDefinition,
+    TaskNames,
+)
 from guidedarm.systems.errors import ConfigurationError
 
-TASK_DOC = "the task this scenario runs (diagrams/tasks/<task>.py)"
+TASK_DOC = "the task this scenario runs (diagrams/tasks/<task>/)"
 
 # Drake structs shown as one value, not expanded into their fields.
 LEAF_STRUCTS = (Rgba, Rotation)
@@ -99,7 +104,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
 
 
 def describe_command(args: argparse.Namespace) -> int:
-    tasks = AvailableTasks()
+    tasks = TaskNames()
     scenarios = list_named_scenarios()
     task_only = args.target in tasks and args.target not in scenarios
     if args.overrides and (args.defaults or args.metrics or task_only):
@@ -109,10 +114,10 @@ def describe_command(args: argparse.Namespace) -> int:
             raise ConfigurationError("--set has no effect with --metrics (a task's metrics)")
         raise ConfigurationError(f"--set has no effect with {shown}: describe a scenario")
     if task_only:
-        task, scenario, name = tasks[args.target], None, None
+        task, scenario, name = GetTask(args.target), None, None
     elif args.target not in scenarios and not args.target.endswith((".yaml", ".yml")):
         raise ConfigurationError(
-            f"unknown task or scenario '{args.target}' (tasks: {', '.join(sorted(tasks))}; "
+            f"unknown task or scenario '{args.target}' (tasks: {', '.join(tasks)}; "
             f"scenarios: {', '.join(scenarios)})"
         )
     else:
@@ -169,8 +174,14 @@ def DescribeScenario(scenario: Any) -> list[KeyDoc]:
 
 def FieldDocs(cls: type) -> dict[str, str]:
     """The `name: text` entries of a dataclass docstring, by field name (see the module
-    docstring); fields without an entry are absent."""
-    return dict(_FieldDocs(cls))
+    docstring, or of a base class's for an inherited field); fields without an entry are
+    absent."""
+    docs: dict[str, str] = {}
+    for klass in cls.__mro__:
+        if dataclasses.is_dataclass(klass):
+            for name, doc in _FieldDocs(klass):
+                docs.setdefault(name, doc)
+    return docs
 
 
 @functools.cache
@@ -212,6 +223,14 @@ def _DescribeStruct(cls: type, value: Any, prefix: str, rows: list[KeyDoc]) -> N
 
 def _Describe(schema: Any, value: Any, key: str, doc: str, rows: list[KeyDoc]) -> None:
     """Adds the row of `key` (and of its nested keys) to rows."""
+    variants = _Variants(schema)
+    if variants:
+        # A tagged union: the entry's own type, or each type for an empty mapping.
+        for cls in [type(value)] if value is not None else variants:
+            shown = value if value is not None else cls()
+            rows.append(KeyDoc(key, f"!{cls.__name__}", "", doc or _FirstSentence(cls.__doc__)))
+            _DescribeFields(cls, shown, f"{key}.", rows)
+        return
     nested = _NestedType(schema)
     if nested is not None and not doc:
         doc = _FirstSentence(nested.__doc__)
@@ -248,6 +267,12 @@ def _NestedType(schema: Any) -> type | None:
     return None
 
 
+def _Variants(schema: Any) -> list[type]:
+    """The dataclasses of a tagged union (a Union of two or more dataclasses), else []."""
+    members = [m for m in _UnionMembers(schema) if m is not type(None)]
+    return members if len(members) > 1 and all(map(dataclasses.is_dataclass, members)) else []
+
+
 def _UnionMembers(schema: Any) -> tuple:
     if typing.get_origin(schema) in (typing.Union, types.UnionType):
         return typing.get_args(schema)
@@ -255,12 +280,16 @@ def _UnionMembers(schema: Any) -> tuple:
 
 
 def _Default(schema: Any) -> Any:
+    if _Variants(schema):
+        return None  # _Describe lists each type of the union
     nested = _NestedType(schema)
     return nested() if nested is not None else schema()
 
 
 def _TypeName(schema: Any) -> str:
     origin = typing.get_origin(schema)
+    if origin is typing.Literal:
+        return " | ".join(repr(a) for a in typing.get_args(schema))
     if origin in (typing.Union, types.UnionType):
         names = [_TypeName(m) for m in typing.get_args(schema)]
         return " | ".join(dict.fromkeys(n for n in names if not n.startswith("_")))

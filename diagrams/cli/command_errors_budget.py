@@ -13,10 +13,10 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from guidedarm.diagrams.cli.command_run import LoadScenario
 from guidedarm.diagrams.errors_budget import FormatBudget, RunBudget, WithPreset, WriteBudget
 from guidedarm.diagrams.run_context import PrepareOutputDirectory
 from guidedarm.diagrams.scenario_loading import AddOverridesArgument
+from guidedarm.diagrams.tasks.registry import LoadScenario
 from guidedarm.systems.errors import ConfigurationError
 
 

@@ -18,7 +18,7 @@ from pathlib import Path
 
 import cv2
 
-from guidedarm.diagrams.tasks.panel_files import LoadCameraIntrinsics, LoadPanelSpec
+from guidedarm.diagrams.panel.panel_files import LoadCameraIntrinsics, LoadPanelSpec
 from guidedarm.systems.errors import GuidedArmError
 from guidedarm.systems.markers.marker_pose_estimator_math import MarkerPoseSolver
 

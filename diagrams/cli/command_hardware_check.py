@@ -11,12 +11,12 @@ from __future__ import annotations
 
 import argparse
 
-from guidedarm.diagrams.cli.command_run import LoadScenario
 from guidedarm.diagrams.scenario_loading import AddOverridesArgument
 from guidedarm.diagrams.station.hardware_check import CheckArm, CheckCamera, CheckToFTool
-from guidedarm.diagrams.station.hardware_station import StartPoses
 from guidedarm.diagrams.station.link_checks import CheckHardwareEntries
 from guidedarm.diagrams.station.station_plant import GetArmInstance, MakeMultibodyPlant
+from guidedarm.diagrams.tasks.common.start_pose import StartPoses
+from guidedarm.diagrams.tasks.registry import LoadScenario
 from guidedarm.systems.errors import ConfigurationError
 from guidedarm.systems.hardware.command_guard import JointLimits
 

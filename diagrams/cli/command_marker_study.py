@@ -29,8 +29,8 @@ from typing import Any
 from guidedarm.diagrams.campaigns.campaign import CampaignConfig, LoadCampaign
 from guidedarm.diagrams.campaigns.jobs import ExpandJobs
 from guidedarm.diagrams.campaigns.sweep import MakeSweepOptions, Sweep
+from guidedarm.diagrams.panel.panel_files import RecordedModelFile, RecordedPanelFile
 from guidedarm.diagrams.run_context import RunContext
-from guidedarm.diagrams.tasks.panel_files import RecordedModelFile, RecordedPanelFile
 from guidedarm.systems.config_checks import FieldError
 from guidedarm.systems.errors import ConfigurationError
 from guidedarm.systems.markers.image_degradation import DegradationConfig

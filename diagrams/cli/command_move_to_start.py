@@ -10,13 +10,14 @@ from __future__ import annotations
 
 import argparse
 
-from guidedarm.diagrams.cli.command_run import LoadScenario
 from guidedarm.diagrams.scenario_loading import AddOverridesArgument
 from guidedarm.diagrams.station.hardware_check import FormatJoints
-from guidedarm.diagrams.station.hardware_station import START_TOLERANCE, StartPoses
+from guidedarm.diagrams.station.hardware_station import START_TOLERANCE
 from guidedarm.diagrams.station.move_to_start import MoveArmsToStart, Reached
 from guidedarm.diagrams.station.station import MakeStation
 from guidedarm.diagrams.station.station_plant import GetArmInstance, MakeMultibodyPlant
+from guidedarm.diagrams.tasks.common.start_pose import StartPoses
+from guidedarm.diagrams.tasks.registry import LoadScenario
 from guidedarm.systems.errors import ConfigurationError, HardwareFaultError
 from guidedarm.systems.hardware.command_guard import JointLimits
 

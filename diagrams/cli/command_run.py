@@ -31,16 +31,10 @@ from guidedarm.diagrams.run_context import (
 from guidedarm.diagrams.run_labels import RunTitle
 from guidedarm.diagrams.scenario_loading import (
     AddOverridesArgument,
-    ScenarioError,
-    apply_overrides,
-    load_typed,
     parse_overrides,
-    read_raw_scenario,
-    resolve_scenario_path,
 )
 from guidedarm.diagrams.task_run import InterruptedFailure, RunTask
-from guidedarm.diagrams.tasks.registry import GetTask, RunFlags
-from guidedarm.systems.config_checks import CheckInstance
+from guidedarm.diagrams.tasks.registry import LoadScenario, RunFlags
 from guidedarm.systems.errors import ConfigurationError
 
 FAILED = 1
@@ -99,27 +93,6 @@ def CheckMeshcatArguments(args: argparse.Namespace) -> None:
         raise ConfigurationError(f"--meshcat-wait must be >= 0 s, got {args.meshcat_wait}")
     if args.meshcat_host is not None and not args.meshcat_host.strip():
         raise ConfigurationError("--meshcat-host must not be empty")
-
-
-def LoadScenario(name_or_path: str | Path, overrides: list[str]) -> tuple[Any, Any, str]:
-    """Returns (task, typed scenario, scenario name) for a scenario and `--set` overrides
-    (a list of `key=value` strings), after the task's checks of the scenario: its types and
-    bounds, its Validate() (the rules between its keys) and the task's check_overrides;
-    the scenario is the task's resolved one (TaskDefinition.resolve)."""
-    CheckInstance("name_or_path", name_or_path, (str, Path))
-    path = resolve_scenario_path(name_or_path)
-    parsed = parse_overrides(overrides)
-    raw = apply_overrides(read_raw_scenario(path), parsed)
-    task_name = raw.get("task")
-    if not isinstance(task_name, str):
-        raise ScenarioError(f"{path}: missing key 'task' (the task this scenario runs)")
-    task = GetTask(task_name)
-    scenario = load_typed(task.scenario_type, raw, str(path), parsed.keys())
-    if task.check_overrides is not None:
-        task.check_overrides(scenario, parsed.keys())
-    if task.resolve is not None:
-        scenario = task.resolve(scenario)
-    return task, scenario, path.stem
 
 
 def run_command(args: argparse.Namespace) -> int:

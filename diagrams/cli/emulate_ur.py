@@ -13,15 +13,11 @@ from __future__ import annotations
 import argparse
 
 import numpy as np
-from pydrake.multibody.parsing import LoadModelDirectives
 
-from guidedarm.diagrams.station.hardware_config import ListenHostProblem, ToFDriverConfig
-from guidedarm.diagrams.station.model_paths import MODELS_DIR
-from guidedarm.diagrams.station.scenario import ArmConfig, StationScenario
+from guidedarm.diagrams.emulation import ScenarioStation, Serve, StartUrEmulator, UrCell
+from guidedarm.diagrams.station.hardware_config import ListenHostProblem, ToFLinkSettings
 from guidedarm.systems.errors import ConfigurationError
 from guidedarm.systems.hardware.nachi_emulator import DEFAULT_SERVO_ACCELERATION
-from guidedarm.systems.hardware.tof_emulator import ToFEmulator
-from guidedarm.systems.hardware.ur_emulator import UrEmulator
 
 DEFAULT_ARM = "ur10e"
 # Options of `emulate` that do not apply to `ur`, and why.
@@ -30,12 +26,6 @@ NOT_FOR_UR = {
     "servo_timeout": "the UR's streaming timeout is the client's (station.hardware.arms."
     "<arm>.servo_timeout, sent with setWatchdog)",
 }
-
-
-def UrCell() -> StationScenario:
-    """The UR10e alone at its model's home."""
-    directives = LoadModelDirectives(str(MODELS_DIR / "directives/ur10e.dmd.yaml"))
-    return StationScenario(directives=directives.directives, arms={"ur10e": ArmConfig()})
 
 
 def CheckUrArguments(args: argparse.Namespace) -> None:
@@ -61,42 +51,16 @@ def CheckUrArguments(args: argparse.Namespace) -> None:
         raise ConfigurationError(f"--tof-latency {args.tof_latency}: must be >= 0 and finite")
 
 
-def StartUrEmulator(
-    station_scenario: StationScenario,
-    arm: str,
-    host: str,
-    servo_acceleration: float = DEFAULT_SERVO_ACCELERATION,
-    tof_latency: float = ToFDriverConfig().latency,
-    lockstep: bool = False,
-) -> tuple[UrEmulator, dict[str, ToFEmulator]]:
-    """The UR emulator for `arm` of the station (UrEmulator's `lockstep`) and a ToF
-    emulator per tool."""
-    from guidedarm.diagrams.cli.command_emulate import EmulatedStation
-
-    station, tofs, taps = EmulatedStation(station_scenario, arm, tof_latency)
-    emulator = UrEmulator(
-        station,
-        arm,
-        host,
-        observers=taps,
-        servo_acceleration=servo_acceleration,
-        lockstep=lockstep,
-    )
-    return emulator, tofs
-
-
 def EmulateUr(args: argparse.Namespace) -> int:
     """`guidedarm emulate ur`."""
-    from guidedarm.diagrams.cli.command_emulate import ScenarioStation, Serve
-
     CheckUrArguments(args)
-    station_scenario = ScenarioStation(args, UrCell)
+    station_scenario = ScenarioStation(args.scenario, args.overrides, UrCell)
     emulator, tofs = StartUrEmulator(
         station_scenario,
         args.arm or DEFAULT_ARM,
         args.host,
         args.servo_acceleration or DEFAULT_SERVO_ACCELERATION,
-        ToFDriverConfig().latency if args.tof_latency is None else args.tof_latency,
+        ToFLinkSettings().latency if args.tof_latency is None else args.tof_latency,
         args.lockstep,
     )
     print(f"ur: {args.arm or DEFAULT_ARM} listening on {args.host} (RTDE 30004, dashboard "

@@ -15,7 +15,12 @@ import time
 
 import numpy as np
 
-from guidedarm.diagrams.station.hardware_config import ArmDriverConfig, ToFDriverConfig
+from guidedarm.diagrams.station.hardware_config import (
+    ArmDriverConfig,
+    NachiDriver,
+    ToFDriverConfig,
+    UrRtdeDriver,
+)
 from guidedarm.diagrams.station.link_checks import ProveCamera, ProveToFTool
 from guidedarm.systems.errors import ConfigurationError
 from guidedarm.systems.hardware import nachi_protocol as nachi
@@ -23,7 +28,6 @@ from guidedarm.systems.hardware.command_guard import ImplausibleMeasurement, Joi
 from guidedarm.systems.hardware.line_socket import LineSocket
 from guidedarm.systems.hardware.opencv_camera import FrameGrabber
 from guidedarm.systems.hardware.tof_protocol import RANGE_STATUS, ToFLineCollector
-from guidedarm.systems.hardware.tof_transports import BleTransport, SerialTransport
 from guidedarm.systems.hardware.ur_rtde_link import CapturedStderr, ProbeUrController
 
 LISTEN = 1.0  # s each link is watched for its rates
@@ -44,7 +48,7 @@ def CheckArm(
 ) -> tuple[list[str], np.ndarray]:
     """Reads the arm's joints for LISTEN s; returns the report lines and the last joints.
     Refuses an arm that does not answer or whose joints the model cannot have."""
-    if config.driver == "nachi_tcp":
+    if isinstance(config, NachiDriver):
         q, rate, state = _ReadNachi(name, config)
     else:
         q, rate, state = _ReadUr(name, config)
@@ -52,7 +56,7 @@ def CheckArm(
     if implausible:
         raise ConfigurationError(f"{name}: {implausible}")
     lines = [
-        f"arm {name} ({config.driver} {config.host}): {state}, {rate:.0f} samples/s",
+        f"arm {name} ({config.KIND} {config.host}): {state}, {rate:.0f} samples/s",
         f"  joints {FormatJoints(q)}",
     ]
     if q_start is not None:
@@ -61,7 +65,7 @@ def CheckArm(
     return lines, q
 
 
-def _ReadNachi(name: str, config: ArmDriverConfig) -> tuple[np.ndarray, float, str]:
+def _ReadNachi(name: str, config: NachiDriver) -> tuple[np.ndarray, float, str]:
     port = config.port or nachi.DEFAULT_PORT
     try:
         connection = socket.create_connection((config.host, port), timeout=1.0)
@@ -84,7 +88,7 @@ def _ReadNachi(name: str, config: ArmDriverConfig) -> tuple[np.ndarray, float, s
     return q, samples / LISTEN, status
 
 
-def _ReadUr(name: str, config: ArmDriverConfig) -> tuple[np.ndarray, float, str]:
+def _ReadUr(name: str, config: UrRtdeDriver) -> tuple[np.ndarray, float, str]:
     import rtde_receive
 
     try:
@@ -118,12 +122,9 @@ def CheckToFTool(name: str, config: ToFDriverConfig) -> list[str]:
     """Reads the tool for LISTEN s after its first valid line: line rate, the newest
     ranges and status codes in sensor order r1..r6, lines rejected."""
     collector = ToFLineCollector(name)
-    if config.transport == "serial":
-        transport = SerialTransport(collector, config.device, config.baudrate)
-    else:
-        transport = BleTransport(collector, config.device)
+    transport = config.Open(collector)
     try:
-        ProveToFTool(collector, config.device, config.watchdog)
+        ProveToFTool(collector, config.Label(), config.watchdog)
         first = collector.accepted
         time.sleep(LISTEN)
         reading, _ = collector.latest()
@@ -135,8 +136,7 @@ def CheckToFTool(name: str, config: ToFDriverConfig) -> list[str]:
         for i, (r, s) in enumerate(zip(reading.ranges, reading.status, strict=True))
     )
     return [
-        f"tof {name} ({config.transport} {config.device}): {rate:.0f} lines/s, "
-        f"{collector.rejected} rejected",
+        f"tof {name} ({config.Label()}): {rate:.0f} lines/s, {collector.rejected} rejected",
         f"  {ranges}",
     ]
 

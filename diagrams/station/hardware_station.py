@@ -11,11 +11,11 @@ from __future__ import annotations
 import numpy as np
 from pydrake.geometry import Meshcat, MeshcatVisualizer, SceneGraph
 from pydrake.multibody.plant import MultibodyPlant
-from pydrake.systems.framework import Context, Diagram, DiagramBuilder, OutputPort
+from pydrake.systems.framework import Diagram, DiagramBuilder, OutputPort
 from pydrake.systems.primitives import ConstantVectorSource, MatrixGain, Multiplexer
 from pydrake.systems.rendering import MultibodyPositionToGeometryPose
 
-from guidedarm.diagrams.station.hardware_config import ArmDriverConfig
+from guidedarm.diagrams.station.hardware_config import ArmDriverConfig, UrRtdeDriver
 from guidedarm.diagrams.station.link_checks import (
     CheckHardwareEntries,
     ProveCamera,
@@ -24,9 +24,7 @@ from guidedarm.diagrams.station.link_checks import (
 from guidedarm.diagrams.station.scenario import StationScenario
 from guidedarm.diagrams.station.station_plant import (
     AddStationModels,
-    ArmInitialPosition,
     GetArmInstance,
-    MakeMultibodyPlant,
     SetInitialPositions,
 )
 from guidedarm.systems.errors import ConfigurationError
@@ -38,7 +36,6 @@ from guidedarm.systems.hardware.nachi_link import NachiLink
 from guidedarm.systems.hardware.opencv_camera import FrameGrabber, OpenCvCamera
 from guidedarm.systems.hardware.tof_driver import ToFDriver
 from guidedarm.systems.hardware.tof_protocol import ToFLineCollector
-from guidedarm.systems.hardware.tof_transports import BleTransport, SerialTransport
 from guidedarm.systems.hardware.ur_rtde_link import OpenUrRtde
 from guidedarm.systems.tof.tof_tool_sensor import TOF_PORTS, MakeDetectionGrid
 
@@ -52,36 +49,6 @@ TOF_POLLS_PER_PERIOD = 4
 # the first streamed command moves it there within one control period, which the command
 # guard's acceleration limits allow only for jumps of about 1e-3 rad.
 START_TOLERANCE = 1e-4
-
-
-def CheckArmAtStart(station: Diagram, root: Context, arm: str, q_start: np.ndarray) -> None:
-    """Raises ConfigurationError, before any command is sent, unless the joints of `arm`
-    measured by the (hardware) `station` in the diagram's context `root` are within
-    START_TOLERANCE of the task's start pose q_start (rad): a task streams from that pose,
-    and its first command would jump from anywhere else (a jump the arm driver's command
-    guard refuses). The refusal names every joint's offset and the command that moves the
-    arm there."""
-    port = station.GetOutputPort(f"{arm}.position_measured")
-    q_measured = port.Eval(station.GetMyContextFromRoot(root))
-    offset = np.asarray(q_measured, float) - np.asarray(q_start, float)
-    if np.max(np.abs(offset)) > START_TOLERANCE:
-        offsets = ", ".join(f"{x:+.4f}" for x in np.round(offset, 4) + 0.0)  # no -0.0000
-        raise ConfigurationError(
-            f"{arm} is not at the task's start pose: joint offsets [{offsets}] rad "
-            f"(tolerance {START_TOLERANCE} rad); bring it there with `guidedarm "
-            "move-to-start SCENARIO --hardware` and the run's --set options (an emulator: "
-            "start it with --scenario and the run's --set options)"
-        )
-
-
-def StartPoses(task, scenario) -> dict[str, np.ndarray]:
-    """Each arm's start pose (rad) in a run of `scenario` by `task` (its TaskDefinition):
-    the initial positions of the station the run builds (path following's IK solution of
-    the hose's start, a tour's start, the planner's q(0)), the model's defaults where the
-    scenario gives none."""
-    station = task.Station(scenario)
-    plant = MakeMultibodyPlant(station, list(station.arms))
-    return {name: ArmInitialPosition(plant, name, arm) for name, arm in station.arms.items()}
 
 
 def MakeHardwareStation(scenario: StationScenario, meshcat: Meshcat | None = None) -> Diagram:
@@ -113,11 +80,8 @@ def MakeHardwareStation(scenario: StationScenario, meshcat: Meshcat | None = Non
         tool = scenario.ToFTool(name)
         config = hardware.tof_tools[name]
         collector = ToFLineCollector(name)
-        if config.transport == "serial":
-            SerialTransport(collector, config.device, config.baudrate)
-        else:
-            BleTransport(collector, config.device)
-        ProveToFTool(collector, config.device, config.watchdog)
+        config.Open(collector)
+        ProveToFTool(collector, config.Label(), config.watchdog)
         grid = MakeDetectionGrid(plant, tool)
         latency = tool.ranging_time / 2 + config.latency
         system = ToFDriver(
@@ -162,7 +126,7 @@ def MakeHardwareStation(scenario: StationScenario, meshcat: Meshcat | None = Non
 
 
 def _OpenArmLink(name: str, config: ArmDriverConfig, period: float) -> ArmLink:
-    if config.driver == "ur_rtde":
+    if isinstance(config, UrRtdeDriver):
         return OpenUrRtde(
             name,
             config.host,

@@ -14,7 +14,8 @@ tools), which has the arm's M_aa, c_a and tau_g,a of the station's plant as long
 arm's base does not move; the other models of the scene keep their own dynamics.
 
 The hardware branch (diagrams/station/hardware_station.py) exports the same ports
-from drivers. Sim-only ground truth is exported under the `sim.` prefix and is not part of
+from drivers, the kinematic one (diagrams/station/kinematic_station.py) from the plant posed
+at the command. Sim-only ground truth is exported under the `sim.` prefix and is not part of
 the sim/hardware contract.
 """
 
@@ -24,7 +25,6 @@ import copy
 
 import numpy as np
 from pydrake.geometry import MakeRenderEngineVtk, Meshcat, RenderEngineVtkParams, SceneGraph
-from pydrake.lcm import DrakeLcm
 from pydrake.math import RigidTransform
 from pydrake.multibody.plant import AddMultibodyPlant, MultibodyPlant
 from pydrake.systems.controllers import InverseDynamics
@@ -37,9 +37,9 @@ from pydrake.systems.primitives import (
     StateInterpolatorWithDiscreteDerivative,
 )
 from pydrake.systems.sensors import CameraConfig, RgbdSensor
-from pydrake.visualization import ApplyVisualizationConfig
 
 from guidedarm.diagrams.station.hardware_station import MakeHardwareStation
+from guidedarm.diagrams.station.kinematic_station import MakeKinematicStation
 from guidedarm.diagrams.station.scenario import RENDERER_NAME, ArmConfig, StationScenario
 from guidedarm.diagrams.station.station_errors import ArmErrors
 from guidedarm.diagrams.station.station_plant import (
@@ -49,25 +49,36 @@ from guidedarm.diagrams.station.station_plant import (
     MakeMultibodyPlant,
     SetInitialPositions,
 )
+from guidedarm.diagrams.station.station_wiring import AddMeshcatVisualization, AddToFTools
 from guidedarm.systems.cell_errors.camera_errors import CameraErrors, MakeTrueCamera
 from guidedarm.systems.cell_errors.joint_encoder import JointEncoder
 from guidedarm.systems.cell_errors.lens_distortion import LensDistortion
 from guidedarm.systems.config_checks import CheckConfig, CheckInstance
 from guidedarm.systems.errors import ConfigurationError
 from guidedarm.systems.plant_frames import GetScopedFrame
-from guidedarm.systems.tof.tof_tool_sensor import TOF_PORTS, ToFToolSensor
 
 
 def MakeStation(
-    scenario: StationScenario, meshcat: Meshcat | None = None, hardware: bool = False
+    scenario: StationScenario,
+    meshcat: Meshcat | None = None,
+    hardware: bool = False,
+    kinematic: bool = False,
 ) -> Diagram:
-    """Builds the station Diagram of `scenario` (simulated, or hardware drivers)."""
+    """Builds the station Diagram of `scenario`, one of three behind the same ports:
+    simulated (the default), the real cell's drivers (`hardware`, MakeHardwareStation), or
+    the arm posed where it is commanded, without dynamics (`kinematic`,
+    MakeKinematicStation: one arm, no camera, no `sim.` ports but `sim.query_object`)."""
     CheckInstance("scenario", scenario, StationScenario)
     CheckConfig(scenario, "scenario")
     CheckInstance("meshcat", meshcat, (Meshcat, type(None)))
     CheckInstance("hardware", hardware, bool)
+    CheckInstance("kinematic", kinematic, bool)
+    if hardware and kinematic:
+        raise ConfigurationError("a station is hardware or kinematic, not both")
     if hardware:
         return MakeHardwareStation(scenario, meshcat)
+    if kinematic:
+        return MakeKinematicStation(scenario, meshcat)
     scenario.CheckSimulated()
     errors = scenario.WithErrorsDrawn(None).errors
     builder = DiagramBuilder()
@@ -83,15 +94,7 @@ def MakeStation(
         _AddArm(builder, plant, scenario, name, arm, errors.arms.get(name))
     for name, camera in scenario.cameras.items():
         _AddCamera(builder, plant, scene_graph, name, camera, errors.cameras.get(name))
-    for name in scenario.tof_tools:
-        tof = scenario.ToFTool(name)
-        sensor = builder.AddNamedSystem(
-            f"{name}.sensor",
-            ToFToolSensor(plant, tof, errors.tof_tools.get(name), scenario.ToFCalibration(name)),
-        )
-        builder.Connect(scene_graph.get_query_output_port(), sensor.get_input_port())
-        for port in TOF_PORTS:
-            builder.ExportOutput(sensor.GetOutputPort(port), f"{name}.{port}")
+    AddToFTools(builder, scenario, plant, scene_graph, errors.tof_tools)
     AddMeshcatVisualization(builder, scenario, meshcat, plant, scene_graph)
     builder.ExportOutput(scene_graph.get_query_output_port(), "sim.query_object")
     builder.ExportOutput(plant.get_body_poses_output_port(), "sim.body_poses")
@@ -100,30 +103,6 @@ def MakeStation(
     diagram = builder.Build()
     diagram.set_name("station")
     return diagram
-
-
-def AddMeshcatVisualization(
-    builder: DiagramBuilder,
-    scenario: StationScenario,
-    meshcat: Meshcat | None,
-    plant: MultibodyPlant,
-    scene_graph: SceneGraph,
-) -> None:
-    """Draws `scene_graph` (of the builder) with `plant`'s geometry in `meshcat` as
-    scenario.visualization says (nothing without a Meshcat; StationScenario.Validate
-    refuses an LCM bus)."""
-    if meshcat is not None:
-        # Meshcat only: on a null LCM bus ApplyVisualizationConfig adds no DrakeVisualizer,
-        # whose LCM messages (for Meldis, which nothing here runs) cost 0.03 CPU s per
-        # simulated second of path following.
-        ApplyVisualizationConfig(
-            scenario.visualization,
-            builder,
-            plant=plant,
-            scene_graph=scene_graph,
-            meshcat=meshcat,
-            lcm=DrakeLcm("memq://null"),
-        )
 
 
 def _AddArm(

@@ -46,13 +46,16 @@ def MakeMultibodyPlant(
     with_hose: bool = False,
     time_step: float = 0.0,
     scene_graph: SceneGraph | None = None,
+    whole: MultibodyPlant | None = None,
 ) -> MultibodyPlant:
     """A finalized plant of the scenario's models (all, or only `model_instance_names`),
     the arms at their scenario initial positions. The hose is added only `with_hose`;
     controller plants leave it out (IK and planners must not know where it truly is).
     With `scene_graph` the plant is its geometry source (needed for any geometry query,
     and for the hose); the caller adds both to a diagram, or poses the plant's geometry
-    with MultibodyPositionToGeometryPose. Bad arguments raise ConfigurationError."""
+    with MultibodyPositionToGeometryPose. whole: the plant of all the scenario's models,
+    when one is at hand (where a kept model is welded to a left-out one, its pose there is
+    read from it; else it is built). Bad arguments raise ConfigurationError."""
     CheckInstance("scenario", scenario, StationScenario)
     CheckConfig(scenario, "scenario")
     if model_instance_names is not None:
@@ -63,7 +66,8 @@ def MakeMultibodyPlant(
         plant.RegisterAsSourceForSceneGraph(scene_graph)
     elif with_hose and scenario.hose is not None:
         raise ConfigurationError("a plant with the hose needs a SceneGraph (scene_graph=...)")
-    AddStationModels(scenario, plant, model_instance_names, with_hose)
+    CheckInstance("whole", whole, (MultibodyPlant, type(None)))
+    AddStationModels(scenario, plant, model_instance_names, with_hose, whole=whole)
     plant.Finalize()
     SetInitialPositions(scenario, plant, model_instance_names)
     return plant
@@ -76,6 +80,7 @@ def AddStationModels(
     with_hose: bool = True,
     model_errors: dict[str, ModelErrors] | None = None,
     arm_errors: dict[str, ArmErrors] | None = None,
+    whole: MultibodyPlant | None = None,
 ) -> None:
     """Adds the scenario's models (all, or the named instances) to an unfinalized plant;
     a welded model of `model_errors` (drawn, keyed by instance) where it truly is: its
@@ -83,7 +88,7 @@ def AddStationModels(
     (link_errors.MoveJointFrames). Errors are for the simulated station's plant only."""
     directives = scenario.directives
     if model_instance_names is not None:
-        directives = _KeepInstances(scenario, model_instance_names)
+        directives = _KeepInstances(scenario, model_instance_names, whole)
     if model_errors:
         directives = _MovedWelds(scenario, directives, model_errors)
     compliant = {a: e for a, e in (arm_errors or {}).items() if len(e.base_stiffness)}
@@ -124,13 +129,13 @@ def HoseCenterlineInWorld(scenario: StationScenario) -> np.ndarray:
     points = ReadCenterline(hose.centerline)
     if not hose.frame or hose.frame == "world":
         return points
-    return FixedFramePose(scenario, hose.frame, "hose.frame").multiply(points.T).T
-
-
-def FixedFramePose(scenario: StationScenario, scoped_name: str, key: str) -> RigidTransform:
-    """X_WF of a frame of the station that is welded to the world (ConfigurationError
-    naming `key` if it is missing or moves with a joint)."""
     plant = MakeMultibodyPlant(scenario)
+    return FixedFramePose(plant, hose.frame, "hose.frame").multiply(points.T).T
+
+
+def FixedFramePose(plant: MultibodyPlant, scoped_name: str, key: str) -> RigidTransform:
+    """X_WF of a frame of a station's plant (MakeMultibodyPlant) that is welded to the
+    world (ConfigurationError naming `key` if it is missing or moves with a joint)."""
     frame = GetScopedFrame(plant, scoped_name, key)
     if frame.body().index() not in {b.index() for b in plant.GetBodiesWeldedTo(plant.world_body())}:
         raise ConfigurationError(f"{key}: frame '{scoped_name}' is not fixed to the world")
@@ -198,9 +203,12 @@ def GetArmInstance(plant: MultibodyPlant, name: str) -> ModelInstanceIndex:
     return plant.GetModelInstanceByName(name)
 
 
-def _KeepInstances(scenario: StationScenario, names: list[str]) -> list[ModelDirective]:
+def _KeepInstances(
+    scenario: StationScenario, names: list[str], whole: MultibodyPlant | None
+) -> list[ModelDirective]:
     """The flattened directives of the named instances; welds to a dropped parent become
-    welds to the world at that parent's default pose in the whole station."""
+    welds to the world at that parent's default pose in the whole station (`whole`, or a
+    plant built for it)."""
     package_map = MakeParser(MultibodyPlant(0.0)).package_map()
     try:
         flat = FlattenModelDirectives(ModelDirectives(directives=scenario.directives), package_map)
@@ -212,7 +220,6 @@ def _KeepInstances(scenario: StationScenario, names: list[str]) -> list[ModelDir
         raise ConfigurationError(
             f"model directives: no model instance {missing} (have {sorted(known)})"
         )
-    whole = None
     kept = []
     for directive in flat.directives:
         if directive.add_model:

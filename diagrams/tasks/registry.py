@@ -1,4 +1,6 @@
-"""The registry of runnable tasks: every module of diagrams/tasks/ that defines `TASK`."""
+"""The registry of runnable tasks, one package per task under diagrams/tasks/ (named after
+the task, its __init__ exporting `TASK`), and LoadScenario: a scenario file to its task and
+typed scenario."""
 
 from __future__ import annotations
 
@@ -6,13 +8,25 @@ import importlib
 import pkgutil
 from collections.abc import Callable, Collection, Mapping
 from dataclasses import dataclass, field
+from pathlib import Path
 from typing import Any
 
 import guidedarm.diagrams.tasks as tasks_package
 from guidedarm.diagrams.run_context import RunContext
+from guidedarm.diagrams.scenario_loading import (
+    ScenarioError,
+    apply_overrides,
+    load_typed,
+    parse_overrides,
+    read_raw_scenario,
+    resolve_scenario_path,
+)
 from guidedarm.diagrams.station.scenario import StationScenario
-from guidedarm.systems.config_checks import FieldError
+from guidedarm.systems.config_checks import CheckInstance, FieldError
 from guidedarm.systems.errors import ConfigurationError
+
+# The packages of diagrams/tasks/ that are not tasks: helpers several tasks share.
+NOT_TASKS = ("common",)
 
 # A list's elements in a metric's dotted name: `waypoint_distance_m.#`.
 LIST_INDEX = "#"
@@ -177,20 +191,53 @@ def NumericMetricNames(summary: Any, prefix: str = "") -> set[str]:
     return names
 
 
+def TaskNames() -> list[str]:
+    """The names of every task: the task packages of guidedarm.diagrams.tasks (a package
+    named after its task, defining TASK), found on disk without importing any, sorted."""
+    return sorted(
+        info.name
+        for info in pkgutil.iter_modules(tasks_package.__path__)
+        if info.ispkg and info.name not in NOT_TASKS
+    )
+
+
 def AvailableTasks() -> dict[str, TaskDefinition]:
-    """All tasks, discovered from the modules of guidedarm.diagrams.tasks."""
-    tasks = {}
-    for module_info in pkgutil.iter_modules(tasks_package.__path__):
-        module = importlib.import_module(f"guidedarm.diagrams.tasks.{module_info.name}")
-        task = getattr(module, "TASK", None)
-        if task is not None:
-            tasks[task.name] = task
-    return tasks
+    """All tasks by name; imports every task package (`guidedarm list` shows them all)."""
+    return {name: _ImportTask(name) for name in TaskNames()}
 
 
 def GetTask(name: str) -> TaskDefinition:
-    """The task called `name`, or a ConfigurationError listing the known ones."""
-    tasks = AvailableTasks()
-    if name not in tasks:
-        raise ConfigurationError(f"unknown task '{name}' (known: {', '.join(sorted(tasks))})")
-    return tasks[name]
+    """The task called `name`, importing its package only, or a ConfigurationError
+    listing the known ones."""
+    names = TaskNames()
+    if name not in names:
+        raise ConfigurationError(f"unknown task '{name}' (known: {', '.join(names)})")
+    return _ImportTask(name)
+
+
+def _ImportTask(name: str) -> TaskDefinition:
+    task = importlib.import_module(f"{tasks_package.__name__}.{name}").TASK
+    if task.name != name:
+        raise ValueError(f"task package '{name}' defines TASK '{task.name}'")
+    return task
+
+
+def LoadScenario(name_or_path: str | Path, overrides: list[str]) -> tuple[Any, Any, str]:
+    """Returns (task, typed scenario, scenario name) for a scenario and `--set` overrides
+    (a list of `key=value` strings), after the task's checks of the scenario: its types and
+    bounds, its Validate() (the rules between its keys) and the task's check_overrides;
+    the scenario is the task's resolved one (TaskDefinition.resolve)."""
+    CheckInstance("name_or_path", name_or_path, (str, Path))
+    path = resolve_scenario_path(name_or_path)
+    parsed = parse_overrides(overrides)
+    raw = apply_overrides(read_raw_scenario(path), parsed)
+    task_name = raw.get("task")
+    if not isinstance(task_name, str):
+        raise ScenarioError(f"{path}: missing key 'task' (the task this scenario runs)")
+    task = GetTask(task_name)
+    scenario = load_typed(task.scenario_type, raw, str(path), parsed.keys())
+    if task.check_overrides is not None:
+        task.check_overrides(scenario, parsed.keys())
+    if task.resolve is not None:
+        scenario = task.resolve(scenario)
+    return task, scenario, path.stem

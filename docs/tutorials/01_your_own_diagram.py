@@ -37,7 +37,7 @@ from guidedarm.diagrams.run_context import MakeMeshcat, SaveReplay, StartReplay
 from guidedarm.diagrams.station.scenario import StationScenario
 from guidedarm.diagrams.station.station import MakeStation
 from guidedarm.diagrams.station.station_plant import MakeMultibodyPlant
-from guidedarm.diagrams.tasks.planner_builder import MakeAccelerationPlanner
+from guidedarm.diagrams.tasks.common.planner_builder import MakeAccelerationPlanner
 
 os.chdir(tempfile.mkdtemp(prefix="guidedarm-tutorial-"))  # the files it writes go here
 

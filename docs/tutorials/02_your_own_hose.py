@@ -31,11 +31,11 @@ import numpy as np
 import pandas as pd
 from IPython.display import display
 
-from guidedarm.diagrams.cli.command_run import LoadScenario
 from guidedarm.diagrams.run_context import MakeMeshcat, PrepareOutputDirectory, RunContext
 from guidedarm.diagrams.station.station_plant import GetArmInstance
 from guidedarm.diagrams.task_run import RunTask
-from guidedarm.diagrams.tasks.path_following_setup import MakeSetup
+from guidedarm.diagrams.tasks.path_following.setup import MakeSetup
+from guidedarm.diagrams.tasks.registry import LoadScenario
 from guidedarm.systems.errors import ConfigurationError
 from guidedarm.systems.path_following.hose_reach import CalcArmReach, ToolClearance
 from guidedarm.systems.plant_frames import GetScopedFrame

@@ -10,7 +10,7 @@ update that sees a line maps that receive time to diagram time (the update's con
 minus the line's age on the host clock) and subtracts `latency`, the time from the range's
 measurement instant to its line's arrival: half the ranging time, the microcontroller's
 readout and the link's transfer (MakeHardwareStation: ToFToolConfig.ranging_time / 2 +
-ToFDriverConfig.latency). That is `measured_at`, the same for the six sensors of a line.
+ToFLinkSettings.latency). That is `measured_at`, the same for the six sensors of a line.
 """
 
 from __future__ import annotations

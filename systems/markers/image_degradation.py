@@ -25,10 +25,10 @@ from pydrake.systems.sensors import CameraConfig, ImageRgba8U
 from guidedarm.systems.config_checks import (
     CheckFields,
     CheckInstance,
-    CheckRenderSize,
     NonNegative,
     Positive,
 )
+from guidedarm.systems.drake_config_checks import CheckRenderSize
 from guidedarm.systems.errors import ConfigurationError
 
 
@@ -60,7 +60,7 @@ def CheckRenderedSupersampling(
 ) -> None:
     """For a task whose top-level `supersampling` renders `camera` (and sets the
     degradation's): refuses a degradation.supersampling of its own, and a rendered image
-    beyond MAX_RENDER_PIXELS (config_checks.CheckRenderSize)."""
+    beyond MAX_RENDER_PIXELS (drake_config_checks.CheckRenderSize)."""
     if degradation.supersampling != 1:
         raise ConfigurationError(
             "set the camera's supersampling (>= 1) with the top-level key 'supersampling'"

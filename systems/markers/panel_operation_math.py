@@ -8,7 +8,9 @@ Units: m, rad, s. Frames: W the controller plant's world, P panel, C camera, T g
 B the planner's base, N the planner's TCP.
 """
 
+import typing
 from dataclasses import dataclass
+from typing import Literal
 
 import numpy as np
 from pydrake.math import RigidTransform, RollPitchYaw, RotationMatrix
@@ -17,16 +19,23 @@ from pydrake.multibody.plant import MultibodyPlant
 from pydrake.multibody.tree import Frame
 from pydrake.solvers import Solve
 
-from guidedarm.systems.config_checks import CheckFields, CheckInstance, NonNegative, Positive
-from guidedarm.systems.errors import ConfigurationError
+from guidedarm.systems.config_checks import (
+    CheckFields,
+    CheckInstance,
+    NonNegative,
+    Positive,
+    TextChoices,
+)
 from guidedarm.systems.markers.marker_pose_estimator_math import PanelSpec, SwitchSpec
 from guidedarm.systems.plant_frames import CheckFrame, CheckPlant
 
 # The camera looks straight at the panel: image x = panel x, image y = -panel y.
 R_PC_STRAIGHT = RotationMatrix(np.diag([1.0, -1.0, -1.0]))
-MOTIONS = ("joint_trajectory", "planner")
+Motion = Literal["joint_trajectory", "planner"]
+MOTIONS = typing.get_args(Motion)
 
 
+@TextChoices
 @dataclass
 class PanelOperationConfig:
     """Parameters of the sequence (see PanelOperation in panel_operation.py).
@@ -54,19 +63,13 @@ class PanelOperationConfig:
     settle_time_s: float = NonNegative(0.3)
     stationary_speed: float = Positive(0.002)
     press_hold_s: float = NonNegative(0.3)
-    on_marker_loss: str = "continue"
+    on_marker_loss: Literal["abort", "continue"] = "continue"
     update_period_s: float = Positive(0.01)
-    motion: str = "joint_trajectory"
+    motion: Motion = "joint_trajectory"
 
     def Validate(self) -> None:
         """Raises ConfigurationError naming the first bad parameter."""
         CheckFields(self)
-        if self.motion not in MOTIONS:
-            raise ConfigurationError(f"motion must be one of {MOTIONS}, got '{self.motion}'")
-        if self.on_marker_loss not in ("abort", "continue"):
-            raise ConfigurationError(
-                f"on_marker_loss must be 'abort' or 'continue', got '{self.on_marker_loss}'"
-            )
 
 
 class CameraArmKinematics:

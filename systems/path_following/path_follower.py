@@ -37,6 +37,7 @@ from guidedarm.systems.path_following.joint_moves import (
 from guidedarm.systems.path_following.path_follower_math import (
     RECORD_FIELDS,
     EstimateHose,
+    Estimator,
     FollowerConfig,
     FollowerMemory,
     FollowStep,
@@ -106,6 +107,7 @@ class PathFollower(LeafSystem):
     def __init__(
         self,
         params: FollowerConfig,
+        estimator: Estimator,
         mount: ToolMount,
         grid: DetectionGrid,
         q_initial: np.ndarray,
@@ -113,9 +115,11 @@ class PathFollower(LeafSystem):
         period: float,
         plan_move: MovePlanner | None = None,
     ) -> None:
-        """plan_move: how moves are made (default: joint_moves.PlanJointMove with `motion`;
-        e.g. planner_moves.PlannerMoves); motion's settle limits apply either way. Bad
-        arguments raise ConfigurationError naming them."""
+        """params: the follower's parameters, resolved here for `estimator` (`grid` or
+        `ranging`, the hose estimator of every reading). plan_move: how moves are made
+        (default: joint_moves.PlanJointMove with `motion`; e.g. planner_moves.PlannerMoves);
+        motion's settle limits apply either way. Bad arguments raise ConfigurationError
+        naming them."""
         super().__init__()
         CheckInstance("params", params, FollowerConfig)
         CheckInstance("mount", mount, ToolMount)
@@ -125,7 +129,8 @@ class PathFollower(LeafSystem):
         motion.Validate()
         CheckArgument("period", period, POSITIVE)
         CheckInstance("plan_move", plan_move, (Callable, type(None)))
-        params = params.Resolved()
+        params = params.Resolved(estimator)
+        self._estimator = estimator
         self._params, self._mount, self._grid, self._motion = params, mount, grid, motion
         self._period = period
         self._plan_move = plan_move or (lambda q, p: PlanJointMove(q, p, motion))
@@ -201,7 +206,7 @@ class PathFollower(LeafSystem):
         loop = replace(loop, samples=())
         X_WT = self._mount.ToolPose(self._X_WG.Eval(context))
         memory = loop.memory or FollowerMemory.Start(X_WT, params)
-        S_T, centre_only = EstimateHose(self._grid, params.estimator, ranges, valid)
+        S_T, centre_only = EstimateHose(self._grid, self._estimator, ranges, valid)
         result = FollowStep(X_WT, S_T, centre_only, memory, params)
         detected, errors = self._grid.Detect(ranges, valid)
         here = _Visited(loop.q_goal, X_WT.translation())

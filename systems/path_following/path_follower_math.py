@@ -20,29 +20,40 @@ good) and the follower stops there.
 """
 
 import math
+import typing
 from dataclasses import dataclass, field, replace
+from typing import Literal
 
 import numpy as np
 from pydrake.math import RigidTransform, RollPitchYaw, RotationMatrix
 
-from guidedarm.systems.config_checks import CheckFields, InRange, Positive
+from guidedarm.systems.config_checks import (
+    CheckFields,
+    ChoiceViolation,
+    FieldError,
+    InRange,
+    Positive,
+    TextChoices,
+)
 from guidedarm.systems.errors import ConfigurationError
 
-ESTIMATORS = ("grid", "ranging")
-STEERINGS = ("paper", "centring")
+Estimator = Literal["grid", "ranging"]
+Steering = Literal["paper", "centring"]
+ESTIMATORS = typing.get_args(Estimator)
+STEERINGS = typing.get_args(Steering)
 
 
+@TextChoices
 @dataclass
 class FollowerConfig:
-    """Parameters of the path follower (m, deg).
+    """Parameters of the path follower (m, deg). Its automatic values depend on the
+    hose estimator it runs with (Estimator: `grid`, the paper's presence-only 3 x 3 grid,
+    or `ranging`, ranges localise the hose between the grid points), given to Resolved().
 
-    estimator: `grid` (the paper's presence-only 3 x 3 grid) or `ranging` (ranges localise
-        the hose between the grid points); empty: `grid` (the path-following task fills in
-        its own `estimator`).
     steering: `paper` (w = t + m, w_a = n a + m b) or `centring` (w = n a + m: forward along
         the tool axis plus the full offset, and w_a = n a + (S - S') b: turn toward the
-        hose's own direction, S' the previous detected point); empty picks `seed` for the
-        grid and `centring` for ranging, whose S is accurate enough to steer on.
+        hose's own direction, S' the previous detected point); empty picks `paper` for the
+        grid estimator and `centring` for ranging, whose S is accurate enough to steer on.
     long_step, short_step: the paper's d for long and short steps.
     rotation_reduction: the paper's b in (0, 1); 0 picks 0.3 (paper) or 0.5 (centring).
     readings: sensor readings averaged per step; 0 picks 1 for the grid (the paper reads
@@ -55,8 +66,7 @@ class FollowerConfig:
     max_steps: the run stops with a failure after this many steps.
     """
 
-    estimator: str = ""
-    steering: str = ""
+    steering: Literal["", Steering] = ""
     long_step: float = Positive(0.015)
     short_step: float = Positive(0.010)
     rotation_reduction: float = InRange(0.0, 1.0, 0.0, high_open=True)
@@ -66,29 +76,23 @@ class FollowerConfig:
     recovery_angle_deg: float = InRange(0.0, 180.0, 20.0, low_open=True)
     max_steps: int = Positive(400)
 
-    def Resolved(self) -> "FollowerConfig":
-        """A checked copy with the automatic estimator, steering, rotation_reduction and
-        readings filled in."""
-        estimator = self.estimator or "grid"
+    def Resolved(self, estimator: Estimator) -> "FollowerConfig":
+        """A checked copy with the automatic steering, rotation_reduction and readings
+        filled in for `estimator` (FieldError naming it if it is none of ESTIMATORS)."""
+        why = ChoiceViolation(estimator, Estimator)
+        if why is not None:
+            raise FieldError("estimator", why)
         steering = self.steering or ("centring" if estimator == "ranging" else "paper")
         b = self.rotation_reduction or (0.5 if steering == "centring" else 0.3)
         readings = self.readings or (4 if estimator == "ranging" else 1)
-        resolved = replace(
-            self, estimator=estimator, steering=steering, rotation_reduction=b, readings=readings
-        )
+        resolved = replace(self, steering=steering, rotation_reduction=b, readings=readings)
         resolved.Validate()
         return resolved
 
     def Validate(self) -> None:
         """Raises ConfigurationError naming the first bad parameter (the automatic values,
-        an empty estimator or steering and zeros, are accepted)."""
+        an empty steering and zeros, are accepted)."""
         CheckFields(self)
-        if self.steering not in ("", *STEERINGS):
-            raise ConfigurationError(f"steering must be one of {STEERINGS}, got '{self.steering}'")
-        if self.estimator not in ("", *ESTIMATORS):
-            raise ConfigurationError(
-                f"estimator must be one of {ESTIMATORS}, got '{self.estimator}'"
-            )
         if not self.short_step <= self.long_step:
             raise ConfigurationError("need short_step <= long_step")
 

@@ -15,7 +15,7 @@ start of the paper's task, so the commanded accelerations stay continuous too.
 
 Every waypoint's reachability is checked by inverse kinematics before any motion: at
 construction for fixed waypoints, when a task arrives for tasks given while running.
-diagrams/tasks/planner_builder.py (MakeAccelerationPlanner) builds one for a station.
+diagrams/tasks/common/planner_builder.py (MakeAccelerationPlanner) builds one for a station.
 """
 
 from __future__ import annotations

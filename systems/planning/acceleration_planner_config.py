@@ -6,12 +6,13 @@ following and panel tasks); systems/planning/acceleration_planner_math.py uses i
 
 import math
 from dataclasses import dataclass, field
+from typing import Literal
 
-from guidedarm.systems.config_checks import CheckFields, InRange, Positive
+from guidedarm.systems.config_checks import CheckFields, InRange, Positive, TextChoices
 from guidedarm.systems.errors import ConfigurationError
 
 # The fields only one mode reads (the rest both): a task refuses them set away from their
-# defaults under the other mode (diagrams/tasks/waypoints.py).
+# defaults under the other mode (diagrams/tasks/waypoints/scenario.py).
 ROBUST_ONLY_FIELDS = (
     "robust_recovery_rate",
     "damping_threshold",
@@ -34,6 +35,7 @@ ROBUST_ONLY_FIELDS = (
 PAPER_ONLY_FIELDS = ("scaling_recovery_rate", "min_singular_value")
 
 
+@TextChoices
 @dataclass
 class PlannerConfig:
     """Gains and settings of the planner (defaults: the paper's values where it gives them).
@@ -144,7 +146,7 @@ class PlannerConfig:
     max_jerk: float = Positive(50.0)
     approach_acceleration: float = InRange(0.0, 1.0, 0.5, high_open=True)
     approach_rate: float = Positive(20.0)
-    saturation_metric: str = "task"
+    saturation_metric: Literal["task", "joint"] = "task"
     joint_space_blend: list[float] = field(default_factory=lambda: [0.005, 0.02])
     joint_limit_margin: float = InRange(0.0, 0.2, 0.01)
     position_braking: float = InRange(0.0, 1.0, 0.5, low_open=True, high_open=True)
@@ -169,11 +171,6 @@ class PlannerConfig:
                 "planner.approach_acceleration > 0 needs real roots of (9), gain_v^2 >= 4 "
                 f"gain_p, and approach_rate above the slower one, got gain_p {self.gain_p}, "
                 f"gain_v {self.gain_v}, approach_rate {self.approach_rate}"
-            )
-        if self.saturation_metric not in ("task", "joint"):
-            raise ConfigurationError(
-                f'planner.saturation_metric must be "task" or "joint", got '
-                f"{self.saturation_metric!r}"
             )
         if self.velocity_bound_rate * self.time_step > 1:
             raise ConfigurationError(

@@ -29,7 +29,7 @@ from guidedarm.diagrams.calibration.hand_eye_calibration import (
 )
 from guidedarm.diagrams.calibration.simulated_calibration import TakePhotos
 from guidedarm.diagrams.calibration.simulated_cell import SimulatedCalibrationCell
-from guidedarm.diagrams.cli.command_run import LoadScenario
+from guidedarm.diagrams.tasks.registry import LoadScenario
 
 GUIDEDARM = Path(sys.executable).with_name("guidedarm")
 

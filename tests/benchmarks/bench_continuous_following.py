@@ -99,7 +99,7 @@ def RunOne(path: str, motion: str, estimator: str) -> dict:
 def Breakdown(path: str) -> None:
     """Prints the loop's and each per-tick system's CPU seconds per simulated second."""
     from guidedarm.diagrams.cli.main import main as guidedarm_main
-    from guidedarm.diagrams.tasks import path_following_execution
+    from guidedarm.diagrams.tasks.path_following import execution as path_following_execution
     from guidedarm.systems.path_following import continuous_follower, differential_ik_servo
     from guidedarm.systems.tof import tof_tool_sensor
 
@@ -179,9 +179,9 @@ def Floor(path: str, seconds: float = 4.0) -> None:
     from pydrake.systems.framework import DiagramBuilder
     from pydrake.systems.primitives import ConstantVectorSource
 
-    from guidedarm.diagrams.cli.command_run import LoadScenario
     from guidedarm.diagrams.station.station import MakeStation
-    from guidedarm.diagrams.tasks.path_following_setup import MakeSetup
+    from guidedarm.diagrams.tasks.path_following.setup import MakeSetup
+    from guidedarm.diagrams.tasks.registry import LoadScenario
 
     settings = [f"path={path}", "motion=continuous", *Overrides(sys.argv)[1::2]]
     setup = MakeSetup(LoadScenario("path_following", settings)[1])
@@ -204,7 +204,7 @@ def Floor(path: str, seconds: float = 4.0) -> None:
 _HEADLESS_RUN = """
 import sys, tempfile
 from pathlib import Path
-from guidedarm.diagrams.cli.command_run import LoadScenario
+from guidedarm.diagrams.tasks.registry import LoadScenario
 from guidedarm.diagrams.run_context import RunContext
 from guidedarm.diagrams.task_run import RunTask
 task, scenario, _ = LoadScenario("path_following", sys.argv[1:])

@@ -26,7 +26,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 from hardware_doubles import StartNachiEmulator, StopServer
 from test_hardware_nachi_servo import PrintFit, SinusoidFit, StreamSinusoid
 
-from guidedarm.diagrams.cli.command_emulate import DEFAULT_TOF_LATENCY
+from guidedarm.diagrams.emulation import DEFAULT_TOF_LATENCY
 from guidedarm.systems.hardware.tof_protocol import ToFLineCollector
 from guidedarm.systems.hardware.tof_transports import SerialTransport
 from guidedarm.systems.tof.tof_tool_sensor import ToFToolConfig

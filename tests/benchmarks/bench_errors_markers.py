@@ -21,10 +21,10 @@ from pathlib import Path
 
 import numpy as np
 
-from guidedarm.diagrams.cli.command_run import LoadScenario
 from guidedarm.diagrams.errors_budget import WithPreset
 from guidedarm.diagrams.run_context import RunContext
 from guidedarm.diagrams.task_run import RunTask
+from guidedarm.diagrams.tasks.registry import LoadScenario
 
 TABLE_2 = [(d, 0.0) for d in np.linspace(0.2, 0.43, 13)] + list(
     zip(np.linspace(0.2, 0.43, 13), np.linspace(0.0, 24.0, 13), strict=True)

@@ -13,8 +13,8 @@ import numpy as np
 from pydrake.common.yaml import yaml_load_typed
 from pydrake.systems.sensors import CameraConfig
 
-from guidedarm.diagrams.tasks.panel_camera_rig import LookAt, PanelCameraRig
-from guidedarm.diagrams.tasks.panel_files import DEFAULT_PANEL_FILE, LoadPanelSpec
+from guidedarm.diagrams.panel.panel_camera_rig import LookAt, PanelCameraRig
+from guidedarm.diagrams.panel.panel_files import DEFAULT_PANEL_FILE, LoadPanelSpec
 from guidedarm.systems.markers.marker_pose_estimator_math import MarkerPoseSolver
 
 C920 = "{width: 1920, height: 1080, focal: !FocalLength {x: 1360.2, y: 1360.2}}"

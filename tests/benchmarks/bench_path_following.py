@@ -11,10 +11,10 @@ from tempfile import TemporaryDirectory
 
 import numpy as np
 
-from guidedarm.diagrams.cli.command_run import LoadScenario
 from guidedarm.diagrams.run_context import RunContext
-from guidedarm.diagrams.tasks.path_following_diagram import MakeKinematicStation
-from guidedarm.diagrams.tasks.path_following_setup import MakeSetup
+from guidedarm.diagrams.station.kinematic_station import MakeKinematicStation
+from guidedarm.diagrams.tasks.path_following.setup import MakeSetup
+from guidedarm.diagrams.tasks.registry import LoadScenario
 from guidedarm.systems.tof.tof_tool_sensor_math import RayCaster
 
 

@@ -24,7 +24,7 @@ from guidedarm.diagrams.cli.command_compare_planners import (
     PrintRandomTable,
     RandomComparison,
 )
-from guidedarm.diagrams.cli.command_run import LoadScenario
+from guidedarm.diagrams.tasks.registry import LoadScenario
 from guidedarm.diagrams.tasks.waypoints import MakePlannerSetup
 from guidedarm.systems.planning.acceleration_planner_math import RunPlanning
 

@@ -27,14 +27,8 @@ from guidedarm.diagrams.station.station_plant import GetArmInstance, MakeMultibo
 from guidedarm.systems.config_checks import CheckInstance, FieldError
 from guidedarm.systems.errors import ConfigurationError
 from guidedarm.systems.planning.acceleration_planner import AccelerationPlanner
-from guidedarm.systems.planning.acceleration_planner_kinematics import (
-    ArmKinematics,
-    PlanningError,
-)
-from guidedarm.systems.planning.acceleration_planner_math import (
-    AccelerationPlanning,
-    PlannerConfig,
-)
+from guidedarm.systems.planning.acceleration_planner_kinematics import ArmKinematics, PlanningError
+from guidedarm.systems.planning.acceleration_planner_math import AccelerationPlanning, PlannerConfig
 from guidedarm.systems.plant_frames import GetScopedFrame
 
 DEFAULT_VELOCITY = [np.radians(60.0)]  # rad/s, the paper's 60 deg/s

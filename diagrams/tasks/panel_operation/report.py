@@ -5,26 +5,52 @@ T gripper tip)."""
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import TYPE_CHECKING, Any
+from typing import Any, Protocol
 
 import numpy as np
 from pydrake.math import RigidTransform
+from pydrake.multibody.plant import MultibodyPlant
+from pydrake.multibody.tree import ModelInstanceIndex
 from pydrake.systems.framework import Context
+from pydrake.systems.primitives import VectorLogSink
 
 from guidedarm.diagrams.plots import PlotJointSeries
-from guidedarm.diagrams.tasks.planner_builder import SymmetricLimit
-from guidedarm.diagrams.tasks.trajectory_csv import (
+from guidedarm.diagrams.run_context import RunContext
+from guidedarm.diagrams.tasks.common.cell_collisions import CellCollisions
+from guidedarm.diagrams.tasks.common.planner_builder import SymmetricLimit
+from guidedarm.diagrams.tasks.common.trajectory_csv import (
     JOINT_MOTION_METRICS,
     JointMotionMetrics,
+    TrajectoryLogs,
     WriteTrajectoryCsv,
 )
-from guidedarm.systems.markers.panel_operation import SequencerState
+from guidedarm.diagrams.tasks.panel_operation.scenario import PanelOperationScenario
+from guidedarm.systems.markers.marker_pose_estimator_math import PanelSpec
+from guidedarm.systems.markers.panel_operation import PanelOperation, SequencerState
+from guidedarm.systems.markers.panel_operation_math import CameraArmKinematics
 
-if TYPE_CHECKING:
-    from guidedarm.diagrams.tasks.panel_operation import PanelOperationRun
+
+class OperationRun(Protocol):
+    """What the report reads of a built run (PanelOperationRun): the scenario and the
+    run's outputs, the true plant and its panel and arm instances, the sequencer, the
+    controller's kinematics, the panel's pose X_WP, and the logs the run added."""
+
+    scenario: PanelOperationScenario
+    context: RunContext
+    plant: MultibodyPlant
+    panel: PanelSpec
+    panel_instance: ModelInstanceIndex
+    arm_instance: ModelInstanceIndex
+    sequencer: PanelOperation
+    kinematics: CameraArmKinematics
+    X_WP: RigidTransform
+    joint_log: VectorLogSink
+    true_log: VectorLogSink
+    trajectory_logs: TrajectoryLogs
+    collisions: CellCollisions
 
 
-def PlotPanelOperation(run: PanelOperationRun, state: SequencerState, context: Context) -> None:
+def PlotPanelOperation(run: OperationRun, state: SequencerState, context: Context) -> None:
     """joints.png (measured joints) and tip_distance.png (tip to panel plane, with the
     instants at which images were analysed)."""
     import matplotlib.pyplot as plt  # after guidedarm.diagrams.plots chose Agg
@@ -99,7 +125,7 @@ PANEL_OPERATION_METRICS = {
 
 
 def PanelOperationMetrics(
-    run: PanelOperationRun,
+    run: OperationRun,
     state: SequencerState,
     context: Context,
     planner_failure: str | None = None,
@@ -177,7 +203,7 @@ def PanelOperationMetrics(
     }
 
 
-def _WriteTrajectory(run: PanelOperationRun, context: Context) -> dict[str, Any]:
+def _WriteTrajectory(run: OperationRun, context: Context) -> dict[str, Any]:
     """Writes the run's trajectory.csv; returns its JointMotionMetrics (the planner's
     acceleration limits as the oscillation measure's scale, whatever the motion) and the
     measured arm's contact episodes with the cell or itself (cell_contacts)."""
@@ -206,7 +232,7 @@ class _ArmPose:
     X_WC: RigidTransform
 
 
-def _TrueArm(run: PanelOperationRun, context: Context, state: SequencerState, label: str):
+def _TrueArm(run: OperationRun, context: Context, state: SequencerState, label: str):
     """The true tip and camera poses when the sequencer recorded `label`: the true arm
     joints (the true-state log's sample nearest that instant) through the arm's
     kinematics, the camera moved by its mount error (station.errors)."""

@@ -1,9 +1,9 @@
-"""Running the path follower: the loop of path_following_diagram.AddPathFollowing on one of
+"""Running the path follower: the loop of builder.AddPathFollowing on one of
 two stations.
 
 station     MakeStation's: the plant, the computed-torque servos at 2 ms steps and the ToF
             tool (or, with --hardware, the drivers).
-kinematic   MakeKinematicStation's: the same plant and ToF sensor on a SceneGraph, but the
+kinematic   MakeStation(..., kinematic=True): the same plant and ToF sensor on a SceneGraph, but the
             arm is wherever it is commanded (no dynamics, no 2 ms steps). The follower,
             its moves, retraces and recoveries, and the IK are the same systems; only the
             servo's tracking lag is missing. About 5 times faster; used for the random-path
@@ -25,20 +25,19 @@ from pydrake.systems.framework import Diagram, DiagramBuilder
 from pydrake.systems.primitives import LogVectorOutput
 
 from guidedarm.diagrams.run_context import AdvanceWithProgress, RunContext
-from guidedarm.diagrams.station.hardware_station import CheckArmAtStart
 from guidedarm.diagrams.station.station import MakeStation
 from guidedarm.diagrams.task_run import InterruptedFailure
-from guidedarm.diagrams.tasks.path_following_diagram import (
-    AddPathFollowing,
-    MakeKinematicStation,
-)
-from guidedarm.diagrams.tasks.path_following_replay import (
+from guidedarm.diagrams.tasks.common.start_pose import CheckArmAtStart
+from guidedarm.diagrams.tasks.path_following.builder import AddPathFollowing
+from guidedarm.diagrams.tasks.path_following.replay import (
     AddReplayLogs,
     AddSetupOverlays,
     DrawReplay,
 )
-from guidedarm.diagrams.tasks.path_following_setup import Setup
+from guidedarm.diagrams.tasks.path_following.setup import Setup
 from guidedarm.systems.errors import RunFailedError
+from guidedarm.systems.path_following.continuous_follower import ContinuousFollower
+from guidedarm.systems.path_following.path_follower import PathFollower
 
 # Joint samples for the contact check (s): the tool moves 1 mm between two at 50 mm/s.
 SAMPLE_PERIOD = 0.02
@@ -66,28 +65,37 @@ class Execution:
 def Execute(setup: Setup, executor: str, context: RunContext) -> Execution:
     """Runs the follower on the `station` or `kinematic` station until it stops or
     setup.max_time, then counts the steps with robot-hose contact."""
-    kinematic = MakeKinematicStation(setup.station)
+    kinematic = MakeStation(setup.station, kinematic=True)
     drawing = _Drawing(executor, context)
     if executor == "kinematic":
         station = kinematic
     else:
         meshcat = context.meshcat if drawing == "loop" else None
         station = MakeStation(setup.station, meshcat, context.hardware)
-    execution = _Simulate(setup, station, context, drawing)
+    builder = DiagramBuilder()
+    builder.AddNamedSystem("station", station)
+    follower, _ = AddPathFollowing(builder, station, setup)
+    execution = _Simulate(setup, builder, station, follower, context, drawing)
     execution.collisions = CountContactSteps(execution, kinematic, setup.arm)
     return execution
 
 
-def _Simulate(setup: Setup, station: Diagram, context: RunContext, drawing: str) -> Execution:
-    builder = DiagramBuilder()
-    builder.AddNamedSystem("station", station)
-    follower, _ = AddPathFollowing(builder, station, setup)
+def _Simulate(
+    setup: Setup,
+    builder: DiagramBuilder,
+    station: Diagram,
+    follower: PathFollower | ContinuousFollower,
+    context: RunContext,
+    drawing: str,
+) -> Execution:
+    """Adds the logs and drawing to the loop in `builder`, runs it and collects what it
+    recorded."""
     drawn_in_loop = drawing == "loop"
     replay_logs = (
         AddReplayLogs(builder, station, follower, setup.arm) if drawing == "after" else None
     )
     AddSetupOverlays(builder, context.meshcat if drawn_in_loop else None, station, follower, setup)
-    record_period = setup.continuous.servo_period if setup.moves == "continuous" else setup.period
+    record_period = setup.continuous.servo_period if setup.motion == "continuous" else setup.period
     record_log = LogVectorOutput(follower.GetOutputPort("step_record"), builder, record_period)
     q_log = LogVectorOutput(
         station.GetOutputPort(f"{setup.arm}.position_measured"), builder, SAMPLE_PERIOD

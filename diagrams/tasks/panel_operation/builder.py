@@ -23,9 +23,9 @@ from pydrake.math import RigidTransform
 from pydrake.systems.framework import DiagramBuilder, System
 
 from guidedarm.diagrams.builder_checks import CheckStationWiring
+from guidedarm.diagrams.panel.panel_files import IntrinsicsFromCameraConfig
 from guidedarm.diagrams.station.scenario import StationScenario
 from guidedarm.diagrams.station.station_plant import MakeMultibodyPlant
-from guidedarm.diagrams.tasks.panel_files import IntrinsicsFromCameraConfig
 from guidedarm.systems.config_checks import CheckInstance, FieldError
 from guidedarm.systems.errors import ConfigurationError
 from guidedarm.systems.markers.image_degradation import DegradationConfig, ImageDegradation

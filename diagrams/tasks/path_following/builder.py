@@ -9,7 +9,8 @@ The loop of Wawrzyniak et al.'s figure 10 as a Diagram:
     PathFollower `position_commanded` ──> station `<arm>.position_commanded`
 
 Any Diagram exporting those four port names is a station: MakeStation's (simulated or
-hardware) or MakeKinematicStation's (the arm is where it is commanded, no dynamics).
+hardware) or MakeStation(..., kinematic=True)'s (the arm is where it is commanded, no
+dynamics).
 
 A user's diagram (examples/tof_following_on_ur10e.py):
 
@@ -25,31 +26,21 @@ from __future__ import annotations
 from typing import NamedTuple
 
 import numpy as np
-from pydrake.geometry import Meshcat, SceneGraph
 from pydrake.multibody.plant import MultibodyPlant
 from pydrake.systems.framework import Diagram, DiagramBuilder
-from pydrake.systems.primitives import PassThrough
-from pydrake.systems.rendering import MultibodyPositionToGeometryPose
 
 from guidedarm.diagrams.builder_checks import CheckStationWiring
-from guidedarm.diagrams.station.scenario import StationScenario
-from guidedarm.diagrams.station.station import AddMeshcatVisualization
-from guidedarm.diagrams.station.station_plant import GetArmInstance, MakeMultibodyPlant
-from guidedarm.diagrams.tasks.path_following_setup import Setup
-from guidedarm.systems.config_checks import CheckConfig, CheckInstance
-from guidedarm.systems.errors import ConfigurationError
+from guidedarm.diagrams.station.station_plant import GetArmInstance
+from guidedarm.diagrams.tasks.path_following.setup import Setup
+from guidedarm.systems.config_checks import CheckInstance
 from guidedarm.systems.path_following.continuous_follower import ContinuousFollower
 from guidedarm.systems.path_following.differential_ik_servo import DifferentialIkServo
 from guidedarm.systems.path_following.joint_moves import MovePlanner
 from guidedarm.systems.path_following.path_follower import PathFollower
 from guidedarm.systems.path_following.planner_moves import PlannerMoves
 from guidedarm.systems.path_following.tool_pose_ik import ToolPoseIk
-from guidedarm.systems.planning.acceleration_planner_math import (
-    AccelerationPlanning,
-    ArmKinematics,
-)
+from guidedarm.systems.planning.acceleration_planner_math import AccelerationPlanning, ArmKinematics
 from guidedarm.systems.plant_frames import GetScopedFrame
-from guidedarm.systems.tof.tof_tool_sensor import TOF_PORTS, ToFToolSensor
 
 
 class PathFollowing(NamedTuple):
@@ -72,24 +63,24 @@ def AddPathFollowing(
     inputs used   `<tof>.ranges` (6, m; max_range without a return), `<tof>.valid` (6, 0/1),
                   `<arm>.position_measured` (n, rad)
     input driven  `<arm>.position_commanded` (n, rad): rest-to-rest joint moves, or moves
-                  of the acceleration-level planner when setup.moves is `planner`
+                  of the acceleration-level planner when setup.motion is `planner`
 
     <arm> and <tof> are setup.arm and setup.tool_name. The IK works in the world frame W on
     setup.solver's controller plant; the gripper frame G is setup.gripper_frame, the tool
     centre O stays on target, the workspace walls are in the arm's base frame B. Both
     systems tick every setup.period s; the arm must start at setup.q_start (MakeSetup puts
-    it in setup.station). plan_move: how moves are made (default as setup.moves says).
+    it in setup.station). plan_move: how moves are made (default as setup.motion says).
 
     Outputs for logging and stopping: follower `step_record` (RECORD_FIELDS of the latest
     step; world frame, m), `mode` ([mode, step]; DONE = 3, FAILED = 4), `failure` (str),
     `detections`/`detection_errors` (3 x 3 grid of the latest reading); ik `status`.
 
-    With setup.moves `continuous` the follower is a ContinuousFollower (also reading
+    With setup.motion `continuous` the follower is a ContinuousFollower (also reading
     `<tof>.measured_at`, 6, s) and a DifferentialIkServo streams its target to
     `<arm>.position_commanded` (AddContinuousFollowing).
     """
     CheckInstance("setup", setup, Setup)
-    if setup.moves == "continuous":
+    if setup.motion == "continuous":
         return AddContinuousFollowing(builder, station, setup)
     arm, tof = setup.arm, setup.tool_name
     CheckStationWiring(
@@ -99,7 +90,7 @@ def AddPathFollowing(
         outputs=[f"{tof}.ranges", f"{tof}.valid", f"{arm}.position_measured"],
         new_systems=["tool_pose_ik", "path_follower"],
     )
-    if plan_move is None and setup.moves == "planner":
+    if plan_move is None and setup.motion == "planner":
         plan_move = MakePlannerMoves(setup)
     ik = builder.AddNamedSystem(
         "tool_pose_ik", ToolPoseIk(setup.solver, setup.period, setup.q_start)
@@ -107,11 +98,12 @@ def AddPathFollowing(
     follower = builder.AddNamedSystem(
         "path_follower",
         PathFollower(
-            setup.params,
+            setup.follower,
+            setup.estimator,
             setup.mount,
             setup.grid,
             setup.q_start,
-            setup.motion,
+            setup.limits,
             setup.period,
             plan_move,
         ),
@@ -167,7 +159,7 @@ def AddContinuousFollowing(
     config = setup.continuous
     follower = builder.AddNamedSystem(
         "path_follower",
-        ContinuousFollower(config, plant, tool, setup.grid, setup.params.estimator, setup.q_start),
+        ContinuousFollower(config, plant, tool, setup.grid, setup.estimator, setup.q_start),
     )
     servo = builder.AddNamedSystem(
         "differential_ik",
@@ -176,8 +168,8 @@ def AddContinuousFollowing(
             tool,
             setup.q_start,
             config.servo_period,
-            setup.motion.max_joint_speed,
-            setup.motion.max_joint_acceleration,
+            setup.limits.max_joint_speed,
+            setup.limits.max_joint_acceleration,
             config.servo_gain,
             config.ServoWeights(),
             config.servo_damping,
@@ -201,48 +193,6 @@ def AddContinuousFollowing(
     return PathFollowing(follower, servo)
 
 
-def MakeKinematicStation(scenario: StationScenario, meshcat: Meshcat | None = None) -> Diagram:
-    """A station without dynamics: the plant of the scenario's models (hose included) on a
-    SceneGraph, posed where its one arm is commanded, and its ToF tools reading that
-    SceneGraph; drawn in `meshcat` as MakeStation draws its plant, if given. Ports as
-    MakeStation's: input `<arm>.position_commanded` (n, rad); outputs
-    `<arm>.position_measured` (n, rad; the command itself), `<tof>.ranges`, `<tof>.valid`,
-    `<tof>.detections`, `<tof>.detection_errors`, and `sim.query_object`."""
-    CheckInstance("scenario", scenario, StationScenario)
-    CheckConfig(scenario, "scenario")
-    if len(scenario.arms) != 1:
-        raise ConfigurationError("the kinematic station takes exactly one arm")
-    (arm,) = scenario.arms
-    builder = DiagramBuilder()
-    scene_graph = builder.AddNamedSystem("scene_graph", SceneGraph())
-    plant = MakeMultibodyPlant(scenario, with_hose=True, scene_graph=scene_graph)
-    n = plant.num_positions(GetArmInstance(plant, arm))
-    if plant.num_positions() != n:
-        raise ConfigurationError(
-            f"the kinematic station needs arms.{arm}'s joints to be the station's only joints "
-            f"({plant.num_positions()} positions, the arm has {n})"
-        )
-    command = builder.AddNamedSystem(f"{arm}.command", PassThrough(n))
-    to_pose = builder.AddNamedSystem("plant_pose", MultibodyPositionToGeometryPose(plant))
-    builder.Connect(command.get_output_port(), to_pose.get_input_port())
-    builder.Connect(
-        to_pose.get_output_port(), scene_graph.get_source_pose_port(plant.get_source_id())
-    )
-    builder.ExportInput(command.get_input_port(), f"{arm}.position_commanded")
-    builder.ExportOutput(command.get_output_port(), f"{arm}.position_measured")
-    for name in scenario.tof_tools:
-        tof = scenario.ToFTool(name)
-        sensor = builder.AddNamedSystem(f"{name}.sensor", ToFToolSensor(plant, tof))
-        builder.Connect(scene_graph.get_query_output_port(), sensor.get_input_port())
-        for port in TOF_PORTS:
-            builder.ExportOutput(sensor.GetOutputPort(port), f"{name}.{port}")
-    AddMeshcatVisualization(builder, scenario, meshcat, plant, scene_graph)
-    builder.ExportOutput(scene_graph.get_query_output_port(), "sim.query_object")
-    diagram = builder.Build()
-    diagram.set_name("kinematic_station")
-    return diagram
-
-
 def MakePlannerMoves(setup: Setup, plant: MultibodyPlant | None = None) -> PlannerMoves:
     """Moves through the acceleration-level planner of Pajak et al. (on setup.solver's
     plant unless `plant` is given), its tool frame the ToF tool's T, its joint limits the
@@ -257,8 +207,8 @@ def MakePlannerMoves(setup: Setup, plant: MultibodyPlant | None = None) -> Plann
         tool,
         setup.planner.min_singular_value,
     )
-    speed = np.full(len(setup.q_start), setup.motion.max_joint_speed)
-    accel = np.full(len(setup.q_start), setup.motion.max_joint_acceleration)
+    speed = np.full(len(setup.q_start), setup.limits.max_joint_speed)
+    accel = np.full(len(setup.q_start), setup.limits.max_joint_acceleration)
     planning = AccelerationPlanning(
         kinematics,
         kinematics.Position(setup.q_start)[np.newaxis],

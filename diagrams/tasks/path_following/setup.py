@@ -2,11 +2,12 @@
 
 `MakeSetup` reads the scenario without changing it. It loads the hose (a named path, a
 CSV file, or a seeded random path) in the arm's base frame B, checks it against the
-workspace, builds the IK on a controller plant of the arm and what it carries
-(MakeMultibodyPlant), solves the start pose, and returns a copy of the station scenario
-with what the task derives filled in: the hose's centerline and frame, the ToF noise seed
-and target radius, and the arm's start position. A scenario value that the task would
-have to change instead is refused with one line naming both keys.
+workspace, builds the station's plant once and from it the IK on a controller plant of
+the arm and what it carries (MakeMultibodyPlant), solves the start pose, and returns a
+copy of the station scenario with what the task derives filled in: the hose's centerline
+and frame, the ToF noise seed and target radius, and the arm's start position. A scenario
+value that the task would have to change instead is refused with one line naming both
+keys.
 """
 
 from __future__ import annotations
@@ -18,14 +19,13 @@ import os
 import tempfile
 from dataclasses import dataclass
 from pathlib import Path
-from typing import TYPE_CHECKING
 
 import numpy as np
 from pydrake.math import RigidTransform
 from pydrake.multibody.plant import MultibodyPlant
 
 from guidedarm.diagrams.scenario_loading import load_typed, read_raw_scenario
-from guidedarm.diagrams.station.scenario import ArmConfig, StationScenario
+from guidedarm.diagrams.station.scenario import StationScenario
 from guidedarm.diagrams.station.station_plant import (
     ArmAndAttachments,
     ArmInitialPosition,
@@ -33,7 +33,8 @@ from guidedarm.diagrams.station.station_plant import (
     GetArmInstance,
     MakeMultibodyPlant,
 )
-from guidedarm.systems.config_checks import ChangedKey, CheckConfig, CheckInstance
+from guidedarm.diagrams.tasks.path_following.scenario import Motion, PathFollowingScenario
+from guidedarm.systems.config_checks import CheckConfig, CheckInstance
 from guidedarm.systems.errors import ConfigurationError, GuidedArmError
 from guidedarm.systems.path_following.continuous_follower_math import ContinuousConfig
 from guidedarm.systems.path_following.hose_geometry import (
@@ -51,23 +52,17 @@ from guidedarm.systems.path_following.hose_reach import (
 )
 from guidedarm.systems.path_following.joint_moves import MotionLimits
 from guidedarm.systems.path_following.path_follower_math import (
+    Estimator,
     FollowerConfig,
     OrientationFromVector,
     ToolMount,
 )
 from guidedarm.systems.path_following.tool_pose_ik_math import ToolPoseIkConfig, ToolPoseSolver
 from guidedarm.systems.path_following.workspace import WorkspaceConfig
-from guidedarm.systems.planning.acceleration_planner_config import CheckModeFields
 from guidedarm.systems.planning.acceleration_planner_math import PlannerConfig
 from guidedarm.systems.plant_frames import GetScopedFrame
 from guidedarm.systems.tof.tof_tool_sensor import MakeDetectionGrid
 from guidedarm.systems.tof.tof_tool_sensor_math import DetectionGrid
-
-if TYPE_CHECKING:
-    from guidedarm.diagrams.tasks.path_following import PathFollowingScenario
-
-EXECUTORS = ("station", "kinematic")
-MOVES = ("joint_trajectory", "planner", "continuous")
 
 
 @dataclass
@@ -80,9 +75,10 @@ class Setup:
         name) and the ToF tool's key in station.tof_tools.
     base_frame, X_WB: the arm's base frame B (scoped name) and its pose in the world.
     workspace: the walls (m, frame B).
-    params: the follower's resolved parameters; motion: move limits; moves: `joint_trajectory`,
-        `planner` (with `planner`) or `continuous` (with `continuous`); period: follower and
-        IK tick (s); max_time (s).
+    estimator: the hose estimator, `grid` or `ranging`; follower: the follower's parameters
+        (PathFollower resolves them for the estimator); limits: move limits; motion:
+        `joint_trajectory`, `planner` (with `planner`) or `continuous` (with
+        `continuous`); period: follower and IK tick (s); max_time (s).
     centerline_B, centerline: the hose's centerline (N, 3; m) in B and in W; hose_source:
         the CSV or named path it came from.
     solver: the IK (on the controller plant); mount: X_GT as the paper's l_e and angles;
@@ -96,9 +92,10 @@ class Setup:
     base_frame: str
     X_WB: RigidTransform
     workspace: WorkspaceConfig
-    params: FollowerConfig
-    motion: MotionLimits
-    moves: str
+    estimator: Estimator
+    follower: FollowerConfig
+    limits: MotionLimits
+    motion: Motion
     planner: PlannerConfig
     continuous: ContinuousConfig
     period: float
@@ -117,19 +114,24 @@ def MakeSetup(scenario: PathFollowingScenario, out_dir: Path | None = None) -> S
     PathFollowingScenario.Validate), places the hose and solves the start pose (module
     docstring).
     out_dir receives the CSV of a random path (default: _RandomHoseFile's shared folder)."""
-    from guidedarm.diagrams.tasks.path_following import PathFollowingScenario  # imports this
-
     CheckInstance("scenario", scenario, PathFollowingScenario)
     CheckConfig(scenario)
     station = copy.deepcopy(scenario.station)
     base_frame = scenario.base_frame or f"{scenario.arm}::base"
-    X_WB = FixedFramePose(station, base_frame, "base_frame")
+    plant = MakeMultibodyPlant(station)
+    X_WB = FixedFramePose(plant, base_frame, "base_frame")
     workspace = _Workspace(scenario)
     tof = station.tof_tools[scenario.tof]
     _ResolveToF(scenario, station)
-    params = dataclasses.replace(scenario.follower, estimator=scenario.estimator).Resolved()
     solver = MakeSolver(
-        station, scenario.arm, scenario.gripper_frame, scenario.tof, scenario.ik, workspace, X_WB
+        station,
+        plant,
+        scenario.arm,
+        scenario.gripper_frame,
+        scenario.tof,
+        scenario.ik,
+        workspace,
+        X_WB,
     )
     mount = ToolMount.FromTransform(_ToolInGripper(solver.plant, scenario.gripper_frame, tof))
     q_home = ArmInitialPosition(solver.plant, scenario.arm, station.arms[scenario.arm])
@@ -157,13 +159,14 @@ def MakeSetup(scenario: PathFollowingScenario, out_dir: Path | None = None) -> S
         base_frame=base_frame,
         X_WB=X_WB,
         workspace=workspace,
-        params=params,
-        motion=MotionLimits(
+        estimator=scenario.estimator,
+        follower=scenario.follower,
+        limits=MotionLimits(
             scenario.tool_speed,
             scenario.max_joint_speed,
             max_joint_acceleration=scenario.max_joint_acceleration,
         ),
-        moves=scenario.motion,
+        motion=scenario.motion,
         planner=scenario.planner,
         continuous=scenario.continuous,
         period=scenario.period,
@@ -176,116 +179,6 @@ def MakeSetup(scenario: PathFollowingScenario, out_dir: Path | None = None) -> S
         grid=MakeDetectionGrid(solver.plant, tof),
         q_start=q_start,
     )
-
-
-def CheckScenarioRules(scenario: PathFollowingScenario) -> None:
-    """The rules between the scenario's keys (PathFollowingScenario.Validate, after the
-    fields' bounds)."""
-    if scenario.executor not in EXECUTORS:
-        raise ConfigurationError(f"executor must be one of {EXECUTORS}, got '{scenario.executor}'")
-    if scenario.motion not in MOVES:
-        raise ConfigurationError(f"motion must be one of {MOVES}, got '{scenario.motion}'")
-    if scenario.follower.estimator not in ("", scenario.estimator):
-        raise ConfigurationError(
-            f"follower.estimator '{scenario.follower.estimator}' conflicts with the top-level "
-            f"key 'estimator' ('{scenario.estimator}'): set that only"
-        )
-    if scenario.arm not in scenario.station.arms or scenario.tof not in scenario.station.tof_tools:
-        raise ConfigurationError(
-            f"station must define arms.{scenario.arm} and tof_tools.{scenario.tof}"
-        )
-    _CheckMotionKeys(scenario)
-    _CheckExecutorKeys(scenario)
-    if scenario.motion == "planner":
-        CheckModeFields(scenario.planner)
-    if scenario.motion == "continuous":
-        _CheckContinuousReadings(scenario)
-    arm = scenario.station.arms[scenario.arm]
-    if scenario.motion == "continuous" and scenario.continuous.servo_period < arm.control_period:
-        raise ConfigurationError(
-            f"continuous.servo_period ({scenario.continuous.servo_period} s) is shorter than "
-            f"station.arms.{scenario.arm}.control_period ({arm.control_period} s), the period "
-            "at which the arm takes commands"
-        )
-
-
-def _CheckContinuousReadings(scenario: PathFollowingScenario) -> None:
-    """The hose fit needs min_fit_points readings within fit_length of hose: at the cruise
-    speed the ToF tool reads one every speed x period (m), so a faster cruise would leave
-    the fit without its tangent, and the speed setting would only mislead."""
-    c, period = scenario.continuous, scenario.station.tof_tools[scenario.tof].period
-    fastest = c.fit_length / (c.min_fit_points * period)
-    if not c.speed <= fastest:
-        raise ConfigurationError(
-            f"continuous.speed ({c.speed:g} m/s) is faster than the hose fit can follow: "
-            f"continuous.fit_length ({c.fit_length:g} m) must hold continuous.min_fit_points "
-            f"({c.min_fit_points}) readings, one every {period:g} s from the ToF tool, so "
-            f"at most {fastest:.3g} m/s"
-        )
-
-
-# Keys that only some motions read: set to anything but their default under another motion
-# they would be ignored, so they are refused. The stop-and-go IK's step limits (ik.*
-# below) are lifted for the start pose, which every motion solves with the other ik keys.
-_STOP_AND_GO = ("joint_trajectory", "planner")
-_MOTION_KEYS = {
-    "tool_speed": _STOP_AND_GO,
-    "period": _STOP_AND_GO,
-    "follower": _STOP_AND_GO,
-    "ik.max_swing": _STOP_AND_GO,
-    "ik.max_step_rotation_deg": _STOP_AND_GO,
-    "ik.shortfall_tolerance_deg": _STOP_AND_GO,
-    "planner": ("planner",),
-    "continuous": ("continuous",),
-}
-
-
-def _CheckMotionKeys(scenario: PathFollowingScenario) -> None:
-    """Refuses a key set away from its default that scenario.motion does not read."""
-    defaults = type(scenario)()
-    for key, motions in _MOTION_KEYS.items():
-        if scenario.motion in motions:
-            continue
-        changed = ChangedKey(_Dotted(scenario, key), _Dotted(defaults, key), key)
-        if key == "follower" and changed == "follower.estimator":
-            continue
-        if changed:
-            raise ConfigurationError(
-                f"'{changed}' has no effect with motion={scenario.motion} (it is read only "
-                f"with motion={' or '.join(motions)}): remove it or change motion"
-            )
-
-
-def _CheckExecutorKeys(scenario: PathFollowingScenario) -> None:
-    """Refuses, with executor=kinematic, a servo gain, plant, visualization or camera
-    setting set away from its default: the kinematic station poses the arm where it is
-    commanded (no servo, no dynamics, nothing drawn in Meshcat, no camera rendered) and
-    reads none of them."""
-    if scenario.executor != "kinematic":
-        return
-    arm, default_arm = scenario.station.arms[scenario.arm], ArmConfig()
-    prefix = f"station.arms.{scenario.arm}"
-    for key, value, default in (
-        ("station.plant_config", scenario.station.plant_config, StationScenario().plant_config),
-        ("station.visualization", scenario.station.visualization, StationScenario().visualization),
-        ("station.cameras", scenario.station.cameras, StationScenario().cameras),
-        (f"{prefix}.kp", arm.kp, default_arm.kp),
-        (f"{prefix}.kd", arm.kd, default_arm.kd),
-    ):
-        changed = ChangedKey(value, default, key)
-        if changed:
-            raise ConfigurationError(
-                f"'{changed}' has no effect with executor=kinematic (it poses the arm where "
-                "it is commanded: no servo, no dynamics, no Meshcat, no camera): remove it or use "
-                "executor=station"
-            )
-
-
-def _Dotted(config: object, key: str) -> object:
-    """The value of a dotted key (`ik.max_swing`) of a config tree."""
-    for name in key.split("."):
-        config = getattr(config, name)
-    return config
 
 
 def _ResolveToF(scenario: PathFollowingScenario, station: StationScenario) -> None:
@@ -397,6 +290,7 @@ def _RandomHoseFile(centerline_B: np.ndarray, out_dir: Path | None) -> Path:
 
 def MakeSolver(
     station: StationScenario,
+    plant: MultibodyPlant,
     arm: str,
     gripper_frame: str,
     tool_name: str,
@@ -405,9 +299,11 @@ def MakeSolver(
     X_WB: RigidTransform,
 ) -> ToolPoseSolver:
     """The IK of the gripper frame G holding the ToF tool's centre O on target, on a
-    controller plant of the arm and what it carries (MakeMultibodyPlant, no hose), with the
-    workspace walls in the base frame B (pose X_WB)."""
-    plant = MakeMultibodyPlant(station, ArmAndAttachments(MakeMultibodyPlant(station), arm))
+    controller plant of the arm and what it carries (MakeMultibodyPlant, no hose; `plant`:
+    the station's, MakeMultibodyPlant(station)), with the workspace walls in the base
+    frame B (pose X_WB)."""
+    names = ArmAndAttachments(plant, arm)
+    plant = MakeMultibodyPlant(station, names, whole=plant)
     gripper = GetScopedFrame(plant, gripper_frame, "gripper_frame")
     tof = station.tof_tools[tool_name]
     tool = GetScopedFrame(plant, tof.tool_frame, f"station.tof_tools.{tool_name}.tool_frame")

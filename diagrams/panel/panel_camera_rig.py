@@ -20,14 +20,14 @@ from pydrake.multibody.plant import AddMultibodyPlantSceneGraph
 from pydrake.systems.framework import DiagramBuilder
 from pydrake.systems.sensors import CameraConfig
 
-from guidedarm.diagrams.station.model_paths import MakeParser
-from guidedarm.diagrams.station.scenario import RENDERER_NAME
-from guidedarm.diagrams.tasks.panel_assets import COVER_CLOSED_M
-from guidedarm.diagrams.tasks.panel_files import (
+from guidedarm.diagrams.panel.panel_assets import COVER_CLOSED_M
+from guidedarm.diagrams.panel.panel_files import (
     MODELS_PANEL_DIR,
     IntrinsicsFromCameraConfig,
     SupersampledCameraConfig,
 )
+from guidedarm.diagrams.station.model_paths import MakeParser
+from guidedarm.diagrams.station.scenario import RENDERER_NAME
 from guidedarm.systems.cell_errors.camera_errors import (
     CameraErrors,
     MakeTrueCamera,

@@ -11,13 +11,11 @@ summary compares what the follower saw and did with the true centerline.
 
 import dataclasses
 from collections.abc import Collection
-from dataclasses import dataclass, field
 from typing import Any
 
 from guidedarm.diagrams.run_context import RunContext
-from guidedarm.diagrams.station.scenario import StationScenario
-from guidedarm.diagrams.tasks.path_following_execution import Execute, Execution
-from guidedarm.diagrams.tasks.path_following_report import (
+from guidedarm.diagrams.tasks.path_following.execution import Execute, Execution
+from guidedarm.diagrams.tasks.path_following.report import (
     GROUND_TRUTH_METRICS,
     DetectedPath,
     Metrics,
@@ -25,73 +23,11 @@ from guidedarm.diagrams.tasks.path_following_report import (
     Repeatability,
     SpeedAndErrorAlongPath,
 )
-from guidedarm.diagrams.tasks.path_following_setup import CheckScenarioRules, MakeSetup, Setup
+from guidedarm.diagrams.tasks.path_following.scenario import PathFollowingScenario
+from guidedarm.diagrams.tasks.path_following.setup import MakeSetup, Setup
 from guidedarm.diagrams.tasks.registry import RunFlags, TaskDefinition
-from guidedarm.systems.config_checks import CheckFields, InRange, Positive
 from guidedarm.systems.errors import ConfigurationError
-from guidedarm.systems.path_following.continuous_follower_math import ContinuousConfig
-from guidedarm.systems.path_following.hose_geometry import RandomPathConfig
-from guidedarm.systems.path_following.path_follower_math import RECORD_FIELDS, FollowerConfig
-from guidedarm.systems.path_following.tool_pose_ik_math import ToolPoseIkConfig
-from guidedarm.systems.path_following.workspace import WorkspaceConfig
-from guidedarm.systems.planning.acceleration_planner_math import PlannerConfig
-
-
-@dataclass
-class PathFollowingScenario:
-    """path: `paper_path_N`, another name in models/hoses/, or `random_<seed>`;
-    path_csv: a centerline CSV (x, y, z in m, the arm's base frame; overrides path);
-    workspace: the cell's walls (m, base frame), a box the hose and every moving body of
-    the arm stay in; unset: the hose's own (models/hoses/NAME.yaml, or a NAME.yaml beside
-    the CSV), else the paper's cell (x, y in [-0.55, 0.55], z >= 0.005);
-    random_path: the region and shape of random paths (inside the workspace);
-    estimator: `grid` (the paper's) or `ranging`; random_seed: the scenario's random seed
-    (the ToF noise); repeat_random_seed: when set, a second run with this random seed is
-    overlaid (repeatability); executor: `station`
-    or `kinematic`; motion: how the arm moves, `joint_trajectory` (rest-to-rest joint moves
-    at tool_speed between the paper's steps), `planner` (those moves through Pajak et al.'s
-    acceleration-level planner with the `planner` parameters) or `continuous` (no stops:
-    sensing while moving, the target streamed through differential IK, with the
-    `continuous` parameters); all within max_joint_speed and max_joint_acceleration;
-    period: follower and IK tick of the stop-and-go modes (s); max_time: simulated time
-    limit (s); min_coverage: success threshold; follower: the algorithm's parameters;
-    ik: IK tolerances; arm, gripper_frame, tof: names in the station; base_frame: the arm's
-    base frame B (scoped name; empty: `<arm>::base`).
-    tool_speed: the tool's speed in joint moves (m/s); max_joint_speed: joint speed limit
-    (rad/s); max_joint_acceleration: joint acceleration limit (rad/s^2)."""
-
-    task: str = "path_following"
-    path: str = "paper_path_1"
-    path_csv: str = ""
-    workspace: WorkspaceConfig | None = None
-    random_path: RandomPathConfig = field(default_factory=RandomPathConfig)
-    estimator: str = "grid"
-    random_seed: int = 0
-    repeat_random_seed: int | None = None
-    executor: str = "station"
-    tool_speed: float = Positive(0.05)
-    max_joint_speed: float = Positive(1.0)
-    max_joint_acceleration: float = Positive(5.0)
-    motion: str = "joint_trajectory"
-    planner: PlannerConfig = field(default_factory=PlannerConfig)
-    continuous: ContinuousConfig = field(default_factory=ContinuousConfig)
-    period: float = Positive(0.01)
-    max_time: float = Positive(400.0)
-    min_coverage: float = InRange(0.0, 1.0, 0.95)
-    follower: FollowerConfig = field(default_factory=FollowerConfig)
-    ik: ToolPoseIkConfig = field(default_factory=ToolPoseIkConfig)
-    arm: str = "mz04d"
-    base_frame: str = ""
-    gripper_frame: str = "gripper::gripper"
-    tof: str = "tof"
-    station: StationScenario = field(default_factory=StationScenario)
-
-    def Validate(self) -> None:
-        """Checked at load (CheckConfig): the fields' bounds, then the rules between the
-        keys (CheckScenarioRules: choices, the arm and ToF tool in the station, keys the
-        chosen motion or executor would not read)."""
-        CheckFields(self)
-        CheckScenarioRules(self)
+from guidedarm.systems.path_following.path_follower_math import RECORD_FIELDS
 
 
 def Run(

@@ -14,6 +14,7 @@ from typing import Any
 from pydrake.math import RigidTransform
 from pydrake.systems.sensors import CameraConfig
 
+from guidedarm.diagrams.calibration.calibration_files import LoadHandEye
 from guidedarm.diagrams.scenario_loading import ScenarioError, load_typed, read_raw_scenario
 from guidedarm.diagrams.station.model_paths import MODELS_DIR
 from guidedarm.systems.errors import ConfigurationError
@@ -110,9 +111,6 @@ def LoadCameraMount(mount_file: str, camera: CameraConfig) -> RigidTransform | N
     base frame than the camera's X_PB."""
     if not mount_file:
         return None
-    # Imported here: the calibration files import the marker files' schema.
-    from guidedarm.diagrams.calibration.calibration_files import LoadHandEye
-
     X_PC = LoadHandEye(ResolveModelFile("camera_mount_file", mount_file, "hand_eye.yaml")).X_PC
     if X_PC.base_frame and X_PC.base_frame != camera.X_PB.base_frame:
         raise ConfigurationError(

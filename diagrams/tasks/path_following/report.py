@@ -13,12 +13,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from guidedarm.diagrams import plots  # noqa: F401  (selects the Agg backend)
-from guidedarm.systems.path_following.hose_geometry import (
-    ArcLength,
-    DistanceToCenterline,
-    Resample,
-)
+from guidedarm.diagrams.plots import PlotAlongPath  # (also selects the Agg backend)
+from guidedarm.systems.path_following.hose_geometry import ArcLength, DistanceToCenterline, Resample
 from guidedarm.systems.path_following.path_follower_math import RECORD_FIELDS
 
 TRACKING_BOUND = 0.025
@@ -200,8 +196,6 @@ def SpeedAndErrorAlongPath(records: np.ndarray, centerline: np.ndarray, title: s
     """Figure: the tool's speed along the hose (mm/s; arc length gained per second, over
     0.2 s windows, or per step when steps are longer) and its tracking error (mm) over the
     arc length, up to the farthest point reached (plots.PlotAlongPath)."""
-    from guidedarm.diagrams.plots import PlotAlongPath
-
     match = CenterlineMatch(Positions(records, "O"), centerline)
     t = Column(records, "t")
     inside = ~match.beyond
