@@ -19,7 +19,7 @@ from guidedarm.diagrams.campaigns.campaign import ListNamedCampaigns, LoadCampai
 from guidedarm.diagrams.campaigns.engine import RunJobs
 from guidedarm.diagrams.campaigns.jobs import ExpandJobs
 from guidedarm.diagrams.campaigns.results import EmptyMetrics, ParseCell, ResultsTable
-from guidedarm.diagrams.cli.command_marker_study import CAMPAIGNS
+from guidedarm.diagrams.studies.marker_study import CAMPAIGNS
 from guidedarm.diagrams.tasks.registry import AvailableTasks, NumericMetricNames
 
 TOUR = "scenario: ur10e_joint_tour\nset: {settle_time: 0.2}\n"
