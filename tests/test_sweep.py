@@ -15,7 +15,7 @@ import psutil
 import pytest
 from distributed import Client
 
-from guidedarm.diagrams.campaigns.campaign import ListNamedCampaigns, LoadCampaign
+from guidedarm.diagrams.campaigns.campaign_file import ListNamedCampaigns, LoadCampaign
 from guidedarm.diagrams.campaigns.engine import RunJobs
 from guidedarm.diagrams.campaigns.jobs import ExpandJobs
 from guidedarm.diagrams.campaigns.results import EmptyMetrics, ParseCell, ResultsTable

@@ -11,7 +11,8 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from guidedarm.diagrams.campaigns.campaign import CampaignConfig, LoadCampaign
+from guidedarm.diagrams.campaigns.campaign import CampaignConfig
+from guidedarm.diagrams.campaigns.campaign_file import LoadCampaign
 from guidedarm.diagrams.campaigns.jobs import ExpandJobs, Job
 from guidedarm.diagrams.campaigns.sweep import Sweep, SweepOptions
 from guidedarm.diagrams.panel.panel_files import RecordedModelFile, RecordedPanelFile
