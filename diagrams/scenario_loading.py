@@ -25,16 +25,15 @@ from collections.abc import Iterable
 from pathlib import Path
 from typing import Any, TypeVar
 
-import yaml
 from pydrake.common.yaml import yaml_dump, yaml_load_data, yaml_load_typed
 
 from guidedarm.diagrams.scenario_schema import (
     CheckRawNode,
     FirstLine,
-    JoinKey,
     ScenarioError,
 )
 from guidedarm.diagrams.station.hardware_config import RefuseReplacedDriverKeys
+from guidedarm.diagrams.yaml_duplicates import FindDuplicateKey
 from guidedarm.systems.config_checks import CheckConfig, FieldError
 from guidedarm.systems.errors import ConfigurationError
 
@@ -162,7 +161,7 @@ def RefuseDuplicateKeys(text: str, source: str, lines: bool = True) -> None:
     `source`, the key's dotted path and (with `lines`) the 1-based lines it is on: YAML
     readers (PyYAML, and Drake's on top of it) keep the last value without a word. The
     text must parse (read it first)."""
-    duplicate = _FindDuplicateKey(yaml.compose(text, Loader=yaml.SafeLoader), "", set())
+    duplicate = FindDuplicateKey(text)
     if duplicate is None:
         return
     key, where = duplicate
@@ -175,35 +174,6 @@ def RefuseDuplicateKeys(text: str, source: str, lines: bool = True) -> None:
             else f" (lines {', '.join(numbers[:-1])} and {numbers[-1]})"
         )
     raise ScenarioError(text)
-
-
-def _FindDuplicateKey(node: Any, key: str, seen: set[int]) -> tuple[str, list[int]] | None:
-    """The dotted path and lines of the first key given twice in one mapping under the
-    composed YAML `node` (a mapping's own keys before those of its values), or None."""
-    if node is None or id(node) in seen:  # an alias of a node already walked
-        return None
-    seen.add(id(node))
-    if isinstance(node, yaml.SequenceNode):
-        children = [(f"{key}[{i}]", item) for i, item in enumerate(node.value)]
-    elif isinstance(node, yaml.MappingNode):
-        where: dict[str, list[int]] = {}
-        children = []
-        for name_node, value in node.value:
-            name = str(name_node.value) if isinstance(name_node, yaml.ScalarNode) else ""
-            if name_node.tag == "tag:yaml.org,2002:merge":
-                continue
-            where.setdefault(name, []).append(name_node.start_mark.line + 1)
-            children.append((JoinKey(key, name), value))
-        for name, found in where.items():
-            if len(found) > 1:
-                return JoinKey(key, name), found
-    else:
-        return None
-    for child_key, child in children:
-        duplicate = _FindDuplicateKey(child, child_key, seen)
-        if duplicate is not None:
-            return duplicate
-    return None
 
 
 def _Times(count: int) -> str:

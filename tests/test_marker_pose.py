@@ -18,7 +18,6 @@ from pydrake.systems.framework import DiagramBuilder
 from pydrake.systems.sensors import CameraConfig, ImageRgba8U
 
 from guidedarm.diagrams.campaigns.jobs import ExpandJobs
-from guidedarm.diagrams.cli.command_marker_study import CAMPAIGNS, STUDIES, StudyCampaign
 from guidedarm.diagrams.panel.panel_assets import WritePanelAssets
 from guidedarm.diagrams.panel.panel_camera_rig import LookAt, PanelCameraRig
 from guidedarm.diagrams.panel.panel_files import (
@@ -27,6 +26,7 @@ from guidedarm.diagrams.panel.panel_files import (
     LoadCameraIntrinsics,
     LoadPanelSpec,
 )
+from guidedarm.diagrams.studies.marker_study import CAMPAIGNS, STUDIES, StudyCampaign
 from guidedarm.diagrams.tasks.registry import GetTask, LoadScenario, NumericMetricNames
 from guidedarm.systems.errors import ConfigurationError
 from guidedarm.systems.markers.image_degradation import (
@@ -267,7 +267,7 @@ def test_marker_view_estimates_with_the_lens_of_its_camera_file(run_cli, tmp_pat
 def test_study_jobs_take_the_camera_file_and_the_real_lens(name, tmp_path):
     """marker-study --camera-file / --lens: every job of a marker_view or a panel campaign
     estimates with the file and renders through the lens, each at its task's key."""
-    from guidedarm.diagrams.cli.command_marker_study import StudyCamera
+    from guidedarm.diagrams.studies.marker_study import StudyCamera
 
     lens = (-0.25, 0.08, 0.0, 0.0, 0.0)
     camera = StudyCamera(str(DEFAULT_CAMERA_FILE), lens)

@@ -11,10 +11,10 @@ import cv2
 import pytest
 
 from guidedarm.diagrams.campaigns.jobs import ExpandJobs
-from guidedarm.diagrams.cli.command_marker_study import StudyCampaign
 from guidedarm.diagrams.panel.panel_assets import GeneratedPanelModel
 from guidedarm.diagrams.panel.panel_files import DEFAULT_PANEL_FILE, ResolvePanelFile
 from guidedarm.diagrams.run_context import RunContext
+from guidedarm.diagrams.studies.marker_study import StudyCampaign
 from guidedarm.diagrams.tasks.panel_operation import PanelOperationRun
 from guidedarm.diagrams.tasks.registry import LoadScenario
 from guidedarm.systems.errors import ConfigurationError

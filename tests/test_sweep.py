@@ -15,11 +15,11 @@ import psutil
 import pytest
 from distributed import Client
 
-from guidedarm.diagrams.campaigns.campaign import ListNamedCampaigns, LoadCampaign
+from guidedarm.diagrams.campaigns.campaign_file import ListNamedCampaigns, LoadCampaign
 from guidedarm.diagrams.campaigns.engine import RunJobs
 from guidedarm.diagrams.campaigns.jobs import ExpandJobs
 from guidedarm.diagrams.campaigns.results import EmptyMetrics, ParseCell, ResultsTable
-from guidedarm.diagrams.cli.command_marker_study import CAMPAIGNS
+from guidedarm.diagrams.studies.marker_study import CAMPAIGNS
 from guidedarm.diagrams.tasks.registry import AvailableTasks, NumericMetricNames
 
 TOUR = "scenario: ur10e_joint_tour\nset: {settle_time: 0.2}\n"

@@ -6,8 +6,8 @@ import json
 import numpy as np
 import pytest
 
-from guidedarm.diagrams.cli.command_compare_planners import ComparePlanners, TableRow
 from guidedarm.diagrams.cli.main import main
+from guidedarm.diagrams.studies.planner_comparison import ComparePlanners, TableRow
 from guidedarm.diagrams.tasks.common.tracking import (
     MAX_TRACKING_DELAY,
     DelayedTrackingError,

@@ -13,7 +13,7 @@ import argparse
 import sys
 from pathlib import Path
 
-from guidedarm.diagrams.campaigns.campaign import LoadCampaign
+from guidedarm.diagrams.campaigns.campaign_file import LoadCampaign
 from guidedarm.diagrams.campaigns.results import EmptyMetrics
 from guidedarm.diagrams.campaigns.sweep import MakeSweepOptions, Sweep
 

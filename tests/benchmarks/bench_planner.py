@@ -19,7 +19,7 @@ from pydrake.systems.analysis import Simulator
 from pydrake.systems.framework import DiagramBuilder
 from pydrake.systems.primitives import ConstantVectorSource
 
-from guidedarm.diagrams.cli.command_compare_planners import (
+from guidedarm.diagrams.studies.planner_comparison import (
     ARM_SCENARIOS,
     PrintRandomTable,
     RandomComparison,
