@@ -13,7 +13,7 @@ from guidedarm.diagrams.cli.command_run import LoadScenario
 from guidedarm.diagrams.run_context import RunContext
 from guidedarm.diagrams.tasks.path_following_diagram import MakeKinematicStation
 from guidedarm.diagrams.tasks.path_following_setup import MakeSetup
-from guidedarm.systems.path_following.hose_geometry import ReadCenterline, WriteCenterline
+from guidedarm.systems.scene.hose_geometry import ReadCenterline, WriteCenterline
 
 SCENARIO = "ur10e_path_following"
 

@@ -88,7 +88,7 @@ from guidedarm.systems.markers.image_degradation import (
     SeededDegradation,
 )
 from guidedarm.systems.markers.marker_pose_estimator_math import CameraIntrinsics
-from guidedarm.systems.markers.panel_operation_math import (
+from guidedarm.systems.panel.panel_operation_math import (
     PanelOperationConfig,
     PlannerFrames,
 )

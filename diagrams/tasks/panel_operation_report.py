@@ -18,7 +18,7 @@ from guidedarm.diagrams.tasks.trajectory_csv import (
     JointMotionMetrics,
     WriteTrajectoryCsv,
 )
-from guidedarm.systems.markers.panel_operation import SequencerState
+from guidedarm.systems.panel.panel_operation import SequencerState
 
 if TYPE_CHECKING:
     from guidedarm.diagrams.tasks.panel_operation import PanelOperationRun

@@ -29,12 +29,12 @@ from guidedarm.diagrams.tasks.path_following_setup import CheckScenarioRules, Ma
 from guidedarm.diagrams.tasks.registry import RunFlags, TaskDefinition
 from guidedarm.systems.config_checks import CheckFields, InRange, Positive
 from guidedarm.systems.errors import ConfigurationError
-from guidedarm.systems.path_following.continuous_follower_math import ContinuousConfig
-from guidedarm.systems.path_following.hose_geometry import RandomPathConfig
+from guidedarm.systems.path_following.continuous_follower_config import ContinuousConfig
 from guidedarm.systems.path_following.path_follower_math import RECORD_FIELDS, FollowerConfig
 from guidedarm.systems.path_following.tool_pose_ik_math import ToolPoseIkConfig
 from guidedarm.systems.path_following.workspace import WorkspaceConfig
 from guidedarm.systems.planning.acceleration_planner_math import PlannerConfig
+from guidedarm.systems.scene.hose_geometry import RandomPathConfig
 
 
 @dataclass

@@ -14,12 +14,12 @@ from __future__ import annotations
 import numpy as np
 
 from guidedarm.diagrams import plots  # noqa: F401  (selects the Agg backend)
-from guidedarm.systems.path_following.hose_geometry import (
+from guidedarm.systems.path_following.path_follower_math import RECORD_FIELDS
+from guidedarm.systems.scene.hose_geometry import (
     ArcLength,
     DistanceToCenterline,
     Resample,
 )
-from guidedarm.systems.path_following.path_follower_math import RECORD_FIELDS
 
 TRACKING_BOUND = 0.025
 # A step is matched within MATCH_SLACK + 2 x the tool's move since the previous step, at
