@@ -11,12 +11,12 @@ from hypothesis import strategies as st
 from guidedarm.diagrams.tasks.registry import LoadScenario
 from guidedarm.diagrams.tasks.waypoints import MakePlannerSetup
 from guidedarm.systems.planning.acceleration_planner_kinematics import PlanningError
-from guidedarm.systems.planning.acceleration_planner_limits import JerkWindow, StepBounds
 from guidedarm.systems.planning.acceleration_planner_math import RunPlanning
 from guidedarm.systems.planning.acceleration_planner_position_limits import (
     PositionStepBounds,
     ViableSpeed,
 )
+from guidedarm.systems.planning.acceleration_planner_robust_limits import JerkWindow, StepBounds
 from guidedarm.systems.planning.acceleration_planner_watch import (
     Progressed,
     ReversalRates,

@@ -18,7 +18,12 @@ from guidedarm.systems.planning.acceleration_planner_kinematics import (
     RotationFromVector,
     RotationVector,
 )
-from guidedarm.systems.planning.acceleration_planner_limits import (
+from guidedarm.systems.planning.acceleration_planner_math import (
+    AccelerationPlanning,
+    PlannerConfig,
+    RunPlanning,
+)
+from guidedarm.systems.planning.acceleration_planner_robust_limits import (
     AdmissibleScaling,
     BrakingAcceleration,
     CholeskySolve,
@@ -26,11 +31,6 @@ from guidedarm.systems.planning.acceleration_planner_limits import (
     JerkWindow,
     SaturatedLeastSquares,
     SaturationMetricFactor,
-)
-from guidedarm.systems.planning.acceleration_planner_math import (
-    AccelerationPlanning,
-    PlannerConfig,
-    RunPlanning,
 )
 from guidedarm.systems.planning.random_waypoint_tasks import KINDS, MakeRandomWaypointTasks
 from guidedarm.systems.planning.waypoint_ik import SolveWaypointIk

@@ -28,7 +28,7 @@ from guidedarm.diagrams.task_run import RunTask
 from guidedarm.diagrams.tasks.registry import LoadScenario, TaskDefinition
 from guidedarm.systems.config_checks import CheckConfig, FieldError
 from guidedarm.systems.errors import ConfigurationError, RunFailedError
-from guidedarm.systems.path_following.hose_geometry import ReadCenterline
+from guidedarm.systems.scene.hose_geometry import ReadCenterline
 
 GUIDEDARM = str(Path(sys.executable).parent / "guidedarm")
 BAD_OUTPUT = ["Traceback", "Failure at"]

@@ -14,6 +14,8 @@ from pydrake.systems.framework import DiagramBuilder, LeafSystem
 from pydrake.systems.primitives import LogVectorOutput
 
 from guidedarm.systems.errors import ConfigurationError
+from guidedarm.systems.path_following.continuous_follower_config import ContinuousConfig
+from guidedarm.systems.path_following.continuous_follower_estimate import HoseEstimate, JointHistory
 from guidedarm.systems.path_following.continuous_follower_math import (
     BACK,
     DONE,
@@ -21,9 +23,6 @@ from guidedarm.systems.path_following.continuous_follower_math import (
     SEARCH,
     Advance,
     Confidence,
-    ContinuousConfig,
-    HoseEstimate,
-    JointHistory,
     OnReading,
     Reference,
     TargetSpeed,

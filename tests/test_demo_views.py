@@ -19,7 +19,7 @@ from guidedarm.diagrams.cli.main import main
 from guidedarm.diagrams.demo_index import WriteDemoIndex
 from guidedarm.diagrams.tasks.registry import LoadScenario
 from guidedarm.diagrams.tasks.waypoints import MakePlannerSetup
-from guidedarm.systems.path_following.hose_geometry import DistanceToCenterline, ReadCenterline
+from guidedarm.systems.scene.hose_geometry import DistanceToCenterline, ReadCenterline
 
 REPO = Path(__file__).resolve().parents[1]
 # Time limits that cut each task short but past its first sensing or planning.

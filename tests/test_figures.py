@@ -9,7 +9,7 @@ from guidedarm.diagrams.run_context import RunContext
 from guidedarm.diagrams.run_labels import HeadlineText, RunTitle
 from guidedarm.diagrams.tasks.path_following.report import PlotDetectedPath
 from guidedarm.diagrams.tasks.registry import LoadScenario
-from guidedarm.systems.path_following.hose_geometry import ReadCenterline
+from guidedarm.systems.scene.hose_geometry import ReadCenterline
 
 
 def LimitLines(figure) -> int:

@@ -23,7 +23,7 @@ from guidedarm.systems.hardware.tof_protocol import (
     ToFLineError,
 )
 from guidedarm.systems.hardware.tof_transports import BleTransport, SerialTransport
-from guidedarm.systems.tof.tof_tool_sensor_math import DetectionGrid
+from guidedarm.systems.tof.detection_grid import DetectionGrid
 
 RANGES_MM = np.array([12, 40, 100, 255, 0, 73])
 GRID = (-0.022, 0.0, 0.022)

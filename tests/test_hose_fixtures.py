@@ -9,13 +9,13 @@ from pydrake.multibody.plant import MultibodyPlant
 
 from guidedarm.systems.config_checks import CheckFields
 from guidedarm.systems.errors import ConfigurationError
-from guidedarm.systems.path_following.hose_fixtures import (
+from guidedarm.systems.scene.hose_fixtures import (
     BRACKET_INSET,
     BracketCount,
     BracketPositions,
     ClampPositions,
 )
-from guidedarm.systems.path_following.hose_geometry import (
+from guidedarm.systems.scene.hose_geometry import (
     HoseConfig,
     ReadCenterline,
     RegisterHose,

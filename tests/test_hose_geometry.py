@@ -6,7 +6,8 @@ from pydrake.multibody.plant import MultibodyPlant
 
 from guidedarm.diagrams.tasks.path_following.setup import LoadHoseWorkspace
 from guidedarm.systems.errors import ConfigurationError
-from guidedarm.systems.path_following.hose_geometry import (
+from guidedarm.systems.path_following.workspace import WorkspaceConfig
+from guidedarm.systems.scene.hose_geometry import (
     ArcLength,
     CheckSelfClearance,
     HoseConfig,
@@ -18,7 +19,6 @@ from guidedarm.systems.path_following.hose_geometry import (
     Resample,
     WriteCenterline,
 )
-from guidedarm.systems.path_following.workspace import WorkspaceConfig
 
 
 @pytest.mark.parametrize(

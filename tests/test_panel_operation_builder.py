@@ -16,7 +16,7 @@ from guidedarm.diagrams.tasks.panel_operation.builder import (
 )
 from guidedarm.diagrams.tasks.registry import LoadScenario
 from guidedarm.systems.errors import ConfigurationError
-from guidedarm.systems.markers.panel_operation_math import PanelOperationConfig
+from guidedarm.systems.panel.panel_operation_math import PanelOperationConfig
 
 ARM, CAMERA, TIP = "rover_arm", "camera", "rover_gripper::gripper_tip"
 

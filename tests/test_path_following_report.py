@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 
 from guidedarm.diagrams.tasks.path_following.report import CenterlineMatch, Metrics
-from guidedarm.systems.path_following.hose_geometry import ArcLength, Resample
+from guidedarm.systems.scene.hose_geometry import ArcLength, Resample
 from guidedarm.systems.path_following.path_follower_math import RECORD_FIELDS
 
 

@@ -86,7 +86,7 @@ def _unreachable_centerline(path: Path) -> None:
     towards the cell's corner, 0.66 m out and 0.75 m high (clear of the walls by more than
     the tool's clearance), where no arm pose holds the tool over it: part way up, no IK
     solution exists."""
-    from guidedarm.systems.path_following.hose_geometry import WriteCenterline
+    from guidedarm.systems.scene.hose_geometry import WriteCenterline
 
     a, b = np.array([0.30, 0.15, 0.10]), np.array([0.47, 0.47, 0.75])
     WriteCenterline(a + (b - a) * np.linspace(0.0, 1.0, 65)[:, None], path)
@@ -143,7 +143,7 @@ def test_bad_centerlines_end_with_one_line(tmp_path, capsys, text, message):
 def test_moves_through_the_acceleration_level_planner(tmp_path, capsys):
     """motion: planner (Pająk's law between the follower's steps) on the first 0.35 m of
     paper_path_1 through the station."""
-    from guidedarm.systems.path_following.hose_geometry import ReadCenterline, WriteCenterline
+    from guidedarm.systems.scene.hose_geometry import ReadCenterline, WriteCenterline
 
     csv = tmp_path / "short.csv"
     WriteCenterline(ReadCenterline("paper_path_1")[:50], csv)
@@ -188,7 +188,7 @@ def test_bad_settings_end_with_one_line(tmp_path, capsys, override, message):
 
 @pytest.mark.slow
 def test_path_csv_flag_runs_a_file(tmp_path, capsys):
-    from guidedarm.systems.path_following.hose_geometry import ReadCenterline, WriteCenterline
+    from guidedarm.systems.scene.hose_geometry import ReadCenterline, WriteCenterline
 
     csv = tmp_path / "mine.csv"
     WriteCenterline(ReadCenterline("paper_path_1")[:60], csv)
@@ -228,7 +228,7 @@ def test_a_csv_hose_takes_the_walls_of_its_yaml_beside_it(tmp_path):
     does, and an explicit `workspace` wins over both."""
     from guidedarm.diagrams.tasks.path_following.setup import MakeSetup
     from guidedarm.systems.errors import ConfigurationError
-    from guidedarm.systems.path_following.hose_geometry import ReadCenterline, WriteCenterline
+    from guidedarm.systems.scene.hose_geometry import ReadCenterline, WriteCenterline
 
     csv = tmp_path / "path4.csv"
     WriteCenterline(ReadCenterline("paper_path_4"), csv)
@@ -258,7 +258,7 @@ def test_a_random_hose_set_up_without_a_folder_is_one_shared_file(monkeypatch, t
     (the station reads it back): the same hose twice is the same file, another hose
     another, and nothing else is left in the temporary directory."""
     from guidedarm.diagrams.tasks.path_following.setup import MakeSetup
-    from guidedarm.systems.path_following.hose_geometry import ReadCenterline
+    from guidedarm.systems.scene.hose_geometry import ReadCenterline
 
     monkeypatch.setattr(tempfile, "tempdir", str(tmp_path))
     sources = []

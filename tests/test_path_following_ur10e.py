@@ -13,7 +13,7 @@ from guidedarm.diagrams.run_context import RunContext
 from guidedarm.diagrams.station.kinematic_station import MakeKinematicStation
 from guidedarm.diagrams.tasks.path_following.setup import MakeSetup
 from guidedarm.diagrams.tasks.registry import LoadScenario
-from guidedarm.systems.path_following.hose_geometry import ReadCenterline, WriteCenterline
+from guidedarm.systems.scene.hose_geometry import ReadCenterline, WriteCenterline
 
 SCENARIO = "ur10e_path_following"
 

@@ -12,7 +12,7 @@ from guidedarm.diagrams.station.scenario import ArmConfig, StationScenario
 from guidedarm.diagrams.station.scene_views import SceneDirectives
 from guidedarm.diagrams.station.station import MakeStation
 from guidedarm.systems.errors import ConfigurationError
-from guidedarm.systems.path_following.hose_geometry import HoseConfig
+from guidedarm.systems.scene.hose_geometry import HoseConfig
 from guidedarm.systems.tof.tof_tool_sensor import DEFAULT_TARGET_RADIUS, ToFToolConfig
 
 HOME = {

@@ -12,15 +12,11 @@ from guidedarm.diagrams.station.kinematic_station import MakeKinematicStation
 from guidedarm.diagrams.station.model_paths import MODELS_DIR
 from guidedarm.diagrams.station.scenario import ArmConfig, StationScenario
 from guidedarm.diagrams.station.station_plant import MakeMultibodyPlant
-from guidedarm.systems.path_following.hose_geometry import HoseConfig
+from guidedarm.systems.scene.hose_geometry import HoseConfig
 from guidedarm.systems.tof.tof_tool_sensor import ToFToolConfig
-from guidedarm.systems.tof.tof_tool_sensor_math import (
-    AverageReadings,
-    ConeRays,
-    DetectionGrid,
-    Measure,
-    _LeastSquares2,
-)
+from guidedarm.systems.tof.tof_tool_sensor_math import AverageReadings, ConeRays, Measure
+from guidedarm.systems.tof.detection_grid import DetectionGrid
+from guidedarm.systems.tof.hose_range_model import _LeastSquares2
 
 A, H, R = 0.022, 0.055, 0.010
 
@@ -204,7 +200,7 @@ def test_sensor_sees_the_hose_through_the_query_object(cell):
     """Tool centred over paper path 1 (IK-free: the tool body is placed by the joint
     positions found for that pose): the central sensors read hose surface ranges."""
     plant, station = cell
-    from guidedarm.systems.path_following.hose_geometry import ReadCenterline
+    from guidedarm.systems.scene.hose_geometry import ReadCenterline
     from guidedarm.systems.path_following.path_follower_math import OrientationFromVector, ToolMount
     from guidedarm.systems.path_following.tool_pose_ik_math import (
         ToolPoseIkConfig,

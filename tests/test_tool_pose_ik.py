@@ -16,11 +16,11 @@ from guidedarm.diagrams.station.model_paths import MODELS_DIR
 from guidedarm.diagrams.station.scenario import StationScenario
 from guidedarm.diagrams.station.station_plant import MakeMultibodyPlant
 from guidedarm.systems.errors import ConfigurationError
-from guidedarm.systems.path_following.hose_geometry import ReadCenterline
 from guidedarm.systems.path_following.path_follower_math import OrientationFromVector, ToolMount
 from guidedarm.systems.path_following.tool_pose_ik import ToolPoseIk
 from guidedarm.systems.path_following.tool_pose_ik_math import ToolPoseIkConfig, ToolPoseSolver
 from guidedarm.systems.path_following.workspace import WorkspaceConfig
+from guidedarm.systems.scene.hose_geometry import ReadCenterline
 
 HOME = np.array([0.0, math.pi / 2, 0.0, 0.0, -math.pi / 2, 0.0])
 

@@ -6,16 +6,16 @@ import numpy as np
 from pydrake.geometry import Meshcat
 from pydrake.systems.framework import DiagramBuilder, OutputPort
 
-from guidedarm.diagrams.overlays.frame_trail_overlay import FrameTrailOverlay
-from guidedarm.diagrams.overlays.overlay_geometry import (
+from guidedarm.diagrams.station.scenario import StationScenario
+from guidedarm.diagrams.station.station_plant import MakeMultibodyPlant
+from guidedarm.systems.visualization.frame_trail_overlay import FrameTrailOverlay
+from guidedarm.systems.visualization.overlay_geometry import (
     OVERLAYS,
     PLAN_RGBA,
     AimCamera,
     ArmFramePoses,
     ViewFromBeyond,
 )
-from guidedarm.diagrams.station.scenario import StationScenario
-from guidedarm.diagrams.station.station_plant import MakeMultibodyPlant
 
 FLANGE_TRAIL_PATH = f"{OVERLAYS}/flange_commanded"
 

@@ -8,16 +8,16 @@ from pydrake.math import RigidTransform
 from pydrake.systems.framework import Diagram, DiagramBuilder, LeafSystem
 
 from guidedarm.diagrams.builder_checks import CheckStationWiring
-from guidedarm.diagrams.overlays.overlay_geometry import (
+from guidedarm.systems.markers.marker_pose_estimator_math import CameraIntrinsics, SwitchSpec
+from guidedarm.systems.panel.panel_operation import CameraArmKinematics
+from guidedarm.systems.visualization.overlay_geometry import (
     OVERLAYS,
     TRUTH_RGBA,
     AimCamera,
     ArmFramePoses,
     DrawTriad,
 )
-from guidedarm.diagrams.overlays.panel_estimate_overlay import PanelEstimateOverlay
-from guidedarm.systems.markers.marker_pose_estimator_math import CameraIntrinsics, SwitchSpec
-from guidedarm.systems.markers.panel_operation import CameraArmKinematics
+from guidedarm.systems.visualization.panel_estimate_overlay import PanelEstimateOverlay
 
 PANEL_PATH = f"{OVERLAYS}/panel"
 

@@ -9,23 +9,23 @@ from pydrake.systems.framework import Diagram, DiagramBuilder, System
 from pydrake.systems.primitives import MatrixGain
 
 from guidedarm.diagrams.builder_checks import CheckStationWiring
-from guidedarm.diagrams.overlays.detected_path_overlay import DetectedPathOverlay
-from guidedarm.diagrams.overlays.frame_trail_overlay import OVERLAY_PERIOD, FrameTrailOverlay
-from guidedarm.diagrams.overlays.overlay_geometry import (
+from guidedarm.diagrams.station.scenario import StationScenario
+from guidedarm.systems.path_following.path_follower_math import RECORD_FIELDS
+from guidedarm.systems.plant_frames import GetScopedFrame
+from guidedarm.systems.scene.hose_geometry import ReadCenterline
+from guidedarm.systems.tof.tof_tool_sensor import MakeDetectionGrid
+from guidedarm.systems.tof.tof_tool_sensor_math import ConeRays
+from guidedarm.systems.visualization.detected_path_overlay import DetectedPathOverlay
+from guidedarm.systems.visualization.frame_trail_overlay import OVERLAY_PERIOD, FrameTrailOverlay
+from guidedarm.systems.visualization.overlay_geometry import (
     OVERLAYS,
     TOOL_RGBA,
     AimCamera,
     ArmFramePoses,
     ViewFromBeyond,
 )
-from guidedarm.diagrams.overlays.see_through_geometry import SeeThroughGeometry
-from guidedarm.diagrams.overlays.tof_tool_overlay import ToFToolOverlay
-from guidedarm.diagrams.station.scenario import StationScenario
-from guidedarm.systems.path_following.hose_geometry import ReadCenterline
-from guidedarm.systems.path_following.path_follower_math import RECORD_FIELDS
-from guidedarm.systems.plant_frames import GetScopedFrame
-from guidedarm.systems.tof.tof_tool_sensor import MakeDetectionGrid
-from guidedarm.systems.tof.tof_tool_sensor_math import ConeRays
+from guidedarm.systems.visualization.see_through_geometry import SeeThroughGeometry
+from guidedarm.systems.visualization.tof_tool_overlay import ToFToolOverlay
 
 TOF_PATH = f"{OVERLAYS}/tof"
 DETECTED_PATH = f"{OVERLAYS}/detected_path"

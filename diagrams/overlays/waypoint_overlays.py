@@ -7,8 +7,9 @@ from pydrake.geometry import Meshcat, Rgba, Sphere
 from pydrake.math import RigidTransform
 from pydrake.systems.framework import DiagramBuilder, OutputPort
 
-from guidedarm.diagrams.overlays.frame_trail_overlay import FrameTrailOverlay
-from guidedarm.diagrams.overlays.overlay_geometry import (
+from guidedarm.systems.planning.acceleration_planner_math import AccelerationPlanning
+from guidedarm.systems.visualization.frame_trail_overlay import FrameTrailOverlay
+from guidedarm.systems.visualization.overlay_geometry import (
     OVERLAYS,
     PLAN_RGBA,
     TRUTH_RGBA,
@@ -17,7 +18,6 @@ from guidedarm.diagrams.overlays.overlay_geometry import (
     DrawPoint,
     ViewFromBeyond,
 )
-from guidedarm.systems.planning.acceleration_planner_math import AccelerationPlanning
 
 WAYPOINTS_PATH = f"{OVERLAYS}/waypoints"
 TCP_TRAIL_PATH = f"{OVERLAYS}/tcp_commanded"

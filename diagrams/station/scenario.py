@@ -28,8 +28,9 @@ from guidedarm.systems.config_checks import (
     InRange,
 )
 from guidedarm.systems.errors import ConfigurationError
-from guidedarm.systems.path_following.hose_geometry import HoseConfig
+from guidedarm.systems.scene.hose_geometry import HoseConfig
 from guidedarm.systems.tof.tof_tool_sensor import ToFToolConfig
+from guidedarm.systems.visualization.overlay_geometry import VISUALIZATION_PERIOD
 
 
 @dataclass
@@ -57,12 +58,6 @@ def _default_plant_config() -> MultibodyPlantConfig:
     return MultibodyPlantConfig(
         time_step=0.002, discrete_contact_approximation="sap", use_sampled_output_ports=False
     )
-
-
-# Meshcat frames every 32 ms: 16 steps of the default 2 ms plant, so a frame adds no
-# simulator step of its own, and about the replay's 30 frames a second (Drake's 1/64 s
-# falls between plant steps and records twice the frames the replay keeps).
-VISUALIZATION_PERIOD = 0.032
 
 
 def _default_visualization() -> VisualizationConfig:

@@ -36,8 +36,8 @@ from guidedarm.systems.config_checks import (
     CheckNames,
 )
 from guidedarm.systems.errors import ConfigurationError
-from guidedarm.systems.path_following.hose_geometry import ReadCenterline, RegisterHose
 from guidedarm.systems.plant_frames import GetScopedFrame
+from guidedarm.systems.scene.hose_geometry import ReadCenterline, RegisterHose
 
 
 def MakeMultibodyPlant(

@@ -22,7 +22,7 @@ from pathlib import Path
 
 import numpy as np
 
-from guidedarm.systems.path_following.hose_geometry import (
+from guidedarm.systems.scene.hose_geometry import (
     ArcLength,
     MinBendRadius,
     Resample,

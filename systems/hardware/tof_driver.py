@@ -23,8 +23,9 @@ from pydrake.systems.framework import BasicVector, Context, DiscreteValues, Leaf
 from guidedarm.systems.config_checks import NON_NEGATIVE, POSITIVE, CheckArgument, CheckVector
 from guidedarm.systems.hardware.arm_link import FailStoppingAllArms
 from guidedarm.systems.hardware.tof_protocol import NUM_SENSORS, ToFLineCollector
+from guidedarm.systems.tof.detection_grid import DetectionGrid
 from guidedarm.systems.tof.tof_tool_sensor import DeclareGridOutputs
-from guidedarm.systems.tof.tof_tool_sensor_math import CalibratedRanges, DetectionGrid
+from guidedarm.systems.tof.tof_tool_sensor_math import CalibratedRanges
 
 # The state: ranges (6, m), valid (6), measured_at (6, s), the held line's host receive time.
 _RANGES, _VALID, _MEASURED_AT = (slice(k * NUM_SENSORS, (k + 1) * NUM_SENSORS) for k in range(3))

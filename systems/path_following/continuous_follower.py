@@ -27,14 +27,13 @@ from pydrake.multibody.tree import Frame
 from pydrake.systems.framework import BasicVector, Context, EventStatus, LeafSystem, State
 
 from guidedarm.systems.config_checks import CheckInstance, CheckVector, FieldError
+from guidedarm.systems.path_following.continuous_follower_config import ContinuousConfig
+from guidedarm.systems.path_following.continuous_follower_estimate import HoseEstimate, JointHistory
 from guidedarm.systems.path_following.continuous_follower_math import (
     BACK,
     DONE,
     FOLLOW,
     Advance,
-    ContinuousConfig,
-    HoseEstimate,
-    JointHistory,
     OnReading,
     Reference,
     Replaced,
@@ -42,7 +41,7 @@ from guidedarm.systems.path_following.continuous_follower_math import (
 from guidedarm.systems.path_following.path_follower import DeclareStepOutputs, StoppedStatus
 from guidedarm.systems.path_following.path_follower_math import ESTIMATORS, EstimateHose
 from guidedarm.systems.plant_frames import CheckFrame, CheckPlant
-from guidedarm.systems.tof.tof_tool_sensor_math import DetectionGrid
+from guidedarm.systems.tof.detection_grid import DetectionGrid
 
 # The arm this far (m) from the target means it cannot follow (limits, a singularity).
 MAX_LAG = 0.025

@@ -47,7 +47,8 @@ from guidedarm.systems.path_following.path_follower_math import (
     StepResult,
     ToolMount,
 )
-from guidedarm.systems.tof.tof_tool_sensor_math import AverageReadings, DetectionGrid
+from guidedarm.systems.tof.detection_grid import DetectionGrid
+from guidedarm.systems.tof.tof_tool_sensor_math import AverageReadings
 
 SENSE, SOLVE, MOVE, DONE, FAILED = range(5)
 

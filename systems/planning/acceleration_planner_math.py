@@ -28,7 +28,10 @@ Two modes (`PlannerConfig.robust`):
   admissible c exist all the same; c then restarts from 0 as at the smooth start.
 
 Units: m, rad, s throughout; rows [x, y, z, roll, pitch, yaw] of the TCP T in base frame B.
-systems/planning/acceleration_planner.py wraps the law in a LeafSystem.
+systems/planning/acceleration_planner.py wraps the law in a LeafSystem. Beside this module:
+the waypoints and the blend (19) (acceleration_planner_waypoints), the robust mode's limits
+(acceleration_planner_robust_limits) and its joint-space law
+(acceleration_planner_joint_space).
 """
 
 import copy
@@ -36,45 +39,38 @@ import math
 from dataclasses import dataclass, field
 
 import numpy as np
-from pydrake.math import RollPitchYaw, RotationMatrix
 
 from guidedarm.systems.errors import ConfigurationError
 from guidedarm.systems.planning.acceleration_planner_config import PlannerConfig
+from guidedarm.systems.planning.acceleration_planner_joint_space import JointSpaceHandover
 from guidedarm.systems.planning.acceleration_planner_kinematics import (
     ArmKinematics,
-    BlendedPose,
-    BlendedTarget,
     DampedSolve,
     DampingFactor,
     InverseAndConditioning,
     PlanningError,
-    PoseError,
-    RotationVector,
     TcpKinematics,
-    TrackingError,
 )
 from guidedarm.systems.planning.acceleration_planner_limits import (
     AccelerationScaling,
+    ScalingReturn,
+    VelocityPenalty,
+)
+from guidedarm.systems.planning.acceleration_planner_position_limits import PositionStepBounds
+from guidedarm.systems.planning.acceleration_planner_robust_limits import (
     AdmissibleScaling,
     BrakingAcceleration,
     GovernorDamping,
     JerkWindow,
     SaturatedLeastSquares,
     SaturationMetricFactor,
-    ScalingReturn,
     StepBounds,
-    VelocityPenalty,
 )
-from guidedarm.systems.planning.acceleration_planner_position_limits import PositionStepBounds
 from guidedarm.systems.planning.acceleration_planner_state import (
     PlannedTrajectory,
     PlannerState,
 )
-from guidedarm.systems.planning.acceleration_planner_watch import (
-    Progressed,
-    TargetError,
-    UpdateReversals,
-)
+from guidedarm.systems.planning.acceleration_planner_waypoints import WaypointTracking
 
 
 @dataclass
@@ -160,7 +156,7 @@ def ApproachTerms(
     return [-m for m in minus_a.tolist()], b
 
 
-class AccelerationPlanning:
+class AccelerationPlanning(WaypointTracking, JointSpaceHandover):
     """One planner: kinematics, waypoints P = [p_1 .. p_w] (rows [x y z roll pitch yaw] in
     the base frame, m and rad), limits (None switches a constraint off) and parameters.
 
@@ -237,41 +233,6 @@ class AccelerationPlanning:
             largest = float(max(self.scaling.upper.max(), -self.scaling.lower.min()))
             jerk_rate = parameters.max_jerk / (largest * (1.0 + parameters.position_braking))
             self._position_rate = min(self._velocity_bound_rate, jerk_rate)
-
-    def _SetWaypoints(self, waypoints: np.ndarray, joint_waypoints: np.ndarray | None) -> None:
-        waypoints = np.atleast_2d(np.asarray(waypoints, float))
-        if waypoints.ndim != 2 or waypoints.shape[1] != 6 or waypoints.shape[0] == 0:
-            raise ConfigurationError(
-                f"waypoints must be rows of [x, y, z, roll, pitch, yaw], got {waypoints.shape}"
-            )
-        if not np.all(np.isfinite(waypoints)):
-            raise ConfigurationError("waypoints must be finite numbers")
-        steps = np.linalg.norm(np.diff(waypoints[:, :3], axis=0), axis=1)
-        radius = self.parameters.neighbourhood_radius
-        too_close = np.flatnonzero(steps <= radius)
-        if too_close.size and not self.parameters.stop_at_waypoints:
-            i = int(too_close[0])
-            raise ConfigurationError(
-                f"waypoints {i + 1} and {i + 2} are {steps[i]:.4f} m apart, not more than the "
-                f"neighbourhood radius {radius} m"
-            )
-        if joint_waypoints is not None:
-            joint_waypoints = np.asarray(joint_waypoints, float)
-            if joint_waypoints.shape != (waypoints.shape[0], 6):
-                raise ConfigurationError(
-                    f"joint_waypoints must be one row of 6 joints per waypoint, got "
-                    f"{joint_waypoints.shape} for {waypoints.shape[0]} waypoints"
-                )
-        self.waypoints = waypoints
-        self.joint_waypoints = joint_waypoints
-        self._poses = [
-            (row[:3].tolist(), RotationMatrix(RollPitchYaw(row[3:])).matrix()) for row in waypoints
-        ]
-        # log(R_i^T R_i+1) of each pair, the geodesic of the blend (19), once per task
-        self._pair_rotations = [
-            RotationVector(R_i.T @ R_next)
-            for (_, R_i), (_, R_next) in zip(self._poses[:-1], self._poses[1:], strict=True)
-        ]
 
     def WithWaypoints(
         self, waypoints: np.ndarray, joint_waypoints: np.ndarray | None = None
@@ -411,203 +372,10 @@ class AccelerationPlanning:
         qdd, _ = SaturatedLeastSquares(desired, window[0], window[1], metric)
         return qdd, c, state.c_hat0, state.t0, False
 
-    def _BlendJointSpace(
-        self, state: PlannerState, sigma: float, a: np.ndarray, b: np.ndarray
-    ) -> tuple[np.ndarray, np.ndarray]:
-        """(a, b) blended towards the joint-space law q'' = -Lambda_V qd - Lambda_P (q - q*)
-        (a = 0; with the braking approach on, _JointSpaceApproach) by w = smoothstep of
-        sigma over joint_space_blend, or over handover_ramp once the law is handed over to
-        joint space for the rest of the task (_Watch); q* is the IK solution of the current
-        waypoint, blended like (19) inside a neighbourhood."""
-        params = self.parameters
-        sigma_full, sigma_start = params.joint_space_blend
-        w = 0.0
-        if sigma < sigma_start:
-            w = _SmoothStep((sigma_start - sigma) / (sigma_start - sigma_full))
-        if state.handover_time >= 0:
-            w = max(w, _SmoothStep((state.t - state.handover_time) / params.handover_ramp))
-        if w == 0.0:
-            return a, b
-        i = state.index
-        q_target = self.joint_waypoints[i]
-        if state.inside:
-            q_target = q_target + state.sigma * (self.joint_waypoints[i + 1] - q_target)
-        u = state.q - q_target
-        if self.inverse_braking is None:
-            b_joint = -params.gain_v * state.qd - params.gain_p * u
-        else:
-            b_joint = self._JointSpaceApproach(state.qd, u)
-        if self.penalty is not None:
-            b_joint = b_joint + self.penalty.Perturbation(state.qd)
-        return (1.0 - w) * np.asarray(a), (1.0 - w) * np.asarray(b) + w * b_joint
-
-    def _JointSpaceApproach(self, qd: np.ndarray, u: np.ndarray) -> np.ndarray:
-        """The joint-space law with the braking approach on (rad/s^2): qd tracks, at the rate
-        k = approach_rate, the speed towards the target v = sqrt(2 eta A |u| + c^2) - c with
-        c = eta A / r and r = k / 4 (the square-root law of braking at eta A far away, so a
-        joint whose acceleration saturates brakes in time instead of overshooting; the
-        exponential rate r near the target, k = 4 r making the loop critically damped),
-        u = q - q* the joints' distance to their target (rad)."""
-        k = self.parameters.approach_rate
-        braking = 1.0 / np.asarray(self.inverse_braking)
-        c = braking / (0.25 * k)
-        speed = np.sqrt(2.0 * braking * np.abs(u) + c * c) - c
-        return -k * (qd + np.sign(u) * speed)
-
-    def _Watch(self, state: PlannerState, e: np.ndarray) -> None:
-        """The hand-over to joint space and the progress watch (PlannedState's best_*): a
-        joint within limit_blend of a position limit and moving towards it, or no progress
-        for half of stall_time, hands the law over to joint space for the rest of the task
-        (where the waypoints' IK solutions are known); no progress for stall_time stops the
-        planner with a PlanningError."""
-        params, t = self.parameters, state.t
-        latched = state.handover_time >= 0
-        if latched:
-            error = float(np.linalg.norm(state.q - self.joint_waypoints[state.index]))
-        else:
-            error = TargetError(e.tolist())
-        progressed, state.best_error, state.best_progress = Progressed(
-            error, state.index + state.sigma, state.best_error, state.best_progress
-        )
-        if progressed or state.done:
-            state.best_time = t
-        stalled = t - state.best_time
-        if not latched and self.joint_waypoints is not None:
-            if stalled > 0.5 * params.stall_time or self._NearLimit(state):
-                _HandOver(state)
-            return
-        if stalled > params.stall_time:
-            what = "rad from its joint solution" if latched else "m from it (pose error)"
-            raise PlanningError(
-                f"no progress towards waypoint {state.index + 1} for {stalled:.1f} s "
-                f"(planner.stall_time): {error:.4f} {what}"
-            )
-
-    def _NearLimit(self, state: PlannerState) -> bool:
-        """Whether a joint is within limit_blend of a position limit, moving towards it."""
-        reach = self.parameters.limit_blend
-        lower, upper, _ = self.position_bounds
-        for q_i, qd_i, lo, hi in zip(state.q.tolist(), state.qd.tolist(), lower, upper):
-            if (qd_i > 0.0 and hi - q_i < reach) or (qd_i < 0.0 and q_i - lo < reach):
-                return True
-        return False
-
-    def _WatchOscillation(self, state: PlannerState, qdd: list[float]) -> None:
-        """The oscillation measure's step (UpdateReversals): a joint reversing faster than
-        max_reversal_rate hands the law over to joint space for the rest of the task, or,
-        once handed over (or without joint solutions), stops the planner with a
-        PlanningError naming it."""
-        signs, rates = UpdateReversals(
-            qdd,
-            self._reversal_limits,
-            state.reversal_sign.tolist(),
-            state.reversal_rate.tolist(),
-            self.parameters.time_step,
-        )
-        state.reversal_sign, state.reversal_rate = np.array(signs), np.array(rates)
-        worst = max(rates)
-        if worst > self.parameters.max_reversal_rate:
-            if state.handover_time < 0 and self.joint_waypoints is not None:
-                # the Cartesian law struggles: hand over to joint space, whose error dynamics
-                # towards the joint solution do not swing
-                _HandOver(state)
-                return
-            joint = rates.index(worst) + 1
-            raise PlanningError(
-                f"joint {joint} oscillates at t = {state.t:.2f} s: its commanded acceleration "
-                f"reversed {worst:.1f} times per second (planner.max_reversal_rate "
-                f"{self.parameters.max_reversal_rate})"
-            )
-
-    def _Target(self, state: PlannerState):
-        """The location the error is measured to: p_i, or the blend (19) towards p_i+1 (a
-        row in the paper's mode, an (x, R) pose in the robust mode)."""
-        i = state.index
-        if self.parameters.robust:
-            if not state.inside:
-                return self._poses[i]
-            return BlendedPose(
-                self._poses[i], self._poses[i + 1], state.sigma, self._pair_rotations[i]
-            )
-        if not state.inside:
-            return self.waypoints[i]
-        return BlendedTarget(self.waypoints[i], self.waypoints[i + 1], state.sigma)
-
-    def _Error(self, kin: TcpKinematics, target) -> np.ndarray:
-        if self.parameters.robust:
-            return PoseError(kin, *target)
-        return TrackingError(kin.p, target)
-
-    def _Reached(self, kin: TcpKinematics, index: int, e: np.ndarray) -> bool:
-        """The TCP within the tolerances of waypoint `index`, e the error to it."""
-        params = self.parameters
-        if _Norm(e[:3]) > params.position_tolerance:
-            return False
-        orientation = _Norm(e[3:]) if params.robust else float(np.max(np.abs(e[3:])))
-        return orientation <= params.orientation_tolerance
-
-    def _AdvanceWaypoints(
-        self, state: PlannerState, kin: TcpKinematics
-    ) -> tuple[PlannerState, np.ndarray | None]:
-        """The waypoint bookkeeping, and the error to the last waypoint once the TCP moves
-        towards it (None before: the target then depends on the bookkeeping)."""
-        last = len(self.waypoints) - 1
-        if state.index == last:
-            e = self._Error(kin, self._Target(state))
-            if not state.done and self._Reached(kin, last, e):
-                state.done_time = state.t
-            return state, e
-        if self.parameters.stop_at_waypoints:
-            resting = _Norm(kin.J[:3].dot(state.qd)) <= self.parameters.rest_speed
-            if resting and self._Reached(kin, state.index, self._Error(kin, self._Target(state))):
-                state.index += 1
-                if self.scaling is not None:  # a new elementary task starts smoothly
-                    state.c_hat0, state.t0 = 0.0, state.t
-            return state, None
-        radius = self.parameters.neighbourhood_radius
-        if not state.inside and _Distance(kin.x, self._poses[state.index][0]) < radius:
-            state.inside, state.sigma = True, 0.0
-        if state.inside:
-            # sigma grows with the TCP path length travelled since entering the sphere and
-            # reaches 1 after blend_length: continuous in time, 0 at entry, and it keeps
-            # growing whenever the TCP moves, so the TCP cannot settle at p_i.
-            path = _Norm(kin.J[:3].dot(state.qd)) * self.parameters.time_step
-            state.sigma = min(1.0, state.sigma + path / self.parameters.blend_length)
-            if state.sigma >= 1.0:
-                state.index += 1
-                state.inside, state.sigma = False, 0.0
-        return state, None
-
-
-def _HandOver(state: PlannerState) -> None:
-    """Hands the law over to joint space for the rest of the task from now: the progress
-    watch and the oscillation measure restart with the new law (the Cartesian law's
-    reversals before it are not the joint-space law's)."""
-    state.handover_time, state.best_error, state.best_time = state.t, 1e9, state.t
-    state.reversal_rate = np.zeros(state.reversal_rate.size)
-
-
-def _SmoothStep(x: float) -> float:
-    """3 x^2 - 2 x^3 of x clipped to [0, 1]."""
-    x = 0.0 if x < 0.0 else (1.0 if x > 1.0 else x)
-    return x * x * (3.0 - 2.0 * x)
-
 
 def _Floats(v: np.ndarray | list[float]) -> list[float]:
     """v as a list of floats (the robust step's limits work on floats, see StepBounds)."""
     return v.tolist() if isinstance(v, np.ndarray) else v
-
-
-def _Distance(x: list[float], y: list[float]) -> float:
-    """|x - y| of two points given as three floats each (m)."""
-    dx, dy, dz = x[0] - y[0], x[1] - y[1], x[2] - y[2]
-    return math.sqrt(dx * dx + dy * dy + dz * dz)
-
-
-def _Norm(v: np.ndarray) -> float:
-    """|v| of a 3-vector (scalar arithmetic: NumPy's dispatch costs more than the sum)."""
-    x, y, z = v.tolist()
-    return math.sqrt(x * x + y * y + z * z)
 
 
 def RunPlanning(

@@ -4,7 +4,7 @@ A joint at distance d from a position limit can still stop there when braking at
 (rad/s^2) only if its speed towards the limit is at most sqrt(2 b d), the square-root law of
 time-optimal braking. PositionStepBounds turns that speed into a bound on the next step's
 q'' (rad/s^2) beside the acceleration and velocity limits of StepBounds
-(systems/planning/acceleration_planner_limits.py): qd tracks the viable speed at the rate
+(systems/planning/acceleration_planner_robust_limits.py): qd tracks the viable speed at the rate
 of the velocity bound, with the speed's own rate of change along the motion as a feed-
 forward, so braking starts in time and the joint comes to rest at the limit, never past it.
 A joint at rest at its limit gets a zero bound towards it (no push back, no chatter), and

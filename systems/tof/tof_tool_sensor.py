@@ -1,10 +1,10 @@
 """ToFToolSensor: six VL6180X-like time-of-flight sensors reading SceneGraph geometry.
 
-The ray casting, noise, drift and detection grid live in tof_tool_sensor_math.py. The
-outputs are what the tool's microcontroller streams, so the hardware driver can produce the
-same ports: the six ranges (m), their validity flags (1 = a return within range, 0 = none)
-and their measurement instants (s, diagram time), by which a moving consumer looks up the
-tool's pose when a range was taken.
+The ray casting, noise and drift live in tof_tool_sensor_math.py, the detection grid in
+detection_grid.py. The outputs are what the tool's microcontroller streams, so the hardware
+driver can produce the same ports: the six ranges (m), their validity flags (1 = a return
+within range, 0 = none) and their measurement instants (s, diagram time), by which a moving
+consumer looks up the tool's pose when a range was taken.
 """
 
 from collections.abc import Callable
@@ -28,12 +28,12 @@ from guidedarm.systems.config_checks import (
 )
 from guidedarm.systems.errors import ConfigurationError
 from guidedarm.systems.plant_frames import CheckPlant, GetScopedFrame
+from guidedarm.systems.tof.detection_grid import DetectionGrid
 from guidedarm.systems.tof.primitive_ray_casting import SceneRayCaster, SensorMount
 from guidedarm.systems.tof.tof_errors import ErrorReadings, ToFErrors
 from guidedarm.systems.tof.tof_tool_sensor_math import (
     CalibratedRanges,
     ConeRays,
-    DetectionGrid,
     DriftStep,
     Measure,
 )

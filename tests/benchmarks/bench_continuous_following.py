@@ -117,7 +117,7 @@ def Breakdown(path: str) -> None:
 
         setattr(owner, name, g)
 
-    from guidedarm.diagrams.overlays import (
+    from guidedarm.systems.visualization import (
         detected_path_overlay,
         frame_trail_overlay,
         tof_tool_overlay,

@@ -35,8 +35,8 @@ from guidedarm.systems.markers.marker_pose_estimator_math import (
     MarkerPoseSolver,
     PanelSpec,
 )
-from guidedarm.systems.markers.panel_operation import PanelOperation
-from guidedarm.systems.markers.panel_operation_math import (
+from guidedarm.systems.panel.panel_operation import PanelOperation
+from guidedarm.systems.panel.panel_operation_math import (
     CameraArmKinematics,
     PanelOperationConfig,
     PlannerFrames,

@@ -26,8 +26,8 @@ from guidedarm.diagrams.tasks.common.trajectory_csv import (
 )
 from guidedarm.diagrams.tasks.panel_operation.scenario import PanelOperationScenario
 from guidedarm.systems.markers.marker_pose_estimator_math import PanelSpec
-from guidedarm.systems.markers.panel_operation import PanelOperation, SequencerState
-from guidedarm.systems.markers.panel_operation_math import CameraArmKinematics
+from guidedarm.systems.panel.panel_operation import PanelOperation, SequencerState
+from guidedarm.systems.panel.panel_operation_math import CameraArmKinematics
 
 
 class OperationRun(Protocol):

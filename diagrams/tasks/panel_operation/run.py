@@ -73,7 +73,7 @@ from guidedarm.systems.cell_errors.camera_errors import ScaledCameraErrors
 from guidedarm.systems.config_checks import CheckConfig, CheckInstance
 from guidedarm.systems.errors import ConfigurationError
 from guidedarm.systems.markers.image_degradation import SeededDegradation
-from guidedarm.systems.markers.panel_operation_math import PlannerFrames
+from guidedarm.systems.panel.panel_operation_math import PlannerFrames
 from guidedarm.systems.planning.acceleration_planner import AccelerationPlanner
 from guidedarm.systems.planning.acceleration_planner_math import PlanningError
 

@@ -19,7 +19,7 @@ from guidedarm.systems.markers.image_degradation import (
     DegradationConfig,
 )
 from guidedarm.systems.markers.marker_pose_estimator_math import CameraIntrinsics
-from guidedarm.systems.markers.panel_operation_math import PanelOperationConfig
+from guidedarm.systems.panel.panel_operation_math import PanelOperationConfig
 from guidedarm.systems.planning.acceleration_planner_config import CheckModeFields
 from guidedarm.systems.planning.acceleration_planner_math import PlannerConfig
 

@@ -14,7 +14,7 @@ from __future__ import annotations
 import numpy as np
 
 from guidedarm.diagrams.plots import PlotAlongPath  # (also selects the Agg backend)
-from guidedarm.systems.path_following.hose_geometry import ArcLength, DistanceToCenterline, Resample
+from guidedarm.systems.scene.hose_geometry import ArcLength, DistanceToCenterline, Resample
 from guidedarm.systems.path_following.path_follower_math import RECORD_FIELDS
 
 TRACKING_BOUND = 0.025

@@ -14,7 +14,7 @@ from guidedarm.systems.config_checks import (
 )
 from guidedarm.systems.errors import ConfigurationError
 from guidedarm.systems.path_following.continuous_follower_math import ContinuousConfig
-from guidedarm.systems.path_following.hose_geometry import RandomPathConfig
+from guidedarm.systems.scene.hose_geometry import RandomPathConfig
 from guidedarm.systems.path_following.path_follower_math import Estimator, FollowerConfig
 from guidedarm.systems.path_following.tool_pose_ik_math import ToolPoseIkConfig
 from guidedarm.systems.path_following.workspace import WorkspaceConfig

@@ -36,15 +36,7 @@ from guidedarm.diagrams.station.station_plant import (
 from guidedarm.diagrams.tasks.path_following.scenario import Motion, PathFollowingScenario
 from guidedarm.systems.config_checks import CheckConfig, CheckInstance
 from guidedarm.systems.errors import ConfigurationError, GuidedArmError
-from guidedarm.systems.path_following.continuous_follower_math import ContinuousConfig
-from guidedarm.systems.path_following.hose_geometry import (
-    CheckSelfClearance,
-    HoseConfig,
-    RandomSmoothPath,
-    ReadCenterline,
-    ResolveCenterlinePath,
-    WriteCenterline,
-)
+from guidedarm.systems.path_following.continuous_follower_config import ContinuousConfig
 from guidedarm.systems.path_following.hose_reach import (
     CalcArmReach,
     CheckHoseReachable,
@@ -61,8 +53,16 @@ from guidedarm.systems.path_following.tool_pose_ik_math import ToolPoseIkConfig,
 from guidedarm.systems.path_following.workspace import WorkspaceConfig
 from guidedarm.systems.planning.acceleration_planner_math import PlannerConfig
 from guidedarm.systems.plant_frames import GetScopedFrame
+from guidedarm.systems.scene.hose_geometry import (
+    CheckSelfClearance,
+    HoseConfig,
+    RandomSmoothPath,
+    ReadCenterline,
+    ResolveCenterlinePath,
+    WriteCenterline,
+)
+from guidedarm.systems.tof.detection_grid import DetectionGrid
 from guidedarm.systems.tof.tof_tool_sensor import MakeDetectionGrid
-from guidedarm.systems.tof.tof_tool_sensor_math import DetectionGrid
 
 
 @dataclass

@@ -7,12 +7,12 @@ from pydrake.math import RigidTransform
 from pydrake.multibody.tree import Frame
 from pydrake.systems.framework import Context, EventStatus, LeafSystem
 
-from guidedarm.diagrams.overlays.overlay_geometry import (
+from guidedarm.systems.visualization.overlay_geometry import (
+    VISUALIZATION_PERIOD,
     ArmFramePoses,
     GrowingPolyline,
     RecordedPose,
 )
-from guidedarm.diagrams.station.scenario import VISUALIZATION_PERIOD
 
 # The overlays draw with the station's MeshcatVisualizer: on the plant's steps, at about the
 # replay's frame rate (publishing between the plant's steps splits them: at 1/30 s the

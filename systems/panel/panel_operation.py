@@ -39,7 +39,7 @@ from guidedarm.systems.markers.marker_pose_estimator_math import (
     PanelSpec,
     SwitchSpec,
 )
-from guidedarm.systems.markers.panel_operation_math import (
+from guidedarm.systems.panel.panel_operation_math import (
     CameraArmKinematics,
     MinimumJerk,
     PanelOperationConfig,

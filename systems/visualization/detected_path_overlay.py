@@ -7,9 +7,9 @@ from pydrake.geometry import Meshcat, Sphere
 from pydrake.math import RigidTransform
 from pydrake.systems.framework import Context, EventStatus, LeafSystem
 
-from guidedarm.diagrams.overlays.frame_trail_overlay import OVERLAY_PERIOD
-from guidedarm.diagrams.overlays.overlay_geometry import SENSED_RGBA, AppearAt, GrowingPolyline
 from guidedarm.systems.path_following.path_follower_math import RECORD_FIELDS
+from guidedarm.systems.visualization.frame_trail_overlay import OVERLAY_PERIOD
+from guidedarm.systems.visualization.overlay_geometry import SENSED_RGBA, AppearAt, GrowingPolyline
 
 _STEP, _DETECTED = RECORD_FIELDS.index("step"), RECORD_FIELDS.index("detected")
 _S = slice(RECORD_FIELDS.index("S_x"), RECORD_FIELDS.index("S_z") + 1)

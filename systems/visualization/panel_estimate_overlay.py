@@ -8,8 +8,9 @@ from pydrake.math import RigidTransform
 from pydrake.multibody.tree import Frame
 from pydrake.systems.framework import Context, EventStatus, LeafSystem
 
-from guidedarm.diagrams.overlays.frame_trail_overlay import OVERLAY_PERIOD
-from guidedarm.diagrams.overlays.overlay_geometry import (
+from guidedarm.systems.markers.marker_pose_estimator_math import CameraIntrinsics
+from guidedarm.systems.visualization.frame_trail_overlay import OVERLAY_PERIOD
+from guidedarm.systems.visualization.overlay_geometry import (
     PLAN_RGBA,
     AppearAt,
     ArmFramePoses,
@@ -18,7 +19,6 @@ from guidedarm.diagrams.overlays.overlay_geometry import (
     RecordedPose,
     SetRecordedVisibility,
 )
-from guidedarm.systems.markers.marker_pose_estimator_math import CameraIntrinsics
 
 
 class PanelEstimateOverlay(LeafSystem):

@@ -8,8 +8,9 @@ from pydrake.math import RigidTransform
 from pydrake.multibody.tree import Frame
 from pydrake.systems.framework import Context, EventStatus, LeafSystem
 
-from guidedarm.diagrams.overlays.frame_trail_overlay import OVERLAY_PERIOD
-from guidedarm.diagrams.overlays.overlay_geometry import (
+from guidedarm.systems.tof.detection_grid import DetectionGrid
+from guidedarm.systems.visualization.frame_trail_overlay import OVERLAY_PERIOD
+from guidedarm.systems.visualization.overlay_geometry import (
     ERROR_RGBA,
     IDLE_RGBA,
     SENSED_RGBA,
@@ -17,7 +18,6 @@ from guidedarm.diagrams.overlays.overlay_geometry import (
     RecordedPose,
     SetRecordedVisibility,
 )
-from guidedarm.systems.tof.tof_tool_sensor_math import DetectionGrid
 
 # The three looks of a grid point: detected and consistent, a detection error, nothing.
 GRID_STATES = {"detected": SENSED_RGBA, "error": ERROR_RGBA, "none": IDLE_RGBA}

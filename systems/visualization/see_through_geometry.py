@@ -5,7 +5,7 @@ from __future__ import annotations
 from pydrake.geometry import Meshcat
 from pydrake.systems.framework import Context, EventStatus, LeafSystem
 
-from guidedarm.diagrams.overlays.frame_trail_overlay import OVERLAY_PERIOD
+from guidedarm.systems.visualization.frame_trail_overlay import OVERLAY_PERIOD
 
 
 class SeeThroughGeometry(LeafSystem):

@@ -15,6 +15,11 @@ from pydrake.multibody.tree import Frame, ModelInstanceIndex
 
 OVERLAYS = "/overlays"
 
+# Meshcat frames every 32 ms: 16 steps of the default 2 ms plant, so a frame adds no
+# simulator step of its own, and about the replay's 30 frames a second (Drake's 1/64 s
+# falls between plant steps and records twice the frames the replay keeps).
+VISUALIZATION_PERIOD = 0.032
+
 # Colours chosen apart from the models' greys, blues and oranges.
 PLAN_RGBA = Rgba(1.0, 0.0, 1.0, 1.0)  # magenta: what a planner commands
 SENSED_RGBA = Rgba(0.0, 0.85, 0.2, 1.0)  # green: what a sensor detected

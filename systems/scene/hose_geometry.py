@@ -25,12 +25,12 @@ from guidedarm.systems.config_checks import (
     Positive,
 )
 from guidedarm.systems.errors import ConfigurationError
-from guidedarm.systems.path_following.hose_fixtures import (
+from guidedarm.systems.path_following.workspace import WorkspaceConfig
+from guidedarm.systems.scene.hose_fixtures import (
     BracketCount,
     RegisterFixtures,
     SegmentPose,
 )
-from guidedarm.systems.path_following.workspace import WorkspaceConfig
 
 HOSES_DIR = Path(__file__).resolve().parents[2] / "models" / "hoses"
 MIN_HOSE_LENGTH = 0.10
