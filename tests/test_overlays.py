@@ -12,15 +12,21 @@ from pydrake.systems.primitives import ConstantVectorSource, TrajectorySource
 from pydrake.trajectories import PiecewisePolynomial
 from replay_commands import Replay, Vertices
 
-from guidedarm.systems.visualization.frame_trail_overlay import OVERLAY_PERIOD, FrameTrailOverlay
-from guidedarm.systems.visualization.overlay_geometry import PLAN_RGBA, ArmFramePoses, FrustumSegments, GrowingPolyline, RecordedPose
-from guidedarm.systems.visualization.tof_tool_overlay import ToFToolOverlay
 from guidedarm.diagrams.panel.panel_files import DEFAULT_CAMERA_FILE, LoadCameraIntrinsics
 from guidedarm.diagrams.station.station_plant import MakeMultibodyPlant
 from guidedarm.diagrams.tasks.registry import LoadScenario
 from guidedarm.systems.plant_frames import GetScopedFrame
 from guidedarm.systems.tof.tof_tool_sensor import MakeDetectionGrid
 from guidedarm.systems.tof.tof_tool_sensor_math import ConeRays
+from guidedarm.systems.visualization.frame_trail_overlay import OVERLAY_PERIOD, FrameTrailOverlay
+from guidedarm.systems.visualization.overlay_geometry import (
+    PLAN_RGBA,
+    ArmFramePoses,
+    FrustumSegments,
+    GrowingPolyline,
+    RecordedPose,
+)
+from guidedarm.systems.visualization.tof_tool_overlay import ToFToolOverlay
 
 
 @pytest.fixture(scope="module")

@@ -7,8 +7,8 @@ import numpy as np
 import pytest
 
 from guidedarm.diagrams.tasks.path_following.report import CenterlineMatch, Metrics
-from guidedarm.systems.scene.hose_geometry import ArcLength, Resample
 from guidedarm.systems.path_following.path_follower_math import RECORD_FIELDS
+from guidedarm.systems.scene.hose_geometry import ArcLength, Resample
 
 
 def _Records(p_WO: np.ndarray, S: np.ndarray) -> np.ndarray:

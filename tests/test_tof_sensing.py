@@ -13,10 +13,10 @@ from guidedarm.diagrams.station.model_paths import MODELS_DIR
 from guidedarm.diagrams.station.scenario import ArmConfig, StationScenario
 from guidedarm.diagrams.station.station_plant import MakeMultibodyPlant
 from guidedarm.systems.scene.hose_geometry import HoseConfig
-from guidedarm.systems.tof.tof_tool_sensor import ToFToolConfig
-from guidedarm.systems.tof.tof_tool_sensor_math import AverageReadings, ConeRays, Measure
 from guidedarm.systems.tof.detection_grid import DetectionGrid
 from guidedarm.systems.tof.hose_range_model import _LeastSquares2
+from guidedarm.systems.tof.tof_tool_sensor import ToFToolConfig
+from guidedarm.systems.tof.tof_tool_sensor_math import AverageReadings, ConeRays, Measure
 
 A, H, R = 0.022, 0.055, 0.010
 
@@ -200,12 +200,12 @@ def test_sensor_sees_the_hose_through_the_query_object(cell):
     """Tool centred over paper path 1 (IK-free: the tool body is placed by the joint
     positions found for that pose): the central sensors read hose surface ranges."""
     plant, station = cell
-    from guidedarm.systems.scene.hose_geometry import ReadCenterline
     from guidedarm.systems.path_following.path_follower_math import OrientationFromVector, ToolMount
     from guidedarm.systems.path_following.tool_pose_ik_math import (
         ToolPoseIkConfig,
         ToolPoseSolver,
     )
+    from guidedarm.systems.scene.hose_geometry import ReadCenterline
 
     gripper = plant.GetFrameByName("gripper")
     solver = ToolPoseSolver(

@@ -20,11 +20,11 @@ from pydrake.systems.framework import Context, Diagram, DiagramBuilder, LeafSyst
 from pydrake.systems.primitives import LogVectorOutput, TrajectorySource, VectorLogSink
 from pydrake.trajectories import PiecewisePolynomial
 
-from guidedarm.systems.visualization.frame_trail_overlay import OVERLAY_PERIOD
 from guidedarm.diagrams.overlays.path_following_overlays import AddPathFollowingOverlays
 from guidedarm.diagrams.run_context import RunContext
 from guidedarm.diagrams.station.kinematic_station import MakeKinematicStation
 from guidedarm.diagrams.tasks.path_following.setup import Setup
+from guidedarm.systems.visualization.frame_trail_overlay import OVERLAY_PERIOD
 
 # The follower's outputs the overlays draw.
 FOLLOWER_PORTS = ("step_record", "detections", "detection_errors")

@@ -14,8 +14,8 @@ from __future__ import annotations
 import numpy as np
 
 from guidedarm.diagrams.plots import PlotAlongPath  # (also selects the Agg backend)
-from guidedarm.systems.scene.hose_geometry import ArcLength, DistanceToCenterline, Resample
 from guidedarm.systems.path_following.path_follower_math import RECORD_FIELDS
+from guidedarm.systems.scene.hose_geometry import ArcLength, DistanceToCenterline, Resample
 
 TRACKING_BOUND = 0.025
 # A step is matched within MATCH_SLACK + 2 x the tool's move since the previous step, at

@@ -14,12 +14,12 @@ from guidedarm.systems.config_checks import (
 )
 from guidedarm.systems.errors import ConfigurationError
 from guidedarm.systems.path_following.continuous_follower_math import ContinuousConfig
-from guidedarm.systems.scene.hose_geometry import RandomPathConfig
 from guidedarm.systems.path_following.path_follower_math import Estimator, FollowerConfig
 from guidedarm.systems.path_following.tool_pose_ik_math import ToolPoseIkConfig
 from guidedarm.systems.path_following.workspace import WorkspaceConfig
 from guidedarm.systems.planning.acceleration_planner_config import CheckModeFields
 from guidedarm.systems.planning.acceleration_planner_math import PlannerConfig
+from guidedarm.systems.scene.hose_geometry import RandomPathConfig
 
 # How the arm is simulated: the station (servos, dynamics) or the kinematic station.
 Executor = Literal["station", "kinematic"]
