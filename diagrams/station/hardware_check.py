@@ -124,7 +124,7 @@ def CheckToFTool(name: str, config: ToFDriverConfig) -> list[str]:
     collector = ToFLineCollector(name)
     transport = config.Open(collector)
     try:
-        ProveToFTool(collector, config.Label(), config.watchdog)
+        ProveToFTool(collector, config.Where(), config.watchdog)
         first = collector.accepted
         time.sleep(LISTEN)
         reading, _ = collector.latest()

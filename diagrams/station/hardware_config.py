@@ -202,6 +202,10 @@ class ToFSerialDriver(ToFLinkSettings):
         """Opens the port; its bytes go to `collector`."""
         return SerialTransport(collector, self.device, self.baudrate)
 
+    def Where(self) -> str:
+        """Where the tool is reached: its device."""
+        return self.device
+
     def Label(self) -> str:
         """The link in reports: `serial DEVICE`."""
         return f"serial {self.device}"
@@ -224,6 +228,10 @@ class ToFBleDriver(ToFLinkSettings):
     def Open(self, collector: ToFLineCollector) -> BleTransport:
         """Subscribes to the tool's notifications; their bytes go to `collector`."""
         return BleTransport(collector, self.address)
+
+    def Where(self) -> str:
+        """Where the tool is reached: its address."""
+        return self.address
 
     def Label(self) -> str:
         """The link in reports: `ble ADDRESS`."""

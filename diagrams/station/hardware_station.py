@@ -81,7 +81,7 @@ def MakeHardwareStation(scenario: StationScenario, meshcat: Meshcat | None = Non
         config = hardware.tof_tools[name]
         collector = ToFLineCollector(name)
         config.Open(collector)
-        ProveToFTool(collector, config.Label(), config.watchdog)
+        ProveToFTool(collector, config.Where(), config.watchdog)
         grid = MakeDetectionGrid(plant, tool)
         latency = tool.ranging_time / 2 + config.latency
         system = ToFDriver(
