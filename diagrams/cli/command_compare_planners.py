@@ -18,7 +18,11 @@ arm's waypoints scenario (with the overrides), every planner on each, one table:
 success rate (the planner ended within 1 mm and 1 mrad and kept every limit; a baseline
 found a trajectory), T median, median ratios of T to Ruckig's and Toppra's on the same task,
 max |qd|, |qdd|, |jerk| over all tasks, and the number of tasks with a limit breach
-(position, velocity or acceleration).
+(position, velocity or acceleration); then the arm's cell (diagrams/tasks/random_task_cell.py:
+near_limit and large tasks are drawn clear of it): tasks refused (a start or waypoint IK
+solution colliding), and over the others the tasks ending within 1 mm, the tasks whose
+commanded motion touches the cell or the arm (every 10 ms), and the largest oscillation
+rate (the planner watch's measure, 1/s).
 """
 
 from __future__ import annotations
@@ -33,6 +37,7 @@ import numpy as np
 from guidedarm.diagrams.cli.command_run import LoadScenario
 from guidedarm.diagrams.run_context import RunContext
 from guidedarm.diagrams.scenario_loading import AddOverridesArgument
+from guidedarm.diagrams.tasks.random_task_cell import CellFigures, RandomTaskCell
 from guidedarm.diagrams.tasks.waypoints import MakePlannerSetup, PlannerSetup, PlotTcpPathsOfJoints
 from guidedarm.systems.errors import ConfigurationError, GuidedArmError
 from guidedarm.systems.planning.acceleration_planner_math import (
@@ -190,7 +195,10 @@ def RandomComparison(
     (its planner, limits)."""
     scenario = LoadWaypointsScenario(ARM_SCENARIOS[arm], list(overrides))
     setup = MakePlannerSetup(scenario)
-    tasks = MakeRandomWaypointTasks(setup.planning.kinematics, count, seed, kind)
+    cell = RandomTaskCell(scenario, setup)
+    clear = cell.Clear if kind in EXTRA_KINDS else None  # the mixed set stays as it was
+    tasks = MakeRandomWaypointTasks(setup.planning.kinematics, count, seed, kind, clear)
+    refused = [cell.Refused(task) for task in tasks]
     runs = [ComparePlanners(setup, task.waypoints, task.q0, scenario.max_time) for task in tasks]
     summaries = {}
     for name in runs[0]:
@@ -208,6 +216,7 @@ def RandomComparison(
             "qdd_abs_max": max((float(np.abs(t.qdd).max()) for t in found), default=None),
             "jerk_abs_max": max((float(np.abs(Jerk(t)).max()) for t in found), default=None),
             "limit_breaches": breaches,
+            **CellFigures(cell, tasks, refused, [run[name] for run in runs]),
         }
     return summaries
 
@@ -224,7 +233,8 @@ def _MedianRatio(runs: list[dict], name: str, reference: str) -> float | None:
 def PrintRandomTable(arm: str, count: int, summaries: dict[str, dict[str, Any]]) -> None:
     print(f"{count} random reachable tasks on {arm}")
     header = f"{'planner':<22}{'success':>8}{'T med s':>9}{'T/ruckig':>10}{'T/toppra':>10}"
-    print(header + f"{'|qd| max':>10}{'|qdd| max':>11}{'|jerk| max':>12}{'breaches':>10}")
+    header += f"{'|qd| max':>10}{'|qdd| max':>11}{'|jerk| max':>12}{'breaches':>10}"
+    print(header + f"{'refused':>9}{'in 1 mm':>9}{'contacts':>10}{'osc max':>9}")
     for name, row in summaries.items():
         cells = [f"{name:<22}", f"{100 * row['success_rate']:>7.0f}%"]
         for key, width, digits in (
@@ -237,7 +247,8 @@ def PrintRandomTable(arm: str, count: int, summaries: dict[str, dict[str, Any]])
         ):
             value = row[key]
             cells.append(f"{value:>{width}.{digits}f}" if value is not None else f"{'-':>{width}}")
-        cells.append(f"{row['limit_breaches']:>10d}")
+        cells.append(f"{row['limit_breaches']:>10d}{row['refused']:>9d}{row['within_1mm']:>9d}")
+        cells.append(f"{row['contacts']:>10d}{row['oscillation_rate_max']:>9.2f}")
         print("".join(cells))
 
 
