@@ -6,7 +6,9 @@ reachable), 0.05-0.25 m and at most 40 deg from the previous TCP pose. Tasks com
 kinds, in turn: `regular`; `near_singular`, whose start has the smallest singular value of
 the Jacobian J_g between 0.01 and 0.03; `steep`, with a waypoint at a Z-Y-X pitch of 70-85 deg
 (near the Euler-angle singularity of the paper's orientation error). Every waypoint keeps
-|pitch| <= 85 deg and a configuration with smallest singular value >= 0.01.
+|pitch| <= 85 deg and a configuration with smallest singular value >= 0.01. The kinematics
+know no cell: a caller that does passes a `clear` predicate, and starts and waypoint
+configurations that collide are drawn again.
 
 Units: m, rad. Waypoint rows [x, y, z, roll, pitch, yaw] of the TCP T in the base frame B.
 """
