@@ -18,7 +18,11 @@ arm's waypoints scenario (with the overrides), every planner on each, one table:
 success rate (the planner ended within 1 mm and 1 mrad and kept every limit; a baseline
 found a trajectory), T median, median ratios of T to Ruckig's and Toppra's on the same task,
 max |qd|, |qdd|, |jerk| over all tasks, and the number of tasks with a limit breach
-(position, velocity or acceleration).
+(position, velocity or acceleration); then the arm's cell (diagrams/studies/random_task_cell.py:
+near_limit and large tasks are drawn clear of it): tasks refused (a start or waypoint IK
+solution colliding), and over the others the tasks ending within 1 mm, the tasks whose
+commanded motion touches the cell or the arm (every 10 ms), and the largest oscillation
+rate (the planner watch's measure, 1/s).
 """
 
 from __future__ import annotations

@@ -11,6 +11,7 @@ from typing import Any
 
 import numpy as np
 
+from guidedarm.diagrams.studies.random_task_cell import CellFigures, RandomTaskCell
 from guidedarm.diagrams.tasks.registry import LoadScenario
 from guidedarm.diagrams.tasks.waypoints import MakePlannerSetup, PlannerSetup
 from guidedarm.systems.errors import ConfigurationError, GuidedArmError
@@ -26,7 +27,7 @@ from guidedarm.systems.planning.planner_baselines import (
     RuckigThroughWaypoints,
     ToppraThroughWaypoints,
 )
-from guidedarm.systems.planning.random_waypoint_tasks import MakeRandomWaypointTasks
+from guidedarm.systems.planning.random_waypoint_tasks import EXTRA_KINDS, MakeRandomWaypointTasks
 from guidedarm.systems.planning.waypoint_ik import SolveWaypointIk
 
 BLEND_RADIUS_M = 0.05
@@ -142,7 +143,10 @@ def RandomComparison(
     (its planner, limits)."""
     scenario = LoadWaypointsScenario(ARM_SCENARIOS[arm], list(overrides))
     setup = MakePlannerSetup(scenario)
-    tasks = MakeRandomWaypointTasks(setup.planning.kinematics, count, seed, kind)
+    cell = RandomTaskCell(scenario, setup)
+    clear = cell.Clear if kind in EXTRA_KINDS else None  # the mixed set stays as it was
+    tasks = MakeRandomWaypointTasks(setup.planning.kinematics, count, seed, kind, clear)
+    refused = [cell.Refused(task) for task in tasks]
     runs = [ComparePlanners(setup, task.waypoints, task.q0, scenario.max_time) for task in tasks]
     summaries = {}
     for name in runs[0]:
@@ -160,6 +164,7 @@ def RandomComparison(
             "qdd_abs_max": max((float(np.abs(t.qdd).max()) for t in found), default=None),
             "jerk_abs_max": max((float(np.abs(Jerk(t)).max()) for t in found), default=None),
             "limit_breaches": breaches,
+            **CellFigures(cell, tasks, refused, [run[name] for run in runs]),
         }
     return summaries
 
@@ -176,7 +181,8 @@ def _MedianRatio(runs: list[dict], name: str, reference: str) -> float | None:
 def PrintRandomTable(arm: str, count: int, summaries: dict[str, dict[str, Any]]) -> None:
     print(f"{count} random reachable tasks on {arm}")
     header = f"{'planner':<22}{'success':>8}{'T med s':>9}{'T/ruckig':>10}{'T/toppra':>10}"
-    print(header + f"{'|qd| max':>10}{'|qdd| max':>11}{'|jerk| max':>12}{'breaches':>10}")
+    header += f"{'|qd| max':>10}{'|qdd| max':>11}{'|jerk| max':>12}{'breaches':>10}"
+    print(header + f"{'refused':>9}{'in 1 mm':>9}{'contacts':>10}{'osc max':>9}")
     for name, row in summaries.items():
         cells = [f"{name:<22}", f"{100 * row['success_rate']:>7.0f}%"]
         for key, width, digits in (
@@ -189,7 +195,8 @@ def PrintRandomTable(arm: str, count: int, summaries: dict[str, dict[str, Any]])
         ):
             value = row[key]
             cells.append(f"{value:>{width}.{digits}f}" if value is not None else f"{'-':>{width}}")
-        cells.append(f"{row['limit_breaches']:>10d}")
+        cells.append(f"{row['limit_breaches']:>10d}{row['refused']:>9d}{row['within_1mm']:>9d}")
+        cells.append(f"{row['contacts']:>10d}{row['oscillation_rate_max']:>9.2f}")
         print("".join(cells))
 
 

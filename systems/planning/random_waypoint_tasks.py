@@ -6,13 +6,16 @@ reachable), 0.05-0.25 m and at most 40 deg from the previous TCP pose. Tasks com
 kinds, in turn: `regular`; `near_singular`, whose start has the smallest singular value of
 the Jacobian J_g between 0.01 and 0.03; `steep`, with a waypoint at a Z-Y-X pitch of 70-85 deg
 (near the Euler-angle singularity of the paper's orientation error). Every waypoint keeps
-|pitch| <= 85 deg and a configuration with smallest singular value >= 0.01.
+|pitch| <= 85 deg and a configuration with smallest singular value >= 0.01. The kinematics
+know no cell: a caller that does passes a `clear` predicate, and starts and waypoint
+configurations that collide are drawn again.
 
 Units: m, rad. Waypoint rows [x, y, z, roll, pitch, yaw] of the TCP T in the base frame B.
 """
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
@@ -54,14 +57,28 @@ class RandomWaypointTask:
 
 
 def MakeRandomWaypointTasks(
-    kinematics: ArmKinematics, count: int, seed: int = 0, kind: str | None = None
+    kinematics: ArmKinematics,
+    count: int,
+    seed: int = 0,
+    kind: str | None = None,
+    clear: Callable[[np.ndarray], bool] | None = None,
 ) -> list[RandomWaypointTask]:
     """`count` tasks for the arm of `kinematics`, the same for the same seed: the KINDS in
-    turn, or all of one `kind` (of KINDS or EXTRA_KINDS)."""
+    turn, or all of one `kind` (of KINDS or EXTRA_KINDS). With `clear` (joint positions,
+    rad -> whether the arm is clear of its cell, e.g. CellCollisions), every start and
+    waypoint configuration is drawn again until it is clear; without it the tasks are those
+    of the same seed as ever."""
     rng = np.random.default_rng(seed)
     lower, upper = _JointRange(kinematics)
     kinds = KINDS if kind is None else (kind,)
-    return [_MakeTask(kinematics, kinds[k % len(kinds)], lower, upper, rng) for k in range(count)]
+    clear = clear or _Anywhere
+    return [
+        _MakeTask(kinematics, kinds[k % len(kinds)], lower, upper, rng, clear) for k in range(count)
+    ]
+
+
+def _Anywhere(q: np.ndarray) -> bool:
+    return True
 
 
 def _JointRange(kinematics: ArmKinematics) -> tuple[np.ndarray, np.ndarray]:
@@ -71,7 +88,7 @@ def _JointRange(kinematics: ArmKinematics) -> tuple[np.ndarray, np.ndarray]:
     return lower + margin, upper - margin
 
 
-def _MakeTask(kinematics, kind, lower, upper, rng) -> RandomWaypointTask:
+def _MakeTask(kinematics, kind, lower, upper, rng, clear) -> RandomWaypointTask:
     while True:
         q0 = rng.uniform(lower, upper)
         sigma = kinematics.MinSingularValue(q0)
@@ -87,13 +104,13 @@ def _MakeTask(kinematics, kind, lower, upper, rng) -> RandomWaypointTask:
             q0 = _NearLimit(kinematics, q0, rng)
             if kinematics.MinSingularValue(q0) < SINGULAR_SIGMA[1]:
                 continue
-        if abs(kinematics.Position(q0)[4]) > MAX_PITCH_RAD:
+        if abs(kinematics.Position(q0)[4]) > MAX_PITCH_RAD or not clear(q0):
             continue
         box = (lower, upper)
         if kind == "near_limit":  # waypoints anywhere within the limits, as the start
             q_lower, q_upper = kinematics.PositionLimits()
             box = (q_lower + NEAR_LIMIT_RAD[0], q_upper - NEAR_LIMIT_RAD[0])
-        joints = _Waypoints(kinematics, q0, *box, rng, large=kind == "large")
+        joints = _Waypoints(kinematics, q0, *box, rng, clear, large=kind == "large")
         if joints is None:
             continue
         waypoints = np.array([kinematics.Position(q) for q in joints])
@@ -144,18 +161,18 @@ def _NearLimit(kinematics, q, rng) -> np.ndarray:
 
 
 def _Waypoints(
-    kinematics, q0, lower, upper, rng, attempts: int = 400, large: bool = False
+    kinematics, q0, lower, upper, rng, clear, attempts: int = 400, large: bool = False
 ) -> np.ndarray | None:
-    """WAYPOINT_COUNT configurations, each near the previous one, whose TCP poses keep the
-    step and turn bounds (the large ones with `large`); None if none is found within the
-    attempts."""
+    """WAYPOINT_COUNT configurations, each near the previous one and `clear`, whose TCP
+    poses keep the step and turn bounds (the large ones with `large`); None if none is
+    found within the attempts."""
     joints = []
     q_previous = q0
     reach, steps, turn = (1.5, LARGE_STEP_M, LARGE_TURN_RAD) if large else (0.6, STEP_M, None)
     for _ in range(WAYPOINT_COUNT):
         for _ in range(attempts):
             q = np.clip(q_previous + rng.uniform(-reach, reach, 6), lower, upper)
-            if _Acceptable(kinematics, q_previous, q, steps, turn or MAX_TURN_RAD):
+            if _Acceptable(kinematics, q_previous, q, steps, turn or MAX_TURN_RAD) and clear(q):
                 break
         else:
             return None
