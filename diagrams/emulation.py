@@ -11,6 +11,7 @@ import numpy as np
 from pydrake.multibody.parsing import LoadModelDirectives
 from pydrake.systems.framework import Context, Diagram
 
+from guidedarm.diagrams.interrupts import StopOnSignal
 from guidedarm.diagrams.station.hardware_config import ToFLinkSettings
 from guidedarm.diagrams.station.model_paths import MODELS_DIR
 from guidedarm.diagrams.station.scenario import ArmConfig, StationScenario
@@ -175,12 +176,13 @@ def ScenarioStation(
 
 
 def Serve(emulator, tofs: dict[str, ToFEmulator], duration: float, report=None) -> None:
-    """Announces the ToF ptys, runs the emulator for `duration` s (or until interrupted),
-    then closes it, calls `report()` and closes the ptys."""
+    """Announces the ToF ptys, runs the emulator for `duration` s or until SIGINT or
+    SIGTERM closes it, then calls `report()` and closes the ptys."""
     for name, tof in tofs.items():
         print(f"tof: {name} streaming on {tof.device}", flush=True)
     try:
-        emulator.Run(duration)
+        with StopOnSignal(emulator.Close):
+            emulator.Run(duration)
     finally:
         emulator.Close()
         if report is not None:

@@ -13,7 +13,8 @@ from __future__ import annotations
 import contextlib
 import signal
 import sys
-from collections.abc import Iterator
+import threading
+from collections.abc import Callable, Iterator
 from types import FrameType
 from typing import Any
 
@@ -94,3 +95,21 @@ def TakeInterrupt() -> None:
 
 def _Interrupt(name: str) -> KeyboardInterrupt:
     return KeyboardInterrupt(name) if name else KeyboardInterrupt()
+
+
+@contextlib.contextmanager
+def StopOnSignal(stop: Callable[[], None]) -> Iterator[None]:
+    """Within `with`, SIGINT and SIGTERM call `stop()` in a thread of their own instead of
+    raising: a service that blocks on locks (an emulator waiting for its clock) ends its
+    loop normally. A KeyboardInterrupt raised inside a lock's wait can leave the lock
+    inconsistent and end the process with a traceback."""
+
+    def handler(signum: int, frame: FrameType | None) -> None:
+        threading.Thread(target=stop, name="stop-on-signal", daemon=True).start()
+
+    previous = {s: signal.signal(s, handler) for s in (signal.SIGINT, signal.SIGTERM)}
+    try:
+        yield
+    finally:
+        for signum, handler_before in previous.items():
+            signal.signal(signum, handler_before)
