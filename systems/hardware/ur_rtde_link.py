@@ -193,7 +193,7 @@ class UrRtdeLink:
             self._streaming = True
             accepted = self._control.servoJ(q, 0.0, 0.0, period, self._lookahead_time, self._gain)
         if not accepted:
-            if self._receive.getRuntimeState() != RUNTIME_PLAYING:
+            if self._ProgramStopped():
                 raise RuntimeError(
                     "servoJ not accepted: the control program has stopped (its watchdog: no "
                     "servoJ within servo_timeout, or a stop from the pendant or dashboard)"
@@ -217,8 +217,18 @@ class UrRtdeLink:
             raise TimeoutError(f"servoStop unconfirmed within {self._stop_timeout} s")
         # The client refuses every command once the program has stopped (its watchdog,
         # a stop from the pendant or the dashboard): the controller stopped the arm then.
-        if not stopped and self._receive.getRuntimeState() == RUNTIME_PLAYING:
+        if not stopped and not self._ProgramStopped():
             raise RuntimeError("servoStop not accepted by the controller")
+
+    def _ProgramStopped(self) -> bool:
+        """Whether the program has stopped, waiting up to stop_timeout s for the RTDE sample
+        that says so (a command refused because it stopped can come before that sample)."""
+        deadline = time.monotonic() + self._stop_timeout
+        while self._receive.getRuntimeState() == RUNTIME_PLAYING:
+            if time.monotonic() > deadline:
+                return False
+            time.sleep(0.002)
+        return True
 
     def close(self) -> None:
         """Ends the poll thread, then disconnects and ends the control script and drops both
