@@ -246,8 +246,13 @@ def test_controller_refusing_reset_is_a_one_line_refusal(reply):
     server.close()
 
 
+# A script run from a terminal, where Ctrl-C raises KeyboardInterrupt. Set explicitly: a
+# process inherits an ignored SIGINT (a suite started as a background job of a shell), and
+# Python then leaves it ignored.
 HOLD_SCRIPT = """
+import signal
 import sys
+signal.signal(signal.SIGINT, signal.default_int_handler)
 sys.path.insert(0, {tests!r})
 from pydrake.systems.primitives import ConstantVectorSource
 from test_hardware_nachi import HOME, _Diagram, _Hardware
