@@ -316,8 +316,11 @@ ARM_FAULTS = {
     + FAULT.format(device="tof")
     + r"no valid line for (0\.[5-9]|[1-9]\.)\d* s \(watchdog 0\.5 s, [01] lines rejected\) "
     + r"\(stopping it also failed: mz04d: no reply to STOP within 0\.25 s\))",
+    # On a loaded machine the driver may have skipped stale samples just before: the fault
+    # then carries its hint on the streaming timeout.
     "pendant": FAULT.format(device="mz04d")
-    + r"controller refused: 'NG E05 stopped; send RESET before SERVO'; arm stopped",
+    + r"controller refused: 'NG E05 stopped; send RESET before SERVO'"
+    + r"( \(no command sent for \d+ periods, .*\))?; arm stopped",
 }
 
 
