@@ -1,8 +1,9 @@
 """`guidedarm run SCENARIO`: load a scenario, run its task, write summary, plots, replay.
 
 The run contract, all of it here:
-  - refused before the run (bad scenario, bad flags, an output directory that cannot be
-    written, a setting the task cannot honour): one line on stderr, exit 2, no summary;
+  - refused before the run (bad scenario, bad flags, a setting the task cannot honour,
+    what its models refuse: the task's prepare, PrepareRun; then an output directory that
+    cannot be written): one line on stderr, exit 2, no summary, nothing written;
   - a run that started ends with DIR/summary.json: exit 0, or exit 1 with `failure` set
     (a failed task, a RunFailedError such as a hardware fault, Ctrl-C as
     `failure: interrupted`, non-finite metrics, or an internal error whose traceback goes
