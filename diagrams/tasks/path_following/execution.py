@@ -3,8 +3,9 @@ two stations.
 
 station     MakeStation's: the plant, the computed-torque servos at 2 ms steps and the ToF
             tool (or, with --hardware, the drivers).
-kinematic   MakeStation(..., kind="kinematic"): the same plant and ToF sensor on a SceneGraph, but the
-            arm is wherever it is commanded (no dynamics, no 2 ms steps). The follower,
+kinematic   MakeStation(..., kind="kinematic"): the same plant and ToF sensor on a
+            SceneGraph, but the arm is wherever it is commanded (no dynamics, no 2 ms
+            steps). The follower,
             its moves, retraces and recoveries, and the IK are the same systems; only the
             servo's tracking lag is missing. About 5 times faster; used for the random-path
             suite, where the physics of a 15 mm move at 50 mm/s adds nothing to what the
