@@ -70,6 +70,12 @@ class RunContext:
     def __post_init__(self) -> None:
         PrepareOutputDirectory(self.out_dir)
 
+    @property
+    def station_kind(self) -> str:
+        """The kind of station the run builds (MakeStation's `kind`): `hardware` with
+        --hardware, else `simulation`."""
+        return "hardware" if self.hardware else "simulation"
+
     def pace(self, simulator: Simulator, t_final: float) -> None:
         """Sets the simulator's target realtime rate (1 against hardware, else
         realtime_rate) and shows its simulated time, up to t_final (s), on the Meshcat page

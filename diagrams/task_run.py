@@ -29,25 +29,52 @@ INTERRUPTED = "interrupted"
 TRACEBACK_FILE = "traceback.txt"
 
 
-def RunTask(task: TaskDefinition, scenario: Any, context: RunContext) -> dict[str, Any]:
-    """Draws the scenario's errors (WithErrorsDrawn), removes a previous run's
-    DIR/summary.json and traceback.txt, writes DIR/scenario.yaml (the fully resolved
-    scenario, its errors drawn), runs the task and returns its metrics plus `success`,
-    `wall_time_s` (s) and the drawn errors (ERRORS_KEY, when any), with `success` false
-    and `failure` set when the run failed in any way once started: a RunFailedError,
-    Ctrl-C, a non-finite metric (written as null), or a bug (its traceback in
-    DIR/traceback.txt). Any other GuidedArmError (a refusal before
-    any motion, e.g. a ConfigurationError) passes through; the task's CheckRun for the
-    context's --hardware and live Meshcat refuses before anything is written."""
-    task.CheckRun(scenario, RunFlags(hardware=context.hardware, live=context.live))
+@dataclasses.dataclass(frozen=True)
+class PreparedRun:
+    """A run checked and ready to start: its task, its scenario with the errors drawn
+    (WithErrorsDrawn) and what the task's prepare made of it (None for a task without
+    prepare), which the run reuses."""
+
+    task: TaskDefinition
+    scenario: Any
+    prepared: Any
+
+
+def PrepareRun(task: TaskDefinition, scenario: Any, flags: RunFlags) -> PreparedRun:
+    """Every refusal of a run before it starts, writing nothing: the task's CheckRun for
+    the run's flags, then its prepare (TaskDefinition.prepare: the checks that need
+    models, e.g. the hose, the panel, the directives, joint limits and reach) on the
+    scenario with its errors drawn. Raises GuidedArmError (one line) on bad input."""
+    task.CheckRun(scenario, flags)
     scenario = WithErrorsDrawn(scenario)
+    prepared = task.prepare(scenario) if task.prepare is not None else None
+    return PreparedRun(task, scenario, prepared)
+
+
+def RunTask(task: TaskDefinition, scenario: Any, context: RunContext) -> dict[str, Any]:
+    """RunPrepared(PrepareRun(...)) with the context's --hardware and live Meshcat flags:
+    what a campaign job or a script runs. A refusal comes before anything is written."""
+    flags = RunFlags(hardware=context.hardware, live=context.live)
+    return RunPrepared(PrepareRun(task, scenario, flags), context)
+
+
+def RunPrepared(run: PreparedRun, context: RunContext) -> dict[str, Any]:
+    """Removes a previous run's DIR/summary.json and traceback.txt, writes DIR/scenario.yaml
+    (the fully resolved scenario, its errors drawn), runs the task on what PrepareRun made
+    and returns its metrics plus `success`, `wall_time_s` (s) and the drawn errors
+    (ERRORS_KEY, when any), with `success` false and `failure` set when the run failed in
+    any way once started: a RunFailedError, Ctrl-C, a non-finite metric (written as null),
+    or a bug (its traceback in DIR/traceback.txt). Any other GuidedArmError (a refusal
+    before any motion, e.g. a ConfigurationError) passes through."""
+    task, scenario = run.task, run.scenario
     # A previous run's verdict in the same folder must not stand beside this run's files.
     for stale in (SUMMARY_FILE, TRACEBACK_FILE):
         (context.out_dir / stale).unlink(missing_ok=True)
     context.write_text(RESOLVED_SCENARIO_FILE, yaml_dump_typed(scenario))
     wall_start = time.perf_counter()
     try:
-        metrics = dict(task.run(scenario, context))
+        given = () if task.prepare is None else (run.prepared,)
+        metrics = dict(task.run(scenario, context, *given))
         RaiseIfInterrupted()  # one Python dropped, with no progress report after it
     except RunFailedError as e:
         metrics = {"success": False, "failure": str(e)}

@@ -9,7 +9,7 @@ prints the estimate against the simulation's truth X_CP = X_WC^-1 X_WP.
 
 Run:  .venv/bin/python examples/marker_estimator_with_your_camera.py
 Put your own camera's numbers in STATION (and where it looks from in X_PB, here relative
-to the panel). On hardware, MakeStation(scenario, hardware=True) gives the same
+to the panel). On hardware, MakeStation(scenario, kind="hardware") gives the same
 `my_camera.rgb_image` port from OpenCV's VideoCapture (station.hardware.cameras).
 """
 

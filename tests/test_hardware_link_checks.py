@@ -183,7 +183,7 @@ def test_a_camera_with_frames_of_another_size_is_refused_before_any_arm_connects
     scenario = Mz04dScenario(cameras={"camera": CameraConfig(width=640, height=480)})
     scenario.hardware = hardware
     with pytest.raises(ConfigurationError) as refusal:
-        MakeStation(scenario, hardware=True)
+        MakeStation(scenario, kind="hardware")
     assert str(refusal.value) == (
         f"camera: camera '{video}' delivers 64x48 frames, the scenario expects 640x480"
     )

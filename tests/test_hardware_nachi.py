@@ -113,7 +113,7 @@ def _Hardware(port: int, watchdog: float = 0.5, command_mode: str = "stream"):
 
 def _Diagram(scenario, source):
     builder = DiagramBuilder()
-    station = builder.AddNamedSystem("station", MakeStation(scenario, hardware=True))
+    station = builder.AddNamedSystem("station", MakeStation(scenario, kind="hardware"))
     builder.AddSystem(source)
     builder.Connect(source.get_output_port(), station.GetInputPort("mz04d.position_commanded"))
     simulator = Simulator(builder.Build())

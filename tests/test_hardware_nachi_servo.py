@@ -258,7 +258,7 @@ def StreamingDiagram(port: int, lockstep: bool = False):
     scenario = Mz04dScenario(hardware=HardwareConfig(arms={"mz04d": arm}))
     scenario.arms["mz04d"].control_period = PERIOD
     builder = DiagramBuilder()
-    station = builder.AddNamedSystem("station", MakeStation(scenario, hardware=True))
+    station = builder.AddNamedSystem("station", MakeStation(scenario, kind="hardware"))
     source = builder.AddSystem(SinusoidSource())
     builder.Connect(source.get_output_port(), station.GetInputPort("mz04d.position_commanded"))
     simulator = Simulator(builder.Build())

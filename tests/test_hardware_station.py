@@ -1,4 +1,4 @@
-"""MakeStation(hardware=True) exports the same ports as the simulated station."""
+"""MakeStation(kind="hardware") exports the same ports as the simulated station."""
 
 from __future__ import annotations
 
@@ -74,7 +74,7 @@ def test_sim_and_hardware_stations_export_the_same_ports(devices):
         cameras={"camera": camera}, tof_tools={"tof": ToFToolConfig()}, hardware=hardware
     )
     sim = _Ports(MakeStation(scenario))
-    real = _Ports(MakeStation(scenario, hardware=True))
+    real = _Ports(MakeStation(scenario, kind="hardware"))
     assert real == sim
     assert real["out:mz04d.state_estimated"] == 12
     assert real["out:camera.rgb_image"] == (64, 48)
@@ -83,14 +83,14 @@ def test_sim_and_hardware_stations_export_the_same_ports(devices):
 
 def test_station_without_a_driver_for_an_arm_fails_before_connecting():
     with pytest.raises(ConfigurationError, match=r"hardware.arms: no driver for \['mz04d'\]"):
-        MakeStation(Mz04dScenario(), hardware=True)
+        MakeStation(Mz04dScenario(), kind="hardware")
 
 
 def test_a_driver_of_another_device_is_named():
     hardware = HardwareConfig(arms={"mz04d": OpenCvCameraDriver()})
     expected = r"hardware\.arms\.mz04d': expected UrRtdeDriver or NachiDriver, got OpenCv"
     with pytest.raises(ConfigurationError, match=expected):
-        MakeStation(Mz04dScenario(hardware=hardware), hardware=True)
+        MakeStation(Mz04dScenario(hardware=hardware), kind="hardware")
 
 
 def test_meshcat_draws_the_measured_configuration(devices):
@@ -98,7 +98,7 @@ def test_meshcat_draws_the_measured_configuration(devices):
     arm = NachiDriver(port=nachi_port, watchdog=0.5, acceleration_limits=[20.0] * 6)
     scenario = Mz04dScenario(hardware=HardwareConfig(arms={"mz04d": arm}))
     meshcat = Meshcat()
-    station = MakeStation(scenario, meshcat, hardware=True)
+    station = MakeStation(scenario, meshcat, kind="hardware")
     simulator = Simulator(station)
     station.GetInputPort("mz04d.position_commanded").FixValue(
         simulator.get_mutable_context(), [0.0, np.pi / 2, 0.0, 0.0, -np.pi / 2, 0.0]
@@ -158,7 +158,7 @@ def test_bad_driver_settings_are_refused_before_connecting(driver, arm, tof, mes
     )
     scenario = Mz04dScenario(hardware=hardware, tof_tools={"tof": ToFToolConfig()})
     with pytest.raises(ConfigurationError, match=f"^key 'scenario\\.hardware\\.{message}"):
-        MakeStation(scenario, hardware=True)
+        MakeStation(scenario, kind="hardware")
 
 
 def test_unreachable_nachi_controller_is_refused_before_the_run():
@@ -166,4 +166,4 @@ def test_unreachable_nachi_controller_is_refused_before_the_run():
         port = server.getsockname()[1]  # bound, closed below: nothing listens there
     hardware = HardwareConfig(arms={"mz04d": NachiDriver(**LIMITS, port=port)})
     with pytest.raises(ConfigurationError, match=f"mz04d: cannot reach 127.0.0.1:{port}: "):
-        MakeStation(Mz04dScenario(hardware=hardware), hardware=True)
+        MakeStation(Mz04dScenario(hardware=hardware), kind="hardware")

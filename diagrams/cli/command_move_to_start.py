@@ -63,7 +63,7 @@ def move_to_start_command(args: argparse.Namespace) -> int:
             )
         except ConfigurationError as e:
             raise ConfigurationError(f"hardware.arms.{arm}.acceleration_limits: {e}") from None
-    station = MakeStation(station_scenario, hardware=True)
+    station = MakeStation(station_scenario, kind="hardware")
     try:
         offsets = MoveArmsToStart(station, starts, limits, args.speed_scale)
     except HardwareFaultError as e:

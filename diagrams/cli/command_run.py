@@ -1,8 +1,9 @@
 """`guidedarm run SCENARIO`: load a scenario, run its task, write summary, plots, replay.
 
 The run contract, all of it here:
-  - refused before the run (bad scenario, bad flags, an output directory that cannot be
-    written, a setting the task cannot honour): one line on stderr, exit 2, no summary;
+  - refused before the run (bad scenario, bad flags, a setting the task cannot honour,
+    what its models refuse: the task's prepare, PrepareRun; then an output directory that
+    cannot be written): one line on stderr, exit 2, no summary, nothing written;
   - a run that started ends with DIR/summary.json: exit 0, or exit 1 with `failure` set
     (a failed task, a RunFailedError such as a hardware fault, Ctrl-C as
     `failure: interrupted`, non-finite metrics, or an internal error whose traceback goes
@@ -33,7 +34,7 @@ from guidedarm.diagrams.scenario_loading import (
     AddOverridesArgument,
     parse_overrides,
 )
-from guidedarm.diagrams.task_run import InterruptedFailure, RunTask
+from guidedarm.diagrams.task_run import InterruptedFailure, PrepareRun, RunPrepared
 from guidedarm.diagrams.tasks.registry import LoadScenario, RunFlags
 from guidedarm.systems.errors import ConfigurationError
 
@@ -103,14 +104,14 @@ def run_command(args: argparse.Namespace) -> int:
             raise ConfigurationError("--path-csv and --set path_csv both given: give one")
         args.overrides.append(f"path_csv={json.dumps(str(args.path_csv.resolve()))}")
     task, scenario, name = LoadScenario(args.scenario, args.overrides)
-    flags = RunFlags(args.hardware, live=args.meshcat, realtime=args.realtime is not None)
-    task.CheckRun(scenario, flags)
     hardware_keys = sorted(k for k in keys if k.split(".")[:2] == ["station", "hardware"])
     if hardware_keys and not args.hardware:
         raise ConfigurationError(
             f"--set {hardware_keys[0]} has no effect without --hardware (a simulated run "
             "reads no driver setting): remove it or add --hardware"
         )
+    flags = RunFlags(args.hardware, live=args.meshcat, realtime=args.realtime is not None)
+    prepared = PrepareRun(task, scenario, flags)
     meshcat = MakeMeshcat(args.meshcat, args.meshcat_host or "localhost")
     context = RunContext(
         out_dir=PrepareOutputDirectory(args.out or Path("runs") / name), hardware=args.hardware
@@ -123,8 +124,8 @@ def run_command(args: argparse.Namespace) -> int:
     context.title = RunTitle(name, scenario, args.overrides)
     print(f"guidedarm: running '{name}' (task {task.name}) -> {context.out_dir}", flush=True)
     try:
-        metrics = RunTask(task, scenario, context)
-    except KeyboardInterrupt as e:  # arrived as RunTask returned: the run still gets a summary
+        metrics = RunPrepared(prepared, context)
+    except KeyboardInterrupt as e:  # arrived as RunPrepared returned: the run still gets a summary
         metrics = {"success": False, "failure": InterruptedFailure(e)}
     with DeferredInterrupts():  # the run is over; what it did is written whole
         metrics = {"scenario": name, "task": task.name, **metrics, **RunProvenance(args.argv)}

@@ -3,6 +3,7 @@
 import dataclasses
 import math
 from dataclasses import dataclass, field
+from typing import Literal
 
 import numpy as np
 from pydrake.multibody.parsing import ModelDirective
@@ -31,6 +32,11 @@ from guidedarm.systems.errors import ConfigurationError
 from guidedarm.systems.scene.hose_geometry import HoseConfig
 from guidedarm.systems.tof.tof_tool_sensor import ToFToolConfig
 from guidedarm.systems.visualization.overlay_geometry import VISUALIZATION_PERIOD
+
+# The station MakeStation builds from a scenario, behind the same ports: `simulation`
+# (the MultibodyPlant's dynamics, rendered cameras), `kinematic` (the arm posed where it
+# is commanded) or `hardware` (the real cell's drivers).
+StationKind = Literal["simulation", "kinematic", "hardware"]
 
 
 @dataclass
@@ -114,7 +120,7 @@ class StationScenario:
     cameras: Drake CameraConfig per camera; each exports `<name>.rgb_image`.
     visualization: what the simulated station shows in Meshcat (Drake's
         VisualizationConfig; Meshcat only, lcm_bus stays "default").
-    hardware: drivers used by `MakeStation(..., hardware=True)` (diagrams/hardware_config).
+    hardware: drivers used by `MakeStation(..., kind="hardware")` (diagrams/hardware_config).
     hose: a hose (centerline, brackets) registered on the world body, or None.
     tof_tools: six-sensor ToF tools; each exports `<name>.ranges`, `.valid`, `.measured_at`
         and the detection grid's `.detections`, `.detection_errors` (TOF_PORTS).

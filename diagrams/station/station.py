@@ -40,7 +40,12 @@ from pydrake.systems.sensors import CameraConfig, RgbdSensor
 
 from guidedarm.diagrams.station.hardware_station import MakeHardwareStation
 from guidedarm.diagrams.station.kinematic_station import MakeKinematicStation
-from guidedarm.diagrams.station.scenario import RENDERER_NAME, ArmConfig, StationScenario
+from guidedarm.diagrams.station.scenario import (
+    RENDERER_NAME,
+    ArmConfig,
+    StationKind,
+    StationScenario,
+)
 from guidedarm.diagrams.station.station_errors import ArmErrors
 from guidedarm.diagrams.station.station_plant import (
     AddStationModels,
@@ -53,7 +58,12 @@ from guidedarm.diagrams.station.station_wiring import AddMeshcatVisualization, A
 from guidedarm.systems.cell_errors.camera_errors import CameraErrors, MakeTrueCamera
 from guidedarm.systems.cell_errors.joint_encoder import JointEncoder
 from guidedarm.systems.cell_errors.lens_distortion import LensDistortion
-from guidedarm.systems.config_checks import CheckConfig, CheckInstance
+from guidedarm.systems.config_checks import (
+    CheckConfig,
+    CheckInstance,
+    ChoiceViolation,
+    FieldError,
+)
 from guidedarm.systems.errors import ConfigurationError
 from guidedarm.systems.plant_frames import GetScopedFrame
 
@@ -61,23 +71,21 @@ from guidedarm.systems.plant_frames import GetScopedFrame
 def MakeStation(
     scenario: StationScenario,
     meshcat: Meshcat | None = None,
-    hardware: bool = False,
-    kinematic: bool = False,
+    kind: StationKind = "simulation",
 ) -> Diagram:
-    """Builds the station Diagram of `scenario`, one of three behind the same ports:
-    simulated (the default), the real cell's drivers (`hardware`, MakeHardwareStation), or
-    the arm posed where it is commanded, without dynamics (`kinematic`,
+    """Builds the station Diagram of `scenario`, one of three kinds behind the same ports:
+    `simulation` (the default), `hardware` (the real cell's drivers, MakeHardwareStation)
+    or `kinematic` (the arm posed where it is commanded, without dynamics,
     MakeKinematicStation: one arm, no camera, no `sim.` ports but `sim.query_object`)."""
     CheckInstance("scenario", scenario, StationScenario)
     CheckConfig(scenario, "scenario")
     CheckInstance("meshcat", meshcat, (Meshcat, type(None)))
-    CheckInstance("hardware", hardware, bool)
-    CheckInstance("kinematic", kinematic, bool)
-    if hardware and kinematic:
-        raise ConfigurationError("a station is hardware or kinematic, not both")
-    if hardware:
+    why = ChoiceViolation(kind, StationKind)
+    if why is not None:
+        raise FieldError("kind", why)
+    if kind == "hardware":
         return MakeHardwareStation(scenario, meshcat)
-    if kinematic:
+    if kind == "kinematic":
         return MakeKinematicStation(scenario, meshcat)
     scenario.CheckSimulated()
     errors = scenario.WithErrorsDrawn(None).errors

@@ -68,8 +68,15 @@ class RunFlags:
 class TaskDefinition:
     """A task: its scenario schema (a dataclass with a `task: str` field) and its runner.
 
+    prepare(scenario), when given, runs every check that needs models (the plant from the
+    directives, joint limits, the hose, the panel, reach, the start pose's IK) without
+    writing anything, raising GuidedArmError (one line) on bad input, and returns what the
+    run reuses (e.g. path following's Setup): `guidedarm run` calls it before it announces
+    the run (task_run.PrepareRun).
     run(scenario, context) simulates (or drives hardware) and returns the summary metrics;
-    it raises GuidedArmError for bad input and reports run failures in the metrics.
+    with prepare, run(scenario, context, prepared) reuses what prepare returned (and makes
+    it itself when given None). It raises GuidedArmError for bad input and reports run
+    failures in the metrics.
     station(scenario), when given, is the station scenario a run builds, with the values
     the task derives filled in (e.g. the hose and start pose of path following); without
     it, scenario.station.
@@ -105,6 +112,7 @@ class TaskDefinition:
     check_run: Callable[[Any, RunFlags], None] | None = None
     resolve: Callable[[Any], Any] | None = None
     ground_truth_metrics: tuple[str, ...] = ()
+    prepare: Callable[[Any], Any] | None = None
 
     def MetricSource(self, name: str) -> str:
         """Where a metric comes from: the true cell (a `true_` metric, or one of

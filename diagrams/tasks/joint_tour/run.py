@@ -6,6 +6,7 @@ closely the simulated servo tracked it.
 """
 
 import itertools
+from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
@@ -70,14 +71,33 @@ def TourStart(scenario: JointTourScenario) -> np.ndarray:
     return ArmInitialPosition(plant, scenario.arm, arms[scenario.arm])
 
 
-def RunJointTour(scenario: JointTourScenario, context: RunContext) -> dict[str, Any]:
-    """Simulates the tour and returns tracking metrics (rad)."""
+@dataclass(frozen=True)
+class PreparedTour:
+    """What a joint tour checks before it runs and then reuses: the arm's start (rad) and
+    the tour from it through the waypoints."""
+
+    start: np.ndarray
+    trajectory: PiecewisePolynomial
+
+
+def PrepareJointTour(scenario: JointTourScenario) -> PreparedTour:
+    """The start (TourStart, refusing waypoints the arm's model cannot take) and the tour
+    (MakeTourTrajectory) of `scenario`."""
     start = TourStart(scenario)
-    trajectory = MakeTourTrajectory(start, scenario.waypoints, scenario.max_speed)
+    return PreparedTour(start, MakeTourTrajectory(start, scenario.waypoints, scenario.max_speed))
+
+
+def RunJointTour(
+    scenario: JointTourScenario, context: RunContext, prepared: PreparedTour | None = None
+) -> dict[str, Any]:
+    """Simulates the tour (`prepared`, default PrepareJointTour(scenario)) and returns
+    tracking metrics (rad)."""
+    prepared = prepared or PrepareJointTour(scenario)
+    start, trajectory = prepared.start, prepared.trajectory
     n = trajectory.rows()
     builder = DiagramBuilder()
     station = builder.AddNamedSystem(
-        "station", MakeStation(scenario.station, context.meshcat, context.hardware)
+        "station", MakeStation(scenario.station, context.meshcat, context.station_kind)
     )
     source = builder.AddNamedSystem("tour", TrajectorySource(trajectory))
     builder.Connect(
@@ -188,4 +208,5 @@ TASK = TaskDefinition(
     run=RunJointTour,
     description="move one arm through joint-space waypoints (station smoke test)",
     metrics=JOINT_TOUR_METRICS,
+    prepare=PrepareJointTour,
 )

@@ -14,6 +14,7 @@ are the estimator's errors:
 A view without a valid pose is a failed run (RunFailedError).
 """
 
+from dataclasses import dataclass
 from typing import Any
 
 import cv2
@@ -32,13 +33,26 @@ from guidedarm.diagrams.tasks.marker_view.scenario import MarkerViewScenario
 from guidedarm.diagrams.tasks.registry import TaskDefinition
 from guidedarm.systems.cell_errors.distributions import DrawErrors
 from guidedarm.systems.errors import RunFailedError
-from guidedarm.systems.markers.image_degradation import SeededDegradation
+from guidedarm.systems.markers.image_degradation import DegradationConfig, SeededDegradation
 from guidedarm.systems.markers.marker_pose_estimator_math import MarkerPoseSolver
 
 
-def RunMarkerView(scenario: MarkerViewScenario, context: RunContext) -> dict[str, Any]:
-    """Renders the view, estimates the panel pose and returns the errors (see above)."""
+@dataclass(frozen=True)
+class PreparedView:
+    """What a view checks before it runs and then uses: the rig rendering the panel, the
+    estimator's solver and the image degradation seeded by the scenario."""
+
+    rig: PanelCameraRig
+    solver: MarkerPoseSolver
+    degradation: DegradationConfig
+
+
+def PrepareMarkerView(scenario: MarkerViewScenario) -> PreparedView:
+    """The rig (the panel model generated from panel_file, the camera with its drawn
+    errors), the solver (estimator_camera_file or the rig's intrinsics) and the seeded
+    degradation (SeededDegradation refuses a seed of its own)."""
     panel_file = ResolvePanelFile(scenario.panel_file)
+    degradation = SeededDegradation(scenario.degradation, scenario.random_seed)
     rig = PanelCameraRig(
         scenario.camera,
         scenario.supersampling,
@@ -47,14 +61,23 @@ def RunMarkerView(scenario: MarkerViewScenario, context: RunContext) -> dict[str
     )
     estimator = LoadEstimatorIntrinsics(scenario.estimator_camera_file, scenario.camera, "camera")
     solver = MarkerPoseSolver(estimator or rig.intrinsics, LoadPanelSpec(panel_file))
+    return PreparedView(rig, solver, degradation)
+
+
+def RunMarkerView(
+    scenario: MarkerViewScenario, context: RunContext, prepared: PreparedView | None = None
+) -> dict[str, Any]:
+    """Renders the view (on `prepared`, default PrepareMarkerView(scenario)), estimates
+    the panel pose and returns the errors (see above)."""
+    prepared = prepared or PrepareMarkerView(scenario)
     a = np.radians(scenario.angle_deg)
     d = scenario.distance_m
     X_PC = LookAt(d * np.array([np.sin(a), 0.0, np.cos(a)]), [0.0, 0.0, 0.0])
-    image = rig.Render(X_PC, SeededDegradation(scenario.degradation, scenario.random_seed))
+    image = prepared.rig.Render(X_PC, prepared.degradation)
     path = context.out_dir / "view.png"
     cv2.imwrite(str(path), cv2.cvtColor(image, cv2.COLOR_RGBA2BGR))
     context.written.append(path)
-    estimate = solver.estimate(image)
+    estimate = prepared.solver.estimate(image)
     if not estimate.valid:
         raise RunFailedError(
             f"no valid pose at {1e3 * d:.0f} mm, {scenario.angle_deg} deg (markers found: "
@@ -111,4 +134,5 @@ TASK = TaskDefinition(
         "reference_deg",
     ),
     resolve=RecordedCameraFiles,
+    prepare=PrepareMarkerView,
 )

@@ -37,6 +37,8 @@ measurement is taken (the paper's Table 6 case).
 """
 
 import dataclasses
+from dataclasses import dataclass
+from pathlib import Path
 from typing import Any
 
 import numpy as np
@@ -73,33 +75,59 @@ from guidedarm.systems.cell_errors.camera_errors import ScaledCameraErrors
 from guidedarm.systems.config_checks import CheckConfig, CheckInstance
 from guidedarm.systems.errors import ConfigurationError
 from guidedarm.systems.markers.image_degradation import SeededDegradation
+from guidedarm.systems.markers.marker_pose_estimator_math import PanelSpec
 from guidedarm.systems.panel.panel_operation_math import PlannerFrames
 from guidedarm.systems.planning.acceleration_planner import AccelerationPlanner
 from guidedarm.systems.planning.acceleration_planner_math import PlanningError
 
 
-class PanelOperationRun:
-    """The diagram of one scenario; `Run(start)` simulates from a start joint vector, so
-    several starts can share one build (the 10-run study)."""
+@dataclass(frozen=True)
+class PreparedPanel:
+    """What a panel operation checks before it runs and then builds on: the panel file,
+    its markers and switches, and the station scenario to simulate (SupersampledStation
+    with the model generated from the panel file, WithGeneratedPanel)."""
 
-    def __init__(self, scenario: PanelOperationScenario, context: RunContext) -> None:
+    panel_file: Path
+    panel: PanelSpec
+    station: StationScenario
+
+
+def PreparePanelOperation(scenario: PanelOperationScenario) -> PreparedPanel:
+    """The panel and station of `scenario` after its checks (CheckConfig), refusing a
+    panel_model that the station's directives do not add."""
+    CheckInstance("scenario", scenario, PanelOperationScenario)
+    CheckConfig(scenario)
+    panel_file = ResolvePanelFile(scenario.panel_file)
+    camera = scenario.station.cameras[scenario.camera]
+    station = WithGeneratedPanel(
+        SupersampledStation(scenario.station, scenario.camera, camera, scenario.supersampling),
+        scenario.panel_model,
+        panel_file,
+    )
+    return PreparedPanel(panel_file, LoadPanelSpec(panel_file), station)
+
+
+class PanelOperationRun:
+    """The diagram of one scenario (on `prepared`, default PreparePanelOperation(scenario));
+    `Run(start)` simulates from a start joint vector, so several starts can share one
+    build (the 10-run study)."""
+
+    def __init__(
+        self,
+        scenario: PanelOperationScenario,
+        context: RunContext,
+        prepared: PreparedPanel | None = None,
+    ) -> None:
         self.scenario = scenario
         self.context = context
-        CheckInstance("scenario", scenario, PanelOperationScenario)
-        CheckConfig(scenario)
-        self.panel_file = ResolvePanelFile(scenario.panel_file)
-        self.panel = LoadPanelSpec(self.panel_file)
-        self._Build()
+        prepared = prepared or PreparePanelOperation(scenario)
+        self.panel_file = prepared.panel_file
+        self.panel = prepared.panel
+        self._Build(prepared.station)
 
-    def _Build(self) -> None:
+    def _Build(self, station_scenario: StationScenario) -> None:
         scenario = self.scenario
         k = scenario.supersampling
-        camera = scenario.station.cameras[scenario.camera]
-        station_scenario = WithGeneratedPanel(
-            SupersampledStation(scenario.station, scenario.camera, camera, k),
-            scenario.panel_model,
-            self.panel_file,
-        )
         builder = DiagramBuilder()
         self.station = builder.AddNamedSystem(
             "station", MakeStation(station_scenario, self.context.meshcat)
@@ -299,9 +327,12 @@ def CheckRun(scenario: PanelOperationScenario, flags: RunFlags) -> None:
         )
 
 
-def RunPanelOperation(scenario: PanelOperationScenario, context: RunContext) -> dict[str, Any]:
-    """Builds the diagram, picks the start and simulates one operation."""
-    run = PanelOperationRun(scenario, context)
+def RunPanelOperation(
+    scenario: PanelOperationScenario, context: RunContext, prepared: PreparedPanel | None = None
+) -> dict[str, Any]:
+    """Builds the diagram on `prepared` (PreparePanelOperation), picks the start and
+    simulates one operation."""
+    run = PanelOperationRun(scenario, context, prepared)
     start = scenario.start
     if start.position:
         q_start = np.asarray(start.position, float)
@@ -320,4 +351,5 @@ TASK = TaskDefinition(
     ground_truth_metrics=("switch_travel_mm.#", "press_target_W_mm.#"),
     check_run=CheckRun,
     resolve=RecordedCameraFiles,
+    prepare=PreparePanelOperation,
 )

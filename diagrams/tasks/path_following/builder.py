@@ -9,7 +9,7 @@ The loop of Wawrzyniak et al.'s figure 10 as a Diagram:
     PathFollower `position_commanded` ──> station `<arm>.position_commanded`
 
 Any Diagram exporting those four port names is a station: MakeStation's (simulated or
-hardware) or MakeStation(..., kinematic=True)'s (the arm is where it is commanded, no
+hardware) or MakeStation(..., kind="kinematic")'s (the arm is where it is commanded, no
 dynamics).
 
 A user's diagram (examples/tof_following_on_ur10e.py):

@@ -3,8 +3,9 @@ two stations.
 
 station     MakeStation's: the plant, the computed-torque servos at 2 ms steps and the ToF
             tool (or, with --hardware, the drivers).
-kinematic   MakeStation(..., kinematic=True): the same plant and ToF sensor on a SceneGraph, but the
-            arm is wherever it is commanded (no dynamics, no 2 ms steps). The follower,
+kinematic   MakeStation(..., kind="kinematic"): the same plant and ToF sensor on a
+            SceneGraph, but the arm is wherever it is commanded (no dynamics, no 2 ms
+            steps). The follower,
             its moves, retraces and recoveries, and the IK are the same systems; only the
             servo's tracking lag is missing. About 5 times faster; used for the random-path
             suite, where the physics of a 15 mm move at 50 mm/s adds nothing to what the
@@ -65,13 +66,13 @@ class Execution:
 def Execute(setup: Setup, executor: str, context: RunContext) -> Execution:
     """Runs the follower on the `station` or `kinematic` station until it stops or
     setup.max_time, then counts the steps with robot-hose contact."""
-    kinematic = MakeStation(setup.station, kinematic=True)
+    kinematic = MakeStation(setup.station, kind="kinematic")
     drawing = _Drawing(executor, context)
     if executor == "kinematic":
         station = kinematic
     else:
         meshcat = context.meshcat if drawing == "loop" else None
-        station = MakeStation(setup.station, meshcat, context.hardware)
+        station = MakeStation(setup.station, meshcat, context.station_kind)
     builder = DiagramBuilder()
     builder.AddNamedSystem("station", station)
     follower, _ = AddPathFollowing(builder, station, setup)

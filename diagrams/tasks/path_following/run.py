@@ -14,7 +14,7 @@ from collections.abc import Collection
 from typing import Any
 
 from guidedarm.diagrams.run_context import RunContext
-from guidedarm.diagrams.tasks.path_following.execution import Execute, Execution
+from guidedarm.diagrams.tasks.path_following.execution import Execute
 from guidedarm.diagrams.tasks.path_following.report import (
     GROUND_TRUTH_METRICS,
     DetectedPath,
@@ -24,24 +24,25 @@ from guidedarm.diagrams.tasks.path_following.report import (
     SpeedAndErrorAlongPath,
 )
 from guidedarm.diagrams.tasks.path_following.scenario import PathFollowingScenario
-from guidedarm.diagrams.tasks.path_following.setup import MakeSetup, Setup
+from guidedarm.diagrams.tasks.path_following.setup import IsRandomHose, MakeSetup, Setup
 from guidedarm.diagrams.tasks.registry import RunFlags, TaskDefinition
 from guidedarm.systems.errors import ConfigurationError
 from guidedarm.systems.path_following.path_follower_math import RECORD_FIELDS
+from guidedarm.systems.scene.hose_geometry import WriteCenterline
 
 
-def Run(
-    scenario: PathFollowingScenario, context: RunContext, random_seed: int
-) -> tuple[Execution, Setup]:
-    """One run with the scenario's random seed replaced by `random_seed`."""
-    setup = MakeSetup(dataclasses.replace(scenario, random_seed=random_seed), context.out_dir)
-    return Execute(setup, scenario.executor, context), setup
-
-
-def RunPathFollowing(scenario: PathFollowingScenario, context: RunContext) -> dict[str, Any]:
-    """Runs the follower (twice with repeat_random_seed) and returns the summary metrics."""
+def RunPathFollowing(
+    scenario: PathFollowingScenario, context: RunContext, prepared: Setup | None = None
+) -> dict[str, Any]:
+    """Runs the follower on `prepared` (the task's prepare: MakeSetup(scenario), which
+    writes nothing into the run's folder; made here when None), a second time with
+    repeat_random_seed on a setup of its own, and returns the summary metrics; a random
+    hose is written to DIR/hose.csv."""
     repeat_seed = scenario.repeat_random_seed
-    execution, setup = Run(scenario, context, scenario.random_seed)
+    setup = prepared or MakeSetup(scenario)
+    if IsRandomHose(scenario):
+        WriteCenterline(setup.centerline_B, context.out_dir / "hose.csv")
+    execution = Execute(setup, scenario.executor, context)
     centerline = setup.centerline
     metrics = Metrics(execution.records, centerline, scenario.motion == "continuous")
     failure = execution.failure
@@ -67,7 +68,8 @@ def RunPathFollowing(scenario: PathFollowingScenario, context: RunContext) -> di
     }
     context.headline = summary  # the figures below print its headline figures
     if repeat_seed is not None and not execution.aborted:
-        second, _ = Run(scenario, context, repeat_seed)
+        second_setup = MakeSetup(dataclasses.replace(scenario, random_seed=repeat_seed))
+        second = Execute(second_setup, scenario.executor, context)
         runs[f"detected (random_seed {repeat_seed})"] = DetectedPath(second.records)
         first_path, second_path = runs.values()
         mean, worst = Repeatability(first_path, second_path)
@@ -138,7 +140,7 @@ def CheckOverrides(scenario: PathFollowingScenario, keys: Collection[str]) -> No
             f"'path' has no effect with path_csv (--path-csv) set ('{scenario.path_csv}', "
             "which overrides it): give one of them"
         )
-    if scenario.path_csv or not scenario.path.startswith("random_"):
+    if not IsRandomHose(scenario):
         for key in keys:
             if key.split(".")[0] == "random_path":
                 raise ConfigurationError(
@@ -180,6 +182,7 @@ TASK = TaskDefinition(
     run=RunPathFollowing,
     description="follow a hose with the six-sensor ToF tool (Wawrzyniak et al.) on any arm",
     station=lambda scenario: MakeSetup(scenario).station,
+    prepare=MakeSetup,
     check_overrides=CheckOverrides,
     metrics=PATH_FOLLOWING_METRICS,
     check_run=CheckRun,

@@ -206,9 +206,15 @@ def _Workspace(scenario: PathFollowingScenario) -> WorkspaceConfig:
     """The scenario's workspace; unset: the hose's own (its NAME.yaml), or the paper's cell."""
     if scenario.workspace is not None:
         return scenario.workspace
-    if not scenario.path_csv and scenario.path.startswith("random_"):
+    if IsRandomHose(scenario):
         return WorkspaceConfig()
     return LoadHoseWorkspace(scenario.path_csv or scenario.path) or WorkspaceConfig()
+
+
+def IsRandomHose(scenario: PathFollowingScenario) -> bool:
+    """Whether the scenario's hose is a seeded random path (path random_<seed>, no
+    path_csv)."""
+    return not scenario.path_csv and scenario.path.startswith("random_")
 
 
 def LoadHoseWorkspace(name_or_file: str) -> WorkspaceConfig | None:
@@ -224,7 +230,7 @@ def LoadHoseWorkspace(name_or_file: str) -> WorkspaceConfig | None:
 def _LoadHose(scenario, workspace, solver, mount, q_home, out_dir) -> tuple[np.ndarray, str]:
     """(centerline in B, the CSV or named path it came from); refuses a hose that passes
     through itself or leaves the workspace."""
-    if scenario.path_csv or not scenario.path.startswith("random_"):
+    if not IsRandomHose(scenario):
         source = scenario.path_csv or scenario.path
         centerline_B = ReadCenterline(source)
         if Path(source).suffix.lower() == ".csv" or Path(source).is_file():

@@ -16,6 +16,7 @@ from pydrake.systems.primitives import VectorLogSink
 from guidedarm.diagrams.overlays.waypoint_overlays import AddWaypointOverlays
 from guidedarm.diagrams.run_context import AdvanceWithProgress, RunContext
 from guidedarm.diagrams.station.station import MakeStation, TruePose
+from guidedarm.diagrams.tasks.common.cell_collisions import CellCollisions
 from guidedarm.diagrams.tasks.common.trajectory_csv import WriteTrajectoryCsv
 from guidedarm.diagrams.tasks.registry import TaskDefinition
 from guidedarm.diagrams.tasks.waypoints.report import (
@@ -24,7 +25,7 @@ from guidedarm.diagrams.tasks.waypoints.report import (
     TrajectoryMetrics,
 )
 from guidedarm.diagrams.tasks.waypoints.scenario import WaypointsScenario
-from guidedarm.diagrams.tasks.waypoints.setup import CheckCellBeforeMotion, MakePlannerSetup
+from guidedarm.diagrams.tasks.waypoints.setup import PlannerSetup, PrepareWaypoints
 from guidedarm.systems.planning.acceleration_planner_math import (
     PlannedTrajectory,
     PlannerState,
@@ -32,14 +33,18 @@ from guidedarm.systems.planning.acceleration_planner_math import (
 )
 
 
-def RunWaypoints(scenario: WaypointsScenario, context: RunContext) -> dict[str, Any]:
-    """Simulates the planner driving the station's arm; returns the Table-2 metrics."""
-    setup = MakePlannerSetup(scenario)
-    collisions = CheckCellBeforeMotion(scenario, setup)
+def RunWaypoints(
+    scenario: WaypointsScenario,
+    context: RunContext,
+    prepared: tuple[PlannerSetup, CellCollisions] | None = None,
+) -> dict[str, Any]:
+    """Simulates the planner driving the station's arm (`prepared`, default
+    PrepareWaypoints(scenario)); returns the Table-2 metrics."""
+    setup, collisions = prepared or PrepareWaypoints(scenario)
     arm = scenario.arm
     builder = DiagramBuilder()
     station = builder.AddNamedSystem(
-        "station", MakeStation(scenario.station, context.meshcat, hardware=context.hardware)
+        "station", MakeStation(scenario.station, context.meshcat, context.station_kind)
     )
     planner = builder.AddNamedSystem("planner", setup.planner)
     builder.Connect(
@@ -124,4 +129,5 @@ TASK = TaskDefinition(
     run=RunWaypoints,
     description="TCP through waypoints with the acceleration-level planner (Pająk)",
     metrics=WAYPOINTS_METRICS,
+    prepare=PrepareWaypoints,
 )

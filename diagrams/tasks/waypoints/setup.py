@@ -78,3 +78,10 @@ def CheckCellBeforeMotion(scenario: WaypointsScenario, setup: PlannerSetup) -> C
             raise ConfigurationError(f"the planner's dry run cannot finish the task: {e}") from None
         collisions.CheckPlannedMotion(planned.times, planned.q, planned.index)
     return collisions
+
+
+def PrepareWaypoints(scenario: WaypointsScenario) -> tuple[PlannerSetup, CellCollisions]:
+    """Every check of a waypoints run before it starts, and what the run reuses: the
+    planner (MakePlannerSetup) and the cell's collision checks (CheckCellBeforeMotion)."""
+    setup = MakePlannerSetup(scenario)
+    return setup, CheckCellBeforeMotion(scenario, setup)
