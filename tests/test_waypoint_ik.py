@@ -44,7 +44,7 @@ def test_a_pose_whose_near_solution_is_a_hair_past_the_limit_gets_an_exact_one_i
 def test_a_pose_reachable_only_past_a_limit_is_refused_in_one_line(kinematics):
     """J2 0.4 rad past its upper limit: no branch holds the pose within the limits, and the
     refusal names the waypoint and says so, rather than returning a solution that misses."""
-    lower, upper = kinematics.PositionLimits()
+    upper = kinematics.PositionLimits()[1]
     q_goal = np.array([0.0, upper[1] + 0.4, 1.0, 0.0, 0.5, 0.0])
     waypoint = kinematics.Position(q_goal)
     with pytest.raises(ConfigurationError, match=r"^waypoint 1 .* out of reach") as refusal:
