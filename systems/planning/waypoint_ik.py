@@ -15,11 +15,9 @@ from pydrake.multibody.inverse_kinematics import InverseKinematics
 from pydrake.solvers import Solve
 
 from guidedarm.systems.errors import ConfigurationError
-from guidedarm.systems.planning.acceleration_planner_kinematics import (
-    ArmKinematics,
-    DampedSolve,
-    PoseError,
-)
+from guidedarm.systems.planning.acceleration_planner_kinematics import ArmKinematics, PoseError
+
+_POLISH_STEPS = 30  # Newton converges in a few; near a singularity it is linear
 
 
 def WaypointPose(p: np.ndarray) -> RigidTransform:
@@ -36,18 +34,20 @@ def SolveWaypointIk(
     margin: float = 0.0,
 ) -> np.ndarray:
     """Joint positions (rad), one row per waypoint, within the plant's joint limits less
-    `margin` (rad; the robust planner's joint_limit_margin), each the solution nearest the
-    previous one (the first nearest q_start) that the solver finds, moved by whole turns
-    towards it (NearestTurn).
+    `margin` (rad; the robust planner's joint_limit_margin), each holding its waypoint's pose
+    to `tolerance` (m and rad) and the solution nearest the previous one (the first nearest
+    q_start) that the solver finds, moved by whole turns towards it (NearestTurn).
 
     Each waypoint is solved from the previous solution, then from small perturbations of it
-    (near a singularity the solver can stall at the guess itself), then from random
-    configurations; every attempt is pulled towards the previous solution by its cost, so a
-    restart does not jump to another branch of the arm when a near one exists.
-    Raises ConfigurationError naming the first waypoint that has no solution.
+    (near a singularity the solver can stall at the guess itself); the first exact solution
+    of these is taken. Failing that (e.g. the near branch holds the pose only with a joint
+    past its limit), it is solved from `attempts` - 1 random configurations and the exact
+    solution nearest the previous one is taken. Every attempt is pulled towards the previous
+    solution by its cost, so a restart does not jump to another branch of the arm when a
+    near one exists. Raises ConfigurationError naming the first waypoint that has no exact
+    solution within the limits, and by how much the nearest inexact one misses it.
     """
-    plant, instance = kinematics.plant, kinematics.instance
-    context = plant.CreateDefaultContext()
+    context = kinematics.plant.CreateDefaultContext()
     q_lower, q_upper = kinematics.PositionLimits()
     limits = (q_lower + margin, q_upper - margin)
     lower, upper = np.maximum(limits[0], -np.pi), np.minimum(limits[1], np.pi)
@@ -55,22 +55,51 @@ def SolveWaypointIk(
     solutions = []
     q_previous = np.asarray(q_start, float)
     for i, p in enumerate(np.atleast_2d(waypoints)):
-        X_BT = WaypointPose(p)
+        solve = _WaypointSolver(kinematics, context, WaypointPose(p), q_previous, tolerance, limits)
         near = [q_previous + rng.normal(0.0, 0.05 * k, 6) for k in (1, 2, 4)]
         far = [rng.uniform(lower, upper) for _ in range(attempts - 1)]
-        for guess in [q_previous, *near, *far]:
-            q = _Solve(kinematics, context, X_BT, guess, q_previous, tolerance, limits)
-            if q is not None:
-                break
-        else:
-            raise ConfigurationError(
-                f"waypoint {i + 1} {np.round(p, 4).tolist()} is out of reach of "
-                f"{plant.GetModelInstanceName(instance)} (no joint solution within its limits)"
-            )
-        q = NearestTurn(q, q_previous, limits)
+        q = next((q for q in map(solve, [q_previous, *near]) if q is not None), None)
+        if q is None:
+            exact = [q for q in map(solve, far) if q is not None]
+            if not exact:
+                raise ConfigurationError(_OutOfReach(kinematics, i, p, solve.misses, margin))
+            q = min(exact, key=lambda q: float(np.linalg.norm(q - q_previous)))
         solutions.append(q)
         q_previous = q
     return np.array(solutions)
+
+
+class _WaypointSolver:
+    """Called with a guess: the exact joint solution (rad) of one waypoint's pose X_BT the
+    solver finds from it, polished and moved by whole turns towards q_near, or None; the
+    inexact ones' misses (m or rad) are kept in `misses` for the refusal."""
+
+    def __init__(self, kinematics, context, X_BT, q_near, tolerance, limits) -> None:
+        self._kinematics, self._context, self._X_BT = kinematics, context, X_BT
+        self._q_near, self._tolerance, self._limits = q_near, tolerance, limits
+        self.misses: list[float] = []
+
+    def __call__(self, guess: np.ndarray) -> np.ndarray | None:
+        kinematics, X_BT, limits = self._kinematics, self._X_BT, self._limits
+        q = _Solve(kinematics, self._context, X_BT, guess, self._q_near, self._tolerance, limits)
+        if q is None:
+            return None
+        q, miss = _Polish(kinematics, X_BT, q, limits)
+        if miss > self._tolerance:
+            self.misses.append(miss)
+            return None
+        return NearestTurn(q, self._q_near, self._limits)
+
+
+def _OutOfReach(
+    kinematics: ArmKinematics, i: int, p: np.ndarray, misses: list[float], margin: float
+) -> str:
+    """The one-line refusal of waypoint i (0-based) with row p."""
+    name = kinematics.plant.GetModelInstanceName(kinematics.instance)
+    cause = f"no joint solution within its limits less {margin} rad"
+    if misses:
+        cause += f"; the nearest misses the pose by {min(misses):.2g} m or rad"
+    return f"waypoint {i + 1} {np.round(p, 4).tolist()} is out of reach of {name} ({cause})"
 
 
 def NearestTurn(
@@ -116,12 +145,7 @@ def _Solve(
     result = Solve(prog, q_full)
     if not result.is_success():
         return None
-    return _Polish(
-        kinematics,
-        X_BT,
-        plant.GetPositionsFromArray(instance, result.GetSolution(ik.q())),
-        limits,
-    )
+    return plant.GetPositionsFromArray(instance, result.GetSolution(ik.q()))
 
 
 def _Polish(
@@ -129,25 +153,45 @@ def _Polish(
     X_BT: RigidTransform,
     q: np.ndarray,
     limits: tuple[np.ndarray, np.ndarray],
-) -> np.ndarray:
-    """q moved onto the pose X_BT by Newton steps on [position; rotation vector] error.
+) -> tuple[np.ndarray, float]:
+    """q moved onto the pose X_BT by Newton steps on the [position; rotation vector] error,
+    never leaving the limits, and what it still misses: (q (rad), max |error| (m, rad)).
 
     The solver's orientation constraint bounds trace(R), so an accepted solution can be
     off by up to about 1e-3 rad; the robust planner converges onto these joints near
-    singularities, so they must hold the pose itself. Steps that would leave the joint
-    limits are not taken (the solver's solution is kept)."""
+    singularities and once handed over to joint space, so they must hold the pose itself.
+    A step that would take joints past a limit takes them to it and solves the rest of
+    the error with the other joints (a bounded Newton step); where the pose needs a joint
+    past its limit the miss stays above zero and the caller refuses the solution."""
     lower, upper = limits
     x_target, R_target = X_BT.translation(), X_BT.rotation().matrix()
-    polished = q.copy()
-    for _ in range(20):
-        kin = kinematics.Evaluate(polished, np.zeros(6), analytic=False)
+    q = np.clip(q, lower, upper)
+    for _ in range(_POLISH_STEPS):
+        kin = kinematics.Evaluate(q, np.zeros(6), analytic=False)
         e = PoseError(kin, x_target, R_target)
         if np.max(np.abs(e)) < 1e-12:
             break
-        step = DampedSolve(kin.J, e, 1e-12)
-        if not np.all(np.isfinite(step)):
-            return q
-        polished = polished - step
-    if np.any(polished < lower - 1e-9) or np.any(polished > upper + 1e-9):
-        return q
-    return polished
+        q = np.clip(q - _BoundedStep(kin.J, e, q, limits), lower, upper)
+    kin = kinematics.Evaluate(q, np.zeros(6), analytic=False)
+    return q, float(np.max(np.abs(PoseError(kin, x_target, R_target))))
+
+
+def _BoundedStep(
+    J: np.ndarray, e: np.ndarray, q: np.ndarray, limits: tuple[np.ndarray, np.ndarray]
+) -> np.ndarray:
+    """The Newton step dq (rad) with J dq = e in least squares, joints that q - dq would
+    take past a limit held at it (one at a time, the furthest first)."""
+    lower, upper = limits
+    step = np.zeros(q.size)
+    free = np.ones(q.size, bool)
+    while free.any():
+        rhs = e - J[:, ~free] @ step[~free]
+        step[free] = np.linalg.lstsq(J[:, free], rhs, rcond=None)[0]
+        q_next = q - step
+        past = np.where(free, np.maximum(lower - q_next, q_next - upper), 0.0)
+        if past.max() <= 0.0:
+            break
+        j = int(np.argmax(past))
+        step[j] = q[j] - np.clip(q_next[j], lower[j], upper[j])
+        free[j] = False
+    return step
