@@ -72,6 +72,9 @@ class ToFEmulator:
                 return
 
     def close(self) -> None:
+        """Stops the stream and closes the pty; a second call does nothing."""
+        if self._closing.is_set():
+            return
         self._closing.set()
         if self._thread is not None:
             self._thread.join(timeout=1.0)
