@@ -1,8 +1,8 @@
-"""Running one task on its resolved scenario: what `guidedarm run` and each campaign job do."""
+"""Running one prepared task (run_preparation.PrepareRun) on its resolved scenario: what
+`guidedarm run` and each campaign job do."""
 
 from __future__ import annotations
 
-import dataclasses
 import math
 import time
 import traceback
@@ -17,38 +17,17 @@ from guidedarm.diagrams.run_context import (
     NonFiniteKeys,
     RunContext,
 )
+from guidedarm.diagrams.run_preparation import PreparedRun, PrepareRun
 from guidedarm.diagrams.station.scenario import StationScenario
 from guidedarm.diagrams.tasks.registry import ERRORS_KEY, RunFlags, TaskDefinition
 from guidedarm.systems.cell_errors.camera_errors import CameraErrors
-from guidedarm.systems.cell_errors.distributions import DrawErrors, ErrorsAsData, IsZeroError
+from guidedarm.systems.cell_errors.distributions import ErrorsAsData, IsZeroError
 from guidedarm.systems.errors import DrakeCheckFailure, GuidedArmError, RunFailedError
 
 # The `failure` of a run stopped by Ctrl-C.
 INTERRUPTED = "interrupted"
 # Where the traceback of an internal error goes, beside summary.json.
 TRACEBACK_FILE = "traceback.txt"
-
-
-@dataclasses.dataclass(frozen=True)
-class PreparedRun:
-    """A run checked and ready to start: its task, its scenario with the errors drawn
-    (WithErrorsDrawn) and what the task's prepare made of it (None for a task without
-    prepare), which the run reuses."""
-
-    task: TaskDefinition
-    scenario: Any
-    prepared: Any
-
-
-def PrepareRun(task: TaskDefinition, scenario: Any, flags: RunFlags) -> PreparedRun:
-    """Every refusal of a run before it starts, writing nothing: the task's CheckRun for
-    the run's flags, then its prepare (TaskDefinition.prepare: the checks that need
-    models, e.g. the hose, the panel, the directives, joint limits and reach) on the
-    scenario with its errors drawn. Raises GuidedArmError (one line) on bad input."""
-    task.CheckRun(scenario, flags)
-    scenario = WithErrorsDrawn(scenario)
-    prepared = task.prepare(scenario) if task.prepare is not None else None
-    return PreparedRun(task, scenario, prepared)
 
 
 def RunTask(task: TaskDefinition, scenario: Any, context: RunContext) -> dict[str, Any]:
@@ -101,21 +80,6 @@ def RunPrepared(run: PreparedRun, context: RunContext) -> dict[str, Any]:
     if drawn:
         metrics[ERRORS_KEY] = drawn
     return metrics
-
-
-def WithErrorsDrawn(scenario: Any) -> Any:
-    """`scenario` with its error models (station.errors and its presets, marker_view's
-    camera_errors) drawn once from its random_seed, one stream per source: the cell of
-    this run, which the resolved scenario.yaml repeats."""
-    seed = getattr(scenario, "random_seed", None)
-    station = getattr(scenario, "station", None)
-    if isinstance(station, StationScenario):
-        scenario = dataclasses.replace(scenario, station=station.WithErrorsDrawn(seed))
-    camera_errors = getattr(scenario, "camera_errors", None)
-    if isinstance(camera_errors, CameraErrors):
-        drawn = DrawErrors(camera_errors, seed, "camera_errors")
-        scenario = dataclasses.replace(scenario, camera_errors=drawn)
-    return scenario
 
 
 def DrawnErrors(scenario: Any) -> dict[str, Any]:

@@ -16,7 +16,7 @@ from guidedarm.diagrams.calibration.board_assets import DEFAULT_BOARD_FILE
 from guidedarm.diagrams.calibration.calibration_files import LoadBoardSpec, LoadHandEye
 from guidedarm.diagrams.calibration.simulated_cell import TrueIntrinsics
 from guidedarm.diagrams.panel.panel_files import IntrinsicsFromCameraConfig, LoadCameraIntrinsics
-from guidedarm.diagrams.task_run import WithErrorsDrawn
+from guidedarm.diagrams.run_preparation import WithErrorsDrawn
 from guidedarm.diagrams.tasks.registry import LoadScenario
 from guidedarm.systems.calibration.board_projection import BoardPhotos
 from guidedarm.systems.calibration.calibration_views import CalibrationViews

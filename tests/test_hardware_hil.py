@@ -34,8 +34,8 @@ WATCHDOG = 5.0
 
 
 def _HardwareSettings(port: int, device: str) -> list[str]:
-    """The run's drivers on the emulators (lockstep), the arm's acceleration guard at
-    ACCELERATION, both watchdogs at WATCHDOG."""
+    """The run's drivers on the emulators (arm and ToF tool in lockstep), the arm's
+    acceleration guard at ACCELERATION, both watchdogs at WATCHDOG."""
     return [
         "--set",
         "station.simulator_config.target_realtime_rate=1.0",
@@ -43,7 +43,8 @@ def _HardwareSettings(port: int, device: str) -> list[str]:
         f"station.hardware.arms.mz04d=!NachiDriver {{port: {port}, lockstep: true, "
         f"watchdog: {WATCHDOG}, stale_after: 0.05, acceleration_limits: {ACCELERATION}}}",
         "--set",
-        f"station.hardware.tof_tools.tof={{device: {device}, watchdog: {WATCHDOG}}}",
+        f"station.hardware.tof_tools.tof={{device: {device}, watchdog: {WATCHDOG}, "
+        "lockstep: true}",
     ]
 
 

@@ -226,3 +226,28 @@ def test_driver_subtracts_the_calibrated_offsets_from_valid_ranges():
     ranges = driver.GetOutputPort("ranges").Eval(simulator.get_context())
     expected = np.where(STATUS == 0, 1e-3 * RANGES_MM - offset, 0.1)
     np.testing.assert_allclose(ranges, expected)
+
+
+def test_in_lockstep_each_update_reads_the_line_written_before_it():
+    """With `drain` (a lockstep ToFSerialDriver), the reading at an update is the newest line
+    written before it, however late the transport's thread runs: each line is written right
+    before the update, faster than the thread could be scheduled to read it (without the
+    drain the driver holds the previous line). Its stamp is the update's time minus the
+    latency, exactly."""
+    emulator = ToFEmulator(None)
+    collector = ToFLineCollector()
+    transport = SerialTransport(collector, emulator.device, 115200)
+    driver = ToFDriver(collector, 0.01, 5.0, latency=0.007, drain=transport.Drain)
+    context = driver.CreateDefaultContext()
+    try:
+        for k in range(20):
+            emulator.Write(np.full(6, 0.001 * (k + 1)), np.zeros(6))
+            context.SetTime(0.01 * k)
+            context.SetDiscreteState(driver.EvalUniquePeriodicDiscreteUpdate(context).value())
+            ranges = driver.GetOutputPort("ranges").Eval(context)
+            np.testing.assert_array_equal(ranges, np.full(6, 0.001 * (k + 1)))
+            measured_at = driver.GetOutputPort("measured_at").Eval(context)
+            np.testing.assert_array_equal(measured_at, np.full(6, 0.01 * k - 0.007))
+    finally:
+        emulator.close()
+        transport.close()

@@ -25,9 +25,9 @@ from pydrake.systems.framework import DiagramBuilder
 from guidedarm.diagrams.calibration.board_assets import DEFAULT_BOARD_FILE
 from guidedarm.diagrams.calibration.calibration_files import LoadBoardSpec
 from guidedarm.diagrams.panel.panel_files import IntrinsicsFromCameraConfig
+from guidedarm.diagrams.run_preparation import WithErrorsDrawn
 from guidedarm.diagrams.station.scenario import StationScenario
 from guidedarm.diagrams.station.station import MakeStation
-from guidedarm.diagrams.task_run import WithErrorsDrawn
 from guidedarm.diagrams.tasks.panel_operation import MakeCameraArmKinematics, PanelOperationScenario
 from guidedarm.diagrams.tasks.panel_operation.run import SupersampledStation
 from guidedarm.systems.calibration.calibration_views import CalibrationViews

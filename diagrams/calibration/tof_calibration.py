@@ -25,8 +25,8 @@ from pydrake.math import RigidTransform, RollPitchYaw
 from pydrake.multibody.parsing import AddModel, AddWeld, ModelDirective
 from pydrake.systems.analysis import Simulator
 
+from guidedarm.diagrams.run_preparation import WithErrorsDrawn
 from guidedarm.diagrams.station.station import MakeStation
-from guidedarm.diagrams.task_run import WithErrorsDrawn
 from guidedarm.systems.errors import ConfigurationError
 from guidedarm.systems.tof.tof_errors import ToFErrors
 

@@ -30,11 +30,12 @@ from guidedarm.diagrams.run_context import (
     ServeMeshcat,
 )
 from guidedarm.diagrams.run_labels import RunTitle
+from guidedarm.diagrams.run_preparation import PrepareRun
 from guidedarm.diagrams.scenario_loading import (
     AddOverridesArgument,
     parse_overrides,
 )
-from guidedarm.diagrams.task_run import InterruptedFailure, PrepareRun, RunPrepared
+from guidedarm.diagrams.task_run import InterruptedFailure, RunPrepared
 from guidedarm.diagrams.tasks.registry import LoadScenario, RunFlags
 from guidedarm.systems.errors import ConfigurationError
 

@@ -10,6 +10,7 @@ itself in `Validate()` (comparisons written so that NaN fails).
 """
 
 import socket
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import ClassVar, Literal, Union
 
@@ -188,10 +189,14 @@ class ToFSerialDriver(ToFLinkSettings):
 
     device: the serial device (e.g. /dev/rfcomm0, /dev/ttyACM0).
     baudrate: the port's rate (bit/s).
+    lockstep: reading `guidedarm emulate nachi|ur --lockstep` (tests, CI): the driver reads
+        the port at every update, so its reading is the newest line the emulator wrote by
+        that diagram time, whatever the host's scheduling (docs/hardware.md).
     """
 
     device: str = ""
     baudrate: int = Positive(115200)
+    lockstep: bool = False
 
     def Validate(self) -> None:
         """Raises ConfigurationError naming the first bad field."""
@@ -201,6 +206,10 @@ class ToFSerialDriver(ToFLinkSettings):
     def Open(self, collector: ToFLineCollector) -> SerialTransport:
         """Opens the port; its bytes go to `collector`."""
         return SerialTransport(collector, self.device, self.baudrate)
+
+    def Drain(self, transport: SerialTransport) -> Callable[[], None] | None:
+        """What the driver calls at every update to read the port (lockstep), else None."""
+        return transport.Drain if self.lockstep else None
 
     def Where(self) -> str:
         """Where the tool is reached: its device."""
@@ -228,6 +237,10 @@ class ToFBleDriver(ToFLinkSettings):
     def Open(self, collector: ToFLineCollector) -> BleTransport:
         """Subscribes to the tool's notifications; their bytes go to `collector`."""
         return BleTransport(collector, self.address)
+
+    def Drain(self, _transport: BleTransport) -> None:
+        """None: notifications are taken as they arrive (no lockstep over BLE)."""
+        return None
 
     def Where(self) -> str:
         """Where the tool is reached: its address."""

@@ -80,7 +80,7 @@ def MakeHardwareStation(scenario: StationScenario, meshcat: Meshcat | None = Non
         tool = scenario.ToFTool(name)
         config = hardware.tof_tools[name]
         collector = ToFLineCollector(name)
-        config.Open(collector)
+        transport = config.Open(collector)
         ProveToFTool(collector, config.Where(), config.watchdog)
         grid = MakeDetectionGrid(plant, tool)
         latency = tool.ranging_time / 2 + config.latency
@@ -92,6 +92,7 @@ def MakeHardwareStation(scenario: StationScenario, meshcat: Meshcat | None = Non
             grid,
             latency=latency,
             calibration_offset=scenario.ToFCalibration(name),
+            drain=config.Drain(transport),
         )
         builder.AddNamedSystem(f"{name}.driver", system)
         for port in TOF_PORTS:

@@ -11,11 +11,17 @@ minus the line's age on the host clock) and subtracts `latency`, the time from t
 measurement instant to its line's arrival: half the ranging time, the microcontroller's
 readout and the link's transfer (MakeHardwareStation: ToFToolConfig.ranging_time / 2 +
 ToFLinkSettings.latency). That is `measured_at`, the same for the six sensors of a line.
+
+In lockstep with an emulator (`drain`), each update first reads what the link has delivered,
+so the reading at a diagram time is the newest line the emulator wrote by then, and its line
+counts as received at the update: its age on the host clock is the scheduling delay lockstep
+exists to ignore.
 """
 
 from __future__ import annotations
 
 import time
+from collections.abc import Callable
 
 import numpy as np
 from pydrake.systems.framework import BasicVector, Context, DiscreteValues, LeafSystem
@@ -40,7 +46,8 @@ class ToFDriver(LeafSystem):
     measured_at -1. With a `grid`, also `detections` and `detection_errors` as
     ToFToolSensor has them. latency: measurement instant to the host's receipt (s).
     calibration_offset: six offsets (m) subtracted from every valid range (the tool's
-    calibration_file; None: none)."""
+    calibration_file; None: none). drain: called at the start of every update to feed the
+    collector what has arrived (lockstep; None: lines are taken as their thread feeds them)."""
 
     def __init__(
         self,
@@ -51,6 +58,7 @@ class ToFDriver(LeafSystem):
         grid: DetectionGrid | None = None,
         latency: float = 0.0,
         calibration_offset: np.ndarray | None = None,
+        drain: Callable[[], None] | None = None,
     ) -> None:
         super().__init__()
         for name, value in (
@@ -63,6 +71,7 @@ class ToFDriver(LeafSystem):
         self._collector = collector
         self._watchdog = watchdog
         self._latency = latency
+        self._drain = drain
         self._start: float | None = None
         self._no_return_range = no_return_range
         n = NUM_SENSORS
@@ -92,6 +101,8 @@ class ToFDriver(LeafSystem):
         return calc
 
     def _Update(self, context: Context, state: DiscreteValues) -> None:
+        if self._drain is not None:
+            self._drain()
         now = time.monotonic()
         self._start = self._start or now
         latest = self._collector.latest()
@@ -110,7 +121,8 @@ class ToFDriver(LeafSystem):
             ranges = CalibratedRanges(
                 np.where(valid, reading.ranges, self._no_return_range), valid, self._calibration
             )
-            measured_at = context.get_time() - (now - received) - self._latency
+            age = 0.0 if self._drain is not None else now - received
+            measured_at = context.get_time() - age - self._latency
             state.set_value(
                 self._state,
                 np.r_[ranges, reading.valid, np.full(NUM_SENSORS, measured_at), received],

@@ -4,6 +4,8 @@ pyserial (USB or classic-Bluetooth SPP serial ports) and bleak (BLE UART notific
 from __future__ import annotations
 
 import asyncio
+import contextlib
+import select
 import threading
 
 import serial
@@ -16,7 +18,8 @@ BLE_UART_TX = "6e400003-b5a3-f393-e0a9-e50e24dcca9e"
 
 
 class SerialTransport:
-    """Reads `device` (e.g. /dev/ttyACM0, /dev/rfcomm0) at `baudrate` into `collector`."""
+    """Reads `device` (e.g. /dev/ttyACM0, /dev/rfcomm0) at `baudrate` into `collector`, from
+    its own thread as bytes arrive, and on demand (Drain)."""
 
     def __init__(self, collector: ToFLineCollector, device: str, baudrate: int) -> None:
         try:
@@ -24,6 +27,7 @@ class SerialTransport:
         except serial.SerialException as e:
             raise ConfigurationError(f"tof: cannot open serial device {device!r}: {e}") from None
         self._collector = collector
+        self._lock = threading.Lock()
         self._closing = threading.Event()
         self._thread = threading.Thread(target=self._Run, name="tof-serial", daemon=True)
         self._thread.start()
@@ -31,14 +35,29 @@ class SerialTransport:
     def _Run(self) -> None:
         while not self._closing.is_set():
             try:
-                # What has arrived, at least one byte: read(n) would wait for n bytes or
-                # the timeout, and every line of the chunk would get the chunk's late
-                # receive time (measured_at) and all but the newest would be lost.
-                chunk = self._port.read(max(1, self._port.in_waiting))
-            except (serial.SerialException, OSError):
+                ready, _, _ = select.select([self._port.fileno()], [], [], 0.05)
+                if ready:
+                    self._ReadArrived()
+            except (serial.SerialException, OSError, ValueError):
                 return  # device gone: the driver's watchdog reports it
-            if chunk:
-                self._collector.Feed(chunk)
+
+    def _ReadArrived(self) -> None:
+        """Feeds what has arrived, without waiting for more."""
+        with self._lock:
+            # Drain may have taken the bytes since select saw them: read only what is still
+            # there, but read a disconnected device (ready, nothing waiting) so that it
+            # raises. What has arrived and not read(n): that would wait for n bytes, and
+            # every line of the chunk would get its late receive time (measured_at).
+            if select.select([self._port.fileno()], [], [], 0.0)[0]:
+                self._collector.Feed(self._port.read(max(1, self._port.in_waiting)))
+
+    def Drain(self) -> None:
+        """Feeds the collector every byte that has reached the host by now (without waiting):
+        after it, the collector holds each line the tool wrote before the call, whatever the
+        reading thread's scheduling."""
+        # A device gone: the driver's watchdog reports it.
+        with contextlib.suppress(serial.SerialException, OSError, ValueError):
+            self._ReadArrived()
 
     def close(self) -> None:
         self._closing.set()
