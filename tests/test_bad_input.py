@@ -760,6 +760,16 @@ BAD_INPUTS = [
         "'station.cameras' has no effect with executor=kinematic",
     ),
     (
+        "panel-start-collides",
+        Run(PO, "start.position=[0,0,2.5,0,0,0]"),
+        "the rover_arm start pose collides: rover::rover_base and rover_arm::rover_link4",
+    ),
+    (
+        "panel-no-reachable-start",
+        Run(PO, "start.distance_m=[3.0, 3.1]"),
+        "no reachable start pose found for seed",
+    ),
+    (
         "panel-tilt-with-position",
         Run(PO, "start.position=[0,0,0,0,0,0]", "start.max_tilt_deg=10"),
         "'start.max_tilt_deg' has no effect with start.position",

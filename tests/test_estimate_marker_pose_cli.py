@@ -13,8 +13,7 @@ from pydrake.systems.sensors import CameraConfig
 
 from guidedarm.diagrams.panel.panel_camera_rig import LookAt, PanelCameraRig
 from guidedarm.diagrams.panel.panel_files import DEFAULT_CAMERA_FILE, DEFAULT_PANEL_FILE
-from guidedarm.systems.calibration.board_projection import DistortPinholeImage
-from guidedarm.systems.markers.marker_pose_estimator_math import CameraIntrinsics
+from guidedarm.systems.cell_errors.camera_errors import CameraErrors
 
 C920 = "{width: 1920, height: 1080, focal: !FocalLength {x: 1360.2, y: 1360.2}}"
 X_PC = LookAt([0.02, -0.01, 0.28], [0.06, 0.0, 0.0])
@@ -139,15 +138,13 @@ def test_distorted_image_with_a_zero_distortion_file_is_not_valid(run_cli, tmp_p
     """The issue's case: a lens with k1 = -0.25, k2 = 0.08 seen through a camera file
     without distortion fits to ~1 px but 7 deg off; the model check refuses it, and the
     right file gives a valid pose within 1 mm and 0.5 deg of the truth."""
-    k = 3
-    fine = CameraConfig(width=1920 * k, height=1080 * k)
-    fine.focal = CameraConfig.FocalLength(x=1360.2 * k, y=1360.2 * k)
-    rig = PanelCameraRig(fine, supersampling=1)
+    camera = CameraConfig(width=1920, height=1080)
+    camera.focal = CameraConfig.FocalLength(x=1360.2, y=1360.2)
+    true_lens = CameraErrors(distortion=[-0.25, 0.08, 0.0, 0.0, 0.0])
+    rig = PanelCameraRig(camera, supersampling=3, errors=true_lens)
     X_PC_far = LookAt([0.06, 0.0, 0.45], [0.0, 0.05, 0.0])
-    lens = CameraIntrinsics(
-        fx=1360.2, fy=1360.2, cx=959.5, cy=539.5, distortion=[-0.25, 0.08, 0.0, 0.0, 0.0]
-    )
-    image = DistortPinholeImage(rig.Render(X_PC_far), lens, k)
+    lens = dataclasses.replace(rig.intrinsics, distortion=true_lens.distortion)
+    image = rig.Render(X_PC_far)
     cv2.imwrite(str(tmp_path / "distorted.png"), cv2.cvtColor(image, cv2.COLOR_RGBA2BGR))
     results = {}
     for name, distortion in (("zero", [0.0] * 5), ("right", lens.distortion)):

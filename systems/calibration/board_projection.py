@@ -102,18 +102,3 @@ def BoardPhotos(
         )
         for X_BC in views_X_BC
     ]
-
-
-def DistortPinholeImage(
-    image: np.ndarray, intrinsics: CameraIntrinsics, supersampling: int = 1
-) -> np.ndarray:
-    """The image (intrinsics' width x height) that a lens with `intrinsics` takes of the
-    scene of a pinhole `image` rendered at `supersampling` times its resolution (focal
-    lengths x k, principal point (c + 0.5) k - 0.5); bilinear, integrated over k x k
-    sub-pixels; what lies outside the pinhole image is black."""
-    k = supersampling
-    rays = UndistortedRays(intrinsics, k)
-    map_x = ((rays[..., 0] * intrinsics.fx + intrinsics.cx + 0.5) * k - 0.5).astype(np.float32)
-    map_y = ((rays[..., 1] * intrinsics.fy + intrinsics.cy + 0.5) * k - 0.5).astype(np.float32)
-    fine = cv2.remap(image, map_x, map_y, cv2.INTER_LINEAR, borderMode=cv2.BORDER_CONSTANT)
-    return cv2.resize(fine, (intrinsics.width, intrinsics.height), interpolation=cv2.INTER_AREA)

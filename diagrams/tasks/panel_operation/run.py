@@ -50,7 +50,6 @@ from pydrake.systems.primitives import VectorLogSink
 
 from guidedarm.diagrams.overlays.panel_overlays import AddPanelOverlays
 from guidedarm.diagrams.panel.panel_assets import COVER_CLOSED_M, WithGeneratedPanel
-from guidedarm.diagrams.panel.panel_camera_rig import LookAt
 from guidedarm.diagrams.panel.panel_files import (
     LoadPanelSpec,
     RecordedCameraFiles,
@@ -60,7 +59,6 @@ from guidedarm.diagrams.panel.panel_files import (
 from guidedarm.diagrams.run_context import RunContext
 from guidedarm.diagrams.station.scenario import StationScenario
 from guidedarm.diagrams.station.station import MakeStation
-from guidedarm.diagrams.tasks.common.cell_collisions import CellCollisions, ModelNames
 from guidedarm.diagrams.tasks.common.planner_builder import MakeAccelerationPlanner
 from guidedarm.diagrams.tasks.common.trajectory_csv import AddTrajectoryLogs
 from guidedarm.diagrams.tasks.panel_operation.builder import AddPanelOperation
@@ -70,6 +68,12 @@ from guidedarm.diagrams.tasks.panel_operation.report import (
     PlotPanelOperation,
 )
 from guidedarm.diagrams.tasks.panel_operation.scenario import PanelOperationScenario
+from guidedarm.diagrams.tasks.panel_operation.panel_start import (
+    MakePanelCell,
+    PanelCell,
+    SampleStartPose,
+    StartPose,
+)
 from guidedarm.diagrams.tasks.registry import RunFlags, TaskDefinition
 from guidedarm.systems.cell_errors.camera_errors import ScaledCameraErrors
 from guidedarm.systems.config_checks import CheckConfig, CheckInstance
@@ -84,17 +88,21 @@ from guidedarm.systems.planning.acceleration_planner_math import PlanningError
 @dataclass(frozen=True)
 class PreparedPanel:
     """What a panel operation checks before it runs and then builds on: the panel file,
-    its markers and switches, and the station scenario to simulate (SupersampledStation
-    with the model generated from the panel file, WithGeneratedPanel)."""
+    its markers and switches, the station scenario to simulate (SupersampledStation with
+    the model generated from the panel file, WithGeneratedPanel), the cell's models that
+    chose the start (PanelCell) and the start joints (rad, StartPose)."""
 
     panel_file: Path
     panel: PanelSpec
     station: StationScenario
+    cell: PanelCell
+    q_start: np.ndarray
 
 
 def PreparePanelOperation(scenario: PanelOperationScenario) -> PreparedPanel:
-    """The panel and station of `scenario` after its checks (CheckConfig), refusing a
-    panel_model that the station's directives do not add."""
+    """The panel, station and start of `scenario` after its checks (CheckConfig), refusing
+    a panel_model that the station's directives do not add, an explicit start that touches
+    the cell and a random_seed that gives no reachable start."""
     CheckInstance("scenario", scenario, PanelOperationScenario)
     CheckConfig(scenario)
     panel_file = ResolvePanelFile(scenario.panel_file)
@@ -104,7 +112,9 @@ def PreparePanelOperation(scenario: PanelOperationScenario) -> PreparedPanel:
         scenario.panel_model,
         panel_file,
     )
-    return PreparedPanel(panel_file, LoadPanelSpec(panel_file), station)
+    panel = LoadPanelSpec(panel_file)
+    cell = MakePanelCell(scenario, station)
+    return PreparedPanel(panel_file, panel, station, cell, StartPose(scenario, panel, cell))
 
 
 class PanelOperationRun:
@@ -123,6 +133,10 @@ class PanelOperationRun:
         prepared = prepared or PreparePanelOperation(scenario)
         self.panel_file = prepared.panel_file
         self.panel = prepared.panel
+        self.cell = prepared.cell
+        self.collisions = prepared.cell.collisions
+        self.X_WP = prepared.cell.X_WP
+        self.q_start = prepared.q_start
         self._Build(prepared.station)
 
     def _Build(self, station_scenario: StationScenario) -> None:
@@ -154,12 +168,6 @@ class PanelOperationRun:
         )
         self.sequencer = systems.sequencer
         self.kinematics = systems.kinematics
-        self.collisions = CellCollisions(
-            station_scenario,
-            scenario.arm,
-            ModelNames(self.kinematics.plant),
-            [scenario.panel_model],
-        )
         AddPanelOverlays(
             builder,
             self.context.meshcat,
@@ -204,35 +212,11 @@ class PanelOperationRun:
         self.plant: MultibodyPlant = self.station.GetSubsystemByName("plant")
         self.panel_instance = self.plant.GetModelInstanceByName(scenario.panel_model)
         self.arm_instance = self.plant.GetModelInstanceByName(scenario.arm)
-        plant_context = self.plant.CreateDefaultContext()
-        self.X_WP = self.plant.GetFrameByName("plate", self.panel_instance).CalcPoseInWorld(
-            plant_context
-        )
 
     def SampleStart(self, seed: int) -> np.ndarray:
-        """A start joint vector whose camera sees the panel from a random pose (see
-        StartConfig), by inverse kinematics from the arm's default position, clear of the
-        cell and of the arm itself (a colliding pose is drawn again)."""
-        start = self.scenario.start
-        rng = np.random.default_rng(seed)
-        centres = [m.X_PM.GetDeterministicValue().translation() for m in self.panel.markers]
-        middle = np.mean(centres, axis=0)
-        q_default = self.kinematics.plant.GetPositions(self.kinematics.plant.CreateDefaultContext())
-        for _ in range(50):
-            aim = middle + np.append(rng.uniform(-1, 1, 2) * start.aim_offset_m, 0.0)
-            tilt = np.radians(rng.uniform(0.0, start.max_tilt_deg))
-            azimuth = rng.uniform(0.0, 2 * np.pi)
-            direction = [
-                np.sin(tilt) * np.cos(azimuth),
-                np.sin(tilt) * np.sin(azimuth),
-                np.cos(tilt),
-            ]
-            p_PC = aim + rng.uniform(*start.distance_m) * np.asarray(direction)
-            X_WT = self.X_WP @ LookAt(p_PC, aim) @ self.kinematics.X_CT
-            q = self.kinematics.SolveTip(X_WT, q_default)
-            if q is not None and not self.collisions.Contacts(q):
-                return q
-        raise ConfigurationError(f"no reachable start pose found for seed {seed}")
+        """A random start from `seed` as the scenario's start settings draw it
+        (SampleStartPose), for studies that run several starts on one build."""
+        return SampleStartPose(self.scenario.start, self.panel, self.cell, seed)
 
     def Run(self, q_start: np.ndarray) -> dict[str, Any]:
         """Simulates the operation from q_start; returns the summary metrics."""
@@ -330,16 +314,10 @@ def CheckRun(scenario: PanelOperationScenario, flags: RunFlags) -> None:
 def RunPanelOperation(
     scenario: PanelOperationScenario, context: RunContext, prepared: PreparedPanel | None = None
 ) -> dict[str, Any]:
-    """Builds the diagram on `prepared` (PreparePanelOperation), picks the start and
-    simulates one operation."""
+    """Builds the diagram on `prepared` (PreparePanelOperation) and simulates one operation
+    from its start."""
     run = PanelOperationRun(scenario, context, prepared)
-    start = scenario.start
-    if start.position:
-        q_start = np.asarray(start.position, float)
-        run.collisions.Refuse(q_start, f"the {scenario.arm} start pose")
-    else:
-        q_start = run.SampleStart(scenario.random_seed)
-    return run.Run(q_start)
+    return run.Run(run.q_start)
 
 
 TASK = TaskDefinition(
