@@ -21,13 +21,13 @@ from typing import Any
 import numpy as np
 
 from guidedarm.diagrams.tasks.common.cell_collisions import CellCollisions, ModelNames
+from guidedarm.diagrams.tasks.common.planner_route import CONTACT_SAMPLE_S
 from guidedarm.diagrams.tasks.common.trajectory_csv import JointMotionMetrics
 from guidedarm.diagrams.tasks.waypoints import PlannerSetup, WaypointsScenario
 from guidedarm.systems.planning.planner_baselines import JointTrajectory
 from guidedarm.systems.planning.random_waypoint_tasks import RandomWaypointTask
 from guidedarm.systems.planning.waypoint_ik import SolveWaypointIk
 
-CONTACT_SAMPLE_S = 0.01  # as the station's dry run of the planner before motion
 END_TOLERANCE_M = 1e-3
 
 
