@@ -62,3 +62,14 @@ def test_a_task_no_route_finishes_is_refused_in_one_line(large_task):
     assert "\n" not in message
     assert message.startswith("the planner's dry run does not end within max_time 1.0 s")
     assert "through joint space from waypoint 1" in message
+
+
+def test_a_joint_space_route_needs_the_robust_law_and_is_not_carried_to_a_new_task(large_task):
+    _, planning, _, task = large_task
+    routed = planning.WithJointSpaceFrom(1)
+    assert routed.joint_space_from == 1 and planning.joint_space_from is None
+    assert routed.WithWaypoints(task.waypoints).joint_space_from is None
+    with pytest.raises(ConfigurationError, match="no waypoint 4"):
+        planning.WithJointSpaceFrom(3)
+    with pytest.raises(ConfigurationError, match="needs the robust mode"):
+        planning.WithWaypoints(task.waypoints).WithJointSpaceFrom(0)  # no joint solutions

@@ -168,11 +168,11 @@ def RandomComparison(
     tasks = MakeRandomWaypointTasks(setup.planning.kinematics, count, seed, kind, clear)
     refused = [cell.Refused(task) for task in tasks]
     runs, route_refused = [], []
-    for task in tasks:
+    for task, configuration_refused in zip(tasks, refused, strict=True):
+        # a task whose start or waypoint configuration collides has no route to choose
+        collisions = None if configuration_refused else cell.collisions
         try:
-            run = ComparePlanners(
-                setup, task.waypoints, task.q0, scenario.max_time, cell.collisions
-            )
+            run = ComparePlanners(setup, task.waypoints, task.q0, scenario.max_time, collisions)
             route_refused.append(False)
         except ConfigurationError:  # no route clear of the cell: refused before motion
             run = ComparePlanners(setup, task.waypoints, task.q0, scenario.max_time)

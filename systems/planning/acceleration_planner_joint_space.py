@@ -1,6 +1,7 @@
 """The robust planner's joint-space law (beyond the paper): blended in near singularities,
 and taking over for the rest of a task when the Cartesian law nears a joint's position
-limit, makes no progress or oscillates (acceleration_planner_watch measures both).
+limit, makes no progress or oscillates (acceleration_planner_watch measures both), or from
+a chosen waypoint on (WithJointSpaceFrom: where the Cartesian motion would touch the cell).
 
 The joint-space law q'' = -Lambda_V qd - Lambda_P (q - q*) drives the joints to the
 waypoints' IK solutions q* (the planner's `joint_waypoints`). Units: rad, s.
