@@ -20,9 +20,10 @@ found a trajectory), T median, median ratios of T to Ruckig's and Toppra's on th
 max |qd|, |qdd|, |jerk| over all tasks, and the number of tasks with a limit breach
 (position, velocity or acceleration); then the arm's cell (diagrams/studies/random_task_cell.py:
 near_limit and large tasks are drawn clear of it): tasks refused (a start or waypoint IK
-solution colliding), and over the others the tasks ending within 1 mm, the tasks whose
-commanded motion touches the cell or the arm (every 10 ms), and the largest oscillation
-rate (the planner watch's measure, 1/s).
+solution colliding; for the robust planner also a task with no route clear of the cell, its
+route chosen as a run chooses it, diagrams/tasks/common/planner_route.py), and over the
+others the tasks ending within 1 mm, the tasks whose commanded motion touches the cell or
+the arm (every 10 ms), and the largest oscillation rate (the planner watch's measure, 1/s).
 """
 
 from __future__ import annotations

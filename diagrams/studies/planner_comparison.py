@@ -12,6 +12,8 @@ from typing import Any
 import numpy as np
 
 from guidedarm.diagrams.studies.random_task_cell import CellFigures, RandomTaskCell
+from guidedarm.diagrams.tasks.common.cell_collisions import CellCollisions
+from guidedarm.diagrams.tasks.common.planner_route import RouteClearOfCell
 from guidedarm.diagrams.tasks.registry import LoadScenario
 from guidedarm.diagrams.tasks.waypoints import MakePlannerSetup, PlannerSetup
 from guidedarm.systems.errors import ConfigurationError, GuidedArmError
@@ -21,6 +23,7 @@ from guidedarm.systems.planning.acceleration_planner_math import (
     PlannerConfig,
     RunPlanning,
 )
+from guidedarm.systems.planning.acceleration_planner_state import PlannedTrajectory
 from guidedarm.systems.planning.planner_baselines import (
     JointTrajectory,
     MoveJ,
@@ -49,9 +52,13 @@ def PlannerTrajectory(
     """The law's commanded trajectory from rest at q0 until the task ended; None if it did
     not end within max_time or stopped with a PlanningError (the paper's law)."""
     try:
-        planned = RunPlanning(planning, q0, max_time)
+        return FinishedTrajectory(RunPlanning(planning, q0, max_time))
     except GuidedArmError:
         return None
+
+
+def FinishedTrajectory(planned: PlannedTrajectory) -> JointTrajectory | None:
+    """A planned trajectory up to the end of its task; None if the task did not end."""
     if planned.done_time < 0:
         return None
     end = int(np.searchsorted(planned.times, planned.done_time - 1e-9)) + 1
@@ -61,16 +68,29 @@ def PlannerTrajectory(
 
 
 def ComparePlanners(
-    setup: PlannerSetup, waypoints: np.ndarray, q0: np.ndarray, max_time: float
+    setup: PlannerSetup,
+    waypoints: np.ndarray,
+    q0: np.ndarray,
+    max_time: float,
+    collisions: CellCollisions | None = None,
 ) -> dict[str, JointTrajectory | None]:
-    """Every planner's commanded trajectory for one task (None where a planner failed)."""
+    """Every planner's commanded trajectory for one task (None where a planner failed);
+    with the cell's `collisions`, the robust planner's route is chosen as a run chooses it
+    (RouteClearOfCell; its ConfigurationError when the task is refused before motion)."""
     planning = setup.planning
     if planning.scaling is None or planning.penalty is None:
         raise ConfigurationError("compare-planners needs limits=velocity,acceleration")
     margin = planning.parameters.joint_limit_margin
     joints = SolveWaypointIk(planning.kinematics, waypoints, q0, margin=margin)
+    robust = _Planning(planning, waypoints, joints, True)
+    if collisions is None:
+        robust_trajectory = PlannerTrajectory(robust, q0, max_time)
+    else:
+        robust_trajectory = FinishedTrajectory(
+            RouteClearOfCell(robust, q0, max_time, collisions).planned
+        )
     trajectories = {
-        ROBUST: PlannerTrajectory(_Planning(planning, waypoints, joints, True), q0, max_time),
+        ROBUST: robust_trajectory,
         PAPER: PlannerTrajectory(_Planning(planning, waypoints, None, False), q0, max_time),
     }
     path = np.vstack([q0, joints])
@@ -147,7 +167,18 @@ def RandomComparison(
     clear = cell.Clear if kind in EXTRA_KINDS else None  # the mixed set stays as it was
     tasks = MakeRandomWaypointTasks(setup.planning.kinematics, count, seed, kind, clear)
     refused = [cell.Refused(task) for task in tasks]
-    runs = [ComparePlanners(setup, task.waypoints, task.q0, scenario.max_time) for task in tasks]
+    runs, route_refused = [], []
+    for task, configuration_refused in zip(tasks, refused, strict=True):
+        # a task whose start or waypoint configuration collides has no route to choose
+        collisions = None if configuration_refused else cell.collisions
+        try:
+            run = ComparePlanners(setup, task.waypoints, task.q0, scenario.max_time, collisions)
+            route_refused.append(False)
+        except ConfigurationError:  # no route clear of the cell: refused before motion
+            run = ComparePlanners(setup, task.waypoints, task.q0, scenario.max_time)
+            run[ROBUST] = None
+            route_refused.append(True)
+        runs.append(run)
     summaries = {}
     for name in runs[0]:
         found = [run[name] for run in runs if run.get(name) is not None]
@@ -164,7 +195,12 @@ def RandomComparison(
             "qdd_abs_max": max((float(np.abs(t.qdd).max()) for t in found), default=None),
             "jerk_abs_max": max((float(np.abs(Jerk(t)).max()) for t in found), default=None),
             "limit_breaches": breaches,
-            **CellFigures(cell, tasks, refused, [run[name] for run in runs]),
+            **CellFigures(
+                cell,
+                tasks,
+                [a or (b and name == ROBUST) for a, b in zip(refused, route_refused, strict=True)],
+                [run[name] for run in runs],
+            ),
         }
     return summaries
 

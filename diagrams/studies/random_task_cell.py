@@ -4,7 +4,8 @@ The random reachable tasks are made by kinematics alone; a station run of one of
 would first check it against the arm's cell (CheckCellBeforeMotion). RandomTaskCell does
 the same cheaply, without a simulation: it draws tasks clear of the cell (a start or a
 waypoint configuration that collides is drawn again), refuses a task whose start or one of
-the planner's waypoint IK solutions collides (the run would refuse it before motion), and
+the planner's waypoint IK solutions collides (the run would refuse it before motion; the
+robust planner's route is chosen by RouteClearOfCell, as in a run), and
 samples every planner's commanded trajectory every CONTACT_SAMPLE_S against the cell and
 the arm itself. CellFigures adds the table's columns per planner: tasks refused, tasks
 ending within 1 mm, tasks whose motion touched the cell, and the largest oscillation rate
@@ -21,13 +22,13 @@ from typing import Any
 import numpy as np
 
 from guidedarm.diagrams.tasks.common.cell_collisions import CellCollisions, ModelNames
+from guidedarm.diagrams.tasks.common.planner_route import CONTACT_SAMPLE_S
 from guidedarm.diagrams.tasks.common.trajectory_csv import JointMotionMetrics
 from guidedarm.diagrams.tasks.waypoints import PlannerSetup, WaypointsScenario
 from guidedarm.systems.planning.planner_baselines import JointTrajectory
 from guidedarm.systems.planning.random_waypoint_tasks import RandomWaypointTask
 from guidedarm.systems.planning.waypoint_ik import SolveWaypointIk
 
-CONTACT_SAMPLE_S = 0.01  # as the station's dry run of the planner before motion
 END_TOLERANCE_M = 1e-3
 
 

@@ -126,6 +126,16 @@ class AccelerationPlanner(LeafSystem):
     def planning(self) -> AccelerationPlanning:
         return self._planning
 
+    def RouteThroughJointSpaceFrom(self, index: int) -> None:
+        """Routes the planner's task through joint space from waypoint `index` (0-based;
+        AccelerationPlanning.WithJointSpaceFrom), e.g. where the dry run before motion
+        found the Cartesian motion colliding; before the simulation starts, and not with
+        accept_tasks (each new task is planned afresh)."""
+        if self._task_port is not None:
+            raise ConfigurationError("a planner that accepts tasks routes each task afresh")
+        self._planning = self._planning.WithJointSpaceFrom(index)
+        self._task_planning = (-1, self._planning)
+
     def _MakeSlice(self, start: int, size: int):
         def calc(context: Context, output: BasicVector) -> None:
             value = context.get_discrete_state(self._state_index).get_value()

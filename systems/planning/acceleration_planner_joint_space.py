@@ -1,13 +1,17 @@
 """The robust planner's joint-space law (beyond the paper): blended in near singularities,
 and taking over for the rest of a task when the Cartesian law nears a joint's position
-limit, makes no progress or oscillates (acceleration_planner_watch measures both).
+limit, makes no progress or oscillates (acceleration_planner_watch measures both), or from
+a chosen waypoint on (WithJointSpaceFrom: where the Cartesian motion would touch the cell).
 
 The joint-space law q'' = -Lambda_V qd - Lambda_P (q - q*) drives the joints to the
 waypoints' IK solutions q* (the planner's `joint_waypoints`). Units: rad, s.
 """
 
+import copy
+
 import numpy as np
 
+from guidedarm.systems.errors import ConfigurationError
 from guidedarm.systems.planning.acceleration_planner_kinematics import PlanningError
 from guidedarm.systems.planning.acceleration_planner_state import PlannerState
 from guidedarm.systems.planning.acceleration_planner_watch import (
@@ -19,8 +23,28 @@ from guidedarm.systems.planning.acceleration_planner_watch import (
 
 class JointSpaceHandover:
     """AccelerationPlanning's joint-space part (a base class of it): reads the planner's
-    `parameters`, `joint_waypoints`, `inverse_braking`, `penalty`, `position_bounds` and
-    reversal limits."""
+    `parameters`, `joint_waypoints`, `inverse_braking`, `penalty`, `position_bounds`,
+    reversal limits and `joint_space_from` (the waypoint a joint-space route starts at,
+    AccelerationPlanning.WithJointSpaceFrom; None for none)."""
+
+    joint_space_from: int | None = None  # the waypoint a joint-space route starts at
+
+    def WithJointSpaceFrom(self, index: int) -> "JointSpaceHandover":
+        """The same planner and task routed through joint space from waypoint `index`
+        (0-based; 0: from the start): the law hands over to joint space (item 10 of
+        docs/planner.md, towards the waypoints' IK solutions) as soon as it heads for that
+        waypoint, for the rest of the task. The robust mode with acceleration limits and
+        joint waypoints only (the hand-over's law needs both)."""
+        if self.position_bounds is None or self.joint_waypoints is None:
+            raise ConfigurationError(
+                "a joint-space route needs the robust mode, acceleration limits and the "
+                "waypoints' joint solutions"
+            )
+        if not 0 <= index < len(self.waypoints):
+            raise ConfigurationError(f"no waypoint {index + 1} to route from")
+        planning = copy.copy(self)
+        planning.joint_space_from = index
+        return planning
 
     def _BlendJointSpace(
         self, state: PlannerState, sigma: float, a: np.ndarray, b: np.ndarray
@@ -67,8 +91,9 @@ class JointSpaceHandover:
 
     def _Watch(self, state: PlannerState, e: np.ndarray) -> None:
         """The hand-over to joint space and the progress watch (PlannedState's best_*): a
-        joint within limit_blend of a position limit and moving towards it, or no progress
-        for half of stall_time, hands the law over to joint space for the rest of the task
+        joint-space route reaching its waypoint (joint_space_from), a joint within
+        limit_blend of a position limit and moving towards it, or no progress for half of
+        stall_time, hands the law over to joint space for the rest of the task
         (where the waypoints' IK solutions are known); no progress for stall_time stops the
         planner with a PlanningError."""
         params, t = self.parameters, state.t
@@ -84,7 +109,8 @@ class JointSpaceHandover:
             state.best_time = t
         stalled = t - state.best_time
         if not latched and self.joint_waypoints is not None:
-            if stalled > 0.5 * params.stall_time or self._NearLimit(state):
+            routed = self.joint_space_from is not None and state.index >= self.joint_space_from
+            if routed or stalled > 0.5 * params.stall_time or self._NearLimit(state):
                 _HandOver(state)
             return
         if stalled > params.stall_time:

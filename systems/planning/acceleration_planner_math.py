@@ -242,6 +242,7 @@ class AccelerationPlanning(WaypointTracking, JointSpaceHandover):
         mode's joint-space blend near singularities (off without them)."""
         planning = copy.copy(self)
         planning._SetWaypoints(waypoints, joint_waypoints)
+        planning.joint_space_from = None
         return planning
 
     def Restart(self, state: PlannerState) -> PlannerState:

@@ -95,16 +95,13 @@ class CellCollisions:
                 f"({len(contacts)} body pair(s) in contact)"
             )
 
-    def CheckPlannedMotion(
-        self, times: np.ndarray, q: np.ndarray, index: np.ndarray, every: int = 5
-    ) -> None:
-        """Refuses (Refuse) a planned motion (times s, q samples x joints rad, the waypoint
-        index per sample) that collides at any `every`-th sample, naming its time and
-        waypoint."""
-        for k in range(0, len(times), every):
-            self.Refuse(
-                q[k], f"the planned motion at t = {times[k]:.2f} s towards waypoint {index[k] + 1}"
-            )
+    def FirstContact(self, q: np.ndarray, every: int = 5) -> int | None:
+        """The first of every `every`-th sample of joint positions q (samples x joints, rad)
+        at which the arm touches the cell or itself; None if none does."""
+        for k in range(0, len(q), every):
+            if self.Contacts(q[k]):
+                return k
+        return None
 
     def CountContacts(self, q_samples: np.ndarray) -> int:
         """The number of contact episodes along sampled joint positions (samples x joints):

@@ -8,15 +8,11 @@ from pydrake.multibody.plant import MultibodyPlant
 
 from guidedarm.diagrams.tasks.common.cell_collisions import CellCollisions, ModelNames
 from guidedarm.diagrams.tasks.common.planner_builder import MakeAccelerationPlanner, SymmetricLimit
+from guidedarm.diagrams.tasks.common.planner_route import RouteClearOfCell
 from guidedarm.diagrams.tasks.waypoints.scenario import WaypointsScenario
 from guidedarm.systems.config_checks import CheckConfig, CheckInstance
-from guidedarm.systems.errors import ConfigurationError
 from guidedarm.systems.planning.acceleration_planner import AccelerationPlanner
-from guidedarm.systems.planning.acceleration_planner_math import (
-    AccelerationPlanning,
-    PlanningError,
-    RunPlanning,
-)
+from guidedarm.systems.planning.acceleration_planner_math import AccelerationPlanning
 
 
 @dataclass
@@ -62,21 +58,21 @@ def MakePlannerSetup(scenario: WaypointsScenario) -> PlannerSetup:
 
 
 def CheckCellBeforeMotion(scenario: WaypointsScenario, setup: PlannerSetup) -> CellCollisions:
-    """Refuses (ConfigurationError, one line naming the bodies) a start pose, a waypoint's
-    joint solution or, in the robust mode, a kinematic dry run of the law (RunPlanning at
-    the planner period, checked every 10 ms) that collides with the cell or the arm
-    itself; a dry run that the law cannot finish (PlanningError) is refused with its
-    message. Returns the CellCollisions for the run's contact count."""
+    """Refuses (ConfigurationError, one line naming the bodies) a start pose or a
+    waypoint's joint solution that collides with the cell or the arm itself and, in the
+    robust mode, chooses the law's route by kinematic dry runs (RouteClearOfCell: the
+    Cartesian law, or the task through joint space where the Cartesian motion collides;
+    refused when neither is clear or can finish). The planner and setup.planning then run
+    that route. Returns the CellCollisions for the run's contact count."""
     collisions = CellCollisions(scenario.station, scenario.arm, ModelNames(setup.plant))
     collisions.Refuse(setup.q0, f"the {scenario.arm} start pose")
     for i, q in enumerate(setup.joint_waypoints):
         collisions.Refuse(q, f"the joint solution of waypoint {i + 1}")
     if scenario.planner.robust:
-        try:
-            planned = RunPlanning(setup.planning, setup.q0, scenario.max_time)
-        except PlanningError as e:
-            raise ConfigurationError(f"the planner's dry run cannot finish the task: {e}") from None
-        collisions.CheckPlannedMotion(planned.times, planned.q, planned.index)
+        route = RouteClearOfCell(setup.planning, setup.q0, scenario.max_time, collisions)
+        if route.joint_space_from is not None:
+            setup.planner.RouteThroughJointSpaceFrom(route.joint_space_from)
+            setup.planning = setup.planner.planning
     return collisions
 
 
