@@ -62,18 +62,18 @@ from guidedarm.diagrams.station.station import MakeStation
 from guidedarm.diagrams.tasks.common.planner_builder import MakeAccelerationPlanner
 from guidedarm.diagrams.tasks.common.trajectory_csv import AddTrajectoryLogs
 from guidedarm.diagrams.tasks.panel_operation.builder import AddPanelOperation
-from guidedarm.diagrams.tasks.panel_operation.report import (
-    PANEL_OPERATION_METRICS,
-    PanelOperationMetrics,
-    PlotPanelOperation,
-)
-from guidedarm.diagrams.tasks.panel_operation.scenario import PanelOperationScenario
 from guidedarm.diagrams.tasks.panel_operation.panel_start import (
     MakePanelCell,
     PanelCell,
     SampleStartPose,
     StartPose,
 )
+from guidedarm.diagrams.tasks.panel_operation.report import (
+    PANEL_OPERATION_METRICS,
+    PanelOperationMetrics,
+    PlotPanelOperation,
+)
+from guidedarm.diagrams.tasks.panel_operation.scenario import PanelOperationScenario
 from guidedarm.diagrams.tasks.registry import RunFlags, TaskDefinition
 from guidedarm.systems.cell_errors.camera_errors import ScaledCameraErrors
 from guidedarm.systems.config_checks import CheckConfig, CheckInstance
