@@ -1,7 +1,8 @@
 """The robust planner's route clear of the cell (RouteClearOfCell), kinematically: a seeded
 large MZ04D move whose Cartesian line sweeps the upper arm into the wrist is routed through
-joint space from that segment and ends clear, within 1 mm and the limits; a task no route
-can finish is refused in one line."""
+joint space from that segment and ends clear, within 1 mm and the limits; a clear route
+that does not end within max_time is kept; a task every route of which touches is refused
+in one line."""
 
 import numpy as np
 import pytest
@@ -54,13 +55,32 @@ def test_a_colliding_cartesian_line_is_routed_through_joint_space(large_task):
     np.testing.assert_array_equal(planned.q[: handover + 1], cartesian.q[: handover + 1])
 
 
-def test_a_task_no_route_finishes_is_refused_in_one_line(large_task):
+def test_a_clear_route_that_does_not_end_within_max_time_is_kept(large_task):
+    """With max_time 1 s no route ends; the Cartesian law is clear that far, so it is the
+    route, and the run ends at max_time with its own verdict (exit 1), not refused."""
     _, planning, collisions, task = large_task
+    route = RouteClearOfCell(planning, task.q0, 1.0, collisions)
+    assert route.joint_space_from is None and route.planned.done_time < 0
+    assert collisions.FirstContact(route.planned.q, 1) is None
+
+
+def test_a_task_every_route_of_which_touches_is_refused_in_one_line():
+    """Task 8 of the seeded UR10e large set: the Cartesian line and both joint-space routes
+    fold the forearm onto wrist 3."""
+    scenario = LoadWaypointsScenario("ur10e_waypoints", [])
+    setup = MakePlannerSetup(scenario)
+    cell = RandomTaskCell(scenario, setup)
+    kinematics = setup.planning.kinematics
+    task = MakeRandomWaypointTasks(kinematics, 8, 0, "large", cell.Clear)[7]
+    margin = setup.planning.parameters.joint_limit_margin
+    joints = SolveWaypointIk(kinematics, task.waypoints, task.q0, margin=margin)
+    planning = setup.planning.WithWaypoints(task.waypoints, joints)
     with pytest.raises(ConfigurationError) as refused:
-        RouteClearOfCell(planning, task.q0, 1.0, collisions)
+        RouteClearOfCell(planning, task.q0, scenario.max_time, cell.collisions)
     message = str(refused.value)
     assert "\n" not in message
-    assert message.startswith("the planner's dry run does not end within max_time 1.0 s")
+    assert message.startswith("the planner's dry run collides at t = ")
+    assert message.count("ur10e::forearm_link and ur10e::wrist_3_link overlap by") == 3
     assert "through joint space from waypoint 1" in message
 
 

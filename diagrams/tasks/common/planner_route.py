@@ -50,41 +50,47 @@ def RouteClearOfCell(
     """The route of the robust law `planning` from rest at q0 (rad) whose dry run (until the
     task ends or max_time, s) stays clear of the cell and the arm itself: the Cartesian law,
     else the task routed through joint space from the waypoint it headed for at its first
-    contact, else from the start. Raises ConfigurationError (one line naming the bodies, or
-    why the law cannot finish) when none is clear."""
-    cartesian = _DryRun(planning, q0, max_time, collisions)
-    if isinstance(cartesian, PlannerRoute):
+    contact, else from the start. A route that ends is preferred; when none ends within
+    max_time, the first clear one is the route (the run then ends at max_time, as its
+    verdict says). Raises ConfigurationError (one line naming the bodies, or why the law
+    cannot finish) when none is clear."""
+    cartesian, reason, index = _DryRun(planning, q0, max_time, collisions)
+    if cartesian is not None and cartesian.planned.done_time >= 0:
         return cartesian
-    reason, index = cartesian
-    tried = []
+    clear, tried = [cartesian], []
     for start in dict.fromkeys([index, 0]):
-        routed = _DryRun(planning.WithJointSpaceFrom(start), q0, max_time, collisions)
-        if isinstance(routed, PlannerRoute):
+        routed, why, _ = _DryRun(planning.WithJointSpaceFrom(start), q0, max_time, collisions)
+        if routed is not None:
             routed.joint_space_from = start
-            return routed
-        tried.append(f"through joint space from waypoint {start + 1}: {routed[0]}")
+            if routed.planned.done_time >= 0:
+                return routed
+        clear.append(routed)
+        tried.append(f"through joint space from waypoint {start + 1}: {why}")
+    unfinished = next((route for route in clear if route is not None), None)
+    if unfinished is not None:
+        return unfinished
     raise ConfigurationError(f"the planner's dry run {reason}; {'; '.join(tried)}")
 
 
 def _DryRun(
     planning: AccelerationPlanning, q0: np.ndarray, max_time: float, collisions: CellCollisions
-) -> PlannerRoute | tuple[str, int]:
-    """The law's dry run as a route if it ends clear of the cell, else why not and the
-    waypoint (0-based) it headed for at its first contact (0 when it cannot finish)."""
+) -> tuple[PlannerRoute | None, str, int]:
+    """The law's dry run: the route when it stays clear of the cell (ended or not, see
+    `planned.done_time`), else None; why it is not a finished route ("" when it is); the
+    waypoint (0-based) it headed for at its first contact (0 without one)."""
     try:
         planned = RunPlanning(planning, q0, max_time)
     except PlanningError as e:
-        return f"cannot finish the task: {e}", 0
-    if planned.done_time < 0:
-        return f"does not end within max_time {max_time} s", 0
+        return None, f"cannot finish the task: {e}", 0
     every = max(1, round(CONTACT_SAMPLE_S / planning.parameters.time_step))
     k = collisions.FirstContact(planned.q, every)
     if k is None:
-        return PlannerRoute(planning, planned)
+        why = f"does not end within max_time {max_time} s" if planned.done_time < 0 else ""
+        return PlannerRoute(planning, planned), why, 0
     a, b, depth = collisions.Contacts(planned.q[k])[0]
     waypoint = int(planned.index[k])
     reason = (
         f"collides at t = {planned.times[k]:.2f} s towards waypoint {waypoint + 1}: "
         f"{a} and {b} overlap by {1e3 * depth:.1f} mm"
     )
-    return reason, waypoint
+    return None, reason, waypoint

@@ -62,7 +62,9 @@ def TruePanelPose(station: StationScenario, panel_model: str) -> RigidTransform:
     return plant.GetFrameByName("plate", instance).CalcPoseInWorld(plant.CreateDefaultContext())
 
 
-def StartPose(scenario: PanelOperationScenario, panel: PanelSpec, cell: PanelCell) -> np.ndarray:
+def PanelStartPose(
+    scenario: PanelOperationScenario, panel: PanelSpec, cell: PanelCell
+) -> np.ndarray:
     """The start joints (rad): scenario.start.position, refused (ConfigurationError) when it
     touches the cell or the arm itself; else SampleStartPose from the scenario's
     random_seed."""

@@ -65,8 +65,8 @@ from guidedarm.diagrams.tasks.panel_operation.builder import AddPanelOperation
 from guidedarm.diagrams.tasks.panel_operation.panel_start import (
     MakePanelCell,
     PanelCell,
+    PanelStartPose,
     SampleStartPose,
-    StartPose,
 )
 from guidedarm.diagrams.tasks.panel_operation.report import (
     PANEL_OPERATION_METRICS,
@@ -90,7 +90,7 @@ class PreparedPanel:
     """What a panel operation checks before it runs and then builds on: the panel file,
     its markers and switches, the station scenario to simulate (SupersampledStation with
     the model generated from the panel file, WithGeneratedPanel), the cell's models that
-    chose the start (PanelCell) and the start joints (rad, StartPose)."""
+    chose the start (PanelCell) and the start joints (rad, PanelStartPose)."""
 
     panel_file: Path
     panel: PanelSpec
@@ -114,7 +114,7 @@ def PreparePanelOperation(scenario: PanelOperationScenario) -> PreparedPanel:
     )
     panel = LoadPanelSpec(panel_file)
     cell = MakePanelCell(scenario, station)
-    return PreparedPanel(panel_file, panel, station, cell, StartPose(scenario, panel, cell))
+    return PreparedPanel(panel_file, panel, station, cell, PanelStartPose(scenario, panel, cell))
 
 
 class PanelOperationRun:
