@@ -71,7 +71,10 @@ def OpenClient(workers: int | None, scheduler: str | None) -> Iterator[Client]:
             # The scheduler's HTTP endpoints (health, metrics; no dashboard) on a free
             # loopback port rather than 8787, which another cluster may hold.
             scheduler_kwargs={"dashboard": False, "dashboard_address": "127.0.0.1:0"},
-            silence_logs=logging.ERROR,
+            # A worker whose heartbeat meets the scheduler already closed (the command
+            # stopping on Ctrl-C or SIGTERM while the workers shut down) logs the closed
+            # stream's traceback at ERROR; what a job's failure is reaches its row instead.
+            silence_logs=logging.CRITICAL,
         ) as cluster,
         Client(cluster) as client,
     ):
