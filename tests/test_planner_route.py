@@ -17,19 +17,25 @@ from guidedarm.systems.planning.random_waypoint_tasks import MakeRandomWaypointT
 from guidedarm.systems.planning.waypoint_ik import SolveWaypointIk
 
 
-@pytest.fixture(scope="module")
-def large_task():
-    """Task 3 of the seeded MZ04D large set (compare-planners --random 50 --arm mz04d
-    --kind large): start and waypoint configurations clear of the cell, three waypoints."""
-    scenario = LoadWaypointsScenario("mz04d_waypoints", [])
+def _LargeTask(arm: str, index: int):
+    """Task `index` (0-based) of the seeded large set of `arm` (compare-planners --random 50
+    --arm ARM --kind large): its scenario, the robust law on its waypoints' IK solutions,
+    the cell's collision checks and the task."""
+    scenario = LoadWaypointsScenario(f"{arm}_waypoints", [])
     setup = MakePlannerSetup(scenario)
     cell = RandomTaskCell(scenario, setup)
     kinematics = setup.planning.kinematics
-    task = MakeRandomWaypointTasks(kinematics, 3, 0, "large", cell.Clear)[2]
+    task = MakeRandomWaypointTasks(kinematics, index + 1, 0, "large", cell.Clear)[index]
     margin = setup.planning.parameters.joint_limit_margin
     joints = SolveWaypointIk(kinematics, task.waypoints, task.q0, margin=margin)
     planning = setup.planning.WithWaypoints(task.waypoints, joints)
     return scenario, planning, cell.collisions, task
+
+
+@pytest.fixture(scope="module")
+def large_task():
+    """MZ04D task 3: start and waypoint configurations clear of the cell, three waypoints."""
+    return _LargeTask("mz04d", 2)
 
 
 def test_a_colliding_cartesian_line_is_routed_through_joint_space(large_task):
@@ -67,16 +73,9 @@ def test_a_clear_route_that_does_not_end_within_max_time_is_kept(large_task):
 def test_a_task_every_route_of_which_touches_is_refused_in_one_line():
     """Task 8 of the seeded UR10e large set: the Cartesian line and both joint-space routes
     fold the forearm onto wrist 3."""
-    scenario = LoadWaypointsScenario("ur10e_waypoints", [])
-    setup = MakePlannerSetup(scenario)
-    cell = RandomTaskCell(scenario, setup)
-    kinematics = setup.planning.kinematics
-    task = MakeRandomWaypointTasks(kinematics, 8, 0, "large", cell.Clear)[7]
-    margin = setup.planning.parameters.joint_limit_margin
-    joints = SolveWaypointIk(kinematics, task.waypoints, task.q0, margin=margin)
-    planning = setup.planning.WithWaypoints(task.waypoints, joints)
+    scenario, planning, collisions, task = _LargeTask("ur10e", 7)
     with pytest.raises(ConfigurationError) as refused:
-        RouteClearOfCell(planning, task.q0, scenario.max_time, cell.collisions)
+        RouteClearOfCell(planning, task.q0, scenario.max_time, collisions)
     message = str(refused.value)
     assert "\n" not in message
     assert message.startswith("the planner's dry run collides at t = ")
