@@ -57,16 +57,15 @@ def RouteClearOfCell(
     cartesian, reason, index = _DryRun(planning, q0, max_time, collisions)
     if cartesian is not None and cartesian.planned.done_time >= 0:
         return cartesian
-    clear, tried = [cartesian], []
+    unfinished, tried = cartesian, []  # the first clear route that does not end
     for start in dict.fromkeys([index, 0]):
         routed, why, _ = _DryRun(planning.WithJointSpaceFrom(start), q0, max_time, collisions)
         if routed is not None:
             routed.joint_space_from = start
             if routed.planned.done_time >= 0:
                 return routed
-        clear.append(routed)
+            unfinished = unfinished or routed
         tried.append(f"through joint space from waypoint {start + 1}: {why}")
-    unfinished = next((route for route in clear if route is not None), None)
     if unfinished is not None:
         return unfinished
     raise ConfigurationError(f"the planner's dry run {reason}; {'; '.join(tried)}")
