@@ -41,3 +41,12 @@ def test_replay_after_the_loop_is_the_loops_drawing(tmp_path, motion):
             np.testing.assert_array_equal(
                 np.asarray(k_after["value"], float), np.asarray(k_during["value"], float), key
             )
+
+
+def test_replay_is_drawn_for_a_cell_whose_tool_has_errors(tmp_path):
+    # The drawing leaves the ToF tool out of its scene; the tool's errors go with it.
+    offsets = "[0.003, 0.003, 0.003, 0.003, 0.003, 0.003]"
+    errors = f"station.errors.tof_tools.tof.offset={offsets}"
+    settings = ["path=paper_path_4", "motion=continuous", "max_time=2.5", errors]
+    replay = _Replay(tmp_path, settings, live=False)
+    assert any(path.startswith("/overlays/tof") for path, _ in replay.tracks)

@@ -75,8 +75,10 @@ def DrawReplay(logs: ReplayLogs, root: Context, setup: Setup, context: RunContex
     """Records the run's drawing from `logs` (in the loop's root context) into
     context.meshcat, up to the loop's final time, and writes replay.html."""
     builder = DiagramBuilder()
-    # The drawing needs the scene, not the sensor: no ToF tool (its rays cost time).
-    scene = replace(setup.station, tof_tools={})
+    # The drawing needs the scene, not the sensor: no ToF tool (its rays cost time), and
+    # so none of the tool's errors either.
+    no_tool_errors = replace(setup.station.errors, tof_tools={})
+    scene = replace(setup.station, tof_tools={}, errors=no_tool_errors)
     station = builder.AddNamedSystem("station", MakeKinematicStation(scene, context.meshcat))
     joints = builder.AddNamedSystem("logged_joints", _Playback(logs.q, root))
     builder.Connect(
