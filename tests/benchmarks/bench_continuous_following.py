@@ -32,8 +32,9 @@ which other processes' load disturbs less than wall time) per simulated second o
 simulation loop and of each per-tick Python system in it (the rest of the loop is the
 plant and SceneGraph, the servo's C++ systems, loggers and the framework's event
 dispatch), and of the replay's overlays, drawn after the loop. --floor: the same figure
-for the station alone with its arm held at PATH's start pose, with and without its ToF
-sensor: the cost no follower can go below. --rtf: N (default 5) continuous ranging runs
+for the station alone, with and without its ToF sensor, its arm held at PATH's start
+pose and its arm driven along the joints a continuous run of PATH measured: the cost no
+follower can go below. --rtf: N (default 5) continuous ranging runs
 of PATH, alternating `guidedarm run` (which draws the Meshcat replay after the loop) and
 the same run without Meshcat (as a campaign worker runs it: no replay), each in its own
 process; prints each run's realtime_factor, the median of each kind and whether the
@@ -183,34 +184,55 @@ def Breakdown(path: str) -> None:
 
 
 def Floor(path: str, seconds: float = 4.0) -> None:
-    """Prints the CPU time per simulated second of the station alone, its arm held at the
-    start pose of PATH: with its ToF tool sensor, and without it (plant, SceneGraph and
-    servo only): what no follower can go below."""
+    """Prints the CPU time per simulated second of the station alone, with its ToF tool
+    sensor and without it (plant, SceneGraph and servo only): its arm held at the start
+    pose of PATH for `seconds`, and its arm driven along the joints a continuous ranging
+    run of PATH measured (commanded by their linear interpolation): what no follower can
+    go below, at rest and moving."""
     import copy
 
     from pydrake.systems.analysis import Simulator
     from pydrake.systems.framework import DiagramBuilder
-    from pydrake.systems.primitives import ConstantVectorSource
+    from pydrake.systems.primitives import ConstantVectorSource, TrajectorySource
+    from pydrake.trajectories import PiecewisePolynomial
 
+    from guidedarm.diagrams.run_context import RunContext
     from guidedarm.diagrams.station.station import MakeStation
+    from guidedarm.diagrams.tasks.path_following.execution import Execute
     from guidedarm.diagrams.tasks.path_following.setup import MakeSetup
     from guidedarm.diagrams.tasks.registry import LoadScenario
 
-    settings = [f"path={path}", "motion=continuous", *Overrides(sys.argv)[1::2]]
-    setup = MakeSetup(LoadScenario("path_following", settings)[1])
-    for label, tof_tools in (("station", setup.station.tof_tools), ("without ToF sensor", {})):
-        scenario = copy.deepcopy(setup.station)
-        scenario.tof_tools = tof_tools
-        builder = DiagramBuilder()
-        station = builder.AddSystem(MakeStation(scenario))
-        hold = builder.AddSystem(ConstantVectorSource(setup.q_start))
-        command = station.GetInputPort(f"{setup.arm}.position_commanded")
-        builder.Connect(hold.get_output_port(), command)
-        simulator = Simulator(builder.Build())
-        simulator.Initialize()
-        start = time.process_time()
-        simulator.AdvanceTo(seconds)
-        print(f"{label:40s} {(time.process_time() - start) / seconds:.3f} CPU s per simulated s")
+    settings = [f"path={path}", "motion=continuous", "estimator=ranging"]
+    setup = MakeSetup(LoadScenario("path_following", [*settings, *Overrides(sys.argv)[1::2]])[1])
+    with tempfile.TemporaryDirectory(prefix="bench_cont_") as out:
+        run = Execute(setup, "station", RunContext(out_dir=Path(out), quiet=True))
+    joints = PiecewisePolynomial.FirstOrderHold(run.sample_times, run.q_samples.T)
+    end = run.sample_times[-1]
+    motions = (  # (what the arm does, its command's source, simulated s)
+        (
+            f"held at the start ({seconds:g} s)",
+            lambda: ConstantVectorSource(setup.q_start),
+            seconds,
+        ),
+        (f"along the run's joints ({end:.1f} s)", lambda: TrajectorySource(joints), end),
+    )
+    for motion, make_source, duration in motions:
+        for label, tof_tools in (("station", setup.station.tof_tools), ("without ToF", {})):
+            scenario = copy.deepcopy(setup.station)
+            scenario.tof_tools = tof_tools
+            builder = DiagramBuilder()
+            station = builder.AddSystem(MakeStation(scenario))
+            command = builder.AddSystem(make_source())
+            builder.Connect(
+                command.get_output_port(),
+                station.GetInputPort(f"{setup.arm}.position_commanded"),
+            )
+            simulator = Simulator(builder.Build())
+            simulator.Initialize()
+            start = time.process_time()
+            simulator.AdvanceTo(duration)
+            cpu = (time.process_time() - start) / duration
+            print(f"{label:12s} {motion:34s} {cpu:.3f} CPU s per simulated s")
 
 
 # A run without Meshcat, as diagrams/campaigns/worker.py makes it; prints realtime_factor.
