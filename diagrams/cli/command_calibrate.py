@@ -11,9 +11,11 @@ data (photos, arm poses, ToF readings) and write the files the scenarios read.
       the camera's pose on the arm (OUT/hand_eye.yaml: X_PC) from recorded photos and poses;
   calibrate hand-eye SCENARIO --out DIR
       the same in simulation, printed beside the true mount;
-  calibrate tof SCENARIO --out DIR
-      each ToF sensor's offset against a flat target (DIR/tof_offsets.yaml), in simulation,
-      printed beside the drawn truth.
+  calibrate tof SCENARIO --out DIR [--hardware] [--speed-scale S]
+      each ToF sensor's offset against a flat target (DIR/tof_offsets.yaml): in simulation
+      printed beside the drawn truth; where the scenario places the target in the cell
+      (a `tof_target` model), the arm holds the tool over it, on the simulated station or
+      with --hardware on the real one (DIR/summary.json; exit 1 on a fault).
 SCENARIO is a panel_operation scenario for camera and hand-eye, one with a ToF tool (e.g.
 path_following) for tof, by name or file, with `--set key=value` overrides.
 """
@@ -21,6 +23,7 @@ path_following) for tof, by name or file, with `--set key=value` overrides.
 from __future__ import annotations
 
 import argparse
+import sys
 from pathlib import Path
 
 from guidedarm.diagrams.calibration.calibration_files import LoadBoardSpec
@@ -40,6 +43,7 @@ from guidedarm.systems.calibration.camera_calibration_math import CameraCalibrat
 from guidedarm.systems.errors import ConfigurationError
 
 DEFAULT_VIEWS = 15
+DEFAULT_SPEED_SCALE = 0.1  # as `guidedarm move-to-start`
 
 
 def register(subparsers: argparse._SubParsersAction) -> None:
@@ -64,7 +68,16 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     tof = kinds.add_parser("tof", help="ToF sensors' offsets against a flat target")
     tof.add_argument("scenario", help="scenario with one ToF tool (name or file)")
     tof.add_argument("--out", type=Path, required=True, help="output directory")
-    tof.add_argument("--hardware", action="store_true", help="on the real tool (not yet)")
+    tof.add_argument(
+        "--hardware", action="store_true", help="on the real cell: the arm holds the real tool"
+    )
+    tof.add_argument(
+        "--speed-scale",
+        type=float,
+        default=DEFAULT_SPEED_SCALE,
+        help="with a target in the cell: fraction of the joints' velocity and acceleration "
+        f"limits (default {DEFAULT_SPEED_SCALE})",
+    )
     AddOverridesArgument(tof, "override a scenario key")
     tof.set_defaults(func=calibrate_tof_command)
 
@@ -170,17 +183,33 @@ def calibrate_hand_eye_command(args: argparse.Namespace) -> int:
 
 def calibrate_tof_command(args: argparse.Namespace) -> int:
     from guidedarm.diagrams.calibration.tof_calibration import CalibrateToFInSimulation
+    from guidedarm.diagrams.calibration.tof_on_cell import HasTarget
     from guidedarm.diagrams.tasks.registry import LoadScenario
 
-    if args.hardware:
-        raise ConfigurationError(
-            "calibrate tof --hardware is not implemented: record ~40 readings per sensor "
-            "and distance against a white target and write tof_offsets.yaml by hand "
-            "(docs/calibration.md)"
-        )
-    _, scenario, _ = LoadScenario(args.scenario, args.overrides)
+    if not 0 < args.speed_scale <= 1:
+        raise ConfigurationError(f"--speed-scale {args.speed_scale}: must be in (0, 1]")
+    task, scenario, _ = LoadScenario(args.scenario, args.overrides)
+    station = getattr(scenario, "station", None)
+    if args.hardware or (station is not None and HasTarget(station)):
+        return _CalibrateToFOnCell(args, task, scenario)
     PrepareOutputDirectory(args.out)
     lines = CalibrateToFInSimulation(scenario, args.out)
+    print(f"wrote {args.out / 'tof_offsets.yaml'}")
+    print("\n".join(lines))
+    return 0
+
+
+def _CalibrateToFOnCell(args: argparse.Namespace, task, scenario) -> int:
+    """The arm holds the tool over the cell's target, simulated or (--hardware) real."""
+    from guidedarm.diagrams.calibration.tof_on_cell import RunToFCalibrationOnCell
+
+    PrepareOutputDirectory(args.out)
+    success, lines = RunToFCalibrationOnCell(
+        task, scenario, args.out, args.hardware, args.speed_scale, args.argv
+    )
+    if not success:
+        print("\n".join(lines), file=sys.stderr)
+        return 1
     print(f"wrote {args.out / 'tof_offsets.yaml'}")
     print("\n".join(lines))
     return 0
