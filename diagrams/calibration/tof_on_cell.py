@@ -17,7 +17,6 @@ anything moves: a pose the arm cannot reach is refused, naming it.
 from __future__ import annotations
 
 import dataclasses
-import gc
 import importlib.metadata
 import json
 import shlex
@@ -30,11 +29,15 @@ from pydrake.math import RigidTransform, RotationMatrix
 from pydrake.multibody.inverse_kinematics import InverseKinematics
 from pydrake.multibody.plant import MultibodyPlant
 from pydrake.solvers import Solve
-from pydrake.systems.analysis import Simulator
-from pydrake.systems.framework import Diagram, DiagramBuilder
-from pydrake.systems.primitives import TrajectorySource
+from pydrake.systems.framework import Diagram
 from pydrake.trajectories import PiecewisePolynomial
 
+from guidedarm.diagrams.calibration.cell_motion import (
+    ArmJointLimits,
+    MeasuredJoints,
+    Schedule,
+    StreamToArm,
+)
 from guidedarm.diagrams.calibration.tof_calibration import (
     READINGS_PER_DISTANCE,
     SENSOR_GROUPS,
@@ -44,7 +47,6 @@ from guidedarm.diagrams.calibration.tof_calibration import (
     WriteToFOffsets,
 )
 from guidedarm.diagrams.run_preparation import WithErrorsDrawn
-from guidedarm.diagrams.station.move_to_start import MoveDuration
 from guidedarm.diagrams.station.scenario import StationScenario
 from guidedarm.diagrams.station.station import MakeStation
 from guidedarm.diagrams.station.station_plant import (
@@ -185,7 +187,7 @@ def SolveToolPose(
     return None
 
 
-def Schedule(
+def ScheduleHolds(
     q_start: np.ndarray,
     holds: list[Hold],
     limits: JointLimits,
@@ -194,18 +196,14 @@ def Schedule(
 ) -> tuple[PiecewisePolynomial, list[Hold]]:
     """The arm's joint trajectory from q_start through every hold, and the holds with their
     times: measurement rests last SETTLE_S plus READINGS_PER_DISTANCE + SPARE_PERIODS
-    reading periods, clearance rests SETTLE_S."""
-    times, knots, timed = [0.0], [np.asarray(q_start, float)], []
-    for hold in holds:
-        t_arrive = times[-1] + MoveDuration(knots[-1], hold.q, limits, speed_scale)
-        rest = SETTLE_S
-        if hold.group is not None:
-            rest += (READINGS_PER_DISTANCE + SPARE_PERIODS) * reading_period
-        timed.append(dataclasses.replace(hold, t_start=t_arrive, t_end=t_arrive + rest))
-        times += [t_arrive, t_arrive + rest]
-        knots += [hold.q, hold.q]
-    q = np.column_stack(knots)
-    trajectory = PiecewisePolynomial.CubicHermite(times, q, np.zeros_like(q))
+    reading periods, the others SETTLE_S."""
+    spare = (READINGS_PER_DISTANCE + SPARE_PERIODS) * reading_period
+    rests = [SETTLE_S + (spare if h.group is not None else 0.0) for h in holds]
+    trajectory, windows = Schedule(q_start, [h.q for h in holds], rests, limits, speed_scale)
+    timed = [
+        dataclasses.replace(h, t_start=t0, t_end=t1)
+        for h, (t0, t1) in zip(holds, windows, strict=True)
+    ]
     return trajectory, timed
 
 
@@ -221,39 +219,28 @@ def MeasureOnStation(
     """Streams `trajectory` to the arm of `station` (simulated or hardware: the same ports)
     and returns each sensor's mean of the first READINGS_PER_DISTANCE valid readings
     measured (`measured_at`) at each measurement hold after its SETTLE_S, per distance
-    (TARGET_DISTANCES_M x 6, m; NaN where a sensor had too few). Against hardware it keeps
-    real time; a link's fault raises HardwareFaultError with the arms stopped."""
-    builder = DiagramBuilder()
-    builder.AddNamedSystem("station", station)
-    source = builder.AddNamedSystem("procedure", TrajectorySource(trajectory))
-    builder.Connect(source.get_output_port(), station.GetInputPort(f"{arm}.position_commanded"))
-    simulator = Simulator(builder.Build())
-    if hardware:
-        simulator.set_target_realtime_rate(1.0)
-        gc.freeze()  # as a hardware run: no full collection stalls the link threads
-    simulator.Initialize()
-    context = station.GetMyContextFromRoot(simulator.get_context())
+    (TARGET_DISTANCES_M x 6, m; NaN where a sensor had too few)."""
     ports = [station.GetOutputPort(f"{tool}.{name}") for name in ("ranges", "valid", "measured_at")]
     readings: dict[int, list[np.ndarray]] = {}
-    last = -np.inf
-    step = reading_period / 4
-    for _ in range(int(np.ceil(trajectory.end_time() / step))):
-        simulator.AdvanceTo(simulator.get_context().get_time() + step)
+    last = [-np.inf]
+
+    def Observe(_: float, context) -> None:
         ranges, valid, measured_at = (np.array(p.Eval(context)) for p in ports)
         t = float(np.max(measured_at))
-        if t <= last:
-            continue
-        last = t
+        if t <= last[0]:
+            return
+        last[0] = t
         for k, hold in enumerate(holds):
             if hold.group is not None and hold.t_start + SETTLE_S <= t <= hold.t_end:
                 readings.setdefault(k, []).append(np.where(valid > 0.5, ranges, np.nan))
+
+    StreamToArm(station, arm, trajectory, reading_period / 4, Observe, hardware)
     means = np.full((len(TARGET_DISTANCES_M), 6), np.nan)
     for k, hold in enumerate(holds):
         if hold.group is None:
             continue
         taken = np.array(readings.get(k, [np.full(6, np.nan)]))
-        sensors = list(SENSOR_GROUPS[hold.group])
-        for j in sensors:
+        for j in SENSOR_GROUPS[hold.group]:
             column = taken[:, j][np.isfinite(taken[:, j])][:READINGS_PER_DISTANCE]
             if len(column) == READINGS_PER_DISTANCE:
                 means[TARGET_DISTANCES_M.index(hold.distance), j] = column.mean()
@@ -266,20 +253,14 @@ def CalibrateToFOnCell(
     """Plans the holds through `home` (rad; refusals before motion), builds the station
     (`hardware`: its links prove themselves), runs the procedure; the mean readings per
     distance (m, 5 x 6)."""
-    plant = MakeMultibodyPlant(station, list(station.arms))
     arm = ToolArm(MakeMultibodyPlant(station), station, tool)
     holds = PlanHolds(station, tool, arm, home)
-    fallback = station.hardware.arms.get(arm)
-    try:
-        limits = JointLimits.FromPlant(
-            plant, GetArmInstance(plant, arm), fallback.acceleration_limits if fallback else []
-        )
-    except ConfigurationError as e:
-        raise ConfigurationError(f"hardware.arms.{arm}.acceleration_limits: {e}") from None
+    limits = ArmJointLimits(station, arm)
     built = MakeStation(station, kind="hardware" if hardware else "simulation")
-    q_start = built.GetOutputPort(f"{arm}.position_measured").Eval(built.CreateDefaultContext())
     period = station.tof_tools[tool].period
-    trajectory, holds = Schedule(np.array(q_start), holds, limits, speed_scale, period)
+    trajectory, holds = ScheduleHolds(
+        MeasuredJoints(built, arm), holds, limits, speed_scale, period
+    )
     print(
         f"calibrate tof: {len(holds)} rests over the target in {trajectory.end_time():.1f} s",
         flush=True,

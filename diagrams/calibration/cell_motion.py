@@ -1,0 +1,91 @@
+"""How the calibrations on a cell move its arm: rest-to-rest cubics in joint space through a
+list of poses, streamed to the arm's `position_commanded` of a station, simulated or
+hardware (the same ports), while an observer reads the station's outputs.
+
+Each move is timed as `guidedarm move-to-start` times its one (MoveDuration: every joint
+within `speed_scale` times its velocity and acceleration limits); against hardware the
+diagram keeps real time and every command passes the drivers' command guard and
+watchdogs, a link's fault raising HardwareFaultError with the arms stopped.
+"""
+
+from __future__ import annotations
+
+import gc
+from collections.abc import Callable
+
+import numpy as np
+from pydrake.systems.analysis import Simulator
+from pydrake.systems.framework import Context, Diagram, DiagramBuilder
+from pydrake.systems.primitives import TrajectorySource
+from pydrake.trajectories import PiecewisePolynomial
+
+from guidedarm.diagrams.station.move_to_start import MoveDuration
+from guidedarm.diagrams.station.scenario import StationScenario
+from guidedarm.diagrams.station.station_plant import GetArmInstance, MakeMultibodyPlant
+from guidedarm.systems.errors import ConfigurationError
+from guidedarm.systems.hardware.command_guard import JointLimits
+
+
+def ArmJointLimits(station: StationScenario, arm: str) -> JointLimits:
+    """The arm's velocity limits (its model's) and acceleration limits (its model's, else
+    its hardware entry's acceleration_limits), as the command guard takes them."""
+    plant = MakeMultibodyPlant(station, [arm])
+    entry = station.hardware.arms.get(arm)
+    try:
+        return JointLimits.FromPlant(
+            plant, GetArmInstance(plant, arm), entry.acceleration_limits if entry else []
+        )
+    except ConfigurationError as e:
+        raise ConfigurationError(f"hardware.arms.{arm}.acceleration_limits: {e}") from None
+
+
+def Schedule(
+    q_start: np.ndarray,
+    poses: list[np.ndarray],
+    rests: list[float],
+    limits: JointLimits,
+    speed_scale: float,
+) -> tuple[PiecewisePolynomial, list[tuple[float, float]]]:
+    """The joint trajectory (rad) from q_start through each of `poses`, resting rests[i] s
+    at pose i, and each rest's (start, end) time (s)."""
+    times, knots, windows = [0.0], [np.asarray(q_start, float)], []
+    for q, rest in zip(poses, rests, strict=True):
+        t_arrive = times[-1] + MoveDuration(knots[-1], q, limits, speed_scale)
+        windows.append((t_arrive, t_arrive + rest))
+        times += [t_arrive, t_arrive + rest]
+        knots += [np.asarray(q, float)] * 2
+    q = np.column_stack(knots)
+    return PiecewisePolynomial.CubicHermite(times, q, np.zeros_like(q)), windows
+
+
+def StreamToArm(
+    station: Diagram,
+    arm: str,
+    trajectory: PiecewisePolynomial,
+    step: float,
+    observe: Callable[[float, Context], None],
+    hardware: bool,
+) -> None:
+    """Streams `trajectory` to `<arm>.position_commanded` of `station` to its end, calling
+    observe(t, station context) every `step` s of diagram time; in real time against
+    hardware."""
+    builder = DiagramBuilder()
+    builder.AddNamedSystem("station", station)
+    source = builder.AddNamedSystem("calibration_moves", TrajectorySource(trajectory))
+    builder.Connect(source.get_output_port(), station.GetInputPort(f"{arm}.position_commanded"))
+    simulator = Simulator(builder.Build())
+    if hardware:
+        simulator.set_target_realtime_rate(1.0)
+        gc.freeze()  # as a hardware run: no full collection stalls the link threads
+    simulator.Initialize()
+    context = station.GetMyContextFromRoot(simulator.get_context())
+    for k in range(1, int(np.ceil(trajectory.end_time() / step)) + 1):
+        simulator.AdvanceTo(k * step)
+        observe(k * step, context)
+
+
+def MeasuredJoints(station: Diagram, arm: str) -> np.ndarray:
+    """The arm's joints (rad) as the station measures them before anything moves (a
+    hardware station's drivers hold the first sample of their link)."""
+    context = station.CreateDefaultContext()
+    return np.array(station.GetOutputPort(f"{arm}.position_measured").Eval(context))
