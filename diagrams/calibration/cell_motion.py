@@ -11,7 +11,12 @@ watchdogs, a link's fault raising HardwareFaultError with the arms stopped.
 from __future__ import annotations
 
 import gc
+import importlib.metadata
+import json
+import shlex
 from collections.abc import Callable
+from pathlib import Path
+from typing import Any
 
 import numpy as np
 from pydrake.systems.analysis import Simulator
@@ -26,15 +31,20 @@ from guidedarm.systems.errors import ConfigurationError
 from guidedarm.systems.hardware.command_guard import JointLimits
 
 
-def ArmJointLimits(station: StationScenario, arm: str) -> JointLimits:
+def ArmJointLimits(
+    station: StationScenario, arm: str, fallback: float | None = None
+) -> JointLimits:
     """The arm's velocity limits (its model's) and acceleration limits (its model's, else
-    its hardware entry's acceleration_limits), as the command guard takes them."""
+    its hardware entry's acceleration_limits, else `fallback` rad/s^2 for every joint), as
+    the command guard takes them."""
     plant = MakeMultibodyPlant(station, [arm])
+    instance = GetArmInstance(plant, arm)
     entry = station.hardware.arms.get(arm)
+    given = list(entry.acceleration_limits) if entry else []
+    if not given and fallback is not None:
+        given = [fallback] * plant.num_positions(instance)
     try:
-        return JointLimits.FromPlant(
-            plant, GetArmInstance(plant, arm), entry.acceleration_limits if entry else []
-        )
+        return JointLimits.FromPlant(plant, instance, given)
     except ConfigurationError as e:
         raise ConfigurationError(f"hardware.arms.{arm}.acceleration_limits: {e}") from None
 
@@ -89,3 +99,12 @@ def MeasuredJoints(station: Diagram, arm: str) -> np.ndarray:
     hardware station's drivers hold the first sample of their link)."""
     context = station.CreateDefaultContext()
     return np.array(station.GetOutputPort(f"{arm}.position_measured").Eval(context))
+
+
+def WriteCellSummary(out_dir: Path, summary: dict[str, Any], argv: list[str]) -> None:
+    """out_dir/summary.json of a calibration on a cell: `summary` (`success`, `failure`,
+    results) with the command line (`argv`, the arguments given to `guidedarm`) and the
+    version."""
+    summary["command"] = " ".join(shlex.quote(a) for a in ["guidedarm", *argv])
+    summary["version"] = importlib.metadata.version("guidedarm")
+    (out_dir / "summary.json").write_text(json.dumps(summary, indent=2) + "\n")

@@ -17,9 +17,7 @@ anything moves: a pose the arm cannot reach is refused, naming it.
 from __future__ import annotations
 
 import dataclasses
-import importlib.metadata
 import json
-import shlex
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -37,6 +35,7 @@ from guidedarm.diagrams.calibration.cell_motion import (
     MeasuredJoints,
     Schedule,
     StreamToArm,
+    WriteCellSummary,
 )
 from guidedarm.diagrams.calibration.tof_calibration import (
     READINGS_PER_DISTANCE,
@@ -296,13 +295,13 @@ def RunToFCalibrationOnCell(
         means = CalibrateToFOnCell(station, tool, home, speed_scale, hardware)
     except RunFailedError as e:
         summary |= {"success": False, "failure": str(e)}
-        _WriteSummary(out_dir, summary, argv)
+        WriteCellSummary(out_dir, summary, argv)
         return False, [f"calibrate tof failed: {e}"]
     truth = None if hardware else station.errors.tof_tools.get(tool, ToFErrors()).Offsets()
     lines = WriteToFOffsets(out_dir, tool, means, truth)
     report = json.loads((out_dir / "tof_report.json").read_text())
     summary |= {"success": True, "failure": "", "offset_m": report["offset_m"]}
-    _WriteSummary(out_dir, summary, argv)
+    WriteCellSummary(out_dir, summary, argv)
     return True, lines
 
 
@@ -330,9 +329,3 @@ def CheckCell(station: StationScenario, tool: str, hardware: bool) -> None:
                 f"calibrate tof --hardware: no {kind} driver for '{name}' "
                 f"(station.hardware.{section}.{name}, docs/hardware.md)"
             )
-
-
-def _WriteSummary(out_dir: Path, summary: dict[str, Any], argv: list[str]) -> None:
-    summary["command"] = " ".join(shlex.quote(a) for a in ["guidedarm", *argv])
-    summary["version"] = importlib.metadata.version("guidedarm")
-    (out_dir / "summary.json").write_text(json.dumps(summary, indent=2) + "\n")

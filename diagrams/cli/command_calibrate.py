@@ -40,7 +40,7 @@ from guidedarm.diagrams.panel.panel_files import LoadCameraIntrinsics
 from guidedarm.diagrams.run_context import PrepareOutputDirectory
 from guidedarm.diagrams.scenario_loading import AddOverridesArgument
 from guidedarm.systems.calibration.camera_calibration_math import CameraCalibration
-from guidedarm.systems.errors import ConfigurationError
+from guidedarm.systems.errors import ConfigurationError, GuidedArmError, RunFailedError
 
 DEFAULT_VIEWS = 15
 DEFAULT_SPEED_SCALE = 0.1  # as `guidedarm move-to-start`
@@ -56,6 +56,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     camera.add_argument("--images", type=Path, help="folder of board photos")
     camera.add_argument("--board", type=Path, help="BOARD.yaml")
     camera.add_argument("--out", type=Path, required=True, help="CAMERA.yaml (or DIR) to write")
+    _AddHardwareArguments(camera, "the arm takes the photos on the real cell")
     camera.set_defaults(func=calibrate_camera_command)
     hand_eye = kinds.add_parser("hand-eye", help="the camera's pose on the arm")
     _AddSimulationArguments(hand_eye)
@@ -64,22 +65,31 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     hand_eye.add_argument("--board", type=Path, help="BOARD.yaml")
     hand_eye.add_argument("--camera", type=Path, help="CAMERA.yaml of the camera")
     hand_eye.add_argument("--out", type=Path, required=True, help="output directory")
+    _AddHardwareArguments(hand_eye, "the arm takes the photos on the real cell")
     hand_eye.set_defaults(func=calibrate_hand_eye_command)
     tof = kinds.add_parser("tof", help="ToF sensors' offsets against a flat target")
     tof.add_argument("scenario", help="scenario with one ToF tool (name or file)")
     tof.add_argument("--out", type=Path, required=True, help="output directory")
-    tof.add_argument(
-        "--hardware", action="store_true", help="on the real cell: the arm holds the real tool"
-    )
-    tof.add_argument(
+    _AddHardwareArguments(tof, "on the real cell: the arm holds the real tool")
+    AddOverridesArgument(tof, "override a scenario key")
+    tof.set_defaults(func=calibrate_tof_command)
+
+
+def _AddHardwareArguments(parser: argparse.ArgumentParser, help: str) -> None:
+    """--hardware and --speed-scale (the arm's moves on a cell)."""
+    parser.add_argument("--hardware", action="store_true", help=help)
+    parser.add_argument(
         "--speed-scale",
         type=float,
         default=DEFAULT_SPEED_SCALE,
-        help="with a target in the cell: fraction of the joints' velocity and acceleration "
-        f"limits (default {DEFAULT_SPEED_SCALE})",
+        help="moves on a cell: fraction of the joints' velocity and acceleration limits "
+        f"(default {DEFAULT_SPEED_SCALE})",
     )
-    AddOverridesArgument(tof, "override a scenario key")
-    tof.set_defaults(func=calibrate_tof_command)
+
+
+def _CheckSpeedScale(args: argparse.Namespace) -> None:
+    if not 0 < args.speed_scale <= 1:
+        raise ConfigurationError(f"--speed-scale {args.speed_scale}: must be in (0, 1]")
 
 
 def _AddSimulationArguments(parser: argparse.ArgumentParser) -> None:
@@ -121,6 +131,8 @@ def _SimulatedCell(args: argparse.Namespace):
 
 
 def calibrate_camera_command(args: argparse.Namespace) -> int:
+    if args.hardware:
+        return _PhotosOnCell(args, ("images", "board"))
     if _CheckMode(args, ("images", "board")):
         from guidedarm.diagrams.calibration.simulated_calibration import CameraInSimulation
 
@@ -156,6 +168,8 @@ def _PrintCamera(calibration: CameraCalibration, out: Path) -> None:
 
 
 def calibrate_hand_eye_command(args: argparse.Namespace) -> int:
+    if args.hardware:
+        return _PhotosOnCell(args, ("images", "poses", "board", "camera"))
     if _CheckMode(args, ("images", "poses", "board", "camera")):
         from guidedarm.diagrams.calibration.simulated_calibration import HandEyeInSimulation
 
@@ -186,8 +200,7 @@ def calibrate_tof_command(args: argparse.Namespace) -> int:
     from guidedarm.diagrams.calibration.tof_on_cell import HasTarget
     from guidedarm.diagrams.tasks.registry import LoadScenario
 
-    if not 0 < args.speed_scale <= 1:
-        raise ConfigurationError(f"--speed-scale {args.speed_scale}: must be in (0, 1]")
+    _CheckSpeedScale(args)
     task, scenario, _ = LoadScenario(args.scenario, args.overrides)
     station = getattr(scenario, "station", None)
     if args.hardware or (station is not None and HasTarget(station)):
@@ -213,3 +226,48 @@ def _CalibrateToFOnCell(args: argparse.Namespace, task, scenario) -> int:
     print(f"wrote {args.out / 'tof_offsets.yaml'}")
     print("\n".join(lines))
     return 0
+
+
+def _PhotosOnCell(args: argparse.Namespace, offline: tuple[str, ...]) -> int:
+    """`calibrate camera | hand-eye SCENARIO --hardware`: the arm takes the photos on the
+    real cell (DIR/images/, poses.csv), then the offline calibration runs on them;
+    DIR/summary.json either way, exit 1 when the motion faulted or the photos do not
+    calibrate."""
+    from guidedarm.diagrams.calibration.cell_motion import WriteCellSummary
+    from guidedarm.diagrams.calibration.cell_photos import CameraOnCell, CellPhotos, HandEyeOnCell
+    from guidedarm.diagrams.calibration.simulated_calibration import TakePhotos
+    from guidedarm.diagrams.tasks.registry import LoadScenario
+
+    if args.scenario is None:
+        raise ConfigurationError("--hardware needs a SCENARIO (the cell's arm and camera)")
+    _CheckMode(args, offline)
+    _CheckSpeedScale(args)
+    _, scenario, _ = LoadScenario(args.scenario, args.overrides)
+    cell = CellPhotos(scenario, hardware=True, speed_scale=args.speed_scale)
+    PrepareOutputDirectory(args.out)
+    summary = {"kind": args.kind, "hardware": True}
+    try:
+        folder = TakePhotos(cell, args.out, args.views, args.seed)
+    except RunFailedError as e:
+        return _CellFailed(args, summary, e)
+    try:  # after the motion: photos that do not calibrate fail the run, not its input
+        if args.kind == "camera":
+            calibration = CameraOnCell(cell, args.out, folder)
+            _PrintCamera(calibration, args.out / "camera.yaml")
+            summary["rms_px"] = calibration.rms_px
+        else:
+            result = HandEyeOnCell(cell, args.out, folder)
+            print(f"wrote {args.out / 'hand_eye.yaml'} from {result.views} views")
+            summary["views"] = result.views
+    except GuidedArmError as e:
+        return _CellFailed(args, summary, e)
+    WriteCellSummary(args.out, {**summary, "success": True, "failure": ""}, args.argv)
+    return 0
+
+
+def _CellFailed(args: argparse.Namespace, summary: dict, error: Exception) -> int:
+    from guidedarm.diagrams.calibration.cell_motion import WriteCellSummary
+
+    WriteCellSummary(args.out, {**summary, "success": False, "failure": str(error)}, args.argv)
+    print(f"calibrate {args.kind} failed: {error}", file=sys.stderr)
+    return 1
