@@ -1,15 +1,21 @@
 """`guidedarm calibrate camera | hand-eye SCENARIO --hardware`: the photo procedure on a cell
 (CellPhotos: the arm moved to each view by its station's position_commanded, a photo and
-the measured pose once it rests). No camera emulator exists and the rover arm of the panel
-scenario has no driver, so the procedure runs here on the simulated station (the same
-code with the station swapped, hardware=False); on hardware only its refusals are tested."""
+the measured pose once it rests). No camera emulator exists (a camera double renders no
+board), so the calibration from the photos is tested on the simulated station (the same
+code with the station swapped, hardware=False); on hardware, the motion and capture
+sequence against `emulate nachi` with a video-file camera, and the refusals."""
 
 from __future__ import annotations
 
 import dataclasses
+import json
+import subprocess
+import sys
 
+import cv2
 import numpy as np
 import pytest
+from hardware_doubles import StartNachiEmulator, StopServer, WriteTestVideo
 from pydrake.common.schema import Transform
 from pydrake.math import RigidTransform, RollPitchYaw
 from pydrake.multibody.parsing import AddModel, AddWeld, ModelDirective
@@ -92,3 +98,84 @@ def test_hardware_photos_refused_before_motion(run_cli, tmp_path, kind, settings
 def test_hardware_without_scenario_refused(run_cli, tmp_path):
     code, _, err = run_cli("calibrate", "camera", "--hardware", "--out", tmp_path / "c.yaml")
     assert code == 2 and "--hardware needs a SCENARIO" in err, err
+
+
+HOME = "[0.0, 1.5707963267948966, 0.0, 0.0, -1.5707963267948966, 0.0]"
+# The MZ04D cell with a 640 x 480 camera on the flange looking along it, and the board face
+# up on the table in front of the arm (a joint_tour scenario: its station may have drivers).
+CAMERA_CELL = f"""task: joint_tour
+arm: mz04d
+waypoints: [{HOME}]
+station:
+  directives:
+  - add_directives: {{file: package://guidedarm/directives/mz04d_cell.dmd.yaml}}
+  - add_model: {{name: calibration_board, file: {BOARD}}}
+  - add_weld:
+      parent: world
+      child: calibration_board::board
+      X_PC: {{translation: [0.35, 0.0, 0.001], rotation: !Rpy {{deg: [180, 0, 0]}}}}
+  arms:
+    mz04d: {{initial_position: {HOME}, control_period: 0.01}}
+  cameras:
+    camera:
+      name: camera
+      width: 640
+      height: 480
+      focal: !FocalLength {{x: 600.0, y: 600.0}}
+      X_PB: {{base_frame: mz04d::flange}}
+  tof_tools:
+    tof: {{}}
+  hardware:
+    arms:
+      mz04d: !NachiDriver {{acceleration_limits: [10, 10, 10, 10, 10, 10]}}
+    cameras:
+      camera: {{source: "0"}}
+    tof_tools:
+      tof: !ToFSerialDriver {{device: /dev/rfcomm0}}
+"""
+WATCHDOG = 5.0  # s; the links' (not what this test is about)
+VIEWS = 5
+
+
+@pytest.mark.slow
+def test_views_visited_and_photographed_on_the_emulated_arm(tmp_path):
+    """Against `emulate nachi --lockstep` with the project's camera double, a video file of
+    plain colours played by cv2.VideoCapture (no board in it): the arm visits every planned
+    view and a photo of the camera's size is taken at each, with the emulated arm's measured
+    pose; the photos then do not calibrate (no board), which fails the run after the motion
+    with its cause (exit 1, summary.json), not as a refusal."""
+    cell_file = tmp_path / "cell.yaml"
+    cell_file.write_text(CAMERA_CELL)
+    video = tmp_path / "colours.avi"
+    WriteTestVideo(video, 640, 480, 1.0, 600)  # 600 s at 1 frame a second: outlasts the run
+    emulator, port, device = StartNachiEmulator("--scenario", str(cell_file), "--lockstep")
+    out = tmp_path / "out"
+    drivers = [
+        f"station.hardware.arms.mz04d=!NachiDriver {{port: {port}, lockstep: true, "
+        f"watchdog: {WATCHDOG}, acceleration_limits: [10, 10, 10, 10, 10, 10]}}",
+        f"station.hardware.cameras.camera={{source: {video}, watchdog: {WATCHDOG}}}",
+        f"station.hardware.tof_tools.tof={{device: {device}, watchdog: {WATCHDOG}, "
+        "lockstep: true}",
+    ]
+    command = [sys.executable, "-m", "guidedarm.diagrams.cli.main", "calibrate", "camera"]
+    command += [str(cell_file), "--hardware", "--out", str(out), "--views", str(VIEWS)]
+    command += ["--speed-scale", "1"] + [a for d in drivers for a in ("--set", d)]
+    try:
+        run = subprocess.run(command, capture_output=True, text=True, timeout=600)
+    finally:
+        StopServer(emulator)
+    assert run.returncode == 1, run.stderr
+    assert f"{VIEWS} views of the board" in run.stdout
+    summary = json.loads((out / "summary.json").read_text())
+    assert summary["success"] is False and summary["failure"], summary
+    assert "calibrate camera failed" in run.stderr
+    images = sorted((out / "images").iterdir())
+    assert [p.name for p in images] == [f"view{k:02d}.png" for k in range(VIEWS)]
+    assert all(cv2.imread(str(p)).shape == (480, 640, 3) for p in images)
+    _, scenario, _ = LoadScenario(str(cell_file), [])
+    cell = CellPhotos(scenario, hardware=False, speed_scale=1.0)
+    poses = ReadPoses(out / "poses.csv")
+    for k, q in enumerate(cell.PlanViews(VIEWS, seed=0)):
+        X_WF = cell.kinematics.X_WC(q) @ cell.X_FC_nominal.inverse()
+        recorded = poses[f"view{k:02d}.png"]
+        assert np.linalg.norm(recorded.translation() - X_WF.translation()) < 1e-3
