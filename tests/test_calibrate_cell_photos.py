@@ -15,7 +15,12 @@ import sys
 import cv2
 import numpy as np
 import pytest
-from hardware_doubles import StartNachiEmulator, StopServer, WriteTestVideo
+from hardware_doubles import (
+    Mz04dCalibrationCell,
+    StartNachiEmulator,
+    StopServer,
+    WriteTestVideo,
+)
 from pydrake.common.schema import Transform
 from pydrake.math import RigidTransform, RollPitchYaw
 from pydrake.multibody.parsing import AddModel, AddWeld, ModelDirective
@@ -100,39 +105,24 @@ def test_hardware_without_scenario_refused(run_cli, tmp_path):
     assert code == 2 and "--hardware needs a SCENARIO" in err, err
 
 
-HOME = "[0.0, 1.5707963267948966, 0.0, 0.0, -1.5707963267948966, 0.0]"
 # The MZ04D cell with a 640 x 480 camera on the flange looking along it, and the board face
 # up on the table in front of the arm (a joint_tour scenario: its station may have drivers).
-CAMERA_CELL = f"""task: joint_tour
-arm: mz04d
-waypoints: [{HOME}]
-station:
-  directives:
-  - add_directives: {{file: package://guidedarm/directives/mz04d_cell.dmd.yaml}}
-  - add_model: {{name: calibration_board, file: {BOARD}}}
+CAMERA_CELL = Mz04dCalibrationCell(
+    f"""  - add_model: {{name: calibration_board, file: {BOARD}}}
   - add_weld:
       parent: world
       child: calibration_board::board
       X_PC: {{translation: [0.35, 0.0, 0.001], rotation: !Rpy {{deg: [180, 0, 0]}}}}
-  arms:
-    mz04d: {{initial_position: {HOME}, control_period: 0.01}}
-  cameras:
-    camera:
+""",
+    cameras="""    camera:
       name: camera
       width: 640
       height: 480
-      focal: !FocalLength {{x: 600.0, y: 600.0}}
-      X_PB: {{base_frame: mz04d::flange}}
-  tof_tools:
-    tof: {{}}
-  hardware:
-    arms:
-      mz04d: !NachiDriver {{acceleration_limits: [10, 10, 10, 10, 10, 10]}}
-    cameras:
-      camera: {{source: "0"}}
-    tof_tools:
-      tof: !ToFSerialDriver {{device: /dev/rfcomm0}}
-"""
+      focal: !FocalLength {x: 600.0, y: 600.0}
+      X_PB: {base_frame: mz04d::flange}
+""",
+    camera_drivers='      camera: {source: "0"}\n',
+)
 WATCHDOG = 5.0  # s; the links' (not what this test is about)
 VIEWS = 5
 

@@ -11,31 +11,13 @@ import sys
 
 import numpy as np
 import pytest
-from hardware_doubles import StartNachiEmulator, StopServer
+from hardware_doubles import Mz04dCalibrationCell, StartNachiEmulator, StopServer
 
 from guidedarm.diagrams.calibration.calibration_files import LoadToFOffsets
 
-HOME = "[0.0, 1.5707963267948966, 0.0, 0.0, -1.5707963267948966, 0.0]"
 TARGET = "package://guidedarm/directives/tof_target.dmd.yaml"
-# The MZ04D cell with the ToF tool and the target, no hose (a joint_tour scenario: its
-# station is the scenario's own).
-CELL = f"""task: joint_tour
-arm: mz04d
-waypoints: [{HOME}]
-station:
-  directives:
-  - add_directives: {{file: package://guidedarm/directives/mz04d_cell.dmd.yaml}}
-  - add_directives: {{file: {TARGET}}}
-  arms:
-    mz04d: {{initial_position: {HOME}, control_period: 0.01}}
-  tof_tools:
-    tof: {{}}
-  hardware:
-    arms:
-      mz04d: !NachiDriver {{acceleration_limits: [10, 10, 10, 10, 10, 10]}}
-    tof_tools:
-      tof: !ToFSerialDriver {{device: /dev/rfcomm0}}
-"""
+# The MZ04D cell with the ToF tool and the target, no hose.
+CELL = Mz04dCalibrationCell(f"  - add_directives: {{file: {TARGET}}}\n")
 # m; what the emulated tool reads too long (the truth the calibration must find)
 OFFSETS = [0.003, -0.002, 0.0015, 0.004, -0.001, 0.0025]
 # s; the links' watchdogs, also how long the lockstep run waits for the emulator's joints
