@@ -77,6 +77,22 @@ def test_emulated_offsets_recovered_within_half_a_millimetre(tmp_path):
 
 
 @pytest.mark.slow
+def test_the_same_procedure_on_the_simulated_station(run_cli, tmp_path):
+    """Without --hardware the scenario's target makes the simulated run the same steps, on
+    the simulated station, printed beside the truth."""
+    out = tmp_path / "out"
+    offsets = f"station.errors.tof_tools.tof.offset={OFFSETS}"
+    code, stdout, err = run_cli(
+        "calibrate", "tof", _Cell(tmp_path), "--out", out, "--speed-scale", "1", "--set", offsets
+    )
+    assert code == 0, err
+    assert "rests over the target" in stdout and "truth" in stdout
+    report = json.loads((out / "tof_report.json").read_text())
+    np.testing.assert_allclose(report["true_offset_m"], OFFSETS)
+    assert np.max(np.abs(np.array(report["offset_m"]) - OFFSETS)) < 0.5e-3
+
+
+@pytest.mark.slow
 def test_controller_killed_during_the_procedure_ends_with_its_cause(tmp_path):
     cell = _Cell(tmp_path)
     emulator, port, device = _Emulator(cell)
