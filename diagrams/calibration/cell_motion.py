@@ -5,13 +5,15 @@ hardware (the same ports), while an observer reads the station's outputs.
 Each move is timed as `guidedarm move-to-start` times its one (MoveDuration: every joint
 within `speed_scale` times its velocity and acceleration limits); against hardware the
 diagram keeps real time and every command passes the drivers' command guard and
-watchdogs, a link's fault raising HardwareFaultError with the arms stopped.
+watchdogs, a link's fault raising HardwareFaultError with the arms stopped. Before any
+motion CheckMovesClear refuses a plan that sweeps the arm through the cell's models.
 """
 
 from __future__ import annotations
 
 import gc
 import importlib.metadata
+import itertools
 import json
 import shlex
 from collections.abc import Callable
@@ -26,9 +28,16 @@ from pydrake.trajectories import PiecewisePolynomial
 
 from guidedarm.diagrams.station.move_to_start import MoveDuration
 from guidedarm.diagrams.station.scenario import StationScenario
-from guidedarm.diagrams.station.station_plant import GetArmInstance, MakeMultibodyPlant
+from guidedarm.diagrams.station.station_plant import (
+    ArmAndAttachments,
+    GetArmInstance,
+    MakeMultibodyPlant,
+)
+from guidedarm.diagrams.tasks.common.cell_collisions import CellCollisions
 from guidedarm.systems.errors import ConfigurationError
 from guidedarm.systems.hardware.command_guard import JointLimits
+
+CLEARANCE_STEP_RAD = 0.02  # rad of the largest joint's travel between collision checks
 
 
 def ArmJointLimits(
@@ -57,15 +66,38 @@ def Schedule(
     speed_scale: float,
 ) -> tuple[PiecewisePolynomial, list[tuple[float, float]]]:
     """The joint trajectory (rad) from q_start through each of `poses`, resting rests[i] s
-    at pose i, and each rest's (start, end) time (s)."""
+    (>= 0) at pose i, and each rest's (start, end) time (s)."""
     times, knots, windows = [0.0], [np.asarray(q_start, float)], []
     for q, rest in zip(poses, rests, strict=True):
         t_arrive = times[-1] + MoveDuration(knots[-1], q, limits, speed_scale)
         windows.append((t_arrive, t_arrive + rest))
-        times += [t_arrive, t_arrive + rest]
-        knots += [np.asarray(q, float)] * 2
+        ends = [t_arrive, t_arrive + rest] if rest > 0 else [t_arrive]
+        times += ends
+        knots += [np.asarray(q, float)] * len(ends)
     q = np.column_stack(knots)
     return PiecewisePolynomial.CubicHermite(times, q, np.zeros_like(q)), windows
+
+
+def CheckMovesClear(
+    station: StationScenario, arm: str, trajectory: PiecewisePolynomial, what: str
+) -> None:
+    """Refuses (ConfigurationError, one line) a trajectory of the arm's joints along which
+    the arm or what it carries enters the cell's models or itself (CellCollisions: the
+    scenario's models, not the hose), sampled every CLEARANCE_STEP_RAD of the largest
+    joint's travel; `what` names the procedure in the message."""
+    collisions = CellCollisions(station, arm, ArmAndAttachments(MakeMultibodyPlant(station), arm))
+    times = trajectory.get_segment_times()
+    for t0, t1 in itertools.pairwise(times):
+        travel = np.max(np.abs(trajectory.value(t1) - trajectory.value(t0)))
+        for t in np.linspace(t0, t1, int(np.ceil(travel / CLEARANCE_STEP_RAD)) + 1):
+            contacts = collisions.Contacts(trajectory.value(t).ravel())
+            if contacts:
+                a, b, depth = contacts[0]
+                raise ConfigurationError(
+                    f"{what}: at t = {t:.2f} s of the planned moves {a} and {b} overlap by "
+                    f"{1e3 * depth:.1f} mm: move the target or the scenario's initial "
+                    "position (the moves are straight in joint space)"
+                )
 
 
 def StreamToArm(

@@ -26,6 +26,7 @@ from guidedarm.diagrams.calibration.calibration_files import LoadBoardSpec
 from guidedarm.diagrams.calibration.camera_calibration import CalibrateCameraFromImages
 from guidedarm.diagrams.calibration.cell_motion import (
     ArmJointLimits,
+    CheckMovesClear,
     MeasuredJoints,
     Schedule,
     StreamToArm,
@@ -120,11 +121,17 @@ class CellPhotos:
         # moves within SIMULATED_ACCELERATION; on hardware its driver entry gives them.
         fallback = None if self.hardware else SIMULATED_ACCELERATION
         limits = ArmJointLimits(station_scenario, arm, fallback)
-        station = MakeStation(station_scenario, kind="hardware" if self.hardware else "simulation")
         rest = SETTLE_S + CAPTURE_FRAMES / fps
-        trajectory, windows = Schedule(
-            MeasuredJoints(station, arm), poses, [rest] * len(poses), limits, self.speed_scale
-        )
+        rests = [rest] * len(poses)
+        # Checked before any link is connected from the first view on; the move from where
+        # the arm is measured to the first view once it is.
+        planned, _ = Schedule(poses[0], poses, rests, limits, self.speed_scale)
+        CheckMovesClear(station_scenario, arm, planned, "calibrate")
+        station = MakeStation(station_scenario, kind="hardware" if self.hardware else "simulation")
+        q_start = MeasuredJoints(station, arm)
+        first, _ = Schedule(q_start, poses[:1], [0.0], limits, 1.0)
+        CheckMovesClear(station_scenario, arm, first, "calibrate")
+        trajectory, windows = Schedule(q_start, poses, rests, limits, self.speed_scale)
         print(
             f"calibrate: {len(poses)} views of the board in {trajectory.end_time():.1f} s",
             flush=True,

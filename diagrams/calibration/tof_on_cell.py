@@ -32,6 +32,7 @@ from pydrake.trajectories import PiecewisePolynomial
 
 from guidedarm.diagrams.calibration.cell_motion import (
     ArmJointLimits,
+    CheckMovesClear,
     MeasuredJoints,
     Schedule,
     StreamToArm,
@@ -255,11 +256,17 @@ def CalibrateToFOnCell(
     arm = ToolArm(MakeMultibodyPlant(station), station, tool)
     holds = PlanHolds(station, tool, arm, home)
     limits = ArmJointLimits(station, arm)
-    built = MakeStation(station, kind="hardware" if hardware else "simulation")
     period = station.tof_tools[tool].period
-    trajectory, holds = ScheduleHolds(
-        MeasuredJoints(built, arm), holds, limits, speed_scale, period
+    # Checked before any link is connected, from home on; the move from where the arm is
+    # measured to home once it is.
+    planned, _ = ScheduleHolds(holds[0].q, holds, limits, speed_scale, period)
+    CheckMovesClear(station, arm, planned, "calibrate tof")
+    built = MakeStation(station, kind="hardware" if hardware else "simulation")
+    q_start = MeasuredJoints(built, arm)
+    CheckMovesClear(
+        station, arm, Schedule(q_start, [holds[0].q], [0.0], limits, 1.0)[0], "calibrate tof"
     )
+    trajectory, holds = ScheduleHolds(q_start, holds, limits, speed_scale, period)
     print(
         f"calibrate tof: {len(holds)} rests over the target in {trajectory.end_time():.1f} s",
         flush=True,

@@ -11,13 +11,19 @@ data (photos, arm poses, ToF readings) and write the files the scenarios read.
       the camera's pose on the arm (OUT/hand_eye.yaml: X_PC) from recorded photos and poses;
   calibrate hand-eye SCENARIO --out DIR
       the same in simulation, printed beside the true mount;
+  calibrate camera | hand-eye SCENARIO --hardware --out DIR [--speed-scale S]
+      on the real cell: the arm moves its camera through the views of the printed board
+      the scenario places (diagrams/calibration/cell_photos.py; DIR/summary.json, exit 1
+      on a fault);
   calibrate tof SCENARIO --out DIR [--hardware] [--speed-scale S]
       each ToF sensor's offset against a flat target (DIR/tof_offsets.yaml): in simulation
       printed beside the drawn truth; where the scenario places the target in the cell
       (a `tof_target` model), the arm holds the tool over it, on the simulated station or
       with --hardware on the real one (DIR/summary.json; exit 1 on a fault).
-SCENARIO is a panel_operation scenario for camera and hand-eye, one with a ToF tool (e.g.
-path_following) for tof, by name or file, with `--set key=value` overrides.
+SCENARIO is a panel_operation scenario for camera and hand-eye in simulation (with
+--hardware one whose station may have drivers: a joint_tour of the cell with its camera),
+one with a ToF tool (e.g. path_following) for tof, by name or file, with `--set key=value`
+overrides.
 """
 
 from __future__ import annotations
