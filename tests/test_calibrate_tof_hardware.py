@@ -6,6 +6,7 @@ simulated world, with known sensor offsets); and its refusals before motion."""
 from __future__ import annotations
 
 import json
+import signal
 import subprocess
 import sys
 
@@ -172,3 +173,25 @@ def test_refused_before_motion_in_one_line(run_cli, tmp_path, text, settings, me
     assert code == 2 and stdout == "", err
     assert len(err.strip().splitlines()) == 1 and message in err, err
     assert not (out / "summary.json").exists()
+
+
+def test_ctrl_c_during_the_procedure_ends_with_a_summary(tmp_path):
+    """The simulated cell (no emulator needed: the same procedure): Ctrl-C once the arm
+    moves ends with exit 1 and `failure: interrupted` in summary.json."""
+    out = tmp_path / "out"
+    process = subprocess.Popen(
+        [*CALIBRATE, str(_Cell(tmp_path)), "--out", str(out)],
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+    )
+    try:
+        assert "rests over the target" in process.stdout.readline()
+        process.send_signal(signal.SIGINT)
+        _, err = process.communicate(timeout=120)
+    finally:
+        process.kill()
+    assert process.returncode == 1, err
+    summary = json.loads((out / "summary.json").read_text())
+    assert summary["success"] is False and summary["failure"] == "interrupted", summary
+    assert "calibrate tof failed: interrupted" in err

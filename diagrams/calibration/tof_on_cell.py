@@ -55,6 +55,7 @@ from guidedarm.diagrams.station.station_plant import (
     GetArmInstance,
     MakeMultibodyPlant,
 )
+from guidedarm.diagrams.task_run import InterruptedFailure
 from guidedarm.systems.errors import ConfigurationError, RunFailedError
 from guidedarm.systems.hardware.command_guard import JointLimits
 from guidedarm.systems.plant_frames import GetScopedFrame
@@ -300,10 +301,11 @@ def RunToFCalibrationOnCell(
     summary: dict[str, Any] = {"tool": tool, "hardware": hardware}
     try:
         means = CalibrateToFOnCell(station, tool, home, speed_scale, hardware)
-    except RunFailedError as e:
-        summary |= {"success": False, "failure": str(e)}
+    except (RunFailedError, KeyboardInterrupt) as e:
+        failure = InterruptedFailure(e) if isinstance(e, KeyboardInterrupt) else str(e)
+        summary |= {"success": False, "failure": failure}
         WriteCellSummary(out_dir, summary, argv)
-        return False, [f"calibrate tof failed: {e}"]
+        return False, [f"calibrate tof failed: {failure}"]
     truth = None if hardware else station.errors.tof_tools.get(tool, ToFErrors()).Offsets()
     lines = WriteToFOffsets(out_dir, tool, means, truth)
     report = json.loads((out_dir / "tof_report.json").read_text())

@@ -254,7 +254,7 @@ def _PhotosOnCell(args: argparse.Namespace, offline: tuple[str, ...]) -> int:
     summary = {"kind": args.kind, "hardware": True}
     try:
         folder = TakePhotos(cell, args.out, args.views, args.seed)
-    except RunFailedError as e:
+    except (RunFailedError, KeyboardInterrupt) as e:
         return _CellFailed(args, summary, e)
     try:  # after the motion: photos that do not calibrate fail the run, not its input
         if args.kind == "camera":
@@ -271,9 +271,12 @@ def _PhotosOnCell(args: argparse.Namespace, offline: tuple[str, ...]) -> int:
     return 0
 
 
-def _CellFailed(args: argparse.Namespace, summary: dict, error: Exception) -> int:
+def _CellFailed(args: argparse.Namespace, summary: dict, error: BaseException) -> int:
+    """Writes DIR/summary.json with `failure` (`interrupted` for Ctrl-C); exit 1."""
     from guidedarm.diagrams.calibration.cell_motion import WriteCellSummary
+    from guidedarm.diagrams.task_run import InterruptedFailure
 
-    WriteCellSummary(args.out, {**summary, "success": False, "failure": str(error)}, args.argv)
-    print(f"calibrate {args.kind} failed: {error}", file=sys.stderr)
+    failure = InterruptedFailure(error) if isinstance(error, KeyboardInterrupt) else str(error)
+    WriteCellSummary(args.out, {**summary, "success": False, "failure": failure}, args.argv)
+    print(f"calibrate {args.kind} failed: {failure}", file=sys.stderr)
     return 1
