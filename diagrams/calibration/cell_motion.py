@@ -26,6 +26,7 @@ from pydrake.systems.framework import Context, Diagram, DiagramBuilder
 from pydrake.systems.primitives import TrajectorySource
 from pydrake.trajectories import PiecewisePolynomial
 
+from guidedarm.diagrams.interrupts import DeferredInterrupts
 from guidedarm.diagrams.station.move_to_start import MoveDuration
 from guidedarm.diagrams.station.scenario import StationScenario
 from guidedarm.diagrams.station.station_plant import (
@@ -35,6 +36,7 @@ from guidedarm.diagrams.station.station_plant import (
 )
 from guidedarm.diagrams.tasks.common.cell_collisions import CellCollisions
 from guidedarm.systems.errors import ConfigurationError
+from guidedarm.systems.hardware.arm_link import ReportStopErrors, StopAllArms
 from guidedarm.systems.hardware.command_guard import JointLimits
 
 CLEARANCE_STEP_RAD = 0.02  # rad of the largest joint's travel between collision checks
@@ -110,7 +112,8 @@ def StreamToArm(
 ) -> None:
     """Streams `trajectory` to `<arm>.position_commanded` of `station` to its end, calling
     observe(t, station context) every `step` s of diagram time; in real time against
-    hardware."""
+    hardware. A KeyboardInterrupt (Ctrl-C, SIGTERM) stops every hardware arm, then goes
+    on."""
     builder = DiagramBuilder()
     builder.AddNamedSystem("station", station)
     source = builder.AddNamedSystem("calibration_moves", TrajectorySource(trajectory))
@@ -121,9 +124,15 @@ def StreamToArm(
         gc.freeze()  # as a hardware run: no full collection stalls the link threads
     simulator.Initialize()
     context = station.GetMyContextFromRoot(simulator.get_context())
-    for k in range(1, int(np.ceil(trajectory.end_time() / step)) + 1):
-        simulator.AdvanceTo(k * step)
-        observe(k * step, context)
+    try:
+        for k in range(1, int(np.ceil(trajectory.end_time() / step)) + 1):
+            simulator.AdvanceTo(k * step)
+            observe(k * step, context)
+    except KeyboardInterrupt:
+        # Ctrl-C or SIGTERM: the hardware arms stop now, not at the end of the command.
+        with DeferredInterrupts():
+            ReportStopErrors(StopAllArms(), "after the interrupt")
+        raise
 
 
 def MeasuredJoints(station: Diagram, arm: str) -> np.ndarray:
