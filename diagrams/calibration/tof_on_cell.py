@@ -5,13 +5,13 @@ distances, the same steps on the simulated station and on the hardware one.
 The target is a model instance `tof_target` of the station's directives (its link `target`:
 origin at the centre of the face, +z out of it; models/calibration/tof_target.sdf), welded
 where the real one lies: the procedure reads its pose from the scenario, never from a
-sensor. For each group of parallel sensors (sensors 1-3, then 4-6) the tool comes to
-CLEARANCE_M over the target, then to each of TARGET_DISTANCES_M from the farthest in,
-resting SETTLE_S before READINGS_PER_DISTANCE new readings are taken, and back to
-CLEARANCE_M; every move is one cubic in joint space at rest at both ends, timed within
-`speed_scale` times the joints' velocity and acceleration limits (move_to_start's
-MoveDuration). Every pose is solved by inverse kinematics on the controller's model before
-anything moves: a pose the arm cannot reach is refused, naming it.
+sensor. From the scenario's initial position (home), for each group of parallel sensors
+(sensors 1-3, then 4-6) the tool comes to CLEARANCE_M over the target, then to each of
+TARGET_DISTANCES_M from the farthest in, resting SETTLE_S before READINGS_PER_DISTANCE new
+readings are taken, back to CLEARANCE_M and home; every move is one cubic in joint space
+at rest at both ends (cell_motion.py). Before anything moves every pose is solved by
+inverse kinematics on the controller's model (a pose out of reach is refused, naming it)
+and every move is checked against the scenario's models (CheckMovesClear).
 """
 
 from __future__ import annotations
@@ -78,7 +78,7 @@ IK_RESTARTS = 8
 @dataclass(frozen=True)
 class Hold:
     """A rest of the arm at joints q (rad) from t_start to t_end (s); group and distance
-    (m) of a measurement, group None for a clearance pose."""
+    (m) of a measurement, group None for home or a clearance pose."""
 
     q: np.ndarray
     group: int | None
