@@ -262,3 +262,32 @@ def WriteTestVideo(path, width: int, height: int, fps: float, frames: int) -> li
 
 
 VIDEO_COLOURS_BGR = [(255, 0, 0), (0, 255, 0), (0, 0, 255)]
+
+
+MZ04D_HOME = "[0.0, 1.5707963267948966, 0.0, 0.0, -1.5707963267948966, 0.0]"
+
+
+def Mz04dCalibrationCell(directives: str, cameras: str = "", camera_drivers: str = "") -> str:
+    """The text of a joint_tour scenario of the MZ04D cell (gripper, ToF tool `tof`, no hose;
+    its station the scenario's own, so it may have drivers): the arm at home with a 10 ms
+    control period on a `!NachiDriver`, the tool on a `!ToFSerialDriver`, `directives`
+    (YAML list items, 2-space indent) added to the cell's, and `cameras` and
+    `camera_drivers` (YAML mapping items, 4-space indent) when given."""
+    camera_section = f"  cameras:\n{cameras}" if cameras else ""
+    camera_driver_section = f"    cameras:\n{camera_drivers}" if camera_drivers else ""
+    return f"""task: joint_tour
+arm: mz04d
+waypoints: [{MZ04D_HOME}]
+station:
+  directives:
+  - add_directives: {{file: package://guidedarm/directives/mz04d_cell.dmd.yaml}}
+{directives}  arms:
+    mz04d: {{initial_position: {MZ04D_HOME}, control_period: 0.01}}
+{camera_section}  tof_tools:
+    tof: {{}}
+  hardware:
+    arms:
+      mz04d: !NachiDriver {{acceleration_limits: [10, 10, 10, 10, 10, 10]}}
+{camera_driver_section}    tof_tools:
+      tof: !ToFSerialDriver {{device: /dev/rfcomm0}}
+"""

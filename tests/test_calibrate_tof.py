@@ -46,7 +46,7 @@ def test_offsets_within_half_a_millimetre_and_taken_out_by_the_calibration_file(
             ["station.tof_tools.tof.calibration_file=/nonexistent/tof_offsets.yaml"],
             "key 'station.tof_tools.tof.calibration_file': file not found",
         ),
-        ("path_following", ["--hardware"], "calibrate tof --hardware is not implemented"),
+        ("path_following", ["--hardware"], "the station has no 'tof_target' model"),
     ],
 )
 def test_bad_tof_input_is_one_line(run_cli, tmp_path, scenario, settings, message):

@@ -38,10 +38,21 @@ READINGS_PER_DISTANCE = 40
 # The tool's geometry (models/tools/tof_tool.urdf): emitters h = 55 mm from the tool frame;
 # sensors 1-3 look along tool -z, 4-6 along +y. The target's face (its +z) faces them.
 _ARM_OFFSET_M = 0.055
-_GROUPS = (
-    ((0, 1, 2), lambda d: RigidTransform([0.0, 0.0, _ARM_OFFSET_M - d])),
-    ((3, 4, 5), lambda d: RigidTransform(RollPitchYaw(np.pi / 2, 0, 0), [0, d - _ARM_OFFSET_M, 0])),
-)
+SENSOR_GROUPS = ((0, 1, 2), (3, 4, 5))
+_TARGET_SHIFT_M = 0.01
+
+
+def TargetInTool(group: int, distance: float) -> RigidTransform:
+    """X_TP: the target's face P perpendicular to the sensors of SENSOR_GROUPS[group], its
+    plane `distance` m from their emitters, in the tool frame T. Its centre lies
+    _TARGET_SHIFT_M off the group's middle sensor, away from the other arm of the L: the
+    110 mm target then ends 10 mm short of that arm's sensor boards, which a target centred
+    on the sensors would touch, and still covers the group's three cones."""
+    if group == 0:
+        return RigidTransform([0.0, _TARGET_SHIFT_M, _ARM_OFFSET_M - distance])
+    return RigidTransform(
+        RollPitchYaw(np.pi / 2, 0, 0), [0, distance - _ARM_OFFSET_M, -_TARGET_SHIFT_M]
+    )
 
 
 def ToFTool(scenario: Any) -> str:
@@ -58,11 +69,11 @@ def ToFTool(scenario: Any) -> str:
 def MeasureAtDistances(scenario: Any, tool: str) -> np.ndarray:
     """The mean reading (m) of each sensor (6) at each of TARGET_DISTANCES_M (3 x 6)."""
     means = np.full((len(TARGET_DISTANCES_M), 6), np.nan)
-    for g, (sensors, X_TP) in enumerate(_GROUPS):
+    for g, sensors in enumerate(SENSOR_GROUPS):
         for i, distance in enumerate(TARGET_DISTANCES_M):
             # Each placement is measured at its own time: its own noise and drift stream.
             seed = 1000 * (getattr(scenario, "random_seed", 0) or 0) + 10 * g + i
-            readings = _Readings(scenario, tool, X_TP(distance), seed)
+            readings = _Readings(scenario, tool, TargetInTool(g, distance), seed)
             means[i, list(sensors)] = readings[list(sensors)]
     return means
 
@@ -134,8 +145,17 @@ def CalibrateToFInSimulation(scenario: Any, out_dir: Path) -> list[str]:
     tool = ToFTool(scenario)
     scenario = WithErrorsDrawn(scenario)
     means = MeasureAtDistances(scenario, tool)
-    offset, slope = FitOffsets(means)
     truth = scenario.station.errors.tof_tools.get(tool, ToFErrors()).Offsets()
+    return WriteToFOffsets(out_dir, tool, means, truth)
+
+
+def WriteToFOffsets(
+    out_dir: Path, tool: str, means: np.ndarray, truth: np.ndarray | None = None
+) -> list[str]:
+    """Fits the offsets to the mean readings (m, TARGET_DISTANCES_M x 6; FitOffsets),
+    writes out_dir/tof_offsets.yaml and tof_report.json; returns the lines of the table,
+    beside the `truth` (m, six) in simulation."""
+    offset, slope = FitOffsets(means)
     values = ", ".join(f"{v:.6f}" for v in offset)
     (out_dir / "tof_offsets.yaml").write_text(
         "# How much each of the six sensors reads too long (m), `guidedarm calibrate tof`:\n"
@@ -149,9 +169,14 @@ def CalibrateToFInSimulation(scenario: Any, out_dir: Path) -> list[str]:
         "mean_readings_m": means.round(6).tolist(),
         "offset_m": offset.round(6).tolist(),
         "slope": slope.round(5).tolist(),
-        "true_offset_m": truth.round(6).tolist(),
     }
+    if truth is not None:
+        report["true_offset_m"] = truth.round(6).tolist()
     (out_dir / "tof_report.json").write_text(json.dumps(report, indent=1) + "\n")
+    if truth is None:
+        lines = [f"{'sensor':6s} {'calibrated':>11s}  (mm; slope)"]
+        lines += [f"{i + 1:6d} {offset[i] * 1e3:11.3f}  ({slope[i]:+.4f})" for i in range(6)]
+        return lines
     lines = [f"{'sensor':6s} {'calibrated':>11s} {'truth':>9s} {'residual':>9s}  (mm; slope)"]
     for i in range(6):
         lines.append(
