@@ -1,17 +1,20 @@
 """Wiring that every station branch shares: the ToF tools reading the scene's SceneGraph,
-and the Meshcat drawing of the plant. MakeStation (simulated) and MakeKinematicStation
-build their ToF sensors and drawing here, so both export the same `<tof>.*` ports.
+the arms' joint calibration and the Meshcat drawing of the plant. MakeStation (simulated),
+MakeKinematicStation and MakeHardwareStation build them here, so all export the same ports.
 """
 
 from __future__ import annotations
 
+import numpy as np
 from pydrake.geometry import Meshcat, SceneGraph
 from pydrake.lcm import DrakeLcm
 from pydrake.multibody.plant import MultibodyPlant
-from pydrake.systems.framework import DiagramBuilder
+from pydrake.systems.framework import DiagramBuilder, System
+from pydrake.systems.primitives import AffineSystem
 from pydrake.visualization import ApplyVisualizationConfig
 
 from guidedarm.diagrams.station.scenario import StationScenario
+from guidedarm.systems.errors import ConfigurationError
 from guidedarm.systems.tof.tof_errors import ToFErrors
 from guidedarm.systems.tof.tof_tool_sensor import TOF_PORTS, ToFToolSensor
 
@@ -40,6 +43,28 @@ def AddToFTools(
         builder.Connect(scene_graph.get_query_output_port(), sensor.get_input_port())
         for port in TOF_PORTS:
             builder.ExportOutput(sensor.GetOutputPort(port), f"{name}.{port}")
+
+
+def ArmCalibrationOffset(scenario: StationScenario, name: str, n: int) -> np.ndarray | None:
+    """arms[name].calibration_file's joint offsets (rad), checked against the arm's n joints;
+    None without a file."""
+    offset = scenario.ArmCalibration(name)
+    if offset is not None and offset.size != n:
+        raise ConfigurationError(
+            f"arms.{name}.calibration_file has {offset.size} joint offsets, the arm has {n} joints"
+        )
+    return offset
+
+
+def AddOffset(builder: DiagramBuilder, name: str, offset: np.ndarray) -> System:
+    """A feedthrough system named `name`: its output is its input plus `offset` (a vector)."""
+    m = offset.size
+    return builder.AddNamedSystem(
+        name,
+        AffineSystem(
+            np.zeros((0, 0)), np.zeros((0, m)), np.zeros(0), np.zeros((m, 0)), np.eye(m), offset
+        ),
+    )
 
 
 def AddMeshcatVisualization(

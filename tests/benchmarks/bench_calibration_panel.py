@@ -1,12 +1,14 @@
 """Panel operation on an imperfect cell with and without its calibration files.
 
-For each draw of the c920 preset's camera errors (focal length, principal point, residual
-distortion, the camera's mount; random_seed 0..N-1): the simulated rover arm photographs
-the cell's board (10 views, 1x rendering), `calibrate camera` and `calibrate hand-eye` run
-on those photos and poses, then panel_operation runs twice from the same start: with the
-nominal files, and with estimator_camera_file and camera_mount_file set to the calibrated
-ones. Prints the true press error (|true_press_error_mm|, the tip against its target in
-the panel frame) per draw and the mean and max of each.
+For each draw of the c920 and rover_arm presets' errors (the camera's focal length,
+principal point, residual distortion and mount; the arm's joint offsets and joint
+compliance; random_seed 0..N-1): the simulated rover arm photographs the cell's board
+(VIEWS views, 1x rendering), `calibrate camera` and `calibrate hand-eye` (with the arm's
+joint offsets) run on those photos, poses and joints, then panel_operation runs twice from
+the same start: with the nominal files, and with estimator_camera_file, camera_mount_file
+and the arm's calibration_file set to the calibrated ones. Prints the true press error
+(|true_press_error_mm|, the tip against its target in the panel frame) per draw, the mean
+and max of each, and how many runs pressed their switch.
 
     .venv/bin/python tests/benchmarks/bench_calibration_panel.py [N] [OUT]   (N = 5)
 """
@@ -22,32 +24,30 @@ import cv2
 import numpy as np
 
 from guidedarm.diagrams.calibration.camera_calibration import CalibrateCameraFromImages
-from guidedarm.diagrams.calibration.hand_eye_calibration import (
-    HandEyeFromImages,
-    ReadPoses,
-    WriteHandEye,
-)
-from guidedarm.diagrams.calibration.simulated_calibration import TakePhotos
+from guidedarm.diagrams.calibration.simulated_calibration import HandEyeFromFolder, TakePhotos
 from guidedarm.diagrams.calibration.simulated_cell import SimulatedCalibrationCell
 from guidedarm.diagrams.tasks.registry import LoadScenario
 
 GUIDEDARM = Path(sys.executable).with_name("guidedarm")
+PRESETS = "station.errors_preset=c920,rover_arm"
+VIEWS = 15
 
 
-def Calibrate(seed: int, out: Path) -> tuple[Path, Path]:
-    """camera.yaml and hand_eye.yaml of draw `seed`."""
+def Calibrate(seed: int, out: Path) -> list[str]:
+    """The settings that give panel_operation the calibrated files of draw `seed`."""
     _, scenario, _ = LoadScenario(
-        "panel_operation", ["station.errors_preset=c920", f"random_seed={seed}", "supersampling=1"]
+        "panel_operation", [PRESETS, f"random_seed={seed}", "supersampling=1"]
     )
     cell = SimulatedCalibrationCell(scenario)
-    folder = TakePhotos(cell, out, 10, seed)
+    folder = TakePhotos(cell, out, VIEWS, seed)
     images = [(p.name, cv2.imread(str(p))) for p in sorted(folder.iterdir())]
     calibration = CalibrateCameraFromImages(images, cell.spec, out / "camera.yaml", str(folder))
-    result, rejected = HandEyeFromImages(
-        images, ReadPoses(out / "poses.csv"), cell.spec, calibration.intrinsics
-    )
-    WriteHandEye(out, result, rejected, cell.mount_frame)
-    return out / "camera.yaml", out / "hand_eye.yaml"
+    HandEyeFromFolder(cell, out, folder, calibration.intrinsics)
+    return [
+        f"estimator_camera_file={(out / 'camera.yaml').resolve()}",
+        f"camera_mount_file={(out / 'hand_eye.yaml').resolve()}",
+        f"station.arms.{scenario.arm}.calibration_file={(out / 'joint_offsets.yaml').resolve()}",
+    ]
 
 
 def PressError(out: Path, settings: list[str]) -> float | None:
@@ -69,17 +69,10 @@ def main() -> None:
     root = Path(sys.argv[2]) if len(sys.argv) > 2 else Path("runs/bench_calibration_panel")
     rows = []
     for seed in range(count):
-        camera, mount = Calibrate(seed, root / f"draw{seed}" / "calibration")
-        base = ["station.errors_preset=c920", f"random_seed={seed}"]
+        files = Calibrate(seed, root / f"draw{seed}" / "calibration")
+        base = [PRESETS, f"random_seed={seed}"]
         nominal = PressError(root / f"draw{seed}" / "nominal", base)
-        calibrated = PressError(
-            root / f"draw{seed}" / "calibrated",
-            [
-                *base,
-                f"estimator_camera_file={camera.resolve()}",
-                f"camera_mount_file={mount.resolve()}",
-            ],
-        )
+        calibrated = PressError(root / f"draw{seed}" / "calibrated", [*base, *files])
         rows.append((seed, nominal, calibrated))
         print(
             f"draw {seed}: true press error {nominal} mm nominal, {calibrated} mm calibrated",
