@@ -34,6 +34,7 @@ from guidedarm.systems.calibration.hand_eye_math import CalibrateHandEye, HandEy
 from guidedarm.systems.calibration.joint_bundle_adjustment import (
     IdentifiableJoints,
     KinematicCalibration,
+    ViewsNeeded,
 )
 from guidedarm.systems.markers.marker_pose_estimator_math import CameraIntrinsics
 
@@ -100,6 +101,18 @@ def HandEyeFromFolder(
     images = [(p.name, cv2.imread(str(p))) for p in sorted(folder.iterdir())]
     found = FindHandEyeViews(images, ReadPoses(out_dir / "poses.csv"), cell.spec, intrinsics)
     result = CalibrateHandEye(found.X_WF, found.X_CB)
+    lines = [f"method {result.method} (scatter of the implied board poses, mm and deg):"]
+    lines += [f"  {n:10s} {p:8.3f} {r:8.4f}" for n, (p, r) in result.scatter.items()]
+    lines.append(f"hand-eye alone ({result.method}), against the true mount:")
+    lines += PoseComparison(result.X_FC, cell.true_X_FC)
+    needed = ViewsNeeded(cell.kinematics.plant.num_positions(), with_compliance=True)
+    if len(found.names) < needed:
+        WriteHandEye(out_dir, result, found.rejected, cell.mount_frame)
+        lines.append(
+            f"{len(found.names)} views: too few for the arm's joint offsets and compliance "
+            f"(at least {needed}); hand_eye.yaml holds the hand-eye alone"
+        )
+        return result, lines
     joints = CalibrateArmAndMount(
         found,
         ReadJoints(out_dir / "joints.csv"),
@@ -110,10 +123,6 @@ def HandEyeFromFolder(
     )
     WriteHandEye(out_dir, result, found.rejected, cell.mount_frame, joints)
     path = WriteJointOffsets(out_dir, joints, cell.scenario.arm)
-    lines = [f"method {result.method} (scatter of the implied board poses, mm and deg):"]
-    lines += [f"  {n:10s} {p:8.3f} {r:8.4f}" for n, (p, r) in result.scatter.items()]
-    lines.append(f"hand-eye alone ({result.method}), against the true mount:")
-    lines += PoseComparison(result.X_FC, cell.true_X_FC)
     lines.append(
         f"wrote {path}: joint offsets and mount fitted to the corners, RMS "
         f"{joints.rms_px:.3f} px (worst view {joints.worst_view_rms_px:.3f} px)"

@@ -78,6 +78,12 @@ def IdentifiableJoints(num_joints: int) -> list[int]:
     return list(range(1, num_joints - 1))
 
 
+def ViewsNeeded(num_joints: int, with_compliance: bool) -> int:
+    """The fewest views CalibrateJoints takes: one per joint parameter, and 3 more (each
+    view fixes the camera's 6 pose coordinates, the mount and the board take 12)."""
+    return len(IdentifiableJoints(num_joints)) * (2 if with_compliance else 1) + 3
+
+
 def _Perturbed(X: RigidTransform, d: np.ndarray) -> RigidTransform:
     """X moved by d = [rotation vector (rad), translation (m)], both in X's own frame."""
     return X @ RigidTransform(RotationMatrix(cv2.Rodrigues(d[:3])[0]), d[3:])
@@ -135,8 +141,7 @@ def CalibrateJoints(
     joints = IdentifiableJoints(n)
     problem = _Problem(X_WF, views, intrinsics, joints)
     unknowns = problem.size
-    # Each view fixes the camera's 6 pose coordinates; the mount and the board take 12.
-    needed = (unknowns - 12) + 3
+    needed = ViewsNeeded(n, problem.compliant)
     if len(views) < needed:
         raise ConfigurationError(
             f"{len(views)} views for a kinematic calibration of {unknowns - 12} joint "
