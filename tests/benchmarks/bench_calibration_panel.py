@@ -8,7 +8,8 @@ joint offsets) run on those photos, poses and joints, then panel_operation runs 
 the same start: with the nominal files, and with estimator_camera_file, camera_mount_file
 and the arm's calibration_file set to the calibrated ones. Prints the true press error
 (|true_press_error_mm|, the tip against its target in the panel frame) per draw, the mean
-and max of each, and how many runs pressed their switch.
+and max of each, how many runs pressed their switch, and the calibration's own residuals
+(the written mount against the true one in the measured flange, the joint offsets).
 
     .venv/bin/python tests/benchmarks/bench_calibration_panel.py [N] [OUT]   (N = 5)
 """
@@ -23,22 +24,28 @@ from pathlib import Path
 import cv2
 import numpy as np
 
+from guidedarm.diagrams.calibration.calibration_files import LoadHandEye, LoadJointOffsets
 from guidedarm.diagrams.calibration.camera_calibration import CalibrateCameraFromImages
 from guidedarm.diagrams.calibration.simulated_calibration import HandEyeFromFolder, TakePhotos
 from guidedarm.diagrams.calibration.simulated_cell import SimulatedCalibrationCell
 from guidedarm.diagrams.tasks.registry import LoadScenario
+from guidedarm.systems.calibration.joint_bundle_adjustment import IdentifiableJoints
 
 GUIDEDARM = Path(sys.executable).with_name("guidedarm")
 PRESETS = "station.errors_preset=c920,rover_arm"
 VIEWS = 15
 
 
-def Calibrate(seed: int, out: Path) -> list[str]:
-    """The settings that give panel_operation the calibrated files of draw `seed`."""
+def CalibrationCell(seed: int) -> SimulatedCalibrationCell:
+    """The simulated cell of draw `seed` (1x rendering)."""
     _, scenario, _ = LoadScenario(
         "panel_operation", [PRESETS, f"random_seed={seed}", "supersampling=1"]
     )
-    cell = SimulatedCalibrationCell(scenario)
+    return SimulatedCalibrationCell(scenario)
+
+
+def Calibrate(cell: SimulatedCalibrationCell, seed: int, out: Path) -> list[str]:
+    """The settings that give panel_operation the calibrated files of draw `seed`."""
     folder = TakePhotos(cell, out, VIEWS, seed)
     images = [(p.name, cv2.imread(str(p))) for p in sorted(folder.iterdir())]
     calibration = CalibrateCameraFromImages(images, cell.spec, out / "camera.yaml", str(folder))
@@ -46,8 +53,24 @@ def Calibrate(seed: int, out: Path) -> list[str]:
     return [
         f"estimator_camera_file={(out / 'camera.yaml').resolve()}",
         f"camera_mount_file={(out / 'hand_eye.yaml').resolve()}",
-        f"station.arms.{scenario.arm}.calibration_file={(out / 'joint_offsets.yaml').resolve()}",
+        f"station.arms.{cell.scenario.arm}.calibration_file="
+        f"{(out / 'joint_offsets.yaml').resolve()}",
     ]
+
+
+def CalibrationResiduals(cell: SimulatedCalibrationCell, out: Path) -> tuple[float, float, float]:
+    """The written mount's residual against the true one in the measured flange (mm, deg)
+    and the largest residual of the identified joint offsets (mrad)."""
+    error = cell.TrueMountInMeasuredFlange().inverse() @ (
+        LoadHandEye(out / "hand_eye.yaml").X_PC.GetDeterministicValue()
+    )
+    fitted = IdentifiableJoints(cell.true_joint_offset.size)
+    offsets = LoadJointOffsets(out / "joint_offsets.yaml")
+    return (
+        float(np.linalg.norm(error.translation()) * 1e3),
+        float(np.degrees(error.rotation().ToAngleAxis().angle())),
+        float(np.max(np.abs(offsets - cell.true_joint_offset)[fitted]) * 1e3),
+    )
 
 
 def PressError(out: Path, settings: list[str]) -> float | None:
@@ -69,13 +92,19 @@ def main() -> None:
     root = Path(sys.argv[2]) if len(sys.argv) > 2 else Path("runs/bench_calibration_panel")
     rows = []
     for seed in range(count):
-        files = Calibrate(seed, root / f"draw{seed}" / "calibration")
+        cell = CalibrationCell(seed)
+        out = root / f"draw{seed}" / "calibration"
+        files = Calibrate(cell, seed, out)
+        residual = CalibrationResiduals(cell, out)
         base = [PRESETS, f"random_seed={seed}"]
         nominal = PressError(root / f"draw{seed}" / "nominal", base)
         calibrated = PressError(root / f"draw{seed}" / "calibrated", [*base, *files])
-        rows.append((seed, nominal, calibrated))
+        rows.append((seed, nominal, calibrated, *residual))
         print(
-            f"draw {seed}: true press error {nominal} mm nominal, {calibrated} mm calibrated",
+            f"draw {seed}: true press error {nominal} mm nominal, {calibrated} mm calibrated; "
+            "mount residual {:.3f} mm {:.4f} deg, joint offsets within {:.3f} mrad".format(
+                *residual
+            ),
             flush=True,
         )
     for label, column in (("nominal files", 1), ("calibrated files", 2)):
@@ -85,6 +114,13 @@ def main() -> None:
             f"{label}: mean {np.mean(values):.2f} mm, max {np.max(values):.2f} mm over "
             f"{len(values)} presses ({failed} without a press)"
         )
+    residuals = np.array([r[3:] for r in rows])
+    print(
+        "calibration: mount residual mean {:.3f} mm {:.4f} deg, max {:.3f} mm {:.4f} deg; "
+        "joint offsets within {:.3f} mrad".format(
+            *residuals[:, :2].mean(axis=0), *residuals[:, :2].max(axis=0), residuals[:, 2].max()
+        )
+    )
 
 
 if __name__ == "__main__":
