@@ -5,7 +5,6 @@ offsets."""
 
 from __future__ import annotations
 
-import cv2
 import numpy as np
 import pytest
 from pydrake.math import RigidTransform, RollPitchYaw
@@ -18,7 +17,7 @@ from guidedarm.diagrams.panel.panel_files import IntrinsicsFromCameraConfig
 from guidedarm.diagrams.station.station import MakeStation
 from guidedarm.diagrams.tasks.panel_operation import MakeCameraArmKinematics
 from guidedarm.diagrams.tasks.registry import LoadScenario
-from guidedarm.systems.calibration.calibration_views import CalibrationViews
+from guidedarm.systems.calibration.calibration_views import CalibrationViews, ProjectPoints
 from guidedarm.systems.calibration.charuco_board import CharucoCornerDetector
 from guidedarm.systems.calibration.hand_eye_math import BoardPose, CalibrateHandEye
 from guidedarm.systems.calibration.joint_bundle_adjustment import (
@@ -54,15 +53,8 @@ def rover_views():
         if q is None:
             continue
         X_CB = (kin.X_WC(q) @ TRUE_X_FC).inverse() @ X_WB
-        rvec = cv2.Rodrigues(X_CB.rotation().matrix())[0]
-        pixels, _ = cv2.projectPoints(
-            points_B,
-            rvec,
-            X_CB.translation(),
-            intrinsics.camera_matrix(),
-            intrinsics.distortion_vector(),
-        )
-        pixels = pixels.reshape(-1, 2) + rng.normal(0, 0.1, (len(points_B), 2))
+        pixels = ProjectPoints(intrinsics, X_CB, points_B)
+        pixels = pixels + rng.normal(0, 0.1, pixels.shape)
         views.append(JointView(q - TRUE_OFFSET, points_B, pixels))
         if len(views) == 12:
             break

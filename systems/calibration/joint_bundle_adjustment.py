@@ -33,6 +33,7 @@ import cv2
 import numpy as np
 from pydrake.math import RigidTransform, RotationMatrix
 
+from guidedarm.systems.calibration.calibration_views import ProjectPoints
 from guidedarm.systems.errors import ConfigurationError
 from guidedarm.systems.markers.marker_pose_estimator_math import CameraIntrinsics
 
@@ -95,8 +96,7 @@ class _Problem:
 
     def __init__(self, X_WF, views, intrinsics, joints):
         self.X_WF, self.views, self.joints = X_WF, views, joints
-        self.K = intrinsics.camera_matrix()
-        self.dist = intrinsics.distortion_vector()
+        self.intrinsics = intrinsics
         self.n = views[0].q.size
         self.compliant = views[0].holding_torque is not None
         self.size = len(joints) * (2 if self.compliant else 1) + 12
@@ -118,11 +118,8 @@ class _Problem:
             if self.compliant:
                 q = q - compliance * view.holding_torque
             X_CB = (self.X_WF(q) @ X_FC).inverse() @ X_WB
-            rvec = cv2.Rodrigues(X_CB.rotation().matrix())[0]
-            projected, _ = cv2.projectPoints(
-                view.points_B, rvec, X_CB.translation(), self.K, self.dist
-            )
-            out.append((projected.reshape(-1, 2) - view.pixels).ravel())
+            projected = ProjectPoints(self.intrinsics, X_CB, view.points_B)
+            out.append((projected - view.pixels).ravel())
         return out if per_view else np.concatenate(out)
 
 
