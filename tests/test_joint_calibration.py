@@ -122,3 +122,21 @@ def test_calibration_file_adds_the_offsets_to_the_measured_joints(tmp_path):
     )
     with pytest.raises(ConfigurationError, match="calibration_file has 2 joint offsets"):
         MakeStation(scenario.station)
+
+
+@pytest.mark.parametrize(
+    "content, message",
+    [
+        (None, "key 'station.arms.rover_arm.calibration_file': file not found"),
+        ("joint_offset: [0.5, 0, 0, 0, 0, 0]\n", "within +-0.2 rad"),
+        ("joint_offset: [0.001, 0.002]\n", "calibration_file has 2 joint offsets"),
+    ],
+)
+def test_bad_arm_calibration_file_is_one_line(run_cli, tmp_path, content, message):
+    path = tmp_path / "joint_offsets.yaml"
+    if content is not None:
+        path.write_text(content)
+    flags = ["--set", f"station.arms.rover_arm.calibration_file={path}"]
+    code, out, err = run_cli("run", "panel_operation", "--out", tmp_path / "run", *flags)
+    assert code == 2 and out == "", err
+    assert len(err.strip().splitlines()) == 1 and message in err, err

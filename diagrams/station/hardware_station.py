@@ -24,10 +24,11 @@ from guidedarm.diagrams.station.link_checks import (
 from guidedarm.diagrams.station.scenario import StationScenario
 from guidedarm.diagrams.station.station_plant import (
     AddStationModels,
+    ArmCalibrationOffset,
     GetArmInstance,
     SetInitialPositions,
 )
-from guidedarm.diagrams.station.station_wiring import AddOffset, ArmCalibrationOffset
+from guidedarm.diagrams.station.station_wiring import AddOffset
 from guidedarm.systems.errors import ConfigurationError
 from guidedarm.systems.hardware import nachi_protocol
 from guidedarm.systems.hardware.arm_driver import ArmDriver

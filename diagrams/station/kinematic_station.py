@@ -14,12 +14,15 @@ from pydrake.systems.primitives import PassThrough
 from pydrake.systems.rendering import MultibodyPositionToGeometryPose
 
 from guidedarm.diagrams.station.scenario import StationScenario
-from guidedarm.diagrams.station.station_plant import GetArmInstance, MakeMultibodyPlant
+from guidedarm.diagrams.station.station_plant import (
+    ArmCalibrationOffset,
+    GetArmInstance,
+    MakeMultibodyPlant,
+)
 from guidedarm.diagrams.station.station_wiring import (
     AddMeshcatVisualization,
     AddOffset,
     AddToFTools,
-    ArmCalibrationOffset,
 )
 from guidedarm.systems.config_checks import CheckConfig, CheckInstance
 from guidedarm.systems.errors import ConfigurationError

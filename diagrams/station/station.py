@@ -50,6 +50,7 @@ from guidedarm.diagrams.station.station_errors import ArmErrors
 from guidedarm.diagrams.station.station_plant import (
     AddStationModels,
     ArmAndAttachments,
+    ArmCalibrationOffset,
     GetArmInstance,
     MakeMultibodyPlant,
     SetInitialPositions,
@@ -58,7 +59,6 @@ from guidedarm.diagrams.station.station_wiring import (
     AddMeshcatVisualization,
     AddOffset,
     AddToFTools,
-    ArmCalibrationOffset,
 )
 from guidedarm.systems.cell_errors.camera_errors import CameraErrors, MakeTrueCamera
 from guidedarm.systems.cell_errors.joint_encoder import JointEncoder

@@ -14,7 +14,6 @@ from pydrake.systems.primitives import AffineSystem
 from pydrake.visualization import ApplyVisualizationConfig
 
 from guidedarm.diagrams.station.scenario import StationScenario
-from guidedarm.systems.errors import ConfigurationError
 from guidedarm.systems.tof.tof_errors import ToFErrors
 from guidedarm.systems.tof.tof_tool_sensor import TOF_PORTS, ToFToolSensor
 
@@ -43,17 +42,6 @@ def AddToFTools(
         builder.Connect(scene_graph.get_query_output_port(), sensor.get_input_port())
         for port in TOF_PORTS:
             builder.ExportOutput(sensor.GetOutputPort(port), f"{name}.{port}")
-
-
-def ArmCalibrationOffset(scenario: StationScenario, name: str, n: int) -> np.ndarray | None:
-    """arms[name].calibration_file's joint offsets (rad), checked against the arm's n joints;
-    None without a file."""
-    offset = scenario.ArmCalibration(name)
-    if offset is not None and offset.size != n:
-        raise ConfigurationError(
-            f"arms.{name}.calibration_file has {offset.size} joint offsets, the arm has {n} joints"
-        )
-    return offset
 
 
 def AddOffset(builder: DiagramBuilder, name: str, offset: np.ndarray) -> System:
