@@ -5,6 +5,8 @@ offsets."""
 
 from __future__ import annotations
 
+import threading
+
 import numpy as np
 import pytest
 from pydrake.math import RigidTransform, RollPitchYaw
@@ -140,3 +142,41 @@ def test_bad_arm_calibration_file_is_one_line(run_cli, tmp_path, content, messag
     code, out, err = run_cli("run", "panel_operation", "--out", tmp_path / "run", *flags)
     assert code == 2 and out == "", err
     assert len(err.strip().splitlines()) == 1 and message in err, err
+
+
+def test_hardware_driver_speaks_the_arm_s_own_joint_angles(tmp_path):
+    """On the hardware station a calibration_file's offsets are added to the driver's
+    readings and taken from its commands: commanding the arm's reading plus the offsets
+    (a standstill in calibrated angles) sends the arm its own reading (no motion), and the
+    station reports the reading plus the offsets."""
+    from hardware_doubles import RELAXED_SERVO_TIMEOUT, Mz04dScenario
+
+    from guidedarm.diagrams.station.hardware_config import HardwareConfig, NachiDriver
+    from guidedarm.systems.hardware.nachi_emulator import NachiEmulator
+
+    offsets = np.array([0.01, -0.01, 0.02, 0.0, 0.0, 0.005])
+    path = tmp_path / "joint_offsets.yaml"
+    path.write_text("joint_offset: [" + ", ".join(str(v) for v in offsets) + "]\n")
+    emulator = NachiEmulator(
+        MakeStation(Mz04dScenario()), "mz04d", port=0, servo_timeout=RELAXED_SERVO_TIMEOUT
+    )
+    thread = threading.Thread(target=emulator.Run, kwargs={"duration": 30.0}, daemon=True)
+    thread.start()
+    try:
+        q0 = emulator.logic.measured.copy()
+        driver = NachiDriver(port=emulator.port, acceleration_limits=[20.0] * 6)
+        scenario = Mz04dScenario(hardware=HardwareConfig(arms={"mz04d": driver}))
+        scenario.arms["mz04d"].calibration_file = str(path)
+        station = MakeStation(scenario, kind="hardware")
+        simulator = Simulator(station)
+        context = simulator.get_mutable_context()
+        station.GetInputPort("mz04d.position_commanded").FixValue(context, q0 + offsets)
+        simulator.set_target_realtime_rate(1.0)
+        simulator.AdvanceTo(0.2)
+        measured = station.GetOutputPort("mz04d.position_measured").Eval(context)
+        state = station.GetOutputPort("mz04d.state_estimated").Eval(context)
+        np.testing.assert_allclose(emulator.logic.commanded, q0, atol=1e-6)
+        np.testing.assert_allclose(measured, emulator.logic.measured + offsets, atol=1e-6)
+        np.testing.assert_allclose(state[:6], measured)
+    finally:
+        emulator.Close()
