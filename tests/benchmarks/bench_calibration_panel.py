@@ -73,18 +73,43 @@ def CalibrationResiduals(cell: SimulatedCalibrationCell, out: Path) -> tuple[flo
     )
 
 
-def PressError(out: Path, settings: list[str]) -> float | None:
+def RunPanel(out: Path, settings: list[str]) -> tuple[float | None, bool]:
+    """Runs panel_operation into `out`; returns ReadPress(out)."""
     flags = [a for s in settings for a in ("--set", s)]
     subprocess.run(
         [str(GUIDEDARM), "run", "panel_operation", "--out", str(out), *flags],
         check=False,
         capture_output=True,
     )
+    return ReadPress(out)
+
+
+def ReadPress(out: Path) -> tuple[float | None, bool]:
+    """The true press error |true_press_error_mm| (mm; None: nothing pressed) of the run in
+    `out`, and whether it pressed its switch (and no other)."""
     summary = json.loads((out / "summary.json").read_text())
     error = summary.get("true_press_error_mm")
-    if not summary.get("success") or not error:
-        return None
-    return float(np.linalg.norm([error["x"], error["y"], error["z"]]))
+    norm = float(np.linalg.norm([error["x"], error["y"], error["z"]])) if error else None
+    return norm, bool(summary.get("success"))
+
+
+def PrintTotals(rows: list[tuple]) -> None:
+    """rows: (seed, nominal (error, success), calibrated (error, success), mount residual mm,
+    deg, joint offsets mrad)."""
+    for label, column in (("nominal files", 1), ("calibrated files", 2)):
+        values = [r[column][0] for r in rows if r[column][0] is not None]
+        pressed = sum(r[column][1] for r in rows)
+        print(
+            f"{label}: true press error mean {np.mean(values):.2f} mm, max {np.max(values):.2f} "
+            f"mm over {len(values)} presses; {pressed} of {len(rows)} pressed their switch"
+        )
+    residuals = np.array([r[3:] for r in rows])
+    print(
+        "calibration: mount residual mean {:.3f} mm {:.4f} deg, max {:.3f} mm {:.4f} deg; "
+        "joint offsets within {:.3f} mrad".format(
+            *residuals[:, :2].mean(axis=0), *residuals[:, :2].max(axis=0), residuals[:, 2].max()
+        )
+    )
 
 
 def main() -> None:
@@ -97,30 +122,16 @@ def main() -> None:
         files = Calibrate(cell, seed, out)
         residual = CalibrationResiduals(cell, out)
         base = [PRESETS, f"random_seed={seed}"]
-        nominal = PressError(root / f"draw{seed}" / "nominal", base)
-        calibrated = PressError(root / f"draw{seed}" / "calibrated", [*base, *files])
+        nominal = RunPanel(root / f"draw{seed}" / "nominal", base)
+        calibrated = RunPanel(root / f"draw{seed}" / "calibrated", [*base, *files])
         rows.append((seed, nominal, calibrated, *residual))
         print(
-            f"draw {seed}: true press error {nominal} mm nominal, {calibrated} mm calibrated; "
-            "mount residual {:.3f} mm {:.4f} deg, joint offsets within {:.3f} mrad".format(
-                *residual
-            ),
+            f"draw {seed}: true press error (mm, pressed its switch) {nominal} nominal, "
+            f"{calibrated} calibrated; mount residual {residual[0]:.3f} mm "
+            f"{residual[1]:.4f} deg, joint offsets within {residual[2]:.3f} mrad",
             flush=True,
         )
-    for label, column in (("nominal files", 1), ("calibrated files", 2)):
-        values = [r[column] for r in rows if r[column] is not None]
-        failed = sum(r[column] is None for r in rows)
-        print(
-            f"{label}: mean {np.mean(values):.2f} mm, max {np.max(values):.2f} mm over "
-            f"{len(values)} presses ({failed} without a press)"
-        )
-    residuals = np.array([r[3:] for r in rows])
-    print(
-        "calibration: mount residual mean {:.3f} mm {:.4f} deg, max {:.3f} mm {:.4f} deg; "
-        "joint offsets within {:.3f} mrad".format(
-            *residuals[:, :2].mean(axis=0), *residuals[:, :2].max(axis=0), residuals[:, 2].max()
-        )
-    )
+    PrintTotals(rows)
 
 
 if __name__ == "__main__":
