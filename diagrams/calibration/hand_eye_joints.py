@@ -39,11 +39,11 @@ def WriteJoints(path: Path, rows: list[tuple[str, np.ndarray]]) -> None:
 def ReadJoints(path: Path) -> dict[str, np.ndarray]:
     """The measured joints (rad) of each image in a JOINTS.csv (see the module docstring)."""
     if not path.is_file():
-        raise ConfigurationError(f"--joints {path}: file not found")
+        raise ConfigurationError(f"{path}: file not found")
     with path.open(newline="") as f:
         rows = list(csv.reader(f))
     if not rows or rows[0][0].strip() != "image" or len(rows[0]) < 4:
-        raise ConfigurationError(f"--joints {path}: the header must be image,q1,...,qn")
+        raise ConfigurationError(f"{path}: the header must be image,q1,...,qn")
     joints = {}
     for line, row in enumerate(rows[1:], start=2):
         try:
@@ -52,7 +52,7 @@ def ReadJoints(path: Path) -> dict[str, np.ndarray]:
             q = np.array([])
         if q.size != len(rows[0]) - 1 or not np.all(np.isfinite(q)):
             raise ConfigurationError(
-                f"--joints {path}, line {line}: expected an image name and {len(rows[0]) - 1} "
+                f"{path}, line {line}: expected an image name and {len(rows[0]) - 1} "
                 "numbers"
             )
         joints[row[0].strip()] = q
