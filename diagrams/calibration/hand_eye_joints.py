@@ -52,8 +52,7 @@ def ReadJoints(path: Path) -> dict[str, np.ndarray]:
             q = np.array([])
         if q.size != len(rows[0]) - 1 or not np.all(np.isfinite(q)):
             raise ConfigurationError(
-                f"{path}, line {line}: expected an image name and {len(rows[0]) - 1} "
-                "numbers"
+                f"{path}, line {line}: expected an image name and {len(rows[0]) - 1} numbers"
             )
         joints[row[0].strip()] = q
     return joints
