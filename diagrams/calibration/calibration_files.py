@@ -53,6 +53,29 @@ def LoadToFOffsets(path: str | Path) -> np.ndarray:
     return np.asarray(offsets, float)
 
 
+@dataclass
+class JointOffsetsFile:
+    """joint_offsets.yaml: per joint of an arm, the true joint angle minus the measured one
+    (rad), as `guidedarm calibrate hand-eye` identifies it; the arm's calibration_file adds it
+    to every measured position."""
+
+    joint_offset: list[float] = field(default_factory=list)
+
+
+def LoadJointOffsets(path: str | Path) -> np.ndarray:
+    """The joint offsets (rad) of a joint_offsets.yaml (relative to models/ or absolute),
+    refused unless every value is within +-0.2 rad (a zero set at assembly, not a pose)."""
+    path = MODELS_DIR / path
+    if not path.is_file():
+        raise ScenarioError(f"file not found: {path}")
+    offsets = load_typed(JointOffsetsFile, read_raw_scenario(path), str(path)).joint_offset
+    if not offsets or not all(abs(v) <= 0.2 for v in offsets):
+        raise ScenarioError(
+            f"{path}: joint_offset must hold one value per joint within +-0.2 rad, got {offsets}"
+        )
+    return np.asarray(offsets, float)
+
+
 def LoadBoardSpec(path: str | Path) -> BoardSpec:
     """The board in a BOARD.yaml file, checked (bounds, marker smaller than square, enough
     markers in the dictionary)."""

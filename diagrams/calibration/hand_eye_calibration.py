@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import csv
 import json
+from dataclasses import dataclass, field
 from pathlib import Path
 
 import cv2
@@ -21,13 +22,14 @@ import numpy as np
 from pydrake.math import RigidTransform, RollPitchYaw
 
 from guidedarm.diagrams.calibration.calibration_files import TransformFileText
-from guidedarm.systems.calibration.camera_calibration_math import FindBoardView
+from guidedarm.systems.calibration.camera_calibration_math import BoardView, FindBoardView
 from guidedarm.systems.calibration.charuco_board import BoardSpec, CharucoCornerDetector
 from guidedarm.systems.calibration.hand_eye_math import (
     BoardPose,
     CalibrateHandEye,
     HandEyeResult,
 )
+from guidedarm.systems.calibration.joint_bundle_adjustment import KinematicCalibration
 from guidedarm.systems.errors import ConfigurationError
 from guidedarm.systems.markers.marker_pose_estimator_math import CameraIntrinsics
 
@@ -59,6 +61,52 @@ def ReadPoses(path: Path) -> dict[str, RigidTransform]:
     return poses
 
 
+@dataclass
+class HandEyeViews:
+    """The usable views of a hand-eye data set: image names, X_WF, the board views (corners)
+    and X_CB of each, and the images rejected with why."""
+
+    names: list[str] = field(default_factory=list)
+    X_WF: list[RigidTransform] = field(default_factory=list)
+    views: list[BoardView] = field(default_factory=list)
+    X_CB: list[RigidTransform] = field(default_factory=list)
+    rejected: dict[str, str] = field(default_factory=dict)
+
+
+def FindHandEyeViews(
+    images: list[tuple[str, np.ndarray | None]],
+    poses: dict[str, RigidTransform],
+    spec: BoardSpec,
+    intrinsics: CameraIntrinsics,
+) -> HandEyeViews:
+    """The board in each named BGR image (None: not an image) that has an X_WF in `poses`."""
+    detector = CharucoCornerDetector(spec)
+    found = HandEyeViews()
+    for name, image in images:
+        if image is None:
+            found.rejected[name] = "not an image file"
+            continue
+        if name not in poses:
+            found.rejected[name] = "no arm pose for it in the poses file"
+            continue
+        if (image.shape[1], image.shape[0]) != (intrinsics.width, intrinsics.height):
+            found.rejected[name] = (
+                f"{image.shape[1]} x {image.shape[0]} px, the camera file says "
+                f"{intrinsics.width} x {intrinsics.height}"
+            )
+            continue
+        gray = image if image.ndim == 2 else cv2.cvtColor(image, cv2.COLOR_BGR2GRAY)
+        view = FindBoardView(detector, name, gray)
+        if isinstance(view, str):
+            found.rejected[name] = view
+            continue
+        found.names.append(name)
+        found.X_WF.append(poses[name])
+        found.views.append(view)
+        found.X_CB.append(BoardPose(view.points_B, view.pixels, intrinsics))
+    return found
+
+
 def HandEyeFromImages(
     images: list[tuple[str, np.ndarray | None]],
     poses: dict[str, RigidTransform],
@@ -67,43 +115,34 @@ def HandEyeFromImages(
 ) -> tuple[HandEyeResult, dict[str, str]]:
     """The hand-eye fit from named BGR images (None: not an image) with their X_WF, and the
     images rejected with why."""
-    detector = CharucoCornerDetector(spec)
-    X_WF, X_CB, rejected = [], [], {}
-    for name, image in images:
-        if image is None:
-            rejected[name] = "not an image file"
-            continue
-        if name not in poses:
-            rejected[name] = "no arm pose for it in the poses file"
-            continue
-        if (image.shape[1], image.shape[0]) != (intrinsics.width, intrinsics.height):
-            rejected[name] = (
-                f"{image.shape[1]} x {image.shape[0]} px, the camera file says "
-                f"{intrinsics.width} x {intrinsics.height}"
-            )
-            continue
-        gray = image if image.ndim == 2 else cv2.cvtColor(image, cv2.COLOR_BGR2GRAY)
-        view = FindBoardView(detector, name, gray)
-        if isinstance(view, str):
-            rejected[name] = view
-            continue
-        X_WF.append(poses[name])
-        X_CB.append(BoardPose(view.points_B, view.pixels, intrinsics))
-    return CalibrateHandEye(X_WF, X_CB), rejected
+    found = FindHandEyeViews(images, poses, spec, intrinsics)
+    return CalibrateHandEye(found.X_WF, found.X_CB), found.rejected
 
 
 def WriteHandEye(
-    out_dir: Path, result: HandEyeResult, rejected: dict[str, str], base_frame: str = ""
+    out_dir: Path,
+    result: HandEyeResult,
+    rejected: dict[str, str],
+    base_frame: str = "",
+    joints: KinematicCalibration | None = None,
 ) -> Path:
     """Writes out_dir/hand_eye.yaml (X_PC, with base_frame when given) and
-    out_dir/hand_eye_report.json; returns the YAML's path."""
+    out_dir/hand_eye_report.json; returns the YAML's path. joints: the kinematic calibration
+    refining `result` (its X_FC is written, valid with its joint offsets)."""
     comments = [
         "The camera's optical frame C in the frame it is mounted on (`guidedarm calibrate",
         "hand-eye`): replaces the camera's X_PB (with X_BC identity).",
         f"Method {result.method}, chosen for the smallest scatter of the board poses it implies:",
     ]
     comments += [f"  {name}: {p:.3f} mm, {r:.4f} deg" for name, (p, r) in result.scatter.items()]
-    text = TransformFileText("X_PC", result.X_FC, comments)
+    X_PC = result.X_FC
+    if joints is not None:
+        X_PC = joints.X_FC
+        comments += [
+            "Refined with the arm's joint offsets (joint_offsets.yaml, use both) to the board's",
+            f"corners: RMS {joints.rms_px:.3f} px, worst view {joints.worst_view_rms_px:.3f} px.",
+        ]
+    text = TransformFileText("X_PC", X_PC, comments)
     if base_frame:
         text += f"  base_frame: {base_frame}\n"
     path = out_dir / "hand_eye.yaml"
@@ -117,5 +156,14 @@ def WriteHandEye(
         },
         "rejected": rejected,
     }
+    if joints is not None:
+        report["joint_calibration"] = {
+            "X_PC": X_PC.GetAsMatrix34().round(6).tolist(),
+            "joint_offset_rad": joints.joint_offset.round(6).tolist(),
+            "joint_offset_std_rad": joints.joint_offset_std.round(7).tolist(),
+            "joint_compliance_rad_per_N_m": joints.joint_compliance.tolist(),
+            "rms_px": round(joints.rms_px, 4),
+            "worst_view_rms_px": round(joints.worst_view_rms_px, 4),
+        }
     (out_dir / "hand_eye_report.json").write_text(json.dumps(report, indent=1) + "\n")
     return path

@@ -18,13 +18,25 @@ from pydrake.math import RigidTransform, RollPitchYaw
 from guidedarm.diagrams.calibration.camera_calibration import CalibrateCameraFromImages
 from guidedarm.diagrams.calibration.hand_eye_calibration import (
     POSE_COLUMNS,
-    HandEyeFromImages,
+    FindHandEyeViews,
     ReadPoses,
     WriteHandEye,
 )
+from guidedarm.diagrams.calibration.hand_eye_joints import (
+    CalibrateArmAndMount,
+    ReadJoints,
+    WriteJointOffsets,
+    WriteJoints,
+)
 from guidedarm.diagrams.calibration.simulated_cell import SimulatedCalibrationCell, SimulatedView
 from guidedarm.systems.calibration.camera_calibration_math import CameraCalibration
-from guidedarm.systems.calibration.hand_eye_math import HandEyeResult
+from guidedarm.systems.calibration.hand_eye_math import CalibrateHandEye, HandEyeResult
+from guidedarm.systems.calibration.joint_bundle_adjustment import (
+    IdentifiableJoints,
+    KinematicCalibration,
+    ViewsNeeded,
+)
+from guidedarm.systems.markers.marker_pose_estimator_math import CameraIntrinsics
 
 
 def TakePhotos(cell: SimulatedCalibrationCell, out_dir: Path, count: int, seed: int) -> Path:
@@ -40,6 +52,7 @@ def TakePhotos(cell: SimulatedCalibrationCell, out_dir: Path, count: int, seed: 
         values = [*view.X_WF.translation(), *rpy]
         rows.append(f"{view.name}.png," + ",".join(f"{v:.9g}" for v in values))
     (out_dir / "poses.csv").write_text("\n".join(rows) + "\n")
+    WriteJoints(out_dir / "joints.csv", [(f"{v.name}.png", v.q_measured) for v in views])
     return folder
 
 
@@ -70,17 +83,77 @@ def CameraInSimulation(
 def HandEyeInSimulation(
     cell: SimulatedCalibrationCell, out_dir: Path, count: int, seed: int
 ) -> tuple[HandEyeResult, list[str]]:
-    """Calibrates the camera's mount into out_dir/hand_eye.yaml with the estimator's camera
-    model; returns the result and the lines comparing it with the truth."""
+    """Calibrates the camera's mount and the arm's joint offsets into out_dir/hand_eye.yaml
+    and out_dir/joint_offsets.yaml with the estimator's camera model; returns the hand-eye
+    seed and the lines comparing the result with the truth."""
     folder = TakePhotos(cell, out_dir, count, seed)
+    return HandEyeFromFolder(cell, out_dir, folder, cell.estimator_intrinsics)
+
+
+def HandEyeFromFolder(
+    cell: SimulatedCalibrationCell,
+    out_dir: Path,
+    folder: Path,
+    intrinsics: CameraIntrinsics,
+) -> tuple[HandEyeResult, list[str]]:
+    """HandEyeInSimulation on photos already taken (folder, out_dir/poses.csv and
+    out_dir/joints.csv) with the camera model `intrinsics`."""
     images = [(p.name, cv2.imread(str(p))) for p in sorted(folder.iterdir())]
-    poses = ReadPoses(out_dir / "poses.csv")
-    result, rejected = HandEyeFromImages(images, poses, cell.spec, cell.estimator_intrinsics)
-    WriteHandEye(out_dir, result, rejected, cell.mount_frame)
+    found = FindHandEyeViews(images, ReadPoses(out_dir / "poses.csv"), cell.spec, intrinsics)
+    result = CalibrateHandEye(found.X_WF, found.X_CB)
     lines = [f"method {result.method} (scatter of the implied board poses, mm and deg):"]
     lines += [f"  {n:10s} {p:8.3f} {r:8.4f}" for n, (p, r) in result.scatter.items()]
+    lines.append(f"hand-eye alone ({result.method}), against the true mount:")
     lines += PoseComparison(result.X_FC, cell.true_X_FC)
+    needed = ViewsNeeded(cell.kinematics.plant.num_positions(), with_compliance=True)
+    if len(found.names) < needed:
+        WriteHandEye(out_dir, result, found.rejected, cell.mount_frame)
+        lines.append(
+            f"{len(found.names)} views: too few for the arm's joint offsets and compliance "
+            f"(at least {needed}); hand_eye.yaml holds the hand-eye alone"
+        )
+        return result, lines
+    joints = CalibrateArmAndMount(
+        found,
+        ReadJoints(out_dir / "joints.csv"),
+        cell.X_WF,
+        intrinsics,
+        result,
+        cell.HoldingTorque,
+    )
+    WriteHandEye(out_dir, result, found.rejected, cell.mount_frame, joints)
+    path = WriteJointOffsets(out_dir, joints, cell.scenario.arm)
+    lines.append(
+        f"wrote {path}: joint offsets and mount fitted to the corners, RMS "
+        f"{joints.rms_px:.3f} px (worst view {joints.worst_view_rms_px:.3f} px)"
+    )
+    lines += JointOffsetComparison(joints, cell.true_joint_offset, cell.true_joint_stiffness)
+    lines.append("the mount with the joint offsets, against the true mount in the measured flange:")
+    lines += PoseComparison(joints.X_FC, cell.TrueMountInMeasuredFlange())
     return result, lines
+
+
+def JointOffsetComparison(
+    joints: KinematicCalibration, truth: np.ndarray, stiffness: np.ndarray
+) -> list[str]:
+    """Lines: each joint's identified offset, the truth and the residual (mrad), and its
+    stiffness (1 / the identified compliance) beside the true one (N m/rad; inf: rigid)."""
+    fitted = IdentifiableJoints(truth.size)
+    lines = [
+        f"  {'joint':5s} {'calibrated':>10s} {'truth':>9s} {'residual':>9s} (std) mrad"
+        "   stiffness calibrated, truth (N m/rad)"
+    ]
+    for i, (value, true) in enumerate(zip(joints.joint_offset, truth, strict=True)):
+        if i not in fitted:
+            lines.append(f"  {i + 1:<5d} {'-':>10s} {true * 1e3:9.3f}  not identifiable")
+            continue
+        compliance = joints.joint_compliance[i]
+        fitted_k = f"{1 / compliance:9.0f}" if compliance > 0 else "      inf"
+        lines.append(
+            f"  {i + 1:<5d} {value * 1e3:10.3f} {true * 1e3:9.3f} {(value - true) * 1e3:9.3f}"
+            f" ({joints.joint_offset_std[i] * 1e3:.3f})   {fitted_k} {stiffness[i]:9.0f}"
+        )
+    return lines
 
 
 def PoseComparison(estimate: RigidTransform, truth: RigidTransform) -> list[str]:

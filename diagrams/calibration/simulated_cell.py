@@ -102,6 +102,37 @@ class SimulatedCalibrationCell:
         errors = scenario.station.errors.cameras.get(scenario.camera, CameraErrors())
         self.true_intrinsics = TrueIntrinsics(self.nominal_intrinsics, errors)
         self.true_X_FC = self.X_FC_nominal @ errors.X_mount_error.GetDeterministicValue()
+        # What the measured joints lack: the drawn offsets less those the scenario's
+        # calibration_file already adds.
+        n = self.kinematics.plant.num_positions()
+        arm_errors = scenario.station.errors.arms.get(scenario.arm)
+        offset = np.zeros(n)
+        if arm_errors is not None and arm_errors.joint_offset:
+            offset = np.asarray(arm_errors.joint_offset, float)
+        calibration = scenario.station.ArmCalibration(scenario.arm)
+        self.true_joint_offset = offset - (0.0 if calibration is None else calibration)
+        stiffness = arm_errors.joint_stiffness if arm_errors is not None else []
+        self.true_joint_stiffness = np.asarray(stiffness or np.full(n, np.inf), float)
+        self._torque_context = self.kinematics.plant.CreateDefaultContext()
+
+    def X_WF(self, q: np.ndarray) -> RigidTransform:
+        """The mount frame F's pose in W at joints q (rad) on the controller's model."""
+        return self.kinematics.X_WC(q) @ self.X_FC_nominal.inverse()
+
+    def HoldingTorque(self, q: np.ndarray) -> np.ndarray:
+        """The gravity torque (N m) each joint holds at q (rad), on the controller's model."""
+        plant = self.kinematics.plant
+        plant.SetPositions(self._torque_context, q)
+        return -plant.CalcGravityGeneralizedForces(self._torque_context)
+
+    def TrueMountInMeasuredFlange(self) -> RigidTransform:
+        """The true X_FC in the frame F that the last joint's *measured* angle puts: the
+        mount a kinematic calibration identifies (its last joint's offset is a turn of the
+        mount, joint_bundle_adjustment.py); true_X_FC when that offset is 0."""
+        q = self.kinematics.plant.GetPositions(self.kinematics.plant.CreateDefaultContext())
+        last = np.zeros_like(q)
+        last[-1] = self.true_joint_offset[-1]
+        return self.X_WF(q).inverse() @ self.X_WF(q + last) @ self.true_X_FC
 
     def _StationWithBoard(self, scenario, station: StationScenario) -> StationScenario:
         width, height = self.spec.size_m()
@@ -165,8 +196,7 @@ class SimulatedCalibrationCell:
         image = np.array(
             self._image_port.Eval(self._image_port.get_system().GetMyContextFromRoot(context)).data
         )
-        X_WF = self.kinematics.X_WC(q_measured) @ self.X_FC_nominal.inverse()
-        return SimulatedView(name, image, np.array(q_measured), X_WF)
+        return SimulatedView(name, image, np.array(q_measured), self.X_WF(q_measured))
 
 
 def TrueIntrinsics(nominal: CameraIntrinsics, errors: CameraErrors) -> CameraIntrinsics:

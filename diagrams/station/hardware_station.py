@@ -24,9 +24,11 @@ from guidedarm.diagrams.station.link_checks import (
 from guidedarm.diagrams.station.scenario import StationScenario
 from guidedarm.diagrams.station.station_plant import (
     AddStationModels,
+    ArmCalibrationOffset,
     GetArmInstance,
     SetInitialPositions,
 )
+from guidedarm.diagrams.station.station_wiring import AddOffset
 from guidedarm.systems.errors import ConfigurationError
 from guidedarm.systems.hardware import nachi_protocol
 from guidedarm.systems.hardware.arm_driver import ArmDriver
@@ -115,10 +117,26 @@ def MakeHardwareStation(scenario: StationScenario, meshcat: Meshcat | None = Non
                 config.stale_after,
             ),
         )
-        builder.ExportInput(driver.get_input_port(), f"{name}.position_commanded")
-        for port in ("position_measured", "velocity_estimated", "state_estimated"):
-            builder.ExportOutput(driver.GetOutputPort(port), f"{name}.{port}")
-        measured[name] = driver.GetOutputPort("position_measured")
+        ports = {p: driver.GetOutputPort(p) for p in ("position_measured", "state_estimated")}
+        command = driver.get_input_port()
+        n = command.size()
+        calibration = ArmCalibrationOffset(scenario, name, n)
+        if calibration is not None:
+            # The driver speaks the arm's own joint angles; the ports calibrated ones.
+            to_arm = AddOffset(builder, f"{name}.command_calibration", -calibration)
+            builder.Connect(to_arm.get_output_port(), command)
+            command = to_arm.get_input_port()
+            offsets = {"position_measured": calibration}
+            offsets["state_estimated"] = np.concatenate([calibration, np.zeros(n)])
+            for port, offset in offsets.items():
+                calibrated = AddOffset(builder, f"{name}.{port}_calibration", offset)
+                builder.Connect(ports[port], calibrated.get_input_port())
+                ports[port] = calibrated.get_output_port()
+        ports["velocity_estimated"] = driver.GetOutputPort("velocity_estimated")
+        builder.ExportInput(command, f"{name}.position_commanded")
+        for port, output in ports.items():
+            builder.ExportOutput(output, f"{name}.{port}")
+        measured[name] = ports["position_measured"]
     if meshcat is not None:
         _DrawMeasured(builder, plant, scene_graph, measured, meshcat)
     diagram = builder.Build()

@@ -14,8 +14,16 @@ from pydrake.systems.primitives import PassThrough
 from pydrake.systems.rendering import MultibodyPositionToGeometryPose
 
 from guidedarm.diagrams.station.scenario import StationScenario
-from guidedarm.diagrams.station.station_plant import GetArmInstance, MakeMultibodyPlant
-from guidedarm.diagrams.station.station_wiring import AddMeshcatVisualization, AddToFTools
+from guidedarm.diagrams.station.station_plant import (
+    ArmCalibrationOffset,
+    GetArmInstance,
+    MakeMultibodyPlant,
+)
+from guidedarm.diagrams.station.station_wiring import (
+    AddMeshcatVisualization,
+    AddOffset,
+    AddToFTools,
+)
 from guidedarm.systems.config_checks import CheckConfig, CheckInstance
 from guidedarm.systems.errors import ConfigurationError
 
@@ -44,7 +52,15 @@ def MakeKinematicStation(scenario: StationScenario, meshcat: Meshcat | None = No
         )
     command = builder.AddNamedSystem(f"{arm}.command", PassThrough(n))
     to_pose = builder.AddNamedSystem("plant_pose", MultibodyPositionToGeometryPose(plant))
-    builder.Connect(command.get_output_port(), to_pose.get_input_port())
+    pose = command.get_output_port()
+    calibration = ArmCalibrationOffset(scenario, arm, n)
+    if calibration is not None:
+        # An exact arm read through a calibration file: the joints stand at the command
+        # minus the file's offsets; the reading plus them is the command again.
+        to_arm = AddOffset(builder, f"{arm}.command_calibration", -calibration)
+        builder.Connect(pose, to_arm.get_input_port())
+        pose = to_arm.get_output_port()
+    builder.Connect(pose, to_pose.get_input_port())
     builder.Connect(
         to_pose.get_output_port(), scene_graph.get_source_pose_port(plant.get_source_id())
     )

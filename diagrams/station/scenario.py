@@ -12,7 +12,7 @@ from pydrake.systems.analysis import SimulatorConfig
 from pydrake.systems.sensors import CameraConfig
 from pydrake.visualization import VisualizationConfig
 
-from guidedarm.diagrams.calibration.calibration_files import LoadToFOffsets
+from guidedarm.diagrams.calibration.calibration_files import LoadJointOffsets, LoadToFOffsets
 from guidedarm.diagrams.station.hardware_config import HardwareConfig
 from guidedarm.diagrams.station.station_errors import (
     CheckErrorKeys,
@@ -49,12 +49,18 @@ class ArmConfig:
         means critically damped, 2 sqrt(kp). Beyond these the 2 ms plant step goes unstable.
     control_period: period at which position commands are sampled and differentiated (s, in
         [1e-4, 1]); 0.002 s matches UR servoJ at 500 Hz.
+    calibration_file: the arm's identified joint offsets, a joint_offsets.yaml written by
+        `guidedarm calibrate hand-eye` (relative to models/ or absolute; '': none): the
+        simulated encoders' and the hardware driver's measured positions gain them, and the
+        driver's commands lose them, so the controllers work in calibrated joint angles
+        while station.errors stays the truth.
     """
 
     initial_position: list[float] = InRange(-MAX_JOINT_POSITION, MAX_JOINT_POSITION, factory=list)
     kp: float = InRange(1.0, 1e6, 1600.0)
     kd: float = InRange(-math.inf, 2000.0, 0.0)
     control_period: float = InRange(1e-4, 1.0, 0.002)
+    calibration_file: str = ""
 
 
 def _default_plant_config() -> MultibodyPlantConfig:
@@ -172,6 +178,16 @@ class StationScenario:
                 self.ToFCalibration(name)
             except ConfigurationError as e:
                 raise FieldError(f"tof_tools.{name}.calibration_file", str(e)) from None
+        for name in self.arms:
+            try:
+                self.ArmCalibration(name)
+            except ConfigurationError as e:
+                raise FieldError(f"arms.{name}.calibration_file", str(e)) from None
+
+    def ArmCalibration(self, name: str) -> np.ndarray | None:
+        """The identified joint offsets (rad) of arms[name].calibration_file, None without."""
+        calibration_file = self.arms[name].calibration_file
+        return LoadJointOffsets(calibration_file) if calibration_file else None
 
     def ToFCalibration(self, name: str) -> np.ndarray | None:
         """The six calibrated offsets (m) of tof_tools[name].calibration_file, None without."""

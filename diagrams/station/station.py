@@ -50,11 +50,16 @@ from guidedarm.diagrams.station.station_errors import ArmErrors
 from guidedarm.diagrams.station.station_plant import (
     AddStationModels,
     ArmAndAttachments,
+    ArmCalibrationOffset,
     GetArmInstance,
     MakeMultibodyPlant,
     SetInitialPositions,
 )
-from guidedarm.diagrams.station.station_wiring import AddMeshcatVisualization, AddToFTools
+from guidedarm.diagrams.station.station_wiring import (
+    AddMeshcatVisualization,
+    AddOffset,
+    AddToFTools,
+)
 from guidedarm.systems.cell_errors.camera_errors import CameraErrors, MakeTrueCamera
 from guidedarm.systems.cell_errors.joint_encoder import JointEncoder
 from guidedarm.systems.cell_errors.lens_distortion import LensDistortion
@@ -149,6 +154,15 @@ def _AddArm(
         )
         builder.Connect(measured_state, encoder.get_input_port())
         measured_state = encoder.get_output_port()
+    # The controllers work in calibrated joint angles: the reading plus the identified
+    # offsets (the servo below too, so its commands are in the same angles).
+    calibration = ArmCalibrationOffset(scenario, name, n)
+    if calibration is not None:
+        calibrated = AddOffset(
+            builder, f"{name}.joint_calibration", np.concatenate([calibration, np.zeros(n)])
+        )
+        builder.Connect(measured_state, calibrated.get_input_port())
+        measured_state = calibrated.get_output_port()
     eye = np.eye(n)
     states = builder.AddNamedSystem(f"{name}.servo_states", Multiplexer([2 * n, 2 * n]))
     gains = np.hstack([arm.kp * eye, kd * eye, -arm.kp * eye, -kd * eye])

@@ -150,9 +150,20 @@ def SetInitialPositions(
     """Sets each arm's default joint positions (finalized plant) from the scenario."""
     for name, arm in scenario.arms.items():
         if model_instance_names is None or name in model_instance_names:
-            plant.SetDefaultPositions(
-                GetArmInstance(plant, name), ArmInitialPosition(plant, name, arm)
-            )
+            instance = GetArmInstance(plant, name)
+            plant.SetDefaultPositions(instance, ArmInitialPosition(plant, name, arm))
+            ArmCalibrationOffset(scenario, name, plant.num_positions(instance))
+
+
+def ArmCalibrationOffset(scenario: StationScenario, name: str, n: int) -> np.ndarray | None:
+    """arms[name].calibration_file's joint offsets (rad), checked against the arm's n joints;
+    None without a file."""
+    offset = scenario.ArmCalibration(name)
+    if offset is not None and offset.size != n:
+        raise ConfigurationError(
+            f"arms.{name}.calibration_file has {offset.size} joint offsets, the arm has {n} joints"
+        )
+    return offset
 
 
 def ArmInitialPosition(plant: MultibodyPlant, name: str, arm: ArmConfig) -> np.ndarray:

@@ -1,14 +1,16 @@
 """Wiring that every station branch shares: the ToF tools reading the scene's SceneGraph,
-and the Meshcat drawing of the plant. MakeStation (simulated) and MakeKinematicStation
-build their ToF sensors and drawing here, so both export the same `<tof>.*` ports.
+the arms' joint calibration and the Meshcat drawing of the plant. MakeStation (simulated),
+MakeKinematicStation and MakeHardwareStation build them here, so all export the same ports.
 """
 
 from __future__ import annotations
 
+import numpy as np
 from pydrake.geometry import Meshcat, SceneGraph
 from pydrake.lcm import DrakeLcm
 from pydrake.multibody.plant import MultibodyPlant
-from pydrake.systems.framework import DiagramBuilder
+from pydrake.systems.framework import DiagramBuilder, System
+from pydrake.systems.primitives import AffineSystem
 from pydrake.visualization import ApplyVisualizationConfig
 
 from guidedarm.diagrams.station.scenario import StationScenario
@@ -40,6 +42,17 @@ def AddToFTools(
         builder.Connect(scene_graph.get_query_output_port(), sensor.get_input_port())
         for port in TOF_PORTS:
             builder.ExportOutput(sensor.GetOutputPort(port), f"{name}.{port}")
+
+
+def AddOffset(builder: DiagramBuilder, name: str, offset: np.ndarray) -> System:
+    """A feedthrough system named `name`: its output is its input plus `offset` (a vector)."""
+    m = offset.size
+    return builder.AddNamedSystem(
+        name,
+        AffineSystem(
+            np.zeros((0, 0)), np.zeros((0, m)), np.zeros(0), np.zeros((m, 0)), np.eye(m), offset
+        ),
+    )
 
 
 def AddMeshcatVisualization(

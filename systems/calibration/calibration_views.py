@@ -28,6 +28,22 @@ def _RotationTaking(a: np.ndarray, b: np.ndarray) -> RotationMatrix:
     return RotationMatrix(cv2.Rodrigues(rvec)[0])
 
 
+def ProjectPoints(
+    intrinsics: CameraIntrinsics, X_CB: RigidTransform, points_B: np.ndarray
+) -> np.ndarray:
+    """Where points_B (N x 3, m, in frame B) appear in the image (N x 2, px; the camera's
+    distortion included) with B at X_CB in the camera's optical frame C."""
+    rvec, _ = cv2.Rodrigues(X_CB.rotation().matrix())
+    pixels, _ = cv2.projectPoints(
+        points_B,
+        rvec,
+        X_CB.translation(),
+        intrinsics.camera_matrix(),
+        intrinsics.distortion_vector(),
+    )
+    return pixels.reshape(-1, 2)
+
+
 def BoardCornersInView(
     spec: BoardSpec, intrinsics: CameraIntrinsics, X_CB: RigidTransform, margin: float = _MARGIN
 ) -> bool:
@@ -42,15 +58,7 @@ def BoardCornersInView(
     points_C = (X_CB.rotation().matrix() @ points_B.T).T + X_CB.translation()
     if np.any(points_C[:, 2] <= 0.05):
         return False
-    rvec, _ = cv2.Rodrigues(X_CB.rotation().matrix())
-    pixels, _ = cv2.projectPoints(
-        points_B,
-        rvec,
-        X_CB.translation(),
-        intrinsics.camera_matrix(),
-        intrinsics.distortion_vector(),
-    )
-    u, v = pixels.reshape(-1, 2).T
+    u, v = ProjectPoints(intrinsics, X_CB, points_B).T
     mu, mv = margin * intrinsics.width, margin * intrinsics.height
     return bool(
         np.all((u > mu) & (u < intrinsics.width - mu) & (v > mv) & (v < intrinsics.height - mv))

@@ -1,12 +1,15 @@
 """Panel operation on an imperfect cell with and without its calibration files.
 
-For each draw of the c920 preset's camera errors (focal length, principal point, residual
-distortion, the camera's mount; random_seed 0..N-1): the simulated rover arm photographs
-the cell's board (10 views, 1x rendering), `calibrate camera` and `calibrate hand-eye` run
-on those photos and poses, then panel_operation runs twice from the same start: with the
-nominal files, and with estimator_camera_file and camera_mount_file set to the calibrated
-ones. Prints the true press error (|true_press_error_mm|, the tip against its target in
-the panel frame) per draw and the mean and max of each.
+For each draw of the c920 and rover_arm presets' errors (the camera's focal length,
+principal point, residual distortion and mount; the arm's joint offsets and joint
+compliance; random_seed 0..N-1): the simulated rover arm photographs the cell's board
+(VIEWS views, 1x rendering), `calibrate camera` and `calibrate hand-eye` (with the arm's
+joint offsets) run on those photos, poses and joints, then panel_operation runs twice from
+the same start: with the nominal files, and with estimator_camera_file, camera_mount_file
+and the arm's calibration_file set to the calibrated ones. Prints the true press error
+(|true_press_error_mm|, the tip against its target in the panel frame) per draw, the mean
+and max of each, how many runs pressed their switch, and the calibration's own residuals
+(the written mount against the true one in the measured flange, the joint offsets).
 
     .venv/bin/python tests/benchmarks/bench_calibration_panel.py [N] [OUT]   (N = 5)
 """
@@ -21,47 +24,92 @@ from pathlib import Path
 import cv2
 import numpy as np
 
+from guidedarm.diagrams.calibration.calibration_files import LoadHandEye, LoadJointOffsets
 from guidedarm.diagrams.calibration.camera_calibration import CalibrateCameraFromImages
-from guidedarm.diagrams.calibration.hand_eye_calibration import (
-    HandEyeFromImages,
-    ReadPoses,
-    WriteHandEye,
-)
-from guidedarm.diagrams.calibration.simulated_calibration import TakePhotos
+from guidedarm.diagrams.calibration.simulated_calibration import HandEyeFromFolder, TakePhotos
 from guidedarm.diagrams.calibration.simulated_cell import SimulatedCalibrationCell
 from guidedarm.diagrams.tasks.registry import LoadScenario
+from guidedarm.systems.calibration.joint_bundle_adjustment import IdentifiableJoints
 
 GUIDEDARM = Path(sys.executable).with_name("guidedarm")
+PRESETS = "station.errors_preset=c920,rover_arm"
+VIEWS = 15
 
 
-def Calibrate(seed: int, out: Path) -> tuple[Path, Path]:
-    """camera.yaml and hand_eye.yaml of draw `seed`."""
+def CalibrationCell(seed: int) -> SimulatedCalibrationCell:
+    """The simulated cell of draw `seed` (1x rendering)."""
     _, scenario, _ = LoadScenario(
-        "panel_operation", ["station.errors_preset=c920", f"random_seed={seed}", "supersampling=1"]
+        "panel_operation", [PRESETS, f"random_seed={seed}", "supersampling=1"]
     )
-    cell = SimulatedCalibrationCell(scenario)
-    folder = TakePhotos(cell, out, 10, seed)
+    return SimulatedCalibrationCell(scenario)
+
+
+def Calibrate(cell: SimulatedCalibrationCell, seed: int, out: Path) -> list[str]:
+    """The settings that give panel_operation the calibrated files of draw `seed`."""
+    folder = TakePhotos(cell, out, VIEWS, seed)
     images = [(p.name, cv2.imread(str(p))) for p in sorted(folder.iterdir())]
     calibration = CalibrateCameraFromImages(images, cell.spec, out / "camera.yaml", str(folder))
-    result, rejected = HandEyeFromImages(
-        images, ReadPoses(out / "poses.csv"), cell.spec, calibration.intrinsics
+    HandEyeFromFolder(cell, out, folder, calibration.intrinsics)
+    return [
+        f"estimator_camera_file={(out / 'camera.yaml').resolve()}",
+        f"camera_mount_file={(out / 'hand_eye.yaml').resolve()}",
+        f"station.arms.{cell.scenario.arm}.calibration_file="
+        f"{(out / 'joint_offsets.yaml').resolve()}",
+    ]
+
+
+def CalibrationResiduals(cell: SimulatedCalibrationCell, out: Path) -> tuple[float, float, float]:
+    """The written mount's residual against the true one in the measured flange (mm, deg)
+    and the largest residual of the identified joint offsets (mrad)."""
+    error = cell.TrueMountInMeasuredFlange().inverse() @ (
+        LoadHandEye(out / "hand_eye.yaml").X_PC.GetDeterministicValue()
     )
-    WriteHandEye(out, result, rejected, cell.mount_frame)
-    return out / "camera.yaml", out / "hand_eye.yaml"
+    fitted = IdentifiableJoints(cell.true_joint_offset.size)
+    offsets = LoadJointOffsets(out / "joint_offsets.yaml")
+    return (
+        float(np.linalg.norm(error.translation()) * 1e3),
+        float(np.degrees(error.rotation().ToAngleAxis().angle())),
+        float(np.max(np.abs(offsets - cell.true_joint_offset)[fitted]) * 1e3),
+    )
 
 
-def PressError(out: Path, settings: list[str]) -> float | None:
+def RunPanel(out: Path, settings: list[str]) -> tuple[float | None, bool]:
+    """Runs panel_operation into `out`; returns ReadPress(out)."""
     flags = [a for s in settings for a in ("--set", s)]
     subprocess.run(
         [str(GUIDEDARM), "run", "panel_operation", "--out", str(out), *flags],
         check=False,
         capture_output=True,
     )
+    return ReadPress(out)
+
+
+def ReadPress(out: Path) -> tuple[float | None, bool]:
+    """The true press error |true_press_error_mm| (mm; None: nothing pressed) of the run in
+    `out`, and whether it pressed its switch (and no other)."""
     summary = json.loads((out / "summary.json").read_text())
     error = summary.get("true_press_error_mm")
-    if not summary.get("success") or not error:
-        return None
-    return float(np.linalg.norm([error["x"], error["y"], error["z"]]))
+    norm = float(np.linalg.norm([error["x"], error["y"], error["z"]])) if error else None
+    return norm, bool(summary.get("success"))
+
+
+def PrintTotals(rows: list[tuple]) -> None:
+    """rows: (seed, nominal (error, success), calibrated (error, success), mount residual mm,
+    deg, joint offsets mrad)."""
+    for label, column in (("nominal files", 1), ("calibrated files", 2)):
+        values = [r[column][0] for r in rows if r[column][0] is not None]
+        pressed = sum(r[column][1] for r in rows)
+        print(
+            f"{label}: true press error mean {np.mean(values):.2f} mm, max {np.max(values):.2f} "
+            f"mm over {len(values)} presses; {pressed} of {len(rows)} pressed their switch"
+        )
+    residuals = np.array([r[3:] for r in rows])
+    print(
+        "calibration: mount residual mean {:.3f} mm {:.4f} deg, max {:.3f} mm {:.4f} deg; "
+        "joint offsets within {:.3f} mrad".format(
+            *residuals[:, :2].mean(axis=0), *residuals[:, :2].max(axis=0), residuals[:, 2].max()
+        )
+    )
 
 
 def main() -> None:
@@ -69,29 +117,21 @@ def main() -> None:
     root = Path(sys.argv[2]) if len(sys.argv) > 2 else Path("runs/bench_calibration_panel")
     rows = []
     for seed in range(count):
-        camera, mount = Calibrate(seed, root / f"draw{seed}" / "calibration")
-        base = ["station.errors_preset=c920", f"random_seed={seed}"]
-        nominal = PressError(root / f"draw{seed}" / "nominal", base)
-        calibrated = PressError(
-            root / f"draw{seed}" / "calibrated",
-            [
-                *base,
-                f"estimator_camera_file={camera.resolve()}",
-                f"camera_mount_file={mount.resolve()}",
-            ],
-        )
-        rows.append((seed, nominal, calibrated))
+        cell = CalibrationCell(seed)
+        out = root / f"draw{seed}" / "calibration"
+        files = Calibrate(cell, seed, out)
+        residual = CalibrationResiduals(cell, out)
+        base = [PRESETS, f"random_seed={seed}"]
+        nominal = RunPanel(root / f"draw{seed}" / "nominal", base)
+        calibrated = RunPanel(root / f"draw{seed}" / "calibrated", [*base, *files])
+        rows.append((seed, nominal, calibrated, *residual))
         print(
-            f"draw {seed}: true press error {nominal} mm nominal, {calibrated} mm calibrated",
+            f"draw {seed}: true press error (mm, pressed its switch) {nominal} nominal, "
+            f"{calibrated} calibrated; mount residual {residual[0]:.3f} mm "
+            f"{residual[1]:.4f} deg, joint offsets within {residual[2]:.3f} mrad",
             flush=True,
         )
-    for label, column in (("nominal files", 1), ("calibrated files", 2)):
-        values = [r[column] for r in rows if r[column] is not None]
-        failed = sum(r[column] is None for r in rows)
-        print(
-            f"{label}: mean {np.mean(values):.2f} mm, max {np.max(values):.2f} mm over "
-            f"{len(values)} presses ({failed} without a press)"
-        )
+    PrintTotals(rows)
 
 
 if __name__ == "__main__":
