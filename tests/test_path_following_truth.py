@@ -6,6 +6,7 @@ import json
 from pathlib import Path
 
 import numpy as np
+import pytest
 
 from guidedarm.diagrams.cli.main import main
 from guidedarm.diagrams.tasks.path_following.setup import MakeSetup
@@ -26,6 +27,7 @@ def _Run(out: Path, *overrides: str) -> tuple[int, dict, np.ndarray, list[str]]:
     return code, summary, rows, lines[0].split(",")
 
 
+@pytest.mark.slow
 def test_a_base_joint_offset_turns_the_true_tool_about_the_base_axis(tmp_path):
     """The MZ04D's base joint 0.01 rad off (true minus measured): at every step the true
     tool centre is the believed one turned 0.01 rad about the base's z axis, 2 r sin(0.005)
@@ -54,6 +56,7 @@ def test_a_base_joint_offset_turns_the_true_tool_about_the_base_axis(tmp_path):
         assert 0 < gap <= 1000 * turn.max() + 0.2, (name, summary)
 
 
+@pytest.mark.slow
 def test_the_presets_cell_is_followed_and_the_kinematic_executor_is_exact(tmp_path, capsys):
     """A quarter of paper path 1 on the MZ04D with the presets mz04d and vl6180x (one
     draw): followed to its end with no true touch, the true and believed errors within the
