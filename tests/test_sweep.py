@@ -230,6 +230,7 @@ def test_every_shipped_campaign_resolves_against_its_scenario():
         "marker_tilt": 14,
         "path_following_random_hoses": 40,
         "path_following_repeatability": 20,
+        "path_following_presets": 96,
         "panel_planner_starts": 150,
         "planner_random_tasks": 60,
     }

@@ -11,7 +11,10 @@ kinematic   MakeStation(..., kind="kinematic"): the same plant and ToF sensor on
             suite, where the physics of a 15 mm move at 50 mm/s adds nothing to what the
             follower sees.
 Both return the per-step records (RECORD_FIELDS) and joint samples every 20 ms, which a
-kinematic station of the same scene checks for robot-hose contact.
+kinematic station of the same scene checks for robot-hose contact, and what the true cell
+did (truth.TrueCell): the simulated station's from its plant's state; the kinematic
+station's is the nominal cell posed exactly where commanded (station.errors are refused
+with it), so its truth is its records; a hardware station has none.
 """
 
 from __future__ import annotations
@@ -20,7 +23,6 @@ import time
 from dataclasses import dataclass
 
 import numpy as np
-from pydrake.geometry import QueryObject
 from pydrake.systems.analysis import ApplySimulatorConfig, Simulator
 from pydrake.systems.framework import Diagram, DiagramBuilder
 from pydrake.systems.primitives import LogVectorOutput
@@ -35,7 +37,14 @@ from guidedarm.diagrams.tasks.path_following.replay import (
     AddSetupOverlays,
     DrawReplay,
 )
+from guidedarm.diagrams.tasks.path_following.report import Positions
 from guidedarm.diagrams.tasks.path_following.setup import Setup
+from guidedarm.diagrams.tasks.path_following.truth import (
+    AddTrueStateLog,
+    ContactSteps,
+    MeasureTrueCell,
+    TrueCell,
+)
 from guidedarm.systems.errors import RunFailedError
 from guidedarm.systems.path_following.continuous_follower import ContinuousFollower
 from guidedarm.systems.path_following.path_follower import PathFollower
@@ -51,7 +60,7 @@ class Execution:
     number of steps during which the robot touched the hose, the wall-clock time (s) the
     simulation took (the follower's loop on its station, without setup and report), and
     whether a RunFailedError (e.g. a hardware fault), Ctrl-C or SIGTERM cut the simulation
-    short."""
+    short; `truth`, what the true cell did (None without truth: hardware)."""
 
     records: np.ndarray
     sample_times: np.ndarray
@@ -61,6 +70,7 @@ class Execution:
     collisions: int = 0
     wall_time: float = 0.0
     aborted: bool = False
+    truth: TrueCell | None = None
 
 
 def Execute(setup: Setup, executor: str, context: RunContext) -> Execution:
@@ -78,6 +88,8 @@ def Execute(setup: Setup, executor: str, context: RunContext) -> Execution:
     follower, _ = AddPathFollowing(builder, station, setup)
     execution = _Simulate(setup, builder, station, follower, context, drawing)
     execution.collisions = CountContactSteps(execution, kinematic, setup.arm)
+    if executor == "kinematic":
+        execution.truth = TrueCell(Positions(execution.records, "O"), execution.collisions)
     return execution
 
 
@@ -101,6 +113,7 @@ def _Simulate(
     q_log = LogVectorOutput(
         station.GetOutputPort(f"{setup.arm}.position_measured"), builder, SAMPLE_PERIOD
     )
+    true_log = AddTrueStateLog(builder, station, record_period)
     simulator = Simulator(builder.Build())
     ApplySimulatorConfig(setup.station.simulator_config, simulator)
     root = simulator.get_mutable_context()
@@ -135,16 +148,24 @@ def _Simulate(
     failure = fault or loop.failure or None
     if failure is None and not follower.Stopped(follower_context):
         failure = f"time limit ({setup.max_time} s) reached at step {loop.step}"
-    records = record_log.FindLog(root)
+    records = LastRecordPerStep(record_log.FindLog(root).data().T)
     samples = q_log.FindLog(root)
+    truth = None
+    if true_log is not None:
+        tool_frame = setup.station.tof_tools[setup.tool_name].tool_frame
+        step_times = records[:, 1] if len(records) else np.zeros(0)
+        truth = MeasureTrueCell(
+            station, root, true_log, tool_frame, step_times, samples.sample_times()
+        )
     return Execution(
-        LastRecordPerStep(records.data().T),
+        records,
         samples.sample_times(),
         samples.data().T,
         root.get_time(),
         failure,
         wall_time=wall_time,
         aborted=fault is not None,
+        truth=truth,
     )
 
 
@@ -172,23 +193,15 @@ def LastRecordPerStep(samples: np.ndarray) -> np.ndarray:
 
 def CountContactSteps(execution: Execution, kinematic_station: Diagram, arm: str) -> int:
     """Steps during which some robot geometry penetrated the hose (at the joint samples),
-    posed on a kinematic station of the scene."""
+    posed on a kinematic station of the scene (the nominal cell at the measured joints)."""
     context = kinematic_station.CreateDefaultContext()
     command = kinematic_station.GetInputPort(f"{arm}.position_commanded")
-    query_port = kinematic_station.GetOutputPort("sim.query_object")
     step_times = execution.records[:, 1] if len(execution.records) else np.zeros(0)
-    hit_steps = set()
-    for t, q in zip(execution.sample_times, execution.q_samples, strict=True):
-        command.FixValue(context, q)
-        if _TouchesHose(query_port.Eval(context)):
-            hit_steps.add(int(np.searchsorted(step_times, t, side="right")))
-    return len(hit_steps)
-
-
-def _TouchesHose(query: QueryObject) -> bool:
-    inspector = query.inspector()
-    for pair in query.ComputePointPairPenetration():
-        names = (inspector.GetName(pair.id_A), inspector.GetName(pair.id_B))
-        if any("hose_" in n and "bracket" not in n for n in names):
-            return True
-    return False
+    return ContactSteps(
+        kinematic_station.GetOutputPort("sim.query_object"),
+        context,
+        lambda q: command.FixValue(context, q),
+        execution.sample_times,
+        list(execution.q_samples),
+        step_times,
+    )

@@ -91,8 +91,10 @@ class CenterlineMatch:
         return float(np.mean(covered))
 
 
-# The numbers of Metrics (the last three not with continuous motion).
-GROUND_TRUTH_METRICS = {
+# The numbers of Metrics (the last three not with continuous motion). The tool centre O of
+# the records is where the follower believes the tool is (its measured joints through the
+# nominal kinematics); TRUE_METRICS are its twins on the true cell.
+FOLLOWING_METRICS = {
     "steps": (
         "count",
         "the follower's steps (one ToF reading and move each); with motion continuous its "
@@ -101,18 +103,19 @@ GROUND_TRUTH_METRICS = {
     "coverage": (
         "fraction",
         f"share of the hose's centerline within {1000 * TRACKING_BOUND:.0f} mm of a tool "
-        "centre O matched near it",
+        "centre O (believed) matched near it",
     ),
     "tracking_error_mean_mm": (
         "mm",
-        "mean distance of the tool centre O from the true centerline over the steps "
-        "(steps beyond either end of the hose left out)",
+        "mean distance of the tool centre O (believed) from the true centerline over the "
+        "steps (steps beyond either end of the hose left out)",
     ),
-    "tracking_error_max_mm": ("mm", "largest distance of O from the true centerline"),
+    "tracking_error_max_mm": ("mm", "largest distance of O (believed) from the true centerline"),
     "detected_path_error_mean_mm": (
         "mm",
-        "mean distance of the detected hose point S from the true centerline, over the "
-        "steps that detected the hose",
+        "mean distance of the detected hose point S (placed from the tool pose the follower "
+        "believes: the path a user gets) from the hose's centerline, over the steps that "
+        "detected the hose",
     ),
     "detected_path_error_max_mm": ("mm", "largest distance of S from the true centerline"),
     "average_speed_mm_s": (
@@ -132,6 +135,17 @@ GROUND_TRUTH_METRICS = {
 }
 
 
+TRUE_METRICS = {
+    "true_coverage": ("fraction", "coverage of the true tool centre (the true arm's)"),
+    "true_tracking_error_mean_mm": (
+        "mm",
+        "tracking_error_mean_mm of the true tool centre: the true arm's tool frame origin "
+        "at each step's reading",
+    ),
+    "true_tracking_error_max_mm": ("mm", "tracking_error_max_mm of the true tool centre"),
+}
+
+
 def Metrics(records: np.ndarray, centerline: np.ndarray, continuous: bool = False) -> dict:
     """The summary's ground-truth metrics (mm) of one run. `steps` counts the follower's
     steps (continuous: its readings); an error without a point to measure is None.
@@ -140,14 +154,11 @@ def Metrics(records: np.ndarray, centerline: np.ndarray, continuous: bool = Fals
     S = Positions(records, "S")
     detected = Column(records, "detected") > 0.5
     match = CenterlineMatch(p_WO, centerline)
-    inside = ~match.beyond
-    use = detected & inside
-    tracking = match.Distances(p_WO, inside) if inside.any() else None
+    use = detected & ~match.beyond
     detection = match.Distances(S, use) if use.any() else None
     metrics = {
         "steps": len(records),
-        "coverage": round(match.Coverage(p_WO), 4) if len(p_WO) else 0.0,
-        **_MeanAndMax("tracking_error", tracking),
+        **_ToolMetrics(p_WO, match),
         **_MeanAndMax("detected_path_error", detection),
         "average_speed_mm_s": round(1000 * AverageSpeed(records, match), 1) if len(p_WO) else 0.0,
         "lost_steps": int(np.sum(~detected)),
@@ -161,6 +172,24 @@ def Metrics(records: np.ndarray, centerline: np.ndarray, continuous: bool = Fals
         "recoveries": int(Column(records, "recoveries")[-1]) if len(records) else 0,
         "ik_time_median_ms": round(1000 * float(np.median(ik)), 2),
         "ik_time_p99_ms": round(1000 * float(np.percentile(ik, 99)), 2),
+    }
+
+
+def TrueMetrics(p_WO: np.ndarray, centerline: np.ndarray) -> dict:
+    """TRUE_METRICS of the true tool centres p_WO (steps x 3, m; truth.TrueCell), the
+    believed ones' twins, matched to the centerline as Metrics matches the records."""
+    metrics = _ToolMetrics(p_WO, CenterlineMatch(p_WO, centerline))
+    return {f"true_{name}": value for name, value in metrics.items()}
+
+
+def _ToolMetrics(p_WO: np.ndarray, match: CenterlineMatch) -> dict:
+    """`coverage` and `tracking_error_mean_mm` / `_max_mm` of tool centres p_WO (m) and
+    their match."""
+    inside = ~match.beyond
+    tracking = match.Distances(p_WO, inside) if inside.any() else None
+    return {
+        "coverage": round(match.Coverage(p_WO), 4) if len(p_WO) else 0.0,
+        **_MeanAndMax("tracking_error", tracking),
     }
 
 

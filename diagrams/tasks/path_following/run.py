@@ -13,15 +13,19 @@ import dataclasses
 from collections.abc import Collection
 from typing import Any
 
+import numpy as np
+
 from guidedarm.diagrams.run_context import RunContext
-from guidedarm.diagrams.tasks.path_following.execution import Execute
+from guidedarm.diagrams.tasks.path_following.execution import Execute, Execution
 from guidedarm.diagrams.tasks.path_following.report import (
-    GROUND_TRUTH_METRICS,
+    FOLLOWING_METRICS,
+    TRUE_METRICS,
     DetectedPath,
     Metrics,
     PlotDetectedPath,
     Repeatability,
     SpeedAndErrorAlongPath,
+    TrueMetrics,
 )
 from guidedarm.diagrams.tasks.path_following.scenario import PathFollowingScenario
 from guidedarm.diagrams.tasks.path_following.setup import IsRandomHose, MakeSetup, Setup
@@ -45,9 +49,15 @@ def RunPathFollowing(
     execution = Execute(setup, scenario.executor, context)
     centerline = setup.centerline
     metrics = Metrics(execution.records, centerline, scenario.motion == "continuous")
+    truth = execution.truth
+    true_metrics = {} if truth is None else TrueMetrics(truth.p_WO, centerline)
+    if truth is not None:
+        true_metrics["true_collisions"] = truth.collisions
+    # A touch of the true robot fails the run; without truth (hardware), one of the believed.
+    touches = execution.collisions if truth is None else truth.collisions
     failure = execution.failure
-    if failure is None and execution.collisions:
-        failure = f"the robot touched the hose during {execution.collisions} step(s)"
+    if failure is None and touches:
+        failure = f"the robot touched the hose during {touches} step(s)"
     if failure is None and metrics["coverage"] < scenario.min_coverage:
         failure = (
             f"hose lost after step {metrics['steps'] - 1}: coverage "
@@ -58,6 +68,7 @@ def RunPathFollowing(
         "success": failure is None,
         **metrics,
         "collisions": execution.collisions,
+        **true_metrics,
         "estimator": scenario.estimator,
         "executor": scenario.executor,
         "motion": scenario.motion,
@@ -92,8 +103,18 @@ def RunPathFollowing(
         ),
         "speed_along_path",
     )
-    context.write_csv("steps", RECORD_FIELDS, execution.records.tolist())
+    WriteSteps(context, execution)
     return summary
+
+
+def WriteSteps(context: RunContext, execution: Execution) -> None:
+    """steps.csv: the step records (RECORD_FIELDS), with the true tool centre
+    (`true_O_x`, `_y`, `_z`, m) beside them when the run has truth."""
+    if execution.truth is None:
+        context.write_csv("steps", RECORD_FIELDS, execution.records.tolist())
+        return
+    rows = np.column_stack([execution.records, execution.truth.p_WO])
+    context.write_csv("steps", [*RECORD_FIELDS, "true_O_x", "true_O_y", "true_O_z"], rows.tolist())
 
 
 def CheckRun(scenario: PathFollowingScenario, flags: RunFlags) -> None:
@@ -158,11 +179,17 @@ def WithoutReplacedPath(scenario: PathFollowingScenario) -> PathFollowingScenari
 # The numbers of RunPathFollowing's summary (TaskDefinition.metrics); the repeatability
 # figures only with repeat_random_seed.
 PATH_FOLLOWING_METRICS = {
-    **GROUND_TRUTH_METRICS,
+    **FOLLOWING_METRICS,
     "collisions": (
         "count",
-        "steps during which the robot penetrated the hose (joint samples every 20 ms); any "
-        "fails the run",
+        "steps during which the robot penetrated the hose, the nominal arm posed at its "
+        "measured joints (samples every 20 ms); any fails a run without truth (hardware)",
+    ),
+    **TRUE_METRICS,
+    "true_collisions": (
+        "count",
+        "collisions of the true arm (the simulated plant's state, samples every 20 ms) with "
+        "the hose; any fails the run",
     ),
     "sim_time_s": ("s", "simulated time of the run"),
     "realtime_factor": ("ratio", "simulated over wall-clock time of the follower's loop"),

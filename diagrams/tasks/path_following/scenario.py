@@ -154,12 +154,18 @@ def _CheckMotionKeys(scenario: PathFollowingScenario) -> None:
 
 
 def _CheckExecutorKeys(scenario: PathFollowingScenario) -> None:
-    """Refuses, with executor=kinematic, a servo gain, plant, visualization or camera
-    setting set away from its default: the kinematic station poses the arm where it is
-    commanded (no servo, no dynamics, nothing drawn in Meshcat, no camera rendered) and
-    reads none of them."""
+    """Refuses, with executor=kinematic, cell errors and a servo gain, plant, visualization
+    or camera setting set away from its default: the kinematic station poses the nominal
+    cell's arm where it is commanded (no servo, no dynamics, nothing drawn in Meshcat, no
+    camera rendered) and reads none of them."""
     if scenario.executor != "kinematic":
         return
+    if scenario.station.HasErrors():
+        raise ConfigurationError(
+            "station.errors and station.errors_preset have no effect with executor=kinematic "
+            "(it poses the nominal cell where the arm is commanded): remove them or use "
+            "executor=station"
+        )
     arm, default_arm = scenario.station.arms[scenario.arm], ArmConfig()
     prefix = f"station.arms.{scenario.arm}"
     for key, value, default in (
