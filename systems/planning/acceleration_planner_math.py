@@ -227,7 +227,7 @@ class AccelerationPlanning(WaypointTracking, JointSpaceHandover):
                 (upper - margin).tolist(),
                 (parameters.position_braking * smallest).tolist(),
             )
-            self._reversal_limits = smallest.tolist()
+            self.reversal_limits = smallest.tolist()  # the watch's (rad/s^2)
             # The position bound falls at rate (dv/dt + q'') <= rate (b + A) while a joint
             # accelerates at A towards it: capped so that the jerk limit can follow it.
             largest = float(max(self.scaling.upper.max(), -self.scaling.lower.min()))
