@@ -367,8 +367,8 @@ class AccelerationPlanning(WaypointTracking, JointSpaceHandover):
             )
             return braking, 0.0, 0.0, state.t, True
         metric = None
-        # the TCP's metric where J is well conditioned, joint by joint where it is damped
-        if params.saturation_metric == "task" and damping == 0.0:
+        # the TCP's metric for the Cartesian law where J is undamped, else joint by joint
+        if params.saturation_metric == "task" and damping == 0.0 and state.handover_time < 0:
             metric = SaturationMetricFactor(kin.J, inverse)
         qdd, _ = SaturatedLeastSquares(desired, window[0], window[1], metric)
         return qdd, c, state.c_hat0, state.t0, False
