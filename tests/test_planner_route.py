@@ -134,7 +134,7 @@ def test_a_task_no_route_of_which_passes_is_refused_in_one_line():
     assert "\n" not in message
     assert message.startswith("the planner's dry run ")
     assert "through joint space from waypoint 1: " in message
-    assert "other IK branches of waypoint 1 not clear" in message
+    assert "other IK branches of waypoint 1 passes" in message
 
 
 def test_a_joint_space_route_needs_the_robust_law_and_is_not_carried_to_a_new_task(large_task):

@@ -90,7 +90,7 @@ def RouteClearOfCell(
             if route is not None and route.planned.done_time >= 0:
                 return route
             unfinished = unfinished or route
-        tried.append(f"{len(branches)} other IK branches of waypoint {start + 1} not clear")
+        tried.append(f"none of {len(branches)} other IK branches of waypoint {start + 1} passes")
     if unfinished is not None:
         return unfinished
     raise ConfigurationError(f"the planner's dry run {reason}; {'; '.join(tried)}")
