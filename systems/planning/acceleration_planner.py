@@ -126,14 +126,17 @@ class AccelerationPlanner(LeafSystem):
     def planning(self) -> AccelerationPlanning:
         return self._planning
 
-    def RouteThroughJointSpaceFrom(self, index: int) -> None:
-        """Routes the planner's task through joint space from waypoint `index` (0-based;
+    def RouteThroughJointSpaceFrom(
+        self, index: int, joint_waypoints: np.ndarray | None = None
+    ) -> None:
+        """Routes the planner's task through joint space from waypoint `index` (0-based),
+        towards `joint_waypoints` (rad; None: the planner's own IK solutions;
         AccelerationPlanning.WithJointSpaceFrom), e.g. where the dry run before motion
         found the Cartesian motion colliding; before the simulation starts, and not with
         accept_tasks (each new task is planned afresh)."""
         if self._task_port is not None:
             raise ConfigurationError("a planner that accepts tasks routes each task afresh")
-        self._planning = self._planning.WithJointSpaceFrom(index)
+        self._planning = self._planning.WithJointSpaceFrom(index, joint_waypoints)
         self._task_planning = (-1, self._planning)
 
     def _MakeSlice(self, start: int, size: int):

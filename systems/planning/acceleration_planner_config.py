@@ -95,8 +95,10 @@ class PlannerConfig:
         last millimetres.
     saturation_metric: robust mode: how a joint that would leave its bounds is saturated
         (SaturatedLeastSquares): "task", the others also make up its part of the TCP's
-        acceleration in least squares; "joint", the others keep exactly their own share
-        (a joint-by-joint clip). Neither scales the task for all joints.
+        acceleration in least squares (the Cartesian law where J is undamped; joint by
+        joint where J is damped and once handed over to joint space); "joint", the others
+        keep exactly their own share (a joint-by-joint clip). Neither scales the task for
+        all joints.
     joint_space_blend: robust mode: [sigma_full, sigma_start]; as the smallest singular
         value of J_g falls from sigma_start to sigma_full the law hands over, smoothly, to
         the same error dynamics in joint space towards the waypoints' IK solutions, which

@@ -24,17 +24,21 @@ from guidedarm.systems.planning.acceleration_planner_watch import (
 class JointSpaceHandover:
     """AccelerationPlanning's joint-space part (a base class of it): reads the planner's
     `parameters`, `joint_waypoints`, `inverse_braking`, `penalty`, `position_bounds`,
-    reversal limits and `joint_space_from` (the waypoint a joint-space route starts at,
+    `reversal_limits` and `joint_space_from` (the waypoint a joint-space route starts at,
     AccelerationPlanning.WithJointSpaceFrom; None for none)."""
 
     joint_space_from: int | None = None  # the waypoint a joint-space route starts at
 
-    def WithJointSpaceFrom(self, index: int) -> "JointSpaceHandover":
+    def WithJointSpaceFrom(
+        self, index: int, joint_waypoints: np.ndarray | None = None
+    ) -> "JointSpaceHandover":
         """The same planner and task routed through joint space from waypoint `index`
         (0-based; 0: from the start): the law hands over to joint space (item 10 of
         docs/planner.md, towards the waypoints' IK solutions) as soon as it heads for that
-        waypoint, for the rest of the task. The robust mode with acceleration limits and
-        joint waypoints only (the hand-over's law needs both)."""
+        waypoint, for the rest of the task; towards `joint_waypoints` (rad, one row per
+        waypoint, e.g. another IK branch, WaypointIkBranches) when given, else the
+        planner's own. The robust mode with acceleration limits and joint waypoints only
+        (the hand-over's law needs both)."""
         if self.position_bounds is None or self.joint_waypoints is None:
             raise ConfigurationError(
                 "a joint-space route needs the robust mode, acceleration limits and the "
@@ -44,6 +48,14 @@ class JointSpaceHandover:
             raise ConfigurationError(f"no waypoint {index + 1} to route from")
         planning = copy.copy(self)
         planning.joint_space_from = index
+        if joint_waypoints is not None:
+            joint_waypoints = np.asarray(joint_waypoints, float)
+            if joint_waypoints.shape != self.joint_waypoints.shape:
+                raise ConfigurationError(
+                    f"a joint-space route needs one row of 6 joints per waypoint, got "
+                    f"{joint_waypoints.shape} for {len(self.waypoints)} waypoints"
+                )
+            planning.joint_waypoints = joint_waypoints
         return planning
 
     def _BlendJointSpace(
@@ -136,7 +148,7 @@ class JointSpaceHandover:
         PlanningError naming it."""
         signs, rates = UpdateReversals(
             qdd,
-            self._reversal_limits,
+            self.reversal_limits,
             state.reversal_sign.tolist(),
             state.reversal_rate.tolist(),
             self.parameters.time_step,

@@ -227,7 +227,7 @@ class AccelerationPlanning(WaypointTracking, JointSpaceHandover):
                 (upper - margin).tolist(),
                 (parameters.position_braking * smallest).tolist(),
             )
-            self._reversal_limits = smallest.tolist()
+            self.reversal_limits = smallest.tolist()  # the watch's (rad/s^2)
             # The position bound falls at rate (dv/dt + q'') <= rate (b + A) while a joint
             # accelerates at A towards it: capped so that the jerk limit can follow it.
             largest = float(max(self.scaling.upper.max(), -self.scaling.lower.min()))
@@ -367,8 +367,8 @@ class AccelerationPlanning(WaypointTracking, JointSpaceHandover):
             )
             return braking, 0.0, 0.0, state.t, True
         metric = None
-        # the TCP's metric where J is well conditioned, joint by joint where it is damped
-        if params.saturation_metric == "task" and damping == 0.0:
+        # the TCP's metric for the Cartesian law where J is undamped, else joint by joint
+        if params.saturation_metric == "task" and damping == 0.0 and state.handover_time < 0:
             metric = SaturationMetricFactor(kin.J, inverse)
         qdd, _ = SaturatedLeastSquares(desired, window[0], window[1], metric)
         return qdd, c, state.c_hat0, state.t0, False

@@ -27,8 +27,8 @@ class PlannerState:
     (s, -1 if not); best_error, best_progress, best_time: the smallest error to the
     current target (m, rotations counted at 0.1 m/rad), the waypoint progress index + sigma
     and when either last improved (s); reversal_sign, reversal_rate: per joint, the sign
-    of its last commanded acceleration beyond 10 % of its limit and the rate of its sign
-    reversals (1/s, averaged over the last second or so).
+    of its last commanded acceleration beyond half its limit and the rate of its sign
+    reversals (1/s, averaged over the last 2 s; acceleration_planner_watch).
     """
 
     q: np.ndarray

@@ -69,6 +69,48 @@ def SolveWaypointIk(
     return np.array(solutions)
 
 
+def WaypointIkBranches(
+    kinematics: ArmKinematics,
+    waypoints: np.ndarray,
+    joint_waypoints: np.ndarray,
+    q_start: np.ndarray,
+    index: int,
+    margin: float = 0.0,
+    guesses: int = 40,
+) -> list[np.ndarray]:
+    """Other joint solutions of the waypoints (rad, one row per waypoint, like
+    SolveWaypointIk's `joint_waypoints` from q_start) that differ from waypoint `index`
+    (0-based) on: the rows before it kept, waypoint `index` on another exact solution
+    (another IK branch: elbow, shoulder or wrist flipped, or a joint a turn away) and each
+    later waypoint the solution nearest the one before; nearest first (joint distance of
+    waypoint `index` from the configuration before it). The solutions are those found from
+    `guesses` seeded random configurations within the limits less `margin` (rad); a
+    branch on which a later waypoint has no exact solution is left out."""
+    waypoints = np.atleast_2d(waypoints)
+    q_lower, q_upper = kinematics.PositionLimits()
+    limits = (q_lower + margin, q_upper - margin)
+    lower, upper = np.maximum(limits[0], -np.pi), np.minimum(limits[1], np.pi)
+    q_before = np.asarray(q_start, float) if index == 0 else joint_waypoints[index - 1]
+    context = kinematics.plant.CreateDefaultContext()
+    solve = _WaypointSolver(
+        kinematics, context, WaypointPose(waypoints[index]), q_before, 1e-6, limits
+    )
+    rng = np.random.default_rng(0)
+    found = [joint_waypoints[index]]
+    for _ in range(guesses):
+        q = solve(rng.uniform(lower, upper))
+        if q is not None and all(np.linalg.norm(q - other) > 1e-3 for other in found):
+            found.append(q)
+    branches = []
+    for q in sorted(found[1:], key=lambda q: float(np.linalg.norm(q - q_before))):
+        try:
+            later = SolveWaypointIk(kinematics, waypoints[index + 1 :], q, margin=margin)
+        except ConfigurationError:
+            continue
+        branches.append(np.vstack([joint_waypoints[:index], q, later.reshape(-1, 6)]))
+    return branches
+
+
 class _WaypointSolver:
     """Called with a guess: the exact joint solution (rad) of one waypoint's pose X_BT the
     solver finds from it, polished and moved by whole turns towards q_near, or None; the

@@ -65,7 +65,7 @@ JOINT_MOTION_METRICS = {
     ),
     "oscillation_rate_max": (
         "1/s",
-        "largest rate of sign reversals of a commanded joint acceleration above 10 % of its "
+        "largest rate of sign reversals of a commanded joint acceleration beyond half its "
         "limit (the oscillation measure, docs/planner.md)",
     ),
     "cell_contacts": (

@@ -61,8 +61,9 @@ def CheckCellBeforeMotion(scenario: WaypointsScenario, setup: PlannerSetup) -> C
     """Refuses (ConfigurationError, one line naming the bodies) a start pose or a
     waypoint's joint solution that collides with the cell or the arm itself and, in the
     robust mode, chooses the law's route by kinematic dry runs (RouteClearOfCell: the
-    Cartesian law, or the task through joint space where the Cartesian motion collides;
-    refused when neither is clear or can finish). The planner and setup.planning then run
+    Cartesian law, or the task through joint space, towards the planner's or other IK
+    solutions, where the Cartesian motion collides or oscillates; refused when no route is
+    clear or can finish). The planner, setup.planning and setup.joint_waypoints then run
     that route. Returns the CellCollisions for the run's contact count."""
     collisions = CellCollisions(scenario.station, scenario.arm, ModelNames(setup.plant))
     collisions.Refuse(setup.q0, f"the {scenario.arm} start pose")
@@ -71,8 +72,9 @@ def CheckCellBeforeMotion(scenario: WaypointsScenario, setup: PlannerSetup) -> C
     if scenario.planner.robust:
         route = RouteClearOfCell(setup.planning, setup.q0, scenario.max_time, collisions)
         if route.joint_space_from is not None:
-            setup.planner.RouteThroughJointSpaceFrom(route.joint_space_from)
-            setup.planning = setup.planner.planning
+            joints = route.planning.joint_waypoints
+            setup.planner.RouteThroughJointSpaceFrom(route.joint_space_from, joints)
+            setup.planning, setup.joint_waypoints = setup.planner.planning, joints
     return collisions
 
 
