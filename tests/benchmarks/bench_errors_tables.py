@@ -4,7 +4,7 @@ job one cell drawn from the sourced presets) and prints, per paper figure, the p
 real-robot mean and max beside the prediction's mean, p95 and max over the cells, and the
 ratio of each (prediction over paper).
 
-    .venv/bin/python tests/benchmarks/bench_errors_tables.py [--runs DIR]
+    .venv/bin/python tests/benchmarks/bench_errors_tables.py [--runs DIR] [--markdown]
 
 DIR holds one folder per campaign (DIR/errors_panel/results.csv, ...; `guidedarm sweep`'s
 default DIR is runs/). A campaign not run yet is skipped.
@@ -49,33 +49,52 @@ FIGURES = [
 
 
 def _Ratio(predicted: float, paper: float | None) -> str:
-    return f"{predicted / paper:5.2f}" if paper else ""
+    return f"{predicted / paper:.2f}" if paper else ""
 
 
-def main() -> None:
-    parser = argparse.ArgumentParser()
-    parser.add_argument("--runs", type=Path, default=Path("runs"))
-    args = parser.parse_args()
-    header = f"{'figure':42} {'paper':>11} {'mean':>7} {'p95':>7} {'max':>7} {'ratios':>11} cells"
-    print(header)
+def Figures(runs: Path):
+    """(label, paper mean / max text, mean, p95, max, ratio of the means, ratio of the
+    maxima, values, failed jobs) of every figure whose campaign has results in `runs`."""
     for campaign, label, column, scale, where, paper_mean, paper_max in FIGURES:
-        path = args.runs / campaign / "results.csv"
+        path = runs / campaign / "results.csv"
         if not path.is_file():
             continue
         rows = ResultsTable(path, []).rows
         rows = [r for r in rows if all(r.get(k) in v for k, v in where.items())]
         values = np.array([r[column] * scale for r in rows if r.get(column) is not None])
         failed = sum(1 for r in rows if not r["success"])
+        paper = "" if paper_mean is None else f"{paper_mean} / {paper_max}"
+        if paper_mean == paper_max:
+            paper = f"{paper_mean}"  # one figure (the paper's one pair of runs)
         if len(values) == 0:
-            print(f"{label:42} no values ({failed} failed)")
+            yield label, paper, np.nan, np.nan, np.nan, "", "", 0, failed
             continue
         mean, p95, worst = np.mean(values), np.percentile(values, 95), np.max(values)
-        paper = f"{paper_mean} / {paper_max}" if paper_mean is not None else ""
-        ratios = f"{_Ratio(mean, paper_mean)} {_Ratio(worst, paper_max)}"
-        print(
-            f"{label:42} {paper:>11} {mean:7.3g} {p95:7.3g} {worst:7.3g} {ratios:>11} "
-            f"{len(values)} ({failed} failed)"
-        )
+        ratios = _Ratio(mean, paper_mean), _Ratio(worst, paper_max)
+        yield label, paper, mean, p95, worst, *ratios, len(values), failed
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser()
+    parser.add_argument("--runs", type=Path, default=Path("runs"))
+    parser.add_argument("--markdown", action="store_true", help="print a Markdown table")
+    args = parser.parse_args()
+    columns = ("figure", "paper mean / max", "mean", "p95", "max", "ratio mean", "ratio max")
+    if args.markdown:
+        print("| " + " | ".join((*columns, "values (failed jobs)")) + " |")
+        print("|---" * (len(columns) + 1) + "|")
+    else:
+        print(f"{'figure':42} {'paper':>11} {'mean':>7} {'p95':>7} {'max':>7} {'ratios':>11} n")
+    for label, paper, mean, p95, worst, r_mean, r_max, count, failed in Figures(args.runs):
+        stats = f"{mean:.3g}", f"{p95:.3g}", f"{worst:.3g}"
+        if args.markdown:
+            cells = (label, paper, *stats, r_mean, r_max, f"{count} ({failed})")
+            print("| " + " | ".join(c.strip() for c in cells) + " |")
+        else:
+            print(
+                f"{label:42} {paper:>11} {stats[0]:>7} {stats[1]:>7} {stats[2]:>7} "
+                f"{r_mean:>5} {r_max:>5} {count} ({failed} failed)"
+            )
 
 
 if __name__ == "__main__":
