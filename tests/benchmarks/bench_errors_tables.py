@@ -64,7 +64,7 @@ def Figures(runs: Path):
         values = np.array([r[column] * scale for r in rows if r.get(column) is not None])
         failed = sum(1 for r in rows if not r["success"])
         paper = "" if paper_mean is None else f"{paper_mean} / {paper_max}"
-        if paper_mean == paper_max:
+        if paper_mean is not None and paper_mean == paper_max:
             paper = f"{paper_mean}"  # one figure (the paper's one pair of runs)
         if len(values) == 0:
             yield label, paper, np.nan, np.nan, np.nan, "", "", 0, failed
