@@ -148,7 +148,9 @@ def test_a_focal_error_of_2_percent_shortens_the_estimated_distance_by_2_percent
 def test_a_base_joint_offset_moves_the_true_tcp_by_its_arc(tmp_path):
     """UR10e, base joint 0.01 rad off: the planner still reaches its last waypoint within
     1 mm by what it measures (final_error_m), while the true TCP ends 0.01 x its distance
-    from the base axis away (true_final_error_m; within the believed final error)."""
+    from the base axis away (true_final_error_m; within the believed final error). The
+    offset turns the whole move about the base axis: the true travel's length along the
+    commanded move is right (true_move_error_m, within the believed final error)."""
     offset = "station.errors.arms.ur10e.joint_offset=[0.01,0,0,0,0,0]"
     assert main(["run", "ur10e_waypoints", "--out", str(tmp_path), "--set", offset]) == 0
     summary = json.loads((tmp_path / "summary.json").read_text())
@@ -157,6 +159,7 @@ def test_a_base_joint_offset_moves_the_true_tcp_by_its_arc(tmp_path):
     assert summary["final_error_m"] < 0.001
     arc = 0.01 * radius
     assert abs(summary["true_final_error_m"] - arc) <= summary["final_error_m"] + 1e-4
+    assert summary["true_move_error_m"] <= summary["final_error_m"] + 1e-4
 
 
 def test_a_tof_offset_of_3_mm_moves_the_ranging_estimate_3_mm_along_each_sight():

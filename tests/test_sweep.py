@@ -19,6 +19,8 @@ from guidedarm.diagrams.campaigns.campaign_file import ListNamedCampaigns, LoadC
 from guidedarm.diagrams.campaigns.engine import RunJobs
 from guidedarm.diagrams.campaigns.jobs import ExpandJobs
 from guidedarm.diagrams.campaigns.results import EmptyMetrics, ParseCell, ResultsTable
+from guidedarm.diagrams.scenario_loading import read_raw_scenario
+from guidedarm.diagrams.station.station_errors import PRESET_DIR
 from guidedarm.diagrams.studies.marker_study import CAMPAIGNS
 from guidedarm.diagrams.tasks.registry import AvailableTasks, NumericMetricNames
 
@@ -222,6 +224,10 @@ def test_expansion_crosses_the_axes_with_seeded_draws(tmp_path):
 def test_every_shipped_campaign_resolves_against_its_scenario():
     sizes = {name: len(LoadCampaign(name).AxisPoints()) for name in ListNamedCampaigns()}
     assert sizes == {
+        "errors_markers": 250,
+        "errors_moves": 50,
+        "errors_panel": 50,
+        "errors_repeatability": 50,
         "marker_distance_angled": 13,
         "marker_distance_straight": 13,
         "marker_occlusion": 4,
@@ -247,6 +253,13 @@ def test_every_shipped_campaign_resolves_against_its_scenario():
         )
         (job,) = ExpandJobs(first)
         assert f"task: {job.task}" in job.scenario_yaml
+
+
+def test_the_marker_errors_campaign_draws_the_c920_preset():
+    """marker_view has no station to name a preset: errors_markers spells out the c920
+    preset's camera entry, which must stay what models/errors/c920.yaml says."""
+    preset = read_raw_scenario(PRESET_DIR / "c920.yaml")["cameras"]["camera"]
+    assert LoadCampaign("errors_markers").set["camera_errors"] == preset
 
 
 @pytest.mark.slow

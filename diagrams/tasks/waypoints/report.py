@@ -31,6 +31,11 @@ WAYPOINTS_METRICS = {
         "m",
         "the true TCP's distance from the last waypoint at the end (the true cell's arm)",
     ),
+    "true_move_error_m": (
+        "m",
+        "the true TCP's travel from its start to its end along the commanded move, minus "
+        "the move's length (what a dial indicator along the move reads: seed 003 Table 1)",
+    ),
     "c_min": ("ratio", "smallest acceleration scaling c(t) after the start (1: never scaled)"),
     "waypoint_distance_m.#": ("m", "closest approach of the commanded TCP to each waypoint"),
     "qdd_step_max": ("rad/s^2", "largest change of a commanded acceleration in one step"),
@@ -53,6 +58,16 @@ WAYPOINTS_METRICS = {
         "the delay of the measured arm behind the commands that fits it best (0 in simulation)",
     ),
 }
+
+
+def MoveError(travel: np.ndarray, commanded: np.ndarray) -> float:
+    """|travel along the commanded move - the move's length| (m): the error a dial indicator
+    aligned with the commanded displacement `commanded` (m, 3-vector) reads for the true
+    displacement `travel` (m)."""
+    length = float(np.linalg.norm(commanded))
+    if length == 0.0:
+        return float(np.linalg.norm(travel))
+    return abs(float(np.dot(travel, commanded)) / length - length)
 
 
 def TrajectoryMetrics(

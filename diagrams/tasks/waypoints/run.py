@@ -21,6 +21,7 @@ from guidedarm.diagrams.tasks.common.trajectory_csv import WriteTrajectoryCsv
 from guidedarm.diagrams.tasks.registry import TaskDefinition
 from guidedarm.diagrams.tasks.waypoints.report import (
     WAYPOINTS_METRICS,
+    MoveError,
     SavePlannerFigures,
     TrajectoryMetrics,
 )
@@ -84,6 +85,7 @@ def RunWaypoints(
     simulator.set_monitor(monitor)
     failure = None
     context.start_recording()
+    p_start = _TrueTcp(station, simulator.get_context(), scenario, setup)
     try:
         simulator.Initialize()
         t_end = AdvanceWithProgress(simulator, scenario.max_time, context)
@@ -107,20 +109,32 @@ def RunWaypoints(
             f"(max_tracking_error {scenario.max_tracking_error} m)"
         )
     metrics["cell_contacts"] = collisions.CountContacts(measured[::10])
-    X_WT = TruePose(station, root, "world", scenario.tool_frame)
-    if X_WT is not None:
-        # The waypoints are in the nominal base frame: where the base is meant to be.
-        kinematics = setup.planning.kinematics
-        X_WB = kinematics.base_frame.CalcPoseInWorld(kinematics.plant.CreateDefaultContext())
-        p_BT = X_WB.inverse() @ X_WT.translation()
-        true_error = np.linalg.norm(p_BT - setup.planning.waypoints[-1, :3])
-        metrics["true_final_error_m"] = float(true_error)
+    p_end = _TrueTcp(station, root, scenario, setup)
+    if p_end is not None:
+        target = setup.planning.waypoints[-1, :3]
+        metrics["true_final_error_m"] = float(np.linalg.norm(p_end - target))
+        # The planner starts where the encoders say the arm is.
+        p_believed = setup.planning.kinematics.Position(measured[0])[:3]
+        metrics["true_move_error_m"] = MoveError(p_end - p_start, target - p_believed)
     context.headline.update(metrics)
     SavePlannerFigures(context, scenario, setup, trajectory, measured)
     WriteTrajectoryCsv(
         context, trajectory.times, trajectory.q, trajectory.qd, trajectory.qdd, measured
     )
     return {"sim_time_s": round(t_end, 4), **metrics, "failure": failure}
+
+
+def _TrueTcp(
+    station, root_context, scenario: WaypointsScenario, setup: PlannerSetup
+) -> np.ndarray | None:
+    """The true TCP's position (m) in the nominal base frame, where the waypoints are (the
+    base where it is meant to be); None on hardware."""
+    X_WT = TruePose(station, root_context, "world", scenario.tool_frame)
+    if X_WT is None:
+        return None
+    kinematics = setup.planning.kinematics
+    X_WB = kinematics.base_frame.CalcPoseInWorld(kinematics.plant.CreateDefaultContext())
+    return X_WB.inverse() @ X_WT.translation()
 
 
 TASK = TaskDefinition(
