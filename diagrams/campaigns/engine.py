@@ -40,6 +40,13 @@ EMBEDDED_CONFIG = {
     "distributed.admin.tick.interval": "1s",
     "distributed.admin.system-monitor.interval": "2s",
     "distributed.worker.memory.monitor-interval": "1s",
+    # Each run leaves its diagram in the worker (pydrake keeps it alive), so a worker's
+    # memory only grows. A paused worker would wait for memory that never comes back and
+    # stall the campaign; without pausing, the nanny restarts a worker past its terminate
+    # fraction and its job runs again on the fresh one. The results are small: no spilling.
+    "distributed.worker.memory.pause": False,
+    "distributed.worker.memory.target": False,
+    "distributed.worker.memory.spill": False,
 }
 CONNECT_TIMEOUT_S = 10.0
 
