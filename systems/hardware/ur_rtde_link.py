@@ -3,7 +3,9 @@
 The vendor API is reached through two small protocols of ours, so each side can be tested:
 `RtdeReceive` (the subset of rtde_receive.RTDEReceiveInterface we use) is tested against a
 loopback RTDE double speaking the wire protocol; `RtdeControl` (servoJ, servoStop of
-rtde_control.RTDEControlInterface) against a recording fake. A poll thread copies each new
+rtde_control.RTDEControlInterface) against a recording fake. A station's link reaches the
+vendor interfaces in a process of their own (ur_rtde_process: the library can crash when a
+connection drops, and the run must still stop and report). A poll thread copies each new
 controller sample (a later RTDE `timestamp`) into LatestSample with the host time it arrived;
 an error of the vendor interface in that thread is the link's fault. A servoJ or servoStop
 the controller does not accept raises, so the ArmDriver stops the arm and fails the run.
@@ -47,6 +49,7 @@ from guidedarm.systems.hardware.arm_link import (
     RegisterVendorThread,
     UnregisterArmLink,
 )
+from guidedarm.systems.hardware.ur_rtde_process import UrRtdeClientProcess
 
 RTDE_FREQUENCY = 500.0  # Hz, e-Series controllers
 # The controller ports ur_rtde 1.6.5 connects to (fixed in the library).
@@ -340,35 +343,17 @@ def OpenUrRtde(
     servo_timeout: float,
     lockstep_wait: float | None = None,
 ) -> UrRtdeLink:
-    """Connects both vendor interfaces to the controller at `host` (RTDE port 30004),
-    after ProbeUrController."""
-    import rtde_control
-    import rtde_receive
-
+    """Connects both vendor interfaces to the controller at `host` (RTDE port 30004), after
+    ProbeUrController, in a process of their own (UrRtdeClientProcess)."""
+    register = LOCKSTEP_REGISTER if lockstep_wait is not None else None
     try:
         ProbeUrController(host)
+        client = UrRtdeClientProcess(host, RTDE_FREQUENCY, register)
     except ConnectionError as e:
         raise ConfigurationError(
             f"{name}: cannot connect to the UR controller at {host}: {e}"
         ) from None
-
-    variables = ["timestamp", "actual_q", "actual_qd", "runtime_state"]
-    if lockstep_wait is not None:
-        variables.append(f"output_int_register_{LOCKSTEP_REGISTER}")
-    receive = control = None
-    with CapturedStderr() as vendor:
-        try:
-            receive = rtde_receive.RTDEReceiveInterface(host, RTDE_FREQUENCY, variables)
-            control = rtde_control.RTDEControlInterface(host, RTDE_FREQUENCY)
-        except RuntimeError as e:
-            error = str(e)
-    if control is None:
-        if receive is not None:
-            with contextlib.suppress(Exception):
-                receive.disconnect()
-        said = "; ".join(line for line in [*vendor.text.splitlines(), error] if line.strip())
-        raise ConfigurationError(f"{name}: cannot connect to the UR controller at {host}: {said}")
-    sys.stderr.write(vendor.text)
+    receive, control = client.receive, client.control
     return UrRtdeLink(
         name,
         receive,
