@@ -68,7 +68,7 @@ def test_a_crash_of_the_client_process_is_a_link_fault_naming_it(cell):
         assert _FirstSample(link) is not None
         os.kill(client.process.pid, signal.SIGSEGV)
         assert _Fault(link) == "RTDE connection lost"
-        with pytest.raises(RuntimeError, match="^the ur_rtde client process ended by SIGSEGV$"):
+        with pytest.raises(RuntimeError, match=r"^the ur_rtde client process ended by SIGSEGV$"):
             link.send_position(link.latest().q, 0.002)
         with pytest.raises(RuntimeError, match="ended by SIGSEGV"):
             link.stop()
