@@ -18,17 +18,21 @@ reports the connection lost, and every later call raises RuntimeError naming how
 from __future__ import annotations
 
 import argparse
-import ctypes
 import math
 import os
-import signal
-import socket
-import subprocess
 import sys
 import threading
 import time
 from multiprocessing.connection import Connection
 
+from guidedarm.systems.child_process import (
+    ChildChannels,
+    EndChild,
+    FollowParent,
+    HowItEnded,
+    SendOrExit,
+    StartChild,
+)
 from guidedarm.systems.hardware.arm_link import DescribeError
 
 POLL_PERIOD = 0.0005  # s, how often the child reads the receive interface
@@ -50,45 +54,26 @@ class UrRtdeClientProcess:
         register: int | None = None,
         connect_timeout: float = 30.0,
     ) -> None:
-        calls_here, calls_there = socket.socketpair()
-        samples_here, samples_there = socket.socketpair()
-        command = [sys.executable, "-m", __name__, host, str(frequency)]
-        command += ["--calls-fd", str(calls_there.fileno())]
-        command += ["--samples-fd", str(samples_there.fileno())]
+        args = [host, str(frequency)]
         if register is not None:
-            command += ["--register", str(register)]
-        self.process = subprocess.Popen(
-            command, pass_fds=(calls_there.fileno(), samples_there.fileno())
-        )
-        calls_there.close()
-        samples_there.close()
-        self._calls = _CallChannel(Connection(calls_here.detach()), self._HowItEnded)
+            args += ["--register", str(register)]
+        self.process, (calls, samples) = StartChild(__name__, args, channels=2)
+        self._calls = _CallChannel(calls, self._HowItEnded)
         said = self._calls.Wait(connect_timeout)
         if said != "connected":
             self.Kill()
             raise ConnectionError(said)
-        self.receive = RemoteRtdeReceive(Connection(samples_here.detach()), self._calls)
+        self.receive = RemoteRtdeReceive(samples, self._calls)
         self.control = RemoteRtdeControl(self._calls, self)
 
     def _HowItEnded(self) -> str:
-        """Called when the child's socket closed: it closes as the child exits, a moment
-        before its exit status can be read."""
-        try:
-            code = self.process.wait(EXIT_TIMEOUT)
-        except subprocess.TimeoutExpired:
-            return "the ur_rtde client process stopped answering"
-        if code < 0:
-            return f"the ur_rtde client process ended by {signal.Signals(-code).name}"
-        return f"the ur_rtde client process ended with exit code {code}"
+        return HowItEnded(self.process, "the ur_rtde client process", EXIT_TIMEOUT)
 
     def End(self) -> None:
         """Asks the child to end; kills it if it has not within EXIT_TIMEOUT s (a vendor
         call it is still inside can wait minutes on a dead controller)."""
         self._calls.Close()
-        try:
-            self.process.wait(EXIT_TIMEOUT)
-        except subprocess.TimeoutExpired:
-            self.Kill()
+        EndChild(self.process, EXIT_TIMEOUT)
 
     def Kill(self) -> None:
         self.process.kill()
@@ -230,7 +215,7 @@ def _ServeCalls(calls: Connection, interfaces: dict) -> None:
             reply = (True, getattr(interfaces[interface], method)(*args))
         except Exception as e:  # the vendor's error, handed to the parent
             reply = (False, DescribeError(e))
-        _SendOrExit(calls, reply)
+        SendOrExit(calls, reply)
 
 
 def _PushSamples(receive, register: int | None, samples: Connection) -> None:
@@ -249,37 +234,22 @@ def _PushSamples(receive, register: int | None, samples: Connection) -> None:
                     receive.getRuntimeState(),
                     value,
                 )
-                _SendOrExit(samples, ("sample", sample))
+                SendOrExit(samples, ("sample", sample))
             time.sleep(POLL_PERIOD)
-        _SendOrExit(samples, ("lost", None))
+        SendOrExit(samples, ("lost", None))
     except Exception as e:  # the vendor raises RuntimeError; any error ends the stream
-        _SendOrExit(samples, ("error", f"RTDE receive failed: {DescribeError(e)}"))
-
-
-def _SendOrExit(connection: Connection, message) -> None:
-    """A parent that is gone ends the child at once (no teardown of the vendor's threads)."""
-    try:
-        connection.send(message)
-    except OSError:
-        os._exit(0)
-
-
-def _EndWithParent() -> None:
-    """Has the kernel kill this process when its parent ends (Linux's PR_SET_PDEATHSIG)."""
-    pr_set_pdeathsig = 1
-    ctypes.CDLL(None, use_errno=True).prctl(pr_set_pdeathsig, signal.SIGKILL)
+        SendOrExit(samples, ("error", f"RTDE receive failed: {DescribeError(e)}"))
 
 
 def _Main() -> None:
     parser = argparse.ArgumentParser(description="The ur_rtde client of one UR controller.")
     parser.add_argument("host")
     parser.add_argument("frequency", type=float)
-    parser.add_argument("--calls-fd", type=int, required=True)
-    parser.add_argument("--samples-fd", type=int, required=True)
     parser.add_argument("--register", type=int)
+    parser.add_argument("--fds", required=True)
     args = parser.parse_args()
-    _EndWithParent()
-    calls, samples = Connection(args.calls_fd), Connection(args.samples_fd)
+    FollowParent()
+    calls, samples = ChildChannels(args.fds)
 
     from guidedarm.systems.hardware.ur_rtde_link import CapturedStderr
 
@@ -299,10 +269,10 @@ def _Main() -> None:
             error = DescribeError(e)
     if control is None:
         said = "; ".join(line for line in [*vendor.text.splitlines(), error] if line.strip())
-        _SendOrExit(calls, said)
+        SendOrExit(calls, said)
         os._exit(0)
     sys.stderr.write(vendor.text)
-    _SendOrExit(calls, "connected")
+    SendOrExit(calls, "connected")
     pusher = threading.Thread(target=_PushSamples, args=(receive, args.register, samples))
     pusher.daemon = True
     pusher.start()
