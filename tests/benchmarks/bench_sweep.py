@@ -8,7 +8,7 @@ Speed-up: 16 ur10e_joint_tour jobs (max_speed 1.5-3.0 rad/s, about 1 s each) on 
 embedded cluster of 1, then 2 worker processes; the workers are warmed up first (pydrake
 imported, one job run), so the figure is the jobs' phase, cluster start-up excluded (it is
 printed apart). Overhead: 4 jobs of about 5 s (max_speed 0.1 rad/s) run one after the other
-in this process with worker.RunJob (the job alone), then on a 1-worker cluster; the
+in this process with worker.RunJobHere (the job alone), then on a 1-worker cluster; the
 difference per job is the engine's cost (submission, scheduling, results, the CSV row).
 The overhead is split into the engine's own cost (campaign time per job minus the job's
 time inside its worker) and the job running slower inside the worker process than alone.
@@ -32,7 +32,7 @@ from guidedarm.diagrams.campaigns.campaign import CampaignConfig
 from guidedarm.diagrams.campaigns.engine import OpenClient, RunJobs
 from guidedarm.diagrams.campaigns.jobs import ExpandJobs, Job
 from guidedarm.diagrams.campaigns.results import ResultsTable
-from guidedarm.diagrams.campaigns.worker import RunJob
+from guidedarm.diagrams.campaigns.worker import RunJob, RunJobHere
 
 SCENARIO = "ur10e_joint_tour"
 
@@ -46,6 +46,7 @@ def TimeJobs(workers: int, jobs: list[Job], warm_up: Job) -> tuple[float, float,
     """(start-up of the cluster, wall time of the jobs, mean time of a job inside its
     worker, CPU time of every process of the cluster during the jobs) on `workers` local
     workers (s). The processes: this one (client and scheduler), the nannies, the
+    workers' job processes, the
     workers."""
     with tempfile.TemporaryDirectory() as folder:
         start = time.perf_counter()
@@ -56,7 +57,9 @@ def TimeJobs(workers: int, jobs: list[Job], warm_up: Job) -> tuple[float, float,
             client.run(RunJob, warm_up)
             table = ResultsTable(Path(folder) / "results.csv", list(jobs[0].axes))
             workers = [psutil.Process(pid) for pid in client.run(os.getpid).values()]
-            processes = [psutil.Process(), *workers, *(w.parent() for w in workers)]
+            job_processes = [child for w in workers for child in w.children()]
+            processes = [psutil.Process(), *workers, *job_processes]
+            processes += [w.parent() for w in workers]
             cpu = -_Cpu(processes)
             start = time.perf_counter()
             outcome = RunJobs(client, jobs, table, None, progress=lambda line: None)
@@ -106,7 +109,7 @@ def main(repeats: int = 2) -> None:
     long = Jobs({"max_speed": [0.1], "settle_time": [0.50, 0.51, 0.52, 0.53]})
     one, two, control, alone, campaign, in_worker = [], [], [], [], [], []
     alone_cpu, campaign_cpu, busy = [], [], []
-    RunJob(warm_up)
+    RunJobHere(warm_up)
     for _ in range(repeats):
         control.append(Parallelism())
         startup_1, wall, _, _ = TimeJobs(1, short, warm_up)
@@ -116,7 +119,7 @@ def main(repeats: int = 2) -> None:
         busy.append(inside * len(short) / wall)
         start, start_cpu = time.perf_counter(), time.process_time()
         for job in long:
-            RunJob(job)
+            RunJobHere(job)
         alone.append((time.perf_counter() - start) / len(long))
         alone_cpu.append((time.process_time() - start_cpu) / len(long))
         _, wall, inside, cpu = TimeJobs(1, long, warm_up)
