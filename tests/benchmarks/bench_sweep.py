@@ -46,8 +46,7 @@ def TimeJobs(workers: int, jobs: list[Job], warm_up: Job) -> tuple[float, float,
     """(start-up of the cluster, wall time of the jobs, mean time of a job inside its
     worker, CPU time of every process of the cluster during the jobs) on `workers` local
     workers (s). The processes: this one (client and scheduler), the nannies, the
-    workers' job processes, the
-    workers."""
+    workers and their job processes."""
     with tempfile.TemporaryDirectory() as folder:
         start = time.perf_counter()
         with OpenClient(workers, None) as client:
