@@ -195,3 +195,33 @@ def test_bad_ik_and_workspace_settings_are_refused():
         WorkspaceConfig(y=[0.2, 0.1]).Validate()
     with pytest.raises(ConfigurationError, match="max_step_rotation_deg"):
         ToolPoseIkConfig(max_step_rotation_deg=0.0).Validate()
+
+
+def test_a_solution_touching_the_arm_itself_is_solved_again_apart():
+    """random_17, noise seed 21, step 20 (a sharp bend): the nearest solution bends the wrist
+    to -2.086 rad, within the pendant's limit (-2.094) but with the gripper 0.1 mm into the
+    forearm, where the simulated arm stopped short of its goal for seven steps. The task's
+    solver, which has the arm's geometry, solves that pose again with the parts 1 mm apart:
+    the tool centre still on target, the wrist bent less."""
+    from guidedarm.diagrams.tasks.path_following.setup import MakeSetup
+    from guidedarm.diagrams.tasks.registry import LoadScenario
+
+    _, scenario, _ = LoadScenario("path_following", [])
+    solver = MakeSetup(scenario).solver
+    q_previous = np.array([0.16558497, 0.57840996, 0.8642156, 0.36595552, -1.79957016, -1.54611081])
+    X_WG = RigidTransform(
+        RollPitchYaw(-2.584951682711781, -0.4860595773643827, 1.590800170026658),
+        [0.4380024231226408, 0.11380344409400658, 0.3134742405629403],
+    )
+    assert not solver.TouchesItself(q_previous)
+    touching = _MakeSolver().Solve(X_WG, q_previous)  # the same IK without the geometry
+    assert touching.success and solver.TouchesItself(touching.q)
+    assert touching.q[4] < -2.08
+    result = solver.Solve(X_WG, q_previous)
+    assert result.success, result.reason
+    assert not solver.TouchesItself(result.q)
+    assert -2.06 < result.q[4] < -2.0
+    X = solver.ForwardKinematics(result.q)
+    assert np.max(np.abs(X @ solver.p_FQ - X_WG @ solver.p_FQ)) <= 0.0005 + 1e-6
+    turn = X.rotation().inverse().multiply(X_WG.rotation()).ToAngleAxis().angle()
+    assert math.degrees(turn) <= 45.0 + 1e-3

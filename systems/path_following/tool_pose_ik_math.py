@@ -24,7 +24,15 @@ previous joint positions (as the paper's Matlab solver was):
   - a joint whose range exceeds a full turn takes the 2 pi multiple nearest its previous
     position: the same pose reached with the last joint a turn further would spin the
     tool once around the hose;
-  - a small cost on the distance to the previous joint positions keeps the same branch.
+  - a small cost on the distance to the previous joint positions keeps the same branch;
+  - with the plant's geometry at hand (a Diagram connecting the plant to its SceneGraph), a
+    solution in which the arm touches itself (the gripper on the forearm at a sharp wrist
+    bend: joint limits from the pendant allow it, the parts do not) is solved again with
+    every pair of the arm's collision geometries kept self_clearance apart. The simulated
+    arm, like the real one, stops at such a contact short of its goal; the follower then
+    read its next step from a tool that had not moved, walked backwards along the hose for
+    seven steps and turned round onto it (random_17, noise seed 21). Only those solutions
+    are solved again, so every other one is the same as without the geometry.
 """
 
 import math
@@ -36,7 +44,8 @@ from pydrake.math import RigidTransform, RotationMatrix
 from pydrake.multibody.inverse_kinematics import InverseKinematics
 from pydrake.multibody.plant import MultibodyPlant
 from pydrake.multibody.tree import Frame, ModelInstanceIndex
-from pydrake.solvers import SnoptSolver, Solve
+from pydrake.solvers import MathematicalProgram, MathematicalProgramResult, SnoptSolver, Solve
+from pydrake.systems.framework import Diagram
 
 from guidedarm.systems.config_checks import (
     CheckFields,
@@ -68,6 +77,8 @@ class ToolPoseIkConfig:
         consecutive poses during the joint move (m); inf turns the swing check off.
     joint_cost_weight: weight of the stay-near-the-previous-q cost.
     retries: perturbed restarts after a failed solve.
+    self_clearance: distance kept between the arm's own collision geometries when a
+        solution touching itself is solved again (m).
     """
 
     position_tolerance: float = Positive(0.0005)
@@ -80,6 +91,7 @@ class ToolPoseIkConfig:
     max_swing: float = Positive(0.025, allow_inf=True)
     joint_cost_weight: float = NonNegative(0.01)
     retries: int = 3
+    self_clearance: float = Positive(0.001)
 
     def Validate(self) -> None:
         """Raises ConfigurationError naming the first bad limit."""
@@ -110,13 +122,16 @@ class ToolPoseSolver:
         p_FQ: np.ndarray | None = None,
         workspace: WorkspaceConfig | None = None,
         X_WB: RigidTransform | None = None,
+        diagram: Diagram | None = None,
     ) -> None:
         """p_FQ: the point of the frame held on target (m, frame F; default its origin).
         With the tool centre there, an orientation shortfall turns the tool about its centre
         and leaves it on the path; about the gripper's origin it would move the centre
         sideways by the tool's length times the shortfall. workspace: the walls (default the
         paper's cell) in the arm's base frame B, whose pose in the world is X_WB (default the
-        identity)."""
+        identity). diagram: a Diagram holding `plant` connected to its SceneGraph; with it,
+        solutions in which the arm touches itself are solved again
+        keeping its parts apart (module docstring)."""
         CheckPlant("plant", plant)
         CheckModelInstance("instance", instance, plant)
         CheckFrame("frame", frame, plant)
@@ -131,7 +146,14 @@ class ToolPoseSolver:
         self.workspace.Validate()
         self.X_WB = X_WB or RigidTransform()
         self.p_FQ = np.zeros(3) if p_FQ is None else CheckVector("p_FQ", p_FQ, 3)
-        self.context = plant.CreateDefaultContext()
+        CheckInstance("diagram", diagram, (Diagram, type(None)))
+        self._geometry = diagram is not None
+        if self._geometry:
+            # The plant's context belongs to the diagram's, and the plant to the diagram.
+            self._diagram, self._root = diagram, diagram.CreateDefaultContext()
+            self.context = plant.GetMyMutableContextFromRoot(self._root)
+        else:
+            self.context = plant.CreateDefaultContext()
         self._q_start = plant.GetPositions(self.context).copy()
         joints = plant.GetJointIndices(instance)
         self.q_indices = np.array(
@@ -198,6 +220,12 @@ class ToolPoseSolver:
         reasons = []
         for tolerance in tolerances:
             q_new, reason = self._Solve(X_WF_desired, q_previous, tolerance)
+            if (
+                q_new is not None
+                and self.TouchesItself(q_new)
+                and not self.TouchesItself(q_previous)
+            ):
+                q_new, reason = self._Solve(X_WF_desired, q_previous, tolerance, True)
             if q_new is not None:
                 return IkResult(q_new, True, time.perf_counter() - start, "")
             reasons.append(reason)
@@ -205,13 +233,29 @@ class ToolPoseSolver:
         elapsed = time.perf_counter() - start
         return IkResult(np.asarray(q_previous, float), False, elapsed, reasons[0])
 
+    def TouchesItself(self, q: np.ndarray) -> bool:
+        """Whether two of the arm's collision geometries (those its model does not filter)
+        penetrate each other at q; False without the plant's geometry."""
+        if not self._geometry:
+            return False
+        self.plant.SetPositions(self.context, q)
+        return self.plant.get_geometry_query_input_port().Eval(self.context).HasCollisions()
+
     def _Solve(
-        self, X_WF_desired: RigidTransform, q_previous: np.ndarray, orientation_tolerance: float
+        self,
+        X_WF_desired: RigidTransform,
+        q_previous: np.ndarray,
+        orientation_tolerance: float,
+        apart: bool = False,
     ) -> tuple[np.ndarray | None, str]:
-        """(q, '') of one program with the given orientation tolerance (deg), or (None, why)."""
+        """(q, '') of one program with the given orientation tolerance (deg), or (None, why);
+        apart: the arm's geometries kept self_clearance apart."""
         lim = self.limits
         X_WF_now = self.ForwardKinematics(q_previous)
-        ik = InverseKinematics(self.plant, with_joint_limits=True)
+        if apart:
+            ik = InverseKinematics(self.plant, self.context, with_joint_limits=True)
+        else:
+            ik = InverseKinematics(self.plant, with_joint_limits=True)
         q = ik.q()
         world = self.plant.world_frame()
         p = X_WF_desired @ self.p_FQ
@@ -259,6 +303,10 @@ class ToolPoseSolver:
                 body.body_frame(), np.zeros(3), world, self.X_WB, lower, upper
             )
             described.append((binding, f"workspace ({body.name()})"))
+        if apart:
+            described.append(
+                (ik.AddMinimumDistanceLowerBoundConstraint(lim.self_clearance), "self-contact")
+            )
         for binding, description in described:
             binding.evaluator().set_description(description)
         ik.AddOrientationCost(
@@ -280,7 +328,7 @@ class ToolPoseSolver:
         swing = 0.0
         for guess in starts:
             result = self._solver.Solve(prog, guess) if self._solver else Solve(prog, guess)
-            if result.is_success():
+            if result.is_success() or (apart and _Feasible(prog, result)):
                 q_new = self.NearestTurn(result.GetSolution(q), q_previous)
                 swing = self.Swing(q_previous, q_new)
                 if swing <= lim.max_swing:
@@ -292,6 +340,15 @@ class ToolPoseSolver:
             )
         names = result.GetInfeasibleConstraintNames(prog)
         return None, _Explain(names) if names else result.get_solution_result().name
+
+
+def _Feasible(prog: MathematicalProgram, result: MathematicalProgramResult) -> bool:
+    """Whether the result satisfies every constraint of prog (to 1e-6). The distance
+    constraint between the arm's parts is not smooth where the closest pair changes: SNOPT
+    then stops at a feasible point it cannot improve (its info 41) or at the iteration
+    limit, and such a point is a solution that touches nothing."""
+    x = result.GetSolution()
+    return bool(np.all(np.isfinite(x))) and prog.CheckSatisfied(prog.GetAllConstraints(), x)
 
 
 def _Explain(names: list[str]) -> str:

@@ -21,8 +21,10 @@ from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
+from pydrake.geometry import SceneGraph
 from pydrake.math import RigidTransform
 from pydrake.multibody.plant import MultibodyPlant
+from pydrake.systems.framework import DiagramBuilder
 
 from guidedarm.diagrams.scenario_loading import load_typed, read_raw_scenario
 from guidedarm.diagrams.station.scenario import StationScenario
@@ -306,16 +308,24 @@ def MakeSolver(
 ) -> ToolPoseSolver:
     """The IK of the gripper frame G holding the ToF tool's centre O on target, on a
     controller plant of the arm and what it carries (MakeMultibodyPlant, no hose; `plant`:
-    the station's, MakeMultibodyPlant(station)), with the workspace walls in the base
-    frame B (pose X_WB)."""
+    the station's, MakeMultibodyPlant(station)) with its SceneGraph (the IK keeps the arm
+    from touching itself), with the workspace walls in the base frame B (pose X_WB)."""
     names = ArmAndAttachments(plant, arm)
-    plant = MakeMultibodyPlant(station, names, whole=plant)
+    builder = DiagramBuilder()
+    scene_graph = builder.AddSystem(SceneGraph())
+    plant = builder.AddSystem(
+        MakeMultibodyPlant(station, names, scene_graph=scene_graph, whole=plant)
+    )
+    source_pose = scene_graph.get_source_pose_port(plant.get_source_id())
+    builder.Connect(plant.get_geometry_pose_output_port(), source_pose)
+    builder.Connect(scene_graph.get_query_output_port(), plant.get_geometry_query_input_port())
+    diagram = builder.Build()
     gripper = GetScopedFrame(plant, gripper_frame, "gripper_frame")
     tof = station.tof_tools[tool_name]
     tool = GetScopedFrame(plant, tof.tool_frame, f"station.tof_tools.{tool_name}.tool_frame")
     p_GO = tool.CalcPose(plant.CreateDefaultContext(), gripper).translation()
     instance = GetArmInstance(plant, arm)
-    return ToolPoseSolver(plant, instance, gripper, ik, p_GO, workspace, X_WB)
+    return ToolPoseSolver(plant, instance, gripper, ik, p_GO, workspace, X_WB, diagram)
 
 
 def _ToolInGripper(plant: MultibodyPlant, gripper_frame: str, tof) -> RigidTransform:
