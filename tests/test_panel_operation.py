@@ -94,7 +94,8 @@ def test_planner_motion_presses_the_switch_within_the_planner_limits(tmp_path):
     state = run.sequencer.GetSequencerState(
         run.sequencer.GetMyContextFromRoot(run.simulator.get_context())
     )
-    assert state.task.sequence == 3  # base, switch point, press, retract: four planner tasks
+    # base, switch point, approach, press, release, retract: six planner tasks
+    assert state.task.sequence == 5
     # the measured joints keep the planner's 0.5 rad/s (the joint segments peak at 0.75)
     log = run.joint_log.FindLog(run.simulator.get_context())
     speed = np.abs(np.diff(log.data(), axis=1)) / np.diff(log.sample_times())
@@ -105,6 +106,15 @@ def test_planner_motion_presses_the_switch_within_the_planner_limits(tmp_path):
     assert rows.shape[1] == 25 and np.allclose(np.diff(rows[:, 0]), 0.002)
     assert np.abs(rows[:, 7:13]).max() <= 0.5 * (1 + 1e-9)
     assert result["cell_contacts"] == 0 and result["oscillation_rate_max"] < 5.0
+    # the press and its return run straight along the switch's axis: wherever the
+    # commanded tip is within 10 mm of the cap's rest face, it is within 0.5 mm of the
+    # axis (the long move before bends 7 mm sideways, clear of the caps)
+    switch = np.array(run.panel.switches[1].position)
+    X_PW = run.X_WP.inverse()
+    p_PT = np.array([(X_PW @ run.kinematics.X_WT(q)).translation() for q in rows[::5, 1:7]])
+    near = p_PT[:, 2] < switch[2] + 0.010
+    assert near.sum() > 100 and p_PT[:, 2].min() < switch[2] - 0.0075  # pressed 8 mm
+    assert np.linalg.norm(p_PT[near, :2] - switch[:2], axis=1).max() < 0.5e-3
 
 
 @pytest.mark.slow

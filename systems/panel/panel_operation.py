@@ -6,21 +6,31 @@ The sequence, as in the paper: from a start with at least one marker in view, me
 panel pose; move to the base point in front of the panel (camera `base_distance_m` from
 the panel plane, looking straight at the middle of the markers) and measure again; move to
 the last measurement point (gripper tip `measure_standoff_m` in front of the chosen switch,
-where the markers are still in view) and measure again; press (tip `press_depth_m` past the
-switch's rest face), hold, retract. Images are analysed only while the arm stands still
-(commanded move finished, settle time over, every joint slower than `stationary_speed`),
-so moves between points need no speed limit for the camera's sake.
+where the markers are still in view) and measure again; move to the approach point (tip
+`approach_standoff_m` in front of the cap, on the switch's axis), press straight along the
+axis (PressDepth: the switch's full travel past the cap's rest face, deeper when the last
+estimate's depth uncertainty asks for it), hold, return to the approach point, retract.
+Images are analysed only while the arm stands still (commanded move finished, settle time
+over, every joint slower than `stationary_speed`), so moves between points need no speed
+limit for the camera's sake.
 
 Each measurement replaces the panel estimate X_WP = X_WC(q) X_CP, with X_WC(q) the camera
-pose from the arm's kinematics at the measured joint positions. When no marker is seen at a
-later point, `on_marker_loss` decides: "abort" stops the arm where it is and reports the
-failure, "continue" keeps the last valid X_WP (the arm's own kinematics carry the rest).
+pose from the arm's kinematics at the measured joint positions. When no marker is seen (or
+the estimator refuses the pose) at a later point, `on_marker_loss` decides: "abort" stops
+the arm where it is and reports the failure, "continue" keeps the last valid X_WP (the
+arm's own kinematics carry the rest). The start's estimate alone never aims the press: it
+was taken far away and in another arm configuration, where the arm's joint offsets do not
+cancel. So with "continue" a refused base view is taken again from `retake_distances_m`,
+and when none is accepted the sequence stops with a failure naming why.
 
 Moves (`motion`): "joint_trajectory", minimum-jerk joint-space segments between
 inverse-kinematics solutions (Drake InverseKinematics, exact tip pose), timed so no joint
 exceeds `max_joint_speed`; or "planner", each move a PlannerTask for the acceleration-level
 planner (Pająk's, systems/planning/acceleration_planner.py), which ends it when its end
-condition holds and which streams the commands itself.
+condition holds and which streams the commands itself. The press and its return are moves
+of `approach_standoff_m` plus the depth along the switch's axis: short enough that either
+motion keeps the tip on the axis (the planner's path on a long move bends sideways by up
+to a sixth of its length).
 Units: m, rad, s. Frames: W the controller plant's world, P panel, C camera, T gripper tip.
 """
 
@@ -45,18 +55,22 @@ from guidedarm.systems.panel.panel_operation_math import (
     PanelOperationConfig,
     PanelTargets,
     PlannerFrames,
+    PressDepth,
 )
 from guidedarm.systems.planning.acceleration_planner_math import PlannerTask
 
 
 @dataclass
 class Step:
-    """One step: `kind` is measure | move | hold | done; `label` names it in the logs."""
+    """One step: `kind` is measure | move | hold | done; `label` names it in the logs.
+    X_PT: a move's tip target (None: the press, whose depth the last estimate sets);
+    retake: a step of the base view's retakes, skipped once a close view was accepted."""
 
     kind: str
     label: str
     X_PT: RigidTransform | None = None
     duration_s: float = 0.0
+    retake: bool = False
 
 
 @dataclass
@@ -76,6 +90,10 @@ class SequencerState:
     t_at: dict[str, float] = field(default_factory=dict)
     failure: str | None = None
     done: bool = False
+    close_estimate: bool = False
+    depth_std_m: float = 0.0
+    press_depth_m: float | None = None
+    refused: list[str] = field(default_factory=list)
 
 
 class PanelOperation(LeafSystem):
@@ -117,14 +135,25 @@ class PanelOperation(LeafSystem):
         self._config = config
         self.targets = PanelTargets(panel, switch, config, kinematics.X_CT)
         targets = self.targets
+        self._switch = switch
+        approach = targets.at_switch(config.approach_standoff_m)
+        retakes = []
+        for i, distance in enumerate(config.retake_distances_m, start=1):
+            retakes += [
+                Step("move", f"retake_{i}", targets.base(distance), retake=True),
+                Step("measure", f"retake_{i}", retake=True),
+            ]
         self.steps = [
             Step("measure", "start"),
             Step("move", "base", targets.base()),
             Step("measure", "base"),
+            *retakes,
             Step("move", "switch_point", targets.at_switch(config.measure_standoff_m)),
             Step("measure", "switch_point"),
-            Step("move", "press", targets.at_switch(-config.press_depth_m)),
+            Step("move", "approach", approach),
+            Step("move", "press"),
             Step("hold", "press", duration_s=config.press_hold_s),
+            Step("move", "release", approach),
             Step("move", "retract", targets.at_switch(config.retract_standoff_m)),
             Step("done", "done"),
         ]
@@ -202,7 +231,7 @@ class PanelOperation(LeafSystem):
         if step.kind == "measure" and still:
             self._Measure(context, s, step.label, q, t)
             advance = s.failure is None
-        elif step.kind == "move":
+        elif step.kind == "move" and moved:
             advance = self._StartMove(s, step, q, t)
         elif step.kind == "hold" and moved and t >= since + step.duration_s:
             s.q_at[step.label], s.t_at[step.label] = q.tolist(), t
@@ -215,6 +244,8 @@ class PanelOperation(LeafSystem):
             s.q_from, s.q_to, s.move_end_s = q.copy(), q.copy(), min(s.move_end_s, t)
         if advance:
             s.step += 1
+            while self.steps[s.step].retake and s.close_estimate:
+                s.step += 1
             s.step_start_s = t
         state.get_mutable_abstract_state(self._state_index).set_value(s)
 
@@ -230,29 +261,47 @@ class PanelOperation(LeafSystem):
         s.q_at[f"measure_{label}"], s.t_at[f"measure_{label}"] = q.tolist(), t
         if estimate.valid:
             s.X_WP = self._kinematics.X_WC(q) @ estimate.X_CP
+            s.close_estimate = label != "start"
+            s.depth_std_m = 1e-3 * estimate.std_mm[2] if estimate.std_mm else 0.0
             p_CP = estimate.X_CP.translation()
             record["distance_mm"] = round(1000 * np.linalg.norm(p_CP), 2)
             record["p_CP_mm"] = [round(1000 * v, 3) for v in p_CP]
-        elif s.X_WP is None:
+            s.measurements.append(record)
+            return
+        if estimate.why_invalid:
+            record["why_invalid"] = estimate.why_invalid
+            s.refused.append(f"{label}: {estimate.why_invalid}")
+        if s.X_WP is None:
             s.failure = f"no marker of the panel in view at the '{label}' point"
         elif self._config.on_marker_loss == "abort":
             s.failure = (
                 f"markers lost at the '{label}' point: aborted before pressing "
                 "(on_marker_loss: abort)"
             )
-        else:
+        elif s.close_estimate:
             record["used_last_valid_estimate"] = True
         s.measurements.append(record)
 
     def _StartMove(self, s: SequencerState, step: Step, q: np.ndarray, t: float) -> bool:
+        if not (s.close_estimate or step.label == "base" or step.retake):
+            s.failure = (
+                "the estimator refused every view from the base point and its retakes ("
+                + "; ".join(s.refused or ["no marker in view"])
+                + "): the press is not aimed with the start's far estimate"
+            )
+            return False
         s.move_start_s = t
+        X_PT = step.X_PT
+        if X_PT is None:
+            s.press_depth_m = PressDepth(self._switch, s.depth_std_m)
+            X_PT = self.targets.at_switch(-s.press_depth_m)
         if self._planner_frames is not None:
-            row = self._planner_frames.TaskRow(s.X_WP @ step.X_PT)
+            row = self._planner_frames.TaskRow(s.X_WP @ X_PT)
             s.task = PlannerTask(s.task.sequence + 1, row[np.newaxis])
             s.move_end_s = np.inf  # until the planner says the task ended
             return True
         q_start = s.q_to if s.q_to.size else q
-        q_goal = self._kinematics.SolveTip(s.X_WP @ step.X_PT, q_start)
+        q_goal = self._kinematics.SolveTip(s.X_WP @ X_PT, q_start)
         if q_goal is None:
             s.failure = f"no inverse-kinematics solution for the '{step.label}' pose"
             return False

@@ -42,7 +42,13 @@ class PanelOperationConfig:
 
     base_distance_m: camera distance from the panel plane at the base point (m).
     measure_standoff_m: tip distance in front of the switch at the last measurement (m).
-    press_depth_m: how far the tip goes past the switch cap's rest face (m).
+    retake_distances_m: camera distances from the panel plane (m) of further views straight
+        in front of the markers, taken in turn when the estimator refuses the base point's
+        view (on_marker_loss `continue`); the press is never aimed with the start's estimate
+        alone (the start is far away, in another arm configuration).
+    approach_standoff_m: tip distance in front of the switch cap (m) from which the tip
+        presses, and to which it returns, straight along the switch's axis; the sideways
+        correction of the last measurement is made before, clear of the caps.
     retract_standoff_m: tip distance in front of the switch after the press (m).
     max_joint_speed: peak joint speed of the joint-trajectory moves (rad/s).
     settle_time_s: wait after a move before an image is analysed (s).
@@ -57,7 +63,8 @@ class PanelOperationConfig:
 
     base_distance_m: float = Positive(0.17)
     measure_standoff_m: float = Positive(0.09)
-    press_depth_m: float = Positive(0.006)
+    retake_distances_m: list[float] = Positive(factory=lambda: [0.25, 0.32])
+    approach_standoff_m: float = Positive(0.015)
     retract_standoff_m: float = Positive(0.06)
     max_joint_speed: float = Positive(0.75)
     settle_time_s: float = NonNegative(0.3)
@@ -156,13 +163,24 @@ class PanelTargets:
         self._config = config
         self._X_CT = X_CT
 
-    def base(self) -> RigidTransform:
-        p_PC = self._middle + [0.0, 0.0, self._config.base_distance_m]
+    def base(self, distance_m: float | None = None) -> RigidTransform:
+        """The camera straight in front of the markers' middle, `distance_m` from the panel
+        plane (default base_distance_m)."""
+        distance_m = self._config.base_distance_m if distance_m is None else distance_m
+        p_PC = self._middle + [0.0, 0.0, distance_m]
         return RigidTransform(R_PC_STRAIGHT, p_PC) @ self._X_CT
 
     def at_switch(self, standoff_m: float) -> RigidTransform:
         R_PT = R_PC_STRAIGHT @ self._X_CT.rotation()
         return RigidTransform(R_PT, self._switch + [0.0, 0.0, standoff_m])
+
+
+def PressDepth(switch: SwitchSpec, depth_std_m: float) -> float:
+    """How far past the cap's rest face the tip aims (m): the switch's full travel, so the
+    tip may stop up to travel_m - on_travel_m short and still switch it on; deeper, to
+    on_travel_m + 3 depth_std_m, when the estimate's reported depth standard deviation
+    (m) leaves less than that margin (the cap then rests on its stop and the arm pushes)."""
+    return max(switch.travel_m, switch.on_travel_m + 3.0 * depth_std_m)
 
 
 @dataclass

@@ -27,7 +27,7 @@ from guidedarm.diagrams.tasks.common.trajectory_csv import (
 from guidedarm.diagrams.tasks.panel_operation.scenario import PanelOperationScenario
 from guidedarm.systems.markers.marker_pose_estimator_math import PanelSpec
 from guidedarm.systems.panel.panel_operation import PanelOperation, SequencerState
-from guidedarm.systems.panel.panel_operation_math import CameraArmKinematics
+from guidedarm.systems.panel.panel_operation_math import CameraArmKinematics, PressDepth
 
 
 class OperationRun(Protocol):
@@ -159,8 +159,11 @@ def PanelOperationMetrics(
         X_PC_true = X_PW @ _TrueArm(run, context, state, "measure_base").X_WC
         true_base_error = _mm(np.linalg.norm(X_PC_true.translation() - X_PC_target.translation()))
     press = {}
-    target = targets.at_switch(-scenario.operation.press_depth_m).translation()
-    target_W = run.X_WP @ targets.at_switch(-scenario.operation.press_depth_m)
+    depth = state.press_depth_m
+    if depth is None:  # not pressed: the depth of an estimate without uncertainty
+        depth = PressDepth(run.panel.switches[scenario.switch - 1], 0.0)
+    target = targets.at_switch(-depth).translation()
+    target_W = run.X_WP @ targets.at_switch(-depth)
     if "press" in state.q_at:
         believed = run.kinematics.X_WT(np.array(state.q_at["press"]))
         true = _TrueArm(run, context, state, "press").X_WT
