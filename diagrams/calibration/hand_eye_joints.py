@@ -1,7 +1,8 @@
 """The hand-eye calibration with the arm's joint offsets: the measured joints of every photo
 (JOINTS.csv), the kinematic calibration (systems/calibration/joint_bundle_adjustment.py)
-seeded by OpenCV's hand-eye solution, and DIR/joint_offsets.yaml, which the arm's
-`calibration_file` takes.
+seeded by OpenCV's hand-eye solution, DIR/joint_offsets.yaml, which the arm's
+`calibration_file` takes, and DIR/hand_eye_camera.yaml, the camera file with the focal
+lengths fitted with the arm, which the estimator takes with the mount.
 
 JOINTS.csv: a header `image,q1,...,qn`, then one row per photo: its file name and the arm's
 measured joint positions (rad) when it was taken.
@@ -16,6 +17,7 @@ from pathlib import Path
 import numpy as np
 from pydrake.math import RigidTransform
 
+from guidedarm.diagrams.calibration.calibration_files import CameraFileText
 from guidedarm.diagrams.calibration.hand_eye_calibration import HandEyeViews
 from guidedarm.systems.calibration.hand_eye_math import HandEyeResult
 from guidedarm.systems.calibration.joint_bundle_adjustment import (
@@ -103,4 +105,20 @@ def WriteJointOffsets(out_dir: Path, calibration: KinematicCalibration, arm: str
     ]
     path = out_dir / "joint_offsets.yaml"
     path.write_text("\n".join(lines) + "\n")
+    return path
+
+
+def WriteHandEyeCamera(out_dir: Path, calibration: KinematicCalibration, source: str) -> Path:
+    """Writes out_dir/hand_eye_camera.yaml: the camera model `source` names with the focal
+    lengths the kinematic calibration fitted (the mount in hand_eye.yaml is right with these
+    focal lengths); returns its path."""
+    scale, std = calibration.focal_scale, calibration.focal_scale_std
+    comments = [
+        "The camera model of the hand-eye calibration (`guidedarm calibrate hand-eye`): the",
+        f"intrinsics of {source} with fx and fy scaled by {1 + scale:.6f} (+- {std:.6f}),",
+        "fitted with the arm's joints and the camera's mount: use it with hand_eye.yaml and",
+        "joint_offsets.yaml.",
+    ]
+    path = out_dir / "hand_eye_camera.yaml"
+    path.write_text(CameraFileText(calibration.intrinsics, comments))
     return path

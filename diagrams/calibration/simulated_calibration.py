@@ -25,6 +25,7 @@ from guidedarm.diagrams.calibration.hand_eye_calibration import (
 from guidedarm.diagrams.calibration.hand_eye_joints import (
     CalibrateArmAndMount,
     ReadJoints,
+    WriteHandEyeCamera,
     WriteJointOffsets,
     WriteJoints,
 )
@@ -83,11 +84,13 @@ def CameraInSimulation(
 def HandEyeInSimulation(
     cell: SimulatedCalibrationCell, out_dir: Path, count: int, seed: int
 ) -> tuple[HandEyeResult, list[str]]:
-    """Calibrates the camera's mount and the arm's joint offsets into out_dir/hand_eye.yaml
-    and out_dir/joint_offsets.yaml with the estimator's camera model; returns the hand-eye
-    seed and the lines comparing the result with the truth."""
+    """Calibrates the camera's mount, the arm's joint offsets and the focal length into
+    out_dir/hand_eye.yaml, joint_offsets.yaml and hand_eye_camera.yaml, starting from the
+    estimator's camera model; returns the hand-eye seed and the lines comparing the result
+    with the truth."""
     folder = TakePhotos(cell, out_dir, count, seed)
-    return HandEyeFromFolder(cell, out_dir, folder, cell.estimator_intrinsics)
+    source = cell.scenario.estimator_camera_file or f"camera '{cell.scenario.camera}'"
+    return HandEyeFromFolder(cell, out_dir, folder, cell.estimator_intrinsics, source)
 
 
 def HandEyeFromFolder(
@@ -95,9 +98,11 @@ def HandEyeFromFolder(
     out_dir: Path,
     folder: Path,
     intrinsics: CameraIntrinsics,
+    camera_source: str,
 ) -> tuple[HandEyeResult, list[str]]:
     """HandEyeInSimulation on photos already taken (folder, out_dir/poses.csv and
-    out_dir/joints.csv) with the camera model `intrinsics`."""
+    out_dir/joints.csv) with the camera model `intrinsics` (camera_source names it in
+    hand_eye_camera.yaml)."""
     images = [(p.name, cv2.imread(str(p))) for p in sorted(folder.iterdir())]
     found = FindHandEyeViews(images, ReadPoses(out_dir / "poses.csv"), cell.spec, intrinsics)
     result = CalibrateHandEye(found.X_WF, found.X_CB)
@@ -123,14 +128,27 @@ def HandEyeFromFolder(
     )
     WriteHandEye(out_dir, result, found.rejected, cell.mount_frame, joints)
     path = WriteJointOffsets(out_dir, joints, cell.scenario.arm)
+    camera = WriteHandEyeCamera(out_dir, joints, camera_source)
     lines.append(
-        f"wrote {path}: joint offsets and mount fitted to the corners, RMS "
-        f"{joints.rms_px:.3f} px (worst view {joints.worst_view_rms_px:.3f} px)"
+        f"wrote {path} and {camera}: joint offsets, focal length and mount fitted to the "
+        f"corners, RMS {joints.rms_px:.3f} px (worst view {joints.worst_view_rms_px:.3f} px)"
     )
     lines += JointOffsetComparison(joints, cell.true_joint_offset, cell.true_joint_stiffness)
+    lines += FocalComparison(joints, intrinsics, cell.true_intrinsics)
     lines.append("the mount with the joint offsets, against the true mount in the measured flange:")
     lines += PoseComparison(joints.X_FC, cell.TrueMountInMeasuredFlange())
     return result, lines
+
+
+def FocalComparison(
+    joints: KinematicCalibration, given: CameraIntrinsics, truth: CameraIntrinsics
+) -> list[str]:
+    """Lines: the focal lengths (px) given to the fit, fitted with the arm, and the truth."""
+    lines = [f"  {'':4s} {'given':>10s} {'fitted':>10s} {'truth':>10s} px"]
+    for name in ("fx", "fy"):
+        values = [getattr(c, name) for c in (given, joints.intrinsics, truth)]
+        lines.append(f"  {name:4s} " + " ".join(f"{v:10.3f}" for v in values))
+    return lines
 
 
 def JointOffsetComparison(

@@ -1,20 +1,31 @@
-"""Kinematic calibration of an eye-in-hand arm: its joint offsets, the camera's mount and the
-board's pose, fitted together to the board corners of all views (a bundle adjustment).
+"""Kinematic calibration of an eye-in-hand arm: its joint offsets, the camera's mount, the
+camera's focal length and the board's pose, fitted together to the board corners of all
+views (a bundle adjustment).
 
 Frames: W the arm's base (world), F the frame the camera is mounted on (on the arm's last
 link), C the camera's optical frame, B the board (fixed in W). A view i holds the measured
 joints q_i (rad), the board corners p_B (m) and where they were seen (px). The model:
 
-    X_CB_i = (X_WF(q_i + delta - c tau_i) X_FC)^-1 X_WB,   pixels = project(X_CB_i p_B)
+    X_CB_i = (X_WF(q_i + delta - c tau_i) X_FC)^-1 X_WB,   pixels = project_s(X_CB_i p_B)
 
 with delta the joint offsets (the true joint angle minus the measured one, rad), c the
 joints' compliance (rad per N m: a harmonic drive's link sags under the gravity torque tau_i
 it holds, while the encoder reads the motor side), X_WF the arm's forward kinematics on its
-nominal model, and the camera's intrinsics and distortion known (the camera
-calibration's). The unknowns are delta and c of the identifiable joints, X_FC and X_WB; the
+nominal model, and project_s the camera calibration's model with both focal lengths scaled
+by (1 + s). The unknowns are delta and c of the identifiable joints, s, X_FC and X_WB; the
 residual is the corners' reprojection error (px), minimised by Levenberg-Marquardt with a
 finite-difference Jacobian (numpy only). Without the torques (or with the compliance left
 out) the offsets absorb the views' mean sag and the mount the rest.
+
+Why the focal scale: in every view of a board the focal length and the board's distance
+trade (the image scales with f / distance); the camera calibration separates them only by
+the foreshortening of tilted views, which leaves its focal length off by up to about 0.2 %,
+and with f fixed the fit moves the mount along the optical axis by that fraction of the
+views' distance (0.6 mm at 370 mm). Here the arm's kinematics tie the views together: the
+camera moves by known amounts towards and away from the board, so the scale and the mount's
+depth are determined separately (the scale then rests on the lengths of the arm's model, as
+the joint offsets do). The principal point is not fitted: its error trades with the mount's
+rotation in every view alike, which the arm does not separate either.
 
 Gauge freedoms: the first joint's offset turns the whole arm about that joint's axis, fixed
 in W, which a turn of the board about the same axis explains exactly; the last joint's
@@ -26,6 +37,7 @@ F the same way), X_WB the board's pose in the frame W of the measured first join
 
 from __future__ import annotations
 
+import dataclasses
 from collections.abc import Callable
 from dataclasses import dataclass
 
@@ -40,6 +52,8 @@ from guidedarm.systems.markers.marker_pose_estimator_math import CameraIntrinsic
 # Finite-difference step of the Jacobian (rad for angles, m for translations).
 _STEP = 1e-6
 _MAX_ITERATIONS = 50
+# Where x holds the focal scale: before the 12 coordinates of X_FC's and X_WB's perturbations.
+_SCALE = -13
 
 
 @dataclass
@@ -58,7 +72,9 @@ class JointView:
 class KinematicCalibration:
     """The fit: joint_offset (rad per joint, 0 for the joints not identifiable), its standard
     deviation (rad, 0 where not fitted), joint_compliance (rad per N m, 0 where not fitted),
-    X_FC, X_WB, the RMS reprojection error (px) and the largest view's RMS (px)."""
+    X_FC, X_WB, the RMS reprojection error (px) and the largest view's RMS (px), the camera
+    model with the fitted focal lengths (intrinsics) and the focal scale s with its standard
+    deviation (dimensionless: fx and fy are the given ones times 1 + s)."""
 
     joint_offset: np.ndarray
     joint_offset_std: np.ndarray
@@ -67,6 +83,9 @@ class KinematicCalibration:
     X_WB: RigidTransform
     rms_px: float
     worst_view_rms_px: float
+    intrinsics: CameraIntrinsics
+    focal_scale: float
+    focal_scale_std: float
 
 
 def IdentifiableJoints(num_joints: int) -> list[int]:
@@ -90,16 +109,23 @@ def _Perturbed(X: RigidTransform, d: np.ndarray) -> RigidTransform:
     return X @ RigidTransform(RotationMatrix(cv2.Rodrigues(d[:3])[0]), d[3:])
 
 
+def ScaledFocalLength(intrinsics: CameraIntrinsics, scale: float) -> CameraIntrinsics:
+    """`intrinsics` with fx and fy multiplied by 1 + scale (the rest unchanged)."""
+    return dataclasses.replace(
+        intrinsics, fx=intrinsics.fx * (1 + scale), fy=intrinsics.fy * (1 + scale)
+    )
+
+
 class _Problem:
-    """x = [offsets of `joints`, compliances of `joints` (if fitted), X_FC's and X_WB's
-    perturbations]."""
+    """x = [offsets of `joints`, compliances of `joints` (if fitted), the focal scale, X_FC's
+    and X_WB's perturbations]."""
 
     def __init__(self, X_WF, views, intrinsics, joints):
         self.X_WF, self.views, self.joints = X_WF, views, joints
         self.intrinsics = intrinsics
         self.n = views[0].q.size
         self.compliant = views[0].holding_torque is not None
-        self.size = len(joints) * (2 if self.compliant else 1) + 12
+        self.size = len(joints) * (2 if self.compliant else 1) - _SCALE
 
     def Unpack(self, x, X_FC, X_WB):
         k = len(self.joints)
@@ -112,13 +138,14 @@ class _Problem:
 
     def Residuals(self, x, X_FC, X_WB, per_view: bool = False):
         delta, compliance, X_FC, X_WB = self.Unpack(x, X_FC, X_WB)
+        intrinsics = ScaledFocalLength(self.intrinsics, x[_SCALE])
         out = []
         for view in self.views:
             q = view.q + delta
             if self.compliant:
                 q = q - compliance * view.holding_torque
             X_CB = (self.X_WF(q) @ X_FC).inverse() @ X_WB
-            projected = ProjectPoints(self.intrinsics, X_CB, view.points_B)
+            projected = ProjectPoints(intrinsics, X_CB, view.points_B)
             out.append((projected - view.pixels).ravel())
         return out if per_view else np.concatenate(out)
 
@@ -130,9 +157,10 @@ def CalibrateJoints(
     X_FC_seed: RigidTransform,
     X_WB_seed: RigidTransform,
 ) -> KinematicCalibration:
-    """The joint offsets (and compliances, when the views hold their torques), X_FC and X_WB
-    that best explain the views' corners (see the module docstring), from a seed (e.g. the
-    hand-eye solution and the board pose it implies in one view).
+    """The joint offsets (and compliances, when the views hold their torques), the focal
+    scale, X_FC and X_WB that best explain the views' corners (see the module docstring),
+    from a seed (e.g. the hand-eye solution and the board pose it implies in one view) and
+    the camera calibration's `intrinsics`.
     X_WF(q): the mount frame's pose on the arm's nominal model at joints q (rad)."""
     n = views[0].q.size
     joints = IdentifiableJoints(n)
@@ -141,7 +169,7 @@ def CalibrateJoints(
     needed = ViewsNeeded(n, problem.compliant)
     if len(views) < needed:
         raise ConfigurationError(
-            f"{len(views)} views for a kinematic calibration of {unknowns - 12} joint "
+            f"{len(views)} views for a kinematic calibration of {unknowns + _SCALE} joint "
             f"parameters, at least {needed} needed"
         )
     x = np.zeros(unknowns)
@@ -177,6 +205,9 @@ def CalibrateJoints(
         X_WB,
         float(np.sqrt(np.mean(residual**2) * 2)),
         float(max(np.sqrt(np.mean(r**2) * 2) for r in per_view)),
+        ScaledFocalLength(intrinsics, x[_SCALE]),
+        float(x[_SCALE]),
+        float(np.sqrt(covariance[_SCALE, _SCALE])),
     )
 
 
