@@ -13,10 +13,16 @@ from __future__ import annotations
 import argparse
 import os
 import pickle
+import tempfile
 import threading
+from contextlib import ExitStack
+from pathlib import Path
 from typing import Any
 
 from guidedarm.diagrams.campaigns.jobs import Job
+from guidedarm.diagrams.run_context import RESOLVED_SCENARIO_FILE, RunContext
+from guidedarm.diagrams.task_run import RunTask
+from guidedarm.diagrams.tasks.registry import LoadScenario
 from guidedarm.systems.child_process import (
     ChildChannels,
     EndChild,
@@ -25,6 +31,7 @@ from guidedarm.systems.child_process import (
     SendOrExit,
     StartChild,
 )
+from guidedarm.systems.errors import GuidedArmError
 
 # A child whose resident memory passes this after a job is replaced: room for two panel
 # runs' diagrams beside pydrake (0.65 GB after the first), while a path_following child
@@ -33,7 +40,7 @@ RECYCLE_RSS_BYTES = 1.5e9
 
 
 class JobProcess:
-    """A child that runs jobs one at a time (worker.RunJobHere) and answers each with its
+    """A child that runs jobs one at a time (RunJobHere) and answers each with its
     metrics and its resident memory (bytes)."""
 
     def __init__(self) -> None:
@@ -84,6 +91,35 @@ def ResidentBytes() -> int:
         return int(statm.read().split()[1]) * os.sysconf("SC_PAGE_SIZE")
 
 
+def RunJobHere(job: Job, runs_dir: str | None = None) -> dict[str, Any]:
+    """Runs `job` in this process and returns its metrics (a failure of its task is the
+    metrics' `failure`). With `runs_dir` the run folder runs_dir/<job id> (scenario.yaml,
+    summary.json, plots) is kept; without, the run writes to a temporary folder that is
+    removed."""
+    with ExitStack() as stack:
+        if runs_dir is None:
+            out_dir = Path(stack.enter_context(tempfile.TemporaryDirectory(prefix="guidedarm-")))
+        else:
+            out_dir = Path(runs_dir) / job.id
+        out_dir.mkdir(parents=True, exist_ok=True)
+        path = out_dir / RESOLVED_SCENARIO_FILE
+        path.write_text(job.scenario_yaml)
+        context = RunContext(out_dir=out_dir, quiet=True)
+        metrics: dict[str, Any] = {}
+        try:
+            task, scenario, _ = LoadScenario(str(path), [])
+            metrics = RunTask(task, scenario, context)
+            metrics.pop("wall_time_s", None)
+            # Also refuses a NaN or infinite metric: the job then fails, naming it.
+            context.write_summary({"job_id": job.id, "axes": job.axes, **metrics})
+        except GuidedArmError as e:
+            metrics = {**metrics, "success": False, "failure": str(e)}
+        except Exception as e:  # a bug in one job is that job's failure, not the campaign's
+            first = str(e).strip().splitlines()[0] if str(e).strip() else ""
+            metrics = {**metrics, "success": False, "failure": f"{type(e).__name__}: {first}"}
+    return metrics
+
+
 def _Picklable(error: Exception) -> Exception:
     """`error`, or a RuntimeError with its type and text if it cannot be sent."""
     try:
@@ -98,8 +134,6 @@ def _Main() -> None:
     parser.add_argument("--fds", required=True)
     (connection,) = ChildChannels(parser.parse_args().fds)
     FollowParent()
-    from guidedarm.diagrams.campaigns.worker import RunJobHere
-
     while True:
         try:
             job, runs_dir = connection.recv()

@@ -28,7 +28,8 @@ from guidedarm.systems.hardware.command_guard import ImplausibleMeasurement, Joi
 from guidedarm.systems.hardware.line_socket import LineSocket
 from guidedarm.systems.hardware.opencv_camera import FrameGrabber
 from guidedarm.systems.hardware.tof_protocol import RANGE_STATUS, ToFLineCollector
-from guidedarm.systems.hardware.ur_rtde_link import CapturedStderr, ProbeUrController
+from guidedarm.systems.hardware.ur_rtde_link import ProbeUrController
+from guidedarm.systems.hardware.ur_rtde_process import CapturedStderr
 
 LISTEN = 1.0  # s each link is watched for its rates
 

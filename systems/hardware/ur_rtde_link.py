@@ -28,11 +28,8 @@ from __future__ import annotations
 
 import contextlib
 import math
-import os
 import socket
 import struct
-import sys
-import tempfile
 import threading
 import time
 from typing import Protocol
@@ -363,23 +360,3 @@ def OpenUrRtde(
         servo_timeout=servo_timeout,
         lockstep_wait=lockstep_wait,
     )
-
-
-class CapturedStderr:
-    """Within `with`, what is written to file descriptor 2 (also by C++ libraries, which
-    print their connection errors themselves) goes to `text` instead of the terminal."""
-
-    def __enter__(self) -> CapturedStderr:
-        self.text = ""
-        sys.stderr.flush()
-        self._saved = os.dup(2)
-        self._capture = tempfile.TemporaryFile()
-        os.dup2(self._capture.fileno(), 2)
-        return self
-
-    def __exit__(self, *_) -> None:
-        os.dup2(self._saved, 2)
-        os.close(self._saved)
-        self._capture.seek(0)
-        self.text = self._capture.read().decode("utf-8", "replace")
-        self._capture.close()

@@ -21,6 +21,7 @@ import argparse
 import math
 import os
 import sys
+import tempfile
 import threading
 import time
 from multiprocessing.connection import Connection
@@ -241,6 +242,26 @@ def _PushSamples(receive, register: int | None, samples: Connection) -> None:
         SendOrExit(samples, ("error", f"RTDE receive failed: {DescribeError(e)}"))
 
 
+class CapturedStderr:
+    """Within `with`, what is written to file descriptor 2 (also by C++ libraries, which
+    print their connection errors themselves) goes to `text` instead of the terminal."""
+
+    def __enter__(self) -> CapturedStderr:
+        self.text = ""
+        sys.stderr.flush()
+        self._saved = os.dup(2)
+        self._capture = tempfile.TemporaryFile()
+        os.dup2(self._capture.fileno(), 2)
+        return self
+
+    def __exit__(self, *_) -> None:
+        os.dup2(self._saved, 2)
+        os.close(self._saved)
+        self._capture.seek(0)
+        self.text = self._capture.read().decode("utf-8", "replace")
+        self._capture.close()
+
+
 def _Main() -> None:
     parser = argparse.ArgumentParser(description="The ur_rtde client of one UR controller.")
     parser.add_argument("host")
@@ -250,8 +271,6 @@ def _Main() -> None:
     args = parser.parse_args()
     FollowParent()
     calls, samples = ChildChannels(args.fds)
-
-    from guidedarm.systems.hardware.ur_rtde_link import CapturedStderr
 
     variables = list(SAMPLE_FIELDS)
     if args.register is not None:

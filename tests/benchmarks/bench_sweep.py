@@ -8,7 +8,7 @@ Speed-up: 16 ur10e_joint_tour jobs (max_speed 1.5-3.0 rad/s, about 1 s each) on 
 embedded cluster of 1, then 2 worker processes; the workers are warmed up first (pydrake
 imported, one job run), so the figure is the jobs' phase, cluster start-up excluded (it is
 printed apart). Overhead: 4 jobs of about 5 s (max_speed 0.1 rad/s) run one after the other
-in this process with worker.RunJobHere (the job alone), then on a 1-worker cluster; the
+in this process with job_process.RunJobHere (the job alone), then on a 1-worker cluster; the
 difference per job is the engine's cost (submission, scheduling, results, the CSV row).
 The overhead is split into the engine's own cost (campaign time per job minus the job's
 time inside its worker) and the job running slower inside the worker process than alone.
@@ -30,9 +30,10 @@ import psutil
 
 from guidedarm.diagrams.campaigns.campaign import CampaignConfig
 from guidedarm.diagrams.campaigns.engine import OpenClient, RunJobs
+from guidedarm.diagrams.campaigns.job_process import RunJobHere
 from guidedarm.diagrams.campaigns.jobs import ExpandJobs, Job
 from guidedarm.diagrams.campaigns.results import ResultsTable
-from guidedarm.diagrams.campaigns.worker import RunJob, RunJobHere
+from guidedarm.diagrams.campaigns.worker import RunJob
 
 SCENARIO = "ur10e_joint_tour"
 
