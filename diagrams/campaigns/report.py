@@ -172,9 +172,10 @@ def _PlotSvg(rows: list[dict[str, Any]], metric: str, axis: str, colour_axis: st
     ax.grid(True, alpha=0.3)
     if labels:
         ax.legend(fontsize=6)
-    figure.tight_layout()
     buffer = io.StringIO()
-    figure.savefig(buffer, format="svg")
+    # The saved box grows to hold every tick label (tight_layout cannot when an axis has
+    # many values, and warns).
+    figure.savefig(buffer, format="svg", bbox_inches="tight")
     plt.close(figure)
     svg = buffer.getvalue()
     return svg[svg.index("<svg") :]
