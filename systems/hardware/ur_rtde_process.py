@@ -62,7 +62,8 @@ class UrRtdeClientProcess:
         self._calls = _CallChannel(calls, self._HowItEnded)
         said = self._calls.Wait(connect_timeout)
         if said != "connected":
-            self.Kill()
+            samples.close()
+            self.End()
             raise ConnectionError(said)
         self.receive = RemoteRtdeReceive(samples, self._calls)
         self.control = RemoteRtdeControl(self._calls, self)
@@ -75,10 +76,6 @@ class UrRtdeClientProcess:
         call it is still inside can wait minutes on a dead controller)."""
         self._calls.Close()
         EndChild(self.process, EXIT_TIMEOUT)
-
-    def Kill(self) -> None:
-        self.process.kill()
-        self.process.wait()
 
 
 class _CallChannel:
