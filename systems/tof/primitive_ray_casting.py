@@ -3,15 +3,19 @@
 A reading casts the cone rays of six sensors (6 x 19 rays, each a segment of max_range).
 Sphere tracing (tof_tool_sensor_math.RayCaster) needs a distance query per step and ray,
 and a hose of 60-100 capsules makes those steps short. Here every Box, Capsule, Cylinder,
-HalfSpace and Sphere of the proximity role is intersected in closed form, vectorised over
-all (sensor, shape) pairs that pass a broadphase: the axis-aligned box of each sensor's rays
-against each shape's box. The shapes are read from the SceneGraph inspector once, at the
-first reading and whenever the proximity geometry changes: the poses of those anchored to
-the world (the hose, its brackets) then, those on other frames (the robot, the cell) from
-the QueryObject at each reading, all in one vectorised step. Other shapes (Mesh, Convex,
-Ellipsoid) are left to sphere tracing (SceneRayCaster). A ray starting inside a shape hits
-at 0, as sphere tracing does. Numpy per-call overhead, not arithmetic, is the cost here,
-so each step handles all shapes of a kind at once.
+HalfSpace and Sphere of the proximity role is intersected in closed form, each sensor's
+rays with the shapes that pass a broadphase: the ball about the shape's origin that holds
+it against the sensor's cone, truncated at max_range. The shapes are read from the
+SceneGraph inspector once, at the first reading and whenever the proximity geometry
+changes: the poses of those anchored to the world (the hose, its brackets) then, those on
+other frames (the robot, the cell) from the QueryObject at each reading. Other shapes
+(Mesh, Convex, Ellipsoid) are left to sphere tracing (SceneRayCaster). A ray starting
+inside a shape hits at 0, as sphere tracing does.
+
+The casting runs in a compiled kernel (csrc/cone_casting.c, CastCones, built by the
+install): in numpy, vectorised over all sensors and shapes of a kind, a reading cost about
+0.2 ms of per-call overhead, for work of a few microseconds. FirstHits is the numpy
+reference of its intersections, which tests/test_tof_ray_casting.py holds it to.
 """
 
 from __future__ import annotations
@@ -36,11 +40,13 @@ from pydrake.geometry import (
 )
 from pydrake.math import RigidTransform
 
+from guidedarm.systems.tof._cone_casting import CastCones
 from guidedarm.systems.tof.tof_tool_sensor_math import RayCaster
 
 # Shapes intersected in closed form, in this order in a ShapeTable.
 SUPPORTED = (Box, Capsule, Cylinder, HalfSpace, Sphere)
 _KINDS = ("box", "capsule", "cylinder", "halfspace", "sphere")
+_IDENTITY = np.eye(3, 4)
 
 
 def ShapeSizes(shape) -> tuple[str, list[float], float]:
@@ -61,11 +67,11 @@ def ShapeSizes(shape) -> tuple[str, list[float], float]:
 
 
 class ShapeTable:
-    """Shapes sorted by kind: frames G in W (R (M, 3, 3), p (M, 3), and p2 = |p|^2 (M,)),
-    sizes (M, 3) and radii (M,) of balls about G's origins holding them (rho (M, 1): plus
-    the broadphase's margin); the kinds present in that order, shapes
-    starts[i]:starts[i + 1] of kinds[i]. Shapes on moving frames F keep X_FG and take X_WF
-    at each Pose()."""
+    """Shapes sorted by kind, as the compiled kernel (csrc/cone_casting.c) reads them, all
+    float64: kinds (M; the index in _KINDS), frames (M; the index of the shape's frame F in
+    the caster's moving frames, -1 for the world), X_FG (M, 12: G in F, 3 x 4 row-major),
+    sizes (M, 3) and rho (M: the radius of a ball about G's origin holding the shape, plus
+    the broadphase's margin of 1 um)."""
 
     def __init__(self, shapes: list[tuple[object, RigidTransform, int]]) -> None:
         """shapes: (shape, X_FG, frame index), frame index -1 for the world."""
@@ -73,31 +79,11 @@ class ShapeTable:
             ((*ShapeSizes(shape), X, frame) for shape, X, frame in shapes),
             key=lambda row: _KINDS.index(row[0]),
         )
-        kinds = [row[0] for row in rows]
-        self.kinds = [kind for kind in _KINDS if kind in kinds]
-        self.starts = np.array([kinds.index(kind) for kind in self.kinds] + [len(kinds)], int)
-        self.R = np.array([row[3].rotation().matrix() for row in rows]).reshape(-1, 3, 3)
-        self.p = np.array([row[3].translation() for row in rows]).reshape(-1, 3)
+        self.kinds = np.array([_KINDS.index(row[0]) for row in rows], float)
+        self.frames = np.array([row[4] for row in rows], float)
+        self.X_FG = np.array([row[3].GetAsMatrix34() for row in rows], float).reshape(-1, 12)
         self.sizes = np.array([row[1] for row in rows], float).reshape(-1, 3)
-        self.radii = np.array([row[2] for row in rows], float)
-        frame = np.array([row[4] for row in rows], int)
-        self._moving = np.flatnonzero(frame >= 0)
-        self._frame = frame[self._moving]
-        self._R_FG, self._p_FG = self.R[self._moving], self.p[self._moving, :, None]
-        self.p2 = np.sum(self.p * self.p, axis=1)
-        # CastCones' ball radii with 1 um to spare, and their negatives, formed once.
-        self.rho = self.radii[:, None] + 1e-6
-        self.minus_rho = -self.rho
-
-    def Pose(self, R_WF: np.ndarray, p_WF: np.ndarray) -> None:
-        """Poses the shapes on moving frames from their frames' poses in W."""
-        if len(self._moving) == 0:
-            return
-        R = R_WF[self._frame]
-        self.R[self._moving] = R @ self._R_FG
-        p = p_WF[self._frame] + (R @ self._p_FG)[:, :, 0]
-        self.p[self._moving] = p
-        self.p2[self._moving] = (p * p).sum(axis=1)
+        self.rho = np.array([row[2] for row in rows], float) + 1e-6
 
 
 def FirstHits(
@@ -166,55 +152,6 @@ def _HalfSpace(oz: np.ndarray, uz: np.ndarray) -> np.ndarray:
     return np.where(oz <= 0, 0.0, np.where(uz < 0, -oz / uz, np.inf))
 
 
-def CastCones(
-    p_WS: np.ndarray,
-    u_W: np.ndarray,
-    z_WS: np.ndarray,
-    half_angle: float,
-    table: ShapeTable,
-    reach: float,
-) -> np.ndarray:
-    """Nearest hit (m, inf for none) of each sensor's rays against the table's shapes.
-    p_WS (N, 3): the origins of N sensors; u_W (N, K, 3): K unit rays of each, in W, all
-    within half_angle (< pi / 2) of the sensor's axis z_WS (N, 3); reach: the rays' length
-    (m). Only the shapes whose ball meets a sensor's cone (of half_angle, truncated at
-    reach) are intersected, all of them with every ray, one numpy pass per kind of shape."""
-    n, k = u_W.shape[:2]
-    # A ball of radius rho centred at (x along the axis, y off it) from the apex meets the
-    # cone only if its centre is within rho of the half-plane bounding the cone's side,
-    # y cos - x sin <= rho, and of the slab 0 <= x <= reach. Squared distances from dot
-    # products lose up to ~1e-16 m^2: rho has 1 um to spare. Numpy's per-call overhead is
-    # the cost at these sizes: reductions use the array methods (np.sum adds a layer).
-    dots = table.p @ np.concatenate([p_WS, z_WS]).T
-    x = dots[:, n:] - (p_WS * z_WS).sum(axis=1)
-    distance2 = table.p2[:, None] - 2 * dots[:, :n] + (p_WS * p_WS).sum(axis=1)
-    y = np.sqrt(np.maximum(distance2 - x * x, 0.0))
-    side = y * math.cos(half_angle) - x * math.sin(half_angle)
-    rho = table.rho
-    near = np.flatnonzero(((side <= rho) & (x >= table.minus_rho) & (x <= reach + rho)).any(1))
-    best = np.full(n, np.inf)
-    if len(near) == 0:
-        return best
-    # The origins and rays in each near shape's frame G, coordinate i of all of them from
-    # G's axis i in W: o (3, C, N, 1), u (3, C, N, K).
-    axes = table.R[near].transpose(2, 0, 1)
-    p_WG = table.p[near]
-    o = (axes @ p_WS.T - (axes * p_WG).sum(axis=2)[:, :, None])[..., None]
-    u_W = u_W.reshape(-1, 3)
-    u = (axes @ u_W.T).reshape(3, len(near), n, k)
-    # o . u, a rotation invariant: (p_WS - p_WG) . u_W.
-    ou = ((p_WS.repeat(k, axis=0) * u_W).sum(axis=1) - p_WG @ u_W.T).reshape(-1, n, k)
-    sizes = table.sizes[near]
-    # near is sorted, as the table is by kind: each kind is one run of it.
-    runs = np.searchsorted(near, table.starts).tolist()
-    with np.errstate(all="ignore"):
-        for kind, lo, hi in zip(table.kinds, runs[:-1], runs[1:], strict=True):
-            if lo < hi:
-                hits = FirstHits(o[:, lo:hi], u[:, lo:hi], ou[lo:hi], kind, sizes[lo:hi])
-                np.minimum(best, hits.min(axis=(0, 2)), out=best)
-    return best
-
-
 def ProximityShapes(
     inspector: SceneGraphInspector, ignored: frozenset[GeometryId]
 ) -> tuple[list[GeometryId], list[GeometryId]]:
@@ -236,10 +173,10 @@ class SensorMount(NamedTuple):
 
 class SceneRayCaster:
     """Nearest returns of cone rays against a SceneGraph scene: the primitive shapes in
-    closed form (CastCones), any other shape by sphere tracing (RayCaster), the geometries
-    in `ignored` not at all. Ranges in m, poses in the world W. Sensors on a `mount` are
-    read from their frame's pose alone (MountedRanges), their rays in F computed once.
-    Its table of shapes is rewritten at each reading: one caster serves one thread."""
+    closed form (the compiled CastCones), any other shape by sphere tracing (RayCaster),
+    the geometries in `ignored` not at all. Ranges in m, poses in the world W. Sensors on
+    a `mount` are read from their frame's pose alone (MountedRanges), their rays in F
+    computed once."""
 
     def __init__(
         self,
@@ -255,9 +192,10 @@ class SceneRayCaster:
         self._half_angle = math.acos(min(1.0, rays_S[:, 2].min()))
         if mount is not None:
             X_FS = np.array([X.GetAsMatrix34() for X in mount.X_FS])
-            self._p_FS = X_FS[:, :, 3]
+            # Contiguous, as the kernel reads them.
+            self._p_FS = X_FS[:, :, 3].copy()
             self._u_F = rays_S @ X_FS[:, :, :3].transpose(0, 2, 1)  # (N, K, 3)
-            self._z_F = X_FS[:, :, 2]
+            self._z_F = X_FS[:, :, 2].copy()
         self._version = None
         self._table = ShapeTable([])
         self._frames: list = []
@@ -268,7 +206,8 @@ class SceneRayCaster:
         X_WS = np.array([X.GetAsMatrix34() for X in poses])
         R_WS = X_WS[:, :, :3]
         u_W = self.rays_S @ R_WS.transpose(0, 2, 1)
-        return self._Cast(query, X_WS[:, :, 3], u_W, R_WS[:, :, 2], lambda: poses)
+        p_WS, z_WS = X_WS[:, :, 3].copy(), R_WS[:, :, 2].copy()
+        return self._Cast(query, _IDENTITY, p_WS, u_W, z_WS, lambda: poses)
 
     def MountedPoses(self, query: QueryObject) -> list[RigidTransform]:
         """X_WS of the mount's sensors."""
@@ -277,28 +216,41 @@ class SceneRayCaster:
 
     def MountedRanges(self, query: QueryObject) -> np.ndarray:
         """Ranges(query, MountedPoses(query)), from one pose query."""
-        X_WF = query.GetPoseInWorld(self.mount.frame).GetAsMatrix34()
-        R_WF = X_WF[:, :3]
-        p_WS = self._p_FS @ R_WF.T + X_WF[:, 3]
-        u_W, z_WS = self._u_F @ R_WF.T, self._z_F @ R_WF.T
-        return self._Cast(query, p_WS, u_W, z_WS, lambda: self.MountedPoses(query))
+        # Row-major, as the kernel reads it (pydrake's matrices are column-major).
+        X_WF = np.ascontiguousarray(query.GetPoseInWorld(self.mount.frame).GetAsMatrix34())
+        return self._Cast(
+            query, X_WF, self._p_FS, self._u_F, self._z_F, lambda: self.MountedPoses(query)
+        )
 
     def _Cast(
         self,
         query: QueryObject,
-        p_WS: np.ndarray,
-        u_W: np.ndarray,
-        z_WS: np.ndarray,
+        X_WF: np.ndarray,
+        p_FS: np.ndarray,
+        u_F: np.ndarray,
+        z_F: np.ndarray,
         poses: Callable[[], list[RigidTransform]],
     ) -> np.ndarray:
-        """Ranges of sensors at p_WS (N, 3) with axes z_WS (N, 3) and rays u_W (N, K, 3);
-        poses() gives their X_WS for sphere tracing."""
+        """Ranges of sensors at p_FS (N, 3) with axes z_FS (N, 3) and rays u_F (N, K, 3) in
+        a frame F at X_WF (3 x 4); poses() gives their X_WS for sphere tracing."""
         self._Refresh(query.inspector())
-        if self._frames:
-            X_WF = np.array([query.GetPoseInWorld(f).GetAsMatrix34() for f in self._frames])
-            self._table.Pose(X_WF[:, :, :3], X_WF[:, :, 3])
-        ranges = CastCones(p_WS, u_W, z_WS, self._half_angle, self._table, self.max_range)
-        ranges[ranges > self.max_range] = np.inf
+        X_WM = np.array([query.GetPoseInWorld(f).GetAsMatrix34() for f in self._frames], float)
+        table, ranges = self._table, np.empty(len(p_FS))
+        CastCones(
+            X_WF,
+            p_FS,
+            u_F,
+            z_F,
+            self._half_angle,
+            self.max_range,
+            table.kinds,
+            table.frames,
+            table.X_FG,
+            table.sizes,
+            table.rho,
+            X_WM,
+            ranges,
+        )
         if self._tracer is not None:
             traced = [self._tracer.Range(query, X_WS) for X_WS in poses()]
             ranges = np.minimum(ranges, traced)

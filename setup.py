@@ -1,0 +1,18 @@
+"""The compiled kernels (plain C against Python's C API, no other headers), built by
+`pip install -e .` (`make .venv/.installed`); everything else is in pyproject.toml."""
+
+from setuptools import Extension, setup
+
+# -ffp-contract=off: no fused multiply-adds, so the kernels round as the numpy references
+# they are tested against do.
+FLAGS = ["-O2", "-ffp-contract=off"]
+
+setup(
+    ext_modules=[
+        Extension(
+            "guidedarm.systems.tof._cone_casting",
+            ["csrc/cone_casting.c"],
+            extra_compile_args=FLAGS,
+        ),
+    ]
+)
