@@ -10,6 +10,11 @@ FLAGS = ["-O2", "-ffp-contract=off"]
 setup(
     ext_modules=[
         Extension(
+            "guidedarm.systems.path_following._servo_step",
+            ["csrc/servo_step.c"],
+            extra_compile_args=FLAGS,
+        ),
+        Extension(
             "guidedarm.systems.tof._cone_casting",
             ["csrc/cone_casting.c"],
             extra_compile_args=FLAGS,

@@ -1,6 +1,6 @@
 """The DifferentialIkServo's cost-saving pieces keep its results: the reach bound of the
-wall check's memo holds on the MZ04D controller plant, its outputs are cached state, and
-its direct eigen-decomposition is np.linalg.eigh's bit for bit."""
+wall check's memo holds on the MZ04D controller plant and its outputs are cached state
+(its compiled kernel: test_differential_ik_servo_kernel.py)."""
 
 import numpy as np
 import pytest
@@ -9,7 +9,7 @@ from pydrake.math import RigidTransform
 from guidedarm.diagrams.tasks.path_following.setup import MakeSetup
 from guidedarm.diagrams.tasks.registry import LoadScenario
 from guidedarm.systems.path_following.differential_ik_servo import DifferentialIkServo
-from guidedarm.systems.path_following.differential_ik_servo_math import ReachBound, SymmetricEigen
+from guidedarm.systems.path_following.differential_ik_servo_math import ReachBound
 from guidedarm.systems.path_following.workspace import WorkspaceConfig
 from guidedarm.systems.plant_frames import GetScopedFrame
 
@@ -69,18 +69,3 @@ def test_servo_outputs_are_its_state(setup):
     np.testing.assert_array_equal(position.Eval(context), q)
     np.testing.assert_array_equal(velocity.Eval(context), np.full(6, 0.2))
     assert servo.GetOutputPort("failure").Eval(context) == ""
-
-
-def test_symmetric_eigen_is_numpys_eigh_bit_for_bit():
-    """On weighted normal matrices J' J (6 x 6, rank 6 down to 4) and on a NaN, which eigh
-    refuses."""
-    rng = np.random.default_rng(3)
-    for rank in (6, 5, 4) * 100:
-        J = rng.normal(size=(6, 6)) * rng.uniform(1e-3, 1.0, 6)
-        J[:, rank:] = J[:, :1] * rng.uniform(-1, 1, 6 - rank)
-        M = J.T @ J
-        e, V = SymmetricEigen(M)
-        e_numpy, V_numpy = np.linalg.eigh(M)
-        assert e.tobytes() == e_numpy.tobytes() and V.tobytes() == V_numpy.tobytes()
-    with pytest.raises(np.linalg.LinAlgError), np.errstate(invalid="ignore"):
-        SymmetricEigen(np.full((6, 6), np.nan))

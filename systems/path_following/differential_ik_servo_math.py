@@ -36,17 +36,24 @@ Drake's DoDifferentialInverseKinematics keeps J v_next parallel to V and assumes
 joints start at rest; with acceleration limits that has no solution whenever the error
 turns faster than the joints may, and the arm stalls. The damped least squares always has
 one.
+
+ServoStep and PoseError run in a compiled kernel (csrc/servo_step.c, built by the install):
+in Python, a period cost about 70 us, nearly all of it the overhead of some 40 numpy and
+float operations on six joints. tests/differential_ik_servo_reference.py keeps the numpy
+implementation they are tested against (to 1e-12 on random inputs).
 """
 
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 
 import numpy as np
-from numpy.linalg import _umath_linalg
 from pydrake.math import RigidTransform
 from pydrake.multibody.plant import MultibodyPlant
 from pydrake.multibody.tree import RigidBody
 
+from guidedarm.systems.path_following import _servo_step
+
+# The constants below are also those of the compiled kernel (csrc/servo_step.c).
 # Share of the acceleration limits the error feedback may plan with: the rest is kept for
 # the target's own turns and speed changes, which reach the joints through the error.
 FEEDBACK_ACCELERATION_SHARE = 0.5
@@ -54,87 +61,34 @@ FEEDBACK_ACCELERATION_SHARE = 0.5
 CENTRING_SPEED_SHARE = 0.3
 # The damping away from singularities (a regularisation only).
 MIN_DAMPING = 1e-3
-# _SELECT: on a few floats, a conditional expression picks the operand min(a, b) or
-# max(a, b) would (`b if b < a else a`, `b if b > a else a`) at a fraction of the cost: the
-# builtins parse keyword arguments on every call, which costs more than a joint's arithmetic.
+_NO_TWIST = np.empty(0)
 
 
 @dataclass(frozen=True)
 class JointLimits:
-    """Per joint: position range (rad), speed (rad/s) and acceleration (rad/s^2) limits.
-    The lists below are derived once: ServoStep and StoppingPositions run at the servo
-    rate on n joints, where numpy's per-call overhead exceeds its work, so they compute in
-    Python floats (the same IEEE operations as numpy's elementwise ones, so the same values).
-    """
+    """Per joint: position range (rad), speed (rad/s) and acceleration (rad/s^2) limits,
+    stored as contiguous float64 arrays (the compiled kernel reads them as they are)."""
 
     lower: np.ndarray
     upper: np.ndarray
     speed: np.ndarray
     acceleration: np.ndarray
-    lower_list: list[float] = field(init=False, repr=False)
-    upper_list: list[float] = field(init=False, repr=False)
-    speed_list: list[float] = field(init=False, repr=False)
-    acceleration_list: list[float] = field(init=False, repr=False)
-    # 2 x acceleration (rad/s^2; doubling is exact, so products with it are unchanged).
-    twice_acceleration_list: list[float] = field(init=False, repr=False)
-    feedback_acceleration_list: list[float] = field(init=False, repr=False)
-    # CentringVelocity's constants: the middle of each range (rad), half its width (rad),
-    # the centring speed at a limit (rad/s).
-    middle_list: list[float] = field(init=False, repr=False)
-    half_range_list: list[float] = field(init=False, repr=False)
-    centring_speed_list: list[float] = field(init=False, repr=False)
 
     def __post_init__(self) -> None:
-        lower, upper = np.asarray(self.lower, float), np.asarray(self.upper, float)
-        speed, acceleration = np.asarray(self.speed, float), np.asarray(self.acceleration, float)
-        derived = {
-            "lower_list": lower,
-            "upper_list": upper,
-            "speed_list": speed,
-            "acceleration_list": acceleration,
-            "twice_acceleration_list": 2 * acceleration,
-            "feedback_acceleration_list": FEEDBACK_ACCELERATION_SHARE * acceleration,
-            "middle_list": 0.5 * (lower + upper),
-            "half_range_list": np.maximum(0.5 * (upper - lower), 1e-9),
-            "centring_speed_list": CENTRING_SPEED_SHARE * speed,
-        }
-        for name, value in derived.items():
-            object.__setattr__(self, name, value.tolist())
+        for name in ("lower", "upper", "speed", "acceleration"):
+            object.__setattr__(self, name, np.ascontiguousarray(getattr(self, name), float))
 
 
 def PoseError(X_current: RigidTransform, X_desired: RigidTransform) -> np.ndarray:
     """[rotation vector; translation] (rad, m; in W) taking X_current to X_desired."""
-    # R_desired R_current^-1 as the rotation of the composed transforms: the same product
-    # in fewer pydrake calls.
-    R_error = (X_desired @ X_current.inverse()).rotation()
-    angle_axis = R_error.ToAngleAxis()
-    w = angle_axis.axis() * angle_axis.angle()
-    return np.concatenate([w, X_desired.translation() - X_current.translation()])
+    error = np.empty(6)
+    _servo_step.PoseError(_Rows(X_current), _Rows(X_desired), error)
+    return error
 
 
-def SymmetricEigen(M: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """np.linalg.eigh(M) of a symmetric matrix M: (eigenvalues ascending, eigenvectors as
-    columns), bit for bit, from eigh's own gufunc (LAPACK dsyevd on the lower triangle)
-    called directly: eigh's checks and floating-point error context cost as much as
-    decomposing a 6 x 6 matrix. numpy is pinned in pyproject.toml;
-    tests/test_differential_ik_servo.py compares the two."""
-    e, V = _umath_linalg.eigh_lo(M, signature="d->dd")
-    if math.isnan(e[0]):  # the gufunc's NaNs where eigh raises
-        raise np.linalg.LinAlgError("Eigenvalues did not converge")
-    return e, V
-
-
-def CentringVelocity(q: list[float], limits: JointLimits) -> list[float]:
-    """Joint velocities (rad/s) toward the middle of each joint's range (q: rad): 0 there,
-    CENTRING_SPEED_SHARE of the speed limit at a limit, cubic in between."""
-    velocities = []
-    for qi, middle, half_range, speed in zip(
-        q, limits.middle_list, limits.half_range_list, limits.centring_speed_list, strict=True
-    ):
-        x = (middle - qi) / half_range
-        x = -1.0 if x < -1.0 else 1.0 if x > 1.0 else x  # clipped to [-1, 1] (_SELECT)
-        velocities.append(speed * x**3)
-    return velocities
+def _Rows(X: RigidTransform) -> np.ndarray:
+    """X as the kernel reads it: 3 x 4, row-major (pydrake's matrices are column-major)."""
+    return np.ascontiguousarray(X.GetAsMatrix34())
 
 
 def ServoStep(
@@ -155,76 +109,27 @@ def ServoStep(
     order); R_WT: T's orientation (3 x 3); twist: the target's own velocity ([w; v] in W,
     rad/s and m/s), fed forward through the same least squares (v_ff = J# twist, added to
     the feedback); None: feedback only; limited: whether a speed or acceleration limit
-    changed v_next."""
-    n = J.shape[1]
-    # J, the error (and the twist) as one 6 x (n + 1 or 2) matrix, expressed in T (its two
-    # 3-row halves rotated in one stacked product, each the same BLAS product as alone) and
-    # weighted by rows; its normal equations in one product.
-    columns = (J, error[:, None]) if twist is None else (J, error[:, None], twist[:, None])
-    m = n + len(columns) - 1
-    A = R_WT.T @ np.concatenate(columns, axis=1).reshape(2, 3, m)
-    A = A.reshape(6, m)
-    A *= weights[:, None]
-    normal = A[:, :n].T @ A
-    # J_T' J_T = V diag(e) V': sigma_min^2 of J_T is e[0], and the damped solve is diagonal.
-    e, V = SymmetricEigen(normal[:, :n])
-    lam2 = max(damping**2 - max(float(e[0]), 0.0), MIN_DAMPING**2)
-    q_, v_ = q.tolist(), v.tolist()
-    rhs = np.empty((n, m - n + 1))
-    rhs[:, 0] = [lam2 * c for c in CentringVelocity(q_, limits)]
-    rhs[:, 1:] = normal[:, n:]
-    v_c, dq, *feedforward = (V @ ((V.T @ rhs) / (e + lam2)[:, None])).T.tolist()
-    # The rest joint by joint in Python floats (JointLimits), in list comprehensions (the
-    # cheapest loops in CPython).
-    reach = max([abs(d) / a for d, a in zip(dq, limits.feedback_acceleration_list, strict=True)])
-    scale = min(gain, math.sqrt(2.0 / reach)) if reach > 0 else gain
-    v_wanted = [c + d * scale for c, d in zip(v_c, dq, strict=True)]
-    if feedforward:
-        v_wanted = [w + f for w, f in zip(v_wanted, feedforward[0], strict=True)]
-    speed_ratio = min(
-        [
-            s / (1e-300 if abs(w) < 1e-300 else abs(w))  # s / max(|w|, 1e-300) (_SELECT)
-            for s, w in zip(limits.speed_list, v_wanted, strict=True)
-        ]
+    changed v_next. Computed by the compiled kernel (csrc/servo_step.c)."""
+    q_next, v_next = np.empty(len(q)), np.empty(len(q))
+    limited = _servo_step.ServoStep(
+        np.ascontiguousarray(J, float),
+        np.ascontiguousarray(error, float),
+        _NO_TWIST if twist is None else np.ascontiguousarray(twist, float),
+        np.ascontiguousarray(q, float),
+        np.ascontiguousarray(v, float),
+        period,
+        limits.lower,
+        limits.upper,
+        limits.speed,
+        limits.acceleration,
+        np.ascontiguousarray(R_WT, float),
+        np.ascontiguousarray(weights, float),
+        damping,
+        gain,
+        q_next,
+        v_next,
     )
-    if speed_ratio < 1.0:
-        v_wanted = [w * speed_ratio for w in v_wanted]
-    excess = max(
-        [
-            abs(w - x) / (a * period)
-            for w, x, a in zip(v_wanted, v_, limits.acceleration_list, strict=True)
-        ]
-    )
-    # v + (v_wanted - v) scaled into the acceleration limits, then braking: at most the speed
-    # from which the joint stops at its limit, and never past it (min and max as in _SELECT).
-    q_next, v_next = [], []
-    for qi, vi, wi, a2, lower, upper in zip(
-        q_,
-        v_,
-        v_wanted,
-        limits.twice_acceleration_list,
-        limits.lower_list,
-        limits.upper_list,
-        strict=True,
-    ):
-        vi = vi + (wi - vi) / excess if excess > 1.0 else vi + (wi - vi)
-        to_upper, to_lower = upper - qi, qi - lower
-        high = math.sqrt(a2 * (0.0 if to_upper < 0.0 else to_upper))
-        if to_upper / period < high:
-            high = to_upper / period
-        low = -math.sqrt(a2 * (0.0 if to_lower < 0.0 else to_lower))
-        if -to_lower / period > low:
-            low = -to_lower / period
-        if low > high:
-            high = low
-        if low > vi:
-            vi = low
-        if high < vi:
-            vi = high
-        v_next.append(vi)
-        q_next.append(qi + vi * period)
-    limited = excess > 1.0 or speed_ratio < 1.0
-    return np.array(q_next), np.array(v_next), limited
+    return q_next, v_next, limited
 
 
 def ReachBound(plant: MultibodyPlant, bodies: list[RigidBody]) -> float:
@@ -252,10 +157,7 @@ def ReachBound(plant: MultibodyPlant, bodies: list[RigidBody]) -> float:
 def StoppingPositions(q: np.ndarray, v: np.ndarray, limits: JointLimits) -> list[float]:
     """Where each joint comes to rest (rad) braking from v (rad/s) at its acceleration
     limit."""
-    return [
-        qi + vi * abs(vi) / a2
-        for qi, vi, a2 in zip(q.tolist(), v.tolist(), limits.twice_acceleration_list, strict=True)
-    ]
+    return (q + v * np.abs(v) / (2 * limits.acceleration)).tolist()
 
 
 def BrakeStep(
