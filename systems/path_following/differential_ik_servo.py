@@ -29,8 +29,9 @@ from guidedarm.systems.path_following.differential_ik_servo_math import (
     MIN_DAMPING,
     BrakeStep,
     JointLimits,
-    PoseError,
+    PoseErrorOfRows,
     ReachBound,
+    Rows,
     ServoStep,
     StoppingPositions,
 )
@@ -155,22 +156,21 @@ class DifferentialIkServo(LeafSystem):
         J = plant.CalcJacobianSpatialVelocity(
             plant_context, JacobianWrtVariable.kV, self._frame, _ORIGIN, self._world, self._world
         )
-        X_WD = self._target.Eval(context)
+        M_WT, M_WD = Rows(X_WT), Rows(self._target.Eval(context))
         twist = None
         if self._feedforward:
             previous = context.get_discrete_state(self._previous).get_value()
-            discrete.set_value(self._previous, X_WD.GetAsMatrix34().ravel())
+            discrete.set_value(self._previous, M_WD.ravel())
             if not np.isnan(previous[0]):
-                X_previous = RigidTransform(previous.reshape(3, 4))
-                twist = PoseError(X_previous, X_WD) * self._feedforward
+                twist = PoseErrorOfRows(previous, M_WD) * self._feedforward
         q_next, v_next, limited = ServoStep(
             J,
-            PoseError(X_WT, X_WD),
+            PoseErrorOfRows(M_WT, M_WD),
             q,
             v,
             self._period,
             self._limits,
-            X_WT.GetAsMatrix34()[:, :3],  # R_WT in one pydrake call
+            M_WT[:, :3],
             self._weights,
             self._damping,
             self._gain,

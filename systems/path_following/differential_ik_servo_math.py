@@ -44,7 +44,7 @@ implementation they are tested against (to 1e-12 on random inputs).
 """
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 from pydrake.math import RigidTransform
@@ -73,21 +73,31 @@ class JointLimits:
     upper: np.ndarray
     speed: np.ndarray
     acceleration: np.ndarray
+    # 2 x acceleration as floats, for StoppingPositions at the servo rate on six joints,
+    # where numpy's per-call overhead exceeds its work (doubling is exact: the same values).
+    twice_acceleration_list: list[float] = field(init=False, repr=False)
 
     def __post_init__(self) -> None:
         for name in ("lower", "upper", "speed", "acceleration"):
             object.__setattr__(self, name, np.ascontiguousarray(getattr(self, name), float))
+        object.__setattr__(self, "twice_acceleration_list", (2 * self.acceleration).tolist())
 
 
 def PoseError(X_current: RigidTransform, X_desired: RigidTransform) -> np.ndarray:
     """[rotation vector; translation] (rad, m; in W) taking X_current to X_desired."""
+    return PoseErrorOfRows(Rows(X_current), Rows(X_desired))
+
+
+def PoseErrorOfRows(M_current: np.ndarray, M_desired: np.ndarray) -> np.ndarray:
+    """PoseError of two poses given as Rows gives them."""
     error = np.empty(6)
-    _servo_step.PoseError(_Rows(X_current), _Rows(X_desired), error)
+    _servo_step.PoseError(M_current, M_desired, error)
     return error
 
 
-def _Rows(X: RigidTransform) -> np.ndarray:
-    """X as the kernel reads it: 3 x 4, row-major (pydrake's matrices are column-major)."""
+def Rows(X: RigidTransform) -> np.ndarray:
+    """X as the kernel reads a pose: [R | p], 3 x 4, row-major (pydrake's matrices are
+    column-major)."""
     return np.ascontiguousarray(X.GetAsMatrix34())
 
 
@@ -157,7 +167,10 @@ def ReachBound(plant: MultibodyPlant, bodies: list[RigidBody]) -> float:
 def StoppingPositions(q: np.ndarray, v: np.ndarray, limits: JointLimits) -> list[float]:
     """Where each joint comes to rest (rad) braking from v (rad/s) at its acceleration
     limit."""
-    return (q + v * np.abs(v) / (2 * limits.acceleration)).tolist()
+    return [
+        qi + vi * abs(vi) / a2
+        for qi, vi, a2 in zip(q.tolist(), v.tolist(), limits.twice_acceleration_list, strict=True)
+    ]
 
 
 def BrakeStep(
