@@ -16,7 +16,8 @@
  *   X_WM (F, 12): the moving frames in W;
  *   best (N), written: each sensor's nearest hit within reach (m), inf for none.
  * All float64 buffers, C-contiguous. A shape is intersected with a sensor's rays only if
- * its ball meets the sensor's cone truncated at reach. */
+ * its ball meets the sensor's cone truncated at reach and comes nearer than the nearest
+ * hit so far. */
 
 #define PY_SSIZE_T_CLEAN
 #include <Python.h>
@@ -80,6 +81,12 @@ static double FirstHit(int kind, const double *o, const double *u, double ou, co
     int inside = rho2 + out * out <= radius2;
     return inside ? 0.0 : fmin(side, end);
 }
+
+/* A shape to intersect and how near to the sensor its ball comes (m). */
+struct Candidate {
+    double near;
+    Py_ssize_t shape;
+};
 
 /* C = A B of 3 x 4 row-major rigid transforms. */
 static void Compose(const double *A, const double *B, double *C) {
@@ -145,37 +152,68 @@ static PyObject *CastCones(PyObject *self, PyObject *args) {
         else
             Compose(XWM + 12 * index, XFG + 12 * j, X_WG + 12 * j);
     }
+    double *u_W = PyMem_Malloc((size_t)(3 * (k > 0 ? k : 1)) * sizeof(double));
+    struct Candidate *order = PyMem_Malloc((size_t)(m > 0 ? m : 1) * sizeof(struct Candidate));
+    if (u_W == NULL || order == NULL) {
+        PyMem_Free(X_WG);
+        PyMem_Free(u_W);
+    PyMem_Free(order);
+        PyMem_Free(order);
+        PyErr_NoMemory();
+        goto done;
+    }
     double cos_half = cos(half_angle), sin_half = sin(half_angle);
     for (Py_ssize_t i = 0; i < n; ++i) {
         double p[3], z[3];
         Rotate(X, pF + 3 * i, p);
         for (int c = 0; c < 3; ++c) p[c] += X[4 * c + 3];
         Rotate(X, zF + 3 * i, z);
-        double nearest = INFINITY;
+        for (Py_ssize_t q = 0; q < k; ++q) Rotate(X, uF + 3 * (i * k + q), u_W + 3 * q);
+        /* The shapes whose ball meets the sensor's cone truncated at reach, nearest ball
+         * first: none past the nearest hit so far can beat it (no point of a ball is nearer
+         * than |d| - r). */
+        Py_ssize_t count = 0;
         for (Py_ssize_t j = 0; j < m; ++j) {
             const double *G = X_WG + 12 * j;
             double d[3] = {G[3] - p[0], G[7] - p[1], G[11] - p[2]};  /* p_WG - p_WS */
-            double r = ball[j];
+            double r = ball[j], near = -INFINITY;
             if (!isinf(r)) {
-                /* The ball (centre along the axis x, off it y) meets the truncated cone. */
+                /* The ball (centre along the axis x, off it y) against the cone. */
+                double d2 = d[0] * d[0] + d[1] * d[1] + d[2] * d[2];
                 double x = d[0] * z[0] + d[1] * z[1] + d[2] * z[2];
-                double y2 = d[0] * d[0] + d[1] * d[1] + d[2] * d[2] - x * x;
+                double y2 = d2 - x * x;
                 double y = sqrt(y2 > 0.0 ? y2 : 0.0);
                 if (!(y * cos_half - x * sin_half <= r && x >= -r && x <= reach + r)) continue;
+                near = sqrt(d2) - r;
             }
+            Py_ssize_t at = count++;  /* insertion by near */
+            while (at > 0 && order[at - 1].near > near) {
+                order[at] = order[at - 1];
+                --at;
+            }
+            order[at].near = near;
+            order[at].shape = j;
+        }
+        double nearest = INFINITY;
+        for (Py_ssize_t rank = 0; rank < count && order[rank].near <= nearest; ++rank) {
+            Py_ssize_t j = order[rank].shape;
+            const double *G = X_WG + 12 * j;
+            double d[3] = {G[3] - p[0], G[7] - p[1], G[11] - p[2]};
             double o[3];  /* p_WS - p_WG in G */
             for (int c = 0; c < 3; ++c) o[c] = -(G[c] * d[0] + G[4 + c] * d[1] + G[8 + c] * d[2]);
             for (Py_ssize_t q = 0; q < k; ++q) {
-                double uW[3], u[3];
-                Rotate(X, uF + 3 * (i * k + q), uW);
-                for (int c = 0; c < 3; ++c) u[c] = G[c] * uW[0] + G[4 + c] * uW[1] + G[8 + c] * uW[2];
-                double ou = -(d[0] * uW[0] + d[1] * uW[1] + d[2] * uW[2]);
+                const double *uw = u_W + 3 * q;
+                double u[3];
+                for (int c = 0; c < 3; ++c) u[c] = G[c] * uw[0] + G[4 + c] * uw[1] + G[8 + c] * uw[2];
+                double ou = -(d[0] * uw[0] + d[1] * uw[1] + d[2] * uw[2]);
                 double t = FirstHit((int)kind[j], o, u, ou, size + 3 * j);
                 if (t < nearest) nearest = t;
             }
         }
         out[i] = nearest <= reach ? nearest : INFINITY;
     }
+    PyMem_Free(u_W);
+    PyMem_Free(order);
     PyMem_Free(X_WG);
     result = Py_None;
     Py_INCREF(result);
