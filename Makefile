@@ -9,7 +9,7 @@ DEMO_SCENARIOS ?= ur10e_waypoints mz04d_waypoints rover_arm_waypoints path_follo
 
 .PHONY: demo test test-stress lint bench picture docs clean
 
-$(STAMP): pyproject.toml setup.py $(wildcard csrc/*.c)
+$(STAMP): pyproject.toml setup.py $(wildcard csrc/*.[ch])
 	test -x $(BIN)/python || $(PYTHON) -m venv $(VENV)
 	$(BIN)/pip install --quiet --upgrade pip
 	$(BIN)/pip install --quiet -e '.[test,docs]'

@@ -12,11 +12,13 @@ setup(
         Extension(
             "guidedarm.systems.path_following._servo_step",
             ["csrc/servo_step.c"],
+            depends=["csrc/buffers.h"],
             extra_compile_args=FLAGS,
         ),
         Extension(
             "guidedarm.systems.tof._cone_casting",
             ["csrc/cone_casting.c"],
+            depends=["csrc/buffers.h"],
             extra_compile_args=FLAGS,
         ),
     ]

@@ -19,8 +19,8 @@
  * its ball meets the sensor's cone truncated at reach and comes nearer than the nearest
  * hit so far. */
 
-#define PY_SSIZE_T_CLEAN
-#include <Python.h>
+#include "buffers.h"  /* Python.h first, as Python's C API asks */
+
 #include <math.h>
 
 enum { KIND_BOX = 0, KIND_CAPSULE = 1, KIND_CYLINDER = 2, KIND_HALFSPACE = 3, KIND_SPHERE = 4 };
@@ -101,15 +101,6 @@ static void Compose(const double *A, const double *B, double *C) {
 /* R v (+ p) of a 3 x 4 row-major transform. */
 static void Rotate(const double *X, const double *v, double *out) {
     for (int i = 0; i < 3; ++i) out[i] = X[4 * i] * v[0] + X[4 * i + 1] * v[1] + X[4 * i + 2] * v[2];
-}
-
-static int Doubles(Py_buffer *b, Py_ssize_t count, const char *name) {
-    if (b->len != count * (Py_ssize_t)sizeof(double)) {
-        PyErr_Format(PyExc_ValueError, "%s: %zd doubles expected, got %zd bytes", name, count,
-                     b->len);
-        return 0;
-    }
-    return 1;
 }
 
 static PyObject *CastCones(PyObject *self, PyObject *args) {

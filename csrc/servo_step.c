@@ -14,8 +14,8 @@
  *   (n) written.
  * All float64 buffers, C-contiguous. */
 
-#define PY_SSIZE_T_CLEAN
-#include <Python.h>
+#include "buffers.h"  /* Python.h first, as Python's C API asks */
+
 #include <math.h>
 
 #define MAX_JOINTS 16
@@ -115,15 +115,6 @@ static int SymmetricEigen(int n, double *A, double *e, double *V) {
         }
     }
     for (int i = 0; i < n; ++i) e[i] = A[i * n + i];
-    return 1;
-}
-
-static int Doubles(Py_buffer *b, Py_ssize_t count, const char *name) {
-    if (b->len != count * (Py_ssize_t)sizeof(double)) {
-        PyErr_Format(PyExc_ValueError, "%s: %zd doubles expected, got %zd bytes", name, count,
-                     b->len);
-        return 0;
-    }
     return 1;
 }
 

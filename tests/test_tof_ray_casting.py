@@ -12,7 +12,6 @@ from guidedarm.diagrams.station.kinematic_station import MakeKinematicStation
 from guidedarm.diagrams.tasks.path_following.setup import MakeSetup
 from guidedarm.diagrams.tasks.registry import LoadScenario
 from guidedarm.systems.path_following.path_follower_math import OrientationFromVector
-from guidedarm.systems.tof._cone_casting import CastCones
 from guidedarm.systems.tof.primitive_ray_casting import (
     FirstHits,
     ProximityShapes,
@@ -206,9 +205,9 @@ def test_an_empty_scene_has_no_returns():
 
 def test_the_compiled_kernel_equals_the_numpy_reference_on_random_scenes():
     """Random scenes of every shape kind, some shapes on moving frames, and random sensors
-    among them: the compiled CastCones (with its broadphase) gives each sensor the nearest
-    of the numpy FirstHits over all shapes and rays within reach, to 1e-12 m, hits and
-    misses alike."""
+    among them: the compiled CastCones (ShapeTable.Cast, with its broadphase) gives each
+    sensor the nearest of the numpy FirstHits over all shapes and rays within reach, to
+    1e-12 m, hits and misses alike."""
     rng = np.random.default_rng(11)
 
     def Pose() -> RigidTransform:
@@ -228,21 +227,14 @@ def test_the_compiled_kernel_equals_the_numpy_reference_on_random_scenes():
         X_FS = [Pose() for _ in range(6)]
         M_FS = np.array([X.GetAsMatrix34() for X in X_FS])
         u_F = RAYS @ M_FS[:, :, :3].transpose(0, 2, 1)
-        best = np.empty(6)
-        CastCones(
+        best = table.Cast(
             np.ascontiguousarray(X_WF.GetAsMatrix34()),
             M_FS[:, :, 3].copy(),
             u_F,
             M_FS[:, :, 2].copy(),
             np.arccos(RAYS[:, 2].min()),
             0.1,
-            table.kinds,
-            table.frames,
-            table.X_FG,
-            table.sizes,
-            table.rho,
             X_WM,
-            best,
         )
         reference = np.full(6, np.inf)
         for shape, X_FG, frame in rows:

@@ -85,6 +85,38 @@ class ShapeTable:
         self.sizes = np.array([row[1] for row in rows], float).reshape(-1, 3)
         self.rho = np.array([row[2] for row in rows], float) + 1e-6
 
+    def Cast(
+        self,
+        X_WF: np.ndarray,
+        p_FS: np.ndarray,
+        u_F: np.ndarray,
+        z_F: np.ndarray,
+        half_angle: float,
+        reach: float,
+        X_WM: np.ndarray,
+    ) -> np.ndarray:
+        """Nearest hit (m, inf for none within reach) of each of N sensors: origins p_FS
+        (N, 3), axes z_F (N, 3) and K unit rays u_F (N, K, 3), all within half_angle of
+        the axis, in a frame F at X_WF (3 x 4); X_WM (F, 3, 4): the moving frames in W. All
+        contiguous float64 (csrc/cone_casting.c's CastCones)."""
+        ranges = np.empty(len(p_FS))
+        CastCones(
+            X_WF,
+            p_FS,
+            u_F,
+            z_F,
+            half_angle,
+            reach,
+            self.kinds,
+            self.frames,
+            self.X_FG,
+            self.sizes,
+            self.rho,
+            X_WM,
+            ranges,
+        )
+        return ranges
+
 
 def FirstHits(
     o: np.ndarray, u: np.ndarray, ou: np.ndarray, kind: str, sizes: np.ndarray
@@ -235,22 +267,7 @@ class SceneRayCaster:
         a frame F at X_WF (3 x 4); poses() gives their X_WS for sphere tracing."""
         self._Refresh(query.inspector())
         X_WM = np.array([query.GetPoseInWorld(f).GetAsMatrix34() for f in self._frames], float)
-        table, ranges = self._table, np.empty(len(p_FS))
-        CastCones(
-            X_WF,
-            p_FS,
-            u_F,
-            z_F,
-            self._half_angle,
-            self.max_range,
-            table.kinds,
-            table.frames,
-            table.X_FG,
-            table.sizes,
-            table.rho,
-            X_WM,
-            ranges,
-        )
+        ranges = self._table.Cast(X_WF, p_FS, u_F, z_F, self._half_angle, self.max_range, X_WM)
         if self._tracer is not None:
             traced = [self._tracer.Range(query, X_WS) for X_WS in poses()]
             ranges = np.minimum(ranges, traced)
