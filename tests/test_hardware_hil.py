@@ -212,8 +212,8 @@ def test_continuous_following_on_the_emulators_matches_simulation(
 # Over 8 successful runs in real time (docs/hardware.md) the largest differences were
 # -0.26, -1.68, +1.26 and +9.06 mm (maxima are single readings), and the speed -3 % to
 # +21 %; the tolerances are 1.3-4 times those. In lockstep at the default settings: -0.11,
-# -1.97, -0.39, -1.50 mm and +5 % in 5 runs; at FAST on the whole hose -0.16, -0.77, +0.74,
-# +2.40 mm and +2 % in 4 runs (lockstep ToF stamps off by -7 to +5 ms, a few lines later:
+# -1.97, -0.39, -1.50 mm and +5 % in 6 runs; at FAST on the whole hose -0.16, -0.77, +0.74,
+# +2.40 mm and +2 % in 5 runs (lockstep ToF stamps off by -7 to +5 ms, a few lines later:
 # docs/hardware.md, "What limits the speed on hardware").
 HIL_TOLERANCES = {
     "detected_path_error_mean_mm": 1.0,
