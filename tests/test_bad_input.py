@@ -453,6 +453,11 @@ BAD_INPUTS = [
         "shorter than station.arms.mz04d.control_period",
     ),
     (
+        "continuous-arm-samples-between-commands",
+        Run(PF, "motion=continuous", "station.arms.mz04d.control_period=0.004"),
+        "control_period (0.004 s) must equal continuous.servo_period (0.008 s)",
+    ),
+    (
         "continuous-ignores-follower",
         Run(PF, "motion=continuous", "follower.long_step=0.03"),
         "'follower.long_step' has no effect with motion=continuous",
