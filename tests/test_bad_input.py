@@ -393,8 +393,13 @@ BAD_INPUTS = [
     ("continuous-speeds", Run(PF, "continuous.min_speed=0.5"), "min_speed <= speed"),
     (
         "continuous-speed-beyond-readings",
+        Run(PF, "motion=continuous", "continuous.speed=0.15", "continuous.min_fit_points=20"),
+        "continuous.speed (0.15 m/s) is faster than the hose fit can follow",
+    ),
+    (
+        "continuous-speed-beyond-look-ahead",
         Run(PF, "motion=continuous", "continuous.speed=1e3"),
-        "continuous.speed (1000 m/s) is faster than the hose fit can follow",
+        "need speed <= sqrt(2 acceleration look_ahead)",
     ),
     (
         "continuous-fit-too-short",

@@ -260,6 +260,7 @@ def test_an_arm_lagging_the_target_slows_it():
         ("loss_distance", 0.03, "loss_distance < search_distance"),
         ("look_ahead", 0.007, "loss_distance < look_ahead"),
         ("history", 0.01, "history >= 10 servo_period"),
+        ("look_ahead", 0.015, "speed <= sqrt"),  # stops within 15 mm from 110 mm/s at most
     ],
 )
 def test_config_rules_between_fields(field, value, message):

@@ -1,6 +1,7 @@
 """ContinuousConfig: the settings of continuous path following (ContinuousFollower; its
 mathematics in continuous_follower_math and continuous_follower_estimate)."""
 
+import math
 from dataclasses import dataclass
 
 from guidedarm.systems.config_checks import CheckFields, InRange, Positive
@@ -20,7 +21,8 @@ class ContinuousConfig:
     look_ahead: how far the target may run past the latest hose estimate (m): it brakes
         so as to stop there, v <= sqrt(2 acceleration (look_ahead - lead)), and leads the
         latest estimate by the arm's lag and the reading's age (5-8 mm at 0.1 m/s), so
-        0.015 held the target near 80 mm/s and 0.03 lets it cruise.
+        0.015 held the target near 80 mm/s and 0.03 lets it cruise (a speed above
+        sqrt(2 acceleration look_ahead) is refused: the target would never reach it).
     fit_length: length of hose behind the latest estimate fitted by the quadratic (m;
         0.045: 0.4 s of readings at the cruise, a heading and curvature less noisy than
         0.03's, whose maxima at 0.1 m/s were several mm larger); min_fit_points: readings
@@ -117,3 +119,10 @@ class ContinuousConfig:
             raise ConfigurationError("continuous: need loss_distance < look_ahead")
         if not self.history >= 10 * self.servo_period:
             raise ConfigurationError("continuous: need history >= 10 servo_period")
+        if not self.speed <= math.sqrt(2 * self.acceleration * self.look_ahead):
+            # Advance brakes the target to stop within the look-ahead, so it never runs
+            # faster than this.
+            raise ConfigurationError(
+                "continuous: need speed <= sqrt(2 acceleration look_ahead), the fastest the "
+                "target can run and still stop within the look-ahead"
+            )
