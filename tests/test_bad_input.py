@@ -393,8 +393,13 @@ BAD_INPUTS = [
     ("continuous-speeds", Run(PF, "continuous.min_speed=0.5"), "min_speed <= speed"),
     (
         "continuous-speed-beyond-readings",
+        Run(PF, "motion=continuous", "continuous.speed=0.15", "continuous.min_fit_points=20"),
+        "continuous.speed (0.15 m/s) is faster than the hose fit can follow",
+    ),
+    (
+        "continuous-speed-beyond-look-ahead",
         Run(PF, "motion=continuous", "continuous.speed=1e3"),
-        "continuous.speed (1000 m/s) is faster than the hose fit can follow",
+        "need speed <= sqrt(2 acceleration look_ahead)",
     ),
     (
         "continuous-fit-too-short",
@@ -451,6 +456,11 @@ BAD_INPUTS = [
         "continuous-servo-faster-than-arm",
         Run(PF, "motion=continuous", "continuous.servo_period=1e-4"),
         "shorter than station.arms.mz04d.control_period",
+    ),
+    (
+        "continuous-arm-samples-between-commands",
+        Run(PF, "motion=continuous", "station.arms.mz04d.control_period=0.004"),
+        "control_period (0.004 s) must equal continuous.servo_period (0.008 s)",
     ),
     (
         "continuous-ignores-follower",

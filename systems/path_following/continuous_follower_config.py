@@ -1,6 +1,7 @@
 """ContinuousConfig: the settings of continuous path following (ContinuousFollower; its
 mathematics in continuous_follower_math and continuous_follower_estimate)."""
 
+import math
 from dataclasses import dataclass
 
 from guidedarm.systems.config_checks import CheckFields, InRange, Positive
@@ -11,14 +12,22 @@ from guidedarm.systems.errors import ConfigurationError
 class ContinuousConfig:
     """Continuous following (motion `continuous`; m, s, deg).
 
-    speed: cruise speed of the tool along the hose (m/s); min_speed: the floor of the
-        adapted speed (m/s); acceleration: the tool's speed change (m/s^2).
+    speed: cruise speed of the tool along the hose (m/s; 0.11: with the confidence's
+        share, 88-97 mm/s along the 24 test hoses, docs/path_following.md); min_speed: the
+        floor of the adapted speed (m/s); acceleration: the tool's speed change (m/s^2).
     lateral_acceleration: in a bend of curvature k (the fit's, less two standard
         errors) the speed is at most sqrt(lateral_acceleration / k) and
         max_turn_rate_deg / k (m/s^2).
-    look_ahead: how far the target may run past the latest hose estimate (m).
-    fit_length: length of hose behind the latest estimate fitted by the quadratic (m);
-        min_fit_points: readings needed before the fit's tangent and curvature are used.
+    look_ahead: how far the target may run past the latest hose estimate (m): it brakes
+        so as to stop there, v <= sqrt(2 acceleration (look_ahead - lead)), and leads the
+        latest estimate by the arm's lag and the reading's age (5-8 mm at 0.1 m/s), so
+        0.015 held the target near 80 mm/s and 0.03 lets it cruise (a speed above
+        sqrt(2 acceleration look_ahead) is refused: the target would never reach it).
+    fit_length: length of hose behind the latest estimate fitted by the quadratic (m;
+        0.045: 0.4 s of readings at the cruise, a heading and curvature less noisy than
+        0.03's, whose maxima at 0.1 m/s were several mm larger); min_fit_points: readings
+        needed before the fit's tangent and curvature are used (the scenario refuses a
+        speed above fit_length / (min_fit_points x the ToF period), 0.28 m/s by default).
     spread_limit: the standard error of the estimated hose point at the tool (m) at which
         the confidence reaches 0; the speed falls from `speed` toward min_speed with the
         confidence (the fraction of readings in the fit window that saw the hose, times
@@ -32,19 +41,20 @@ class ContinuousConfig:
         distance, and its x axis turns toward the path's heading at this rate times the
         angle (1/s; a first-order filter of the fit's noise).
     max_correction_speed: the fastest correction of the target's position (m/s).
-    max_turn_rate_deg: the fastest turn of the target's x axis (deg/s).
+    max_turn_rate_deg: the fastest turn of the target's x axis (deg/s; 60: a bend of the
+        random hoses' smallest radius, 0.1 m, turns the tool 63 deg/s at 0.11 m/s).
     heading_tolerance_deg: the target's x axis lagging the estimated heading by more than
         this slows the target in proportion (deg).
     lag_tolerance: the tool farther than this from the target at a reading (the arm cannot
         keep up, e.g. its wrist turning at its joint limits) slows the target in proportion
-        (m); 0 (the default): off.
+        (m; 0: off). 0.004: a little above the 1-4 mm the fed-forward servo keeps.
     servo_period: the target and the differential IK's tick (s); servo_gain: the
         differential IK's gain on the tool's pose error (1/s); servo_feedforward: the share
         of the target's own velocity the differential IK adds to that feedback (0 to 1;
-        without it the arm lags the target by the feedback's braking curve, v^2 / 2 a, 15
-        mm at 0.1 m/s); rotation_weight: the length (m) a rotation of 1 rad of the tool
-        counts as against its position (the position, which the tracking needs, comes first;
-        1 mm to 1 m, the arm's reach);
+        1 by default: without it the arm lags the target by the feedback's braking curve,
+        v^2 / 2 a, 15 mm at 0.1 m/s, which eats the look-ahead); rotation_weight: the
+        length (m) a rotation of 1 rad of the tool counts as against its position (the
+        position, which the tracking needs, comes first; 1 mm to 1 m, the arm's reach);
         roll_weight: the share of that weight of the roll about x_T (the hose's axis, which
         the detection does not need); servo_damping: the largest damping of the least
         squares, reached at a singularity (differential_ik_servo_math; a singular value
@@ -64,23 +74,23 @@ class ContinuousConfig:
         sensor (4 mm noise included); 0 turns the check off.
     """
 
-    speed: float = Positive(0.05)
+    speed: float = Positive(0.11)
     min_speed: float = Positive(0.02)
     acceleration: float = Positive(0.4)
     lateral_acceleration: float = Positive(0.1)
-    look_ahead: float = Positive(0.015)
-    fit_length: float = Positive(0.03)
+    look_ahead: float = Positive(0.03)
+    fit_length: float = Positive(0.045)
     min_fit_points: int = InRange(3, 10000, 8)
     spread_limit: float = InRange(1e-4, 0.05, 0.006)
     gate: float = InRange(5e-4, 0.1, 0.008)
     correction_gain: float = Positive(8.0)
     max_correction_speed: float = Positive(0.03)
-    max_turn_rate_deg: float = Positive(30.0)
+    max_turn_rate_deg: float = Positive(60.0)
     heading_tolerance_deg: float = InRange(0.5, 90.0, 10.0)
-    lag_tolerance: float = InRange(0.0, 0.05, 0.0)
+    lag_tolerance: float = InRange(0.0, 0.05, 0.004)
     servo_period: float = Positive(0.008)
     servo_gain: float = Positive(20.0)
-    servo_feedforward: float = InRange(0.0, 1.0, 0.0)
+    servo_feedforward: float = InRange(0.0, 1.0, 1.0)
     rotation_weight: float = InRange(1e-3, 1.0, 0.05)
     roll_weight: float = InRange(0.0, 1.0, 0.1)
     servo_damping: float = InRange(1e-3, 1.0, 0.01)
@@ -109,3 +119,10 @@ class ContinuousConfig:
             raise ConfigurationError("continuous: need loss_distance < look_ahead")
         if not self.history >= 10 * self.servo_period:
             raise ConfigurationError("continuous: need history >= 10 servo_period")
+        if not self.speed <= math.sqrt(2 * self.acceleration * self.look_ahead):
+            # Advance brakes the target to stop within the look-ahead, so it never runs
+            # faster than this.
+            raise ConfigurationError(
+                "continuous: need speed <= sqrt(2 acceleration look_ahead), the fastest the "
+                "target can run and still stop within the look-ahead"
+            )

@@ -4,7 +4,7 @@ also stop-and-go (joint_trajectory) and continuous with the grid estimator. Prin
 row per run (success, coverage, average speed, tracking mean / max, collisions, simulated
 time, the run's wall time, and the summary's realtime_factor: simulated over wall-clock
 time of the follower's loop on the station, setup and report excluded) and the
-continuous set's totals against the goals (speed >= 40 mm/s, tracking mean <= 3 mm,
+continuous set's totals against the goals (speed >= 80 mm/s, tracking mean <= 3 mm,
 max <= 10 mm).
 
     .venv/bin/python tests/benchmarks/bench_continuous_following.py [--quick] [--more]
@@ -416,7 +416,7 @@ def Run() -> None:
         if s["success"]
         and s["coverage"] >= 0.95
         and not s["collisions"]
-        and s["average_speed_mm_s"] >= 40
+        and s["average_speed_mm_s"] >= 80
         and s["tracking_error_mean_mm"] <= 3
         and s["tracking_error_max_mm"] <= 10
     ]

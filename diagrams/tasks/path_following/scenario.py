@@ -106,6 +106,18 @@ def CheckScenarioRules(scenario: PathFollowingScenario) -> None:
             f"station.arms.{scenario.arm}.control_period ({arm.control_period} s), the period "
             "at which the arm takes commands"
         )
+    period = scenario.continuous.servo_period
+    if scenario.motion == "continuous" and arm.control_period not in (
+        period,
+        ArmConfig().control_period,
+    ):
+        # Left at its default, the arm's control period becomes the servo's (setup).
+        raise ConfigurationError(
+            f"station.arms.{scenario.arm}.control_period ({arm.control_period} s) must equal "
+            f"continuous.servo_period ({period} s) with motion=continuous (or be left unset): "
+            "the arm's controller samples the servo's stream, and a command held over several "
+            "samples reads as velocity steps"
+        )
 
 
 def _CheckContinuousReadings(scenario: PathFollowingScenario) -> None:
