@@ -17,7 +17,7 @@ the servo's `failure` (a workspace wall reached), which ends the run.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, replace
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 from pydrake.common.value import AbstractValue
@@ -38,10 +38,12 @@ from guidedarm.systems.path_following.continuous_follower_math import (
     Reference,
     Replaced,
 )
+from guidedarm.systems.path_following.hose_thickness import Thickness
 from guidedarm.systems.path_following.path_follower import DeclareStepOutputs, StoppedStatus
 from guidedarm.systems.path_following.path_follower_math import ESTIMATORS, EstimateHose
 from guidedarm.systems.plant_frames import CheckFrame, CheckPlant
 from guidedarm.systems.tof.detection_grid import DetectionGrid
+from guidedarm.systems.tof.hose_range_model import RADIUS_FIT_SENSORS
 
 # The arm this far (m) from the target means it cannot follow (limits, a singularity).
 MAX_LAG = 0.025
@@ -68,6 +70,7 @@ class _Run:
     grid: np.ndarray | None = None
     failure: str = ""
     lag: float = 0.0
+    thickness: Thickness = field(default_factory=Thickness)
 
     @property
     def stopped(self) -> bool:
@@ -121,6 +124,8 @@ class ContinuousFollower(LeafSystem):
             config = replace(config, gate=max(config.gate, grid.spacing))
         self._config, self._plant, self._tool = config, plant, tool
         self._grid, self._estimator = grid, estimator
+        # Detection grids for a hose thicker by a multiple of hose_thickness.QUANTUM.
+        self._thicker_grids = {0.0: grid}
         self._plant_context = plant.CreateDefaultContext()
         n = len(q_initial)
         X_WT = self._ToolPose(q_initial)
@@ -212,11 +217,13 @@ class ContinuousFollower(LeafSystem):
         valid = self._valid.Eval(context) > 0.5
         X_WT = self._ToolPose(run.history.At(stamp))
         p_WO = X_WT.translation()
-        S_T, _ = EstimateHose(self._grid, self._estimator, ranges, valid)
-        S_W = S_W_plain = None if S_T is None else X_WT @ np.asarray(S_T, float)
         axis_T = run.estimate.AxisInTool(X_WT, self._config)
+        thickness = self._Thickness(run, X_WT, ranges, valid, axis_T)
+        grid = self._GridFor(thickness.excess)
+        S_T, _ = EstimateHose(grid, self._estimator, ranges, valid)
+        S_W = S_W_plain = None if S_T is None else X_WT @ np.asarray(S_T, float)
         if S_T is not None and axis_T is not None:
-            S_T, _ = EstimateHose(self._grid, self._estimator, ranges, valid, axis_T)
+            S_T, _ = EstimateHose(grid, self._estimator, ranges, valid, axis_T)
             S_W = None if S_T is None else X_WT @ np.asarray(S_T, float)
         estimate = run.estimate
         # Backing up retraces the estimated trail: readings taken backwards would run the
@@ -255,6 +262,7 @@ class ContinuousFollower(LeafSystem):
             run,
             reference=reference,
             estimate=estimate,
+            thickness=thickness,
             stamp=stamp,
             step=run.step + 1,
             record=record,
@@ -280,6 +288,34 @@ class ContinuousFollower(LeafSystem):
                 f"(t = {context.get_time():.2f} s): joint limits or a singularity",
             )
         return run
+
+    def _Thickness(
+        self,
+        run: _Run,
+        X_WT: RigidTransform,
+        ranges: np.ndarray,
+        valid: np.ndarray,
+        axis_T: np.ndarray | None,
+    ) -> Thickness:
+        """The hose's thickness after this reading (hose_thickness): its radius measured
+        when enough sensors see it, at the tool's path coordinate."""
+        if self._config.thickening_min <= 0:
+            return run.thickness
+        radius = self._grid.RadiusEstimate(ranges, valid, axis_T)
+        if radius is not None:
+            excess = radius - self._grid.hose_radius
+        else:  # a section thicker than the hose would reach the flank cones too
+            excess = 0.0 if np.count_nonzero(valid) < RADIUS_FIT_SENSORS else None
+        s = run.estimate.ToolCoordinate(X_WT)
+        return run.thickness.With(s, excess, self._config)
+
+    def _GridFor(self, excess: float) -> DetectionGrid:
+        """The detection grid of a hose `excess` (m) thicker than the tool's."""
+        grid = self._thicker_grids.get(excess)
+        if grid is None:
+            grid = replace(self._grid, hose_radius=self._grid.hose_radius + excess)
+            self._thicker_grids[excess] = grid
+        return grid
 
     def _CalcTarget(self, context: Context, output: AbstractValue) -> None:
         output.set_value(self.Loop(context).reference.Pose())

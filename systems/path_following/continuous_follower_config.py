@@ -72,6 +72,12 @@ class ContinuousConfig:
         mode, and the arm stops instead of pressing on (a 90 degree kink of zero radius:
         0.36 s of contact instead of 6.4 s). Following keeps the hose 28-50 mm from every
         sensor (4 mm noise included); 0 turns the check off.
+    thickening_min, thickening_hold: a section thicker than the hose (a bracket's collar,
+        a clamp; hose_thickness): the hose's radius is measured whenever five or six
+        sensors see it, and when the mean excess over the known radius of the
+        measurements within the last thickening_hold of travel (m) passes thickening_min
+        (m), the hose centre is estimated with that larger radius; thickening_min 0 turns
+        the test off.
     """
 
     speed: float = Positive(0.11)
@@ -100,6 +106,8 @@ class ContinuousConfig:
     search_speed: float = Positive(0.02)
     search_turns_deg: list[float] = InRange(-90.0, 90.0, factory=list)
     min_range: float = InRange(0.0, 0.05, 0.015)
+    thickening_min: float = InRange(0.0, 0.01, 0.0015)
+    thickening_hold: float = Positive(0.01)
 
     def ServoWeights(self) -> list[float]:
         """The DifferentialIkServo's six weights (roll, pitch, yaw about T; x, y, z)."""

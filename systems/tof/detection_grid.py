@@ -32,7 +32,7 @@ import numpy as np
 from pydrake.math import RigidTransform
 
 from guidedarm.systems.small_vectors import Cross, Distance, Dot, Vector
-from guidedarm.systems.tof.hose_range_model import HoseRangeModel
+from guidedarm.systems.tof.hose_range_model import HoseRangeModel, RadiusFit
 
 # A range agrees with a grid point within this fraction of the grid spacing a. A hose
 # centred anywhere in the point's cell (a / 2 either way) reads up to a / 2 nearer or
@@ -161,6 +161,20 @@ class DetectionGrid:
         if self.cone_angle is not None:
             c = self._ranging.Refine(c, ranges, sensors, axis, self.spacing / 2)
         return np.array(c), Distance(c, self._centre) < self.spacing / 2
+
+    def RadiusEstimate(
+        self, ranges: np.ndarray, valid: np.ndarray, axis: np.ndarray | None = None
+    ) -> float | None:
+        """The hose's radius (m) fitted with its centre to every valid range
+        (hose_range_model.RadiusFit, from the ranging estimator's start), or None when the
+        grid detects nothing or fewer than five sensors see the hose."""
+        start = self._Start(ranges, valid) if self.cone_angle is not None else None
+        if start is None:
+            return None
+        c, range_list, _ = start
+        sensors = [k for k in range(6) if valid[k]]
+        fit = RadiusFit(self._ranging, c, range_list, sensors, axis, self.spacing / 2)
+        return None if fit is None else fit[1]
 
     def _Start(
         self, ranges: np.ndarray, valid: np.ndarray

@@ -19,6 +19,10 @@ import numpy as np
 
 from guidedarm.systems.small_vectors import Distance, Vector
 
+# The ranges RadiusFit needs: three unknowns, and at least two of them flank ranges; the
+# radii it starts from, as multiples of the known one.
+RADIUS_FIT_SENSORS = 5
+RADIUS_STARTS = (1.0, 1.3)
 # Rim rays over the half of a cone's rim that faces an oblique hose (CylinderRange).
 BOUNDARY_SAMPLES = 19
 _RIM_PHI = np.linspace(-math.pi / 2, math.pi / 2, BOUNDARY_SAMPLES)
@@ -47,10 +51,11 @@ class HoseRangeModel:
         ]
         object.__setattr__(self, "_rim", rim)
 
-    def PlaneRange(self, k: int, c: Vector) -> float | None:
+    def PlaneRange(self, k: int, c: Vector, radius: float | None = None) -> float | None:
         """Range (m) sensor k reads for a hose perpendicular to the detection plane centred
         at c (T), or None when its cone misses the hose: the nearest in-plane ray of the
-        cone."""
+        cone. radius: the hose's (m), hose_radius when None."""
+        r = self.hose_radius if radius is None else radius
         (e0, e1, e2), (z0, z1, z2) = self.emitters[k], self.axes[k]
         d0, d1, d2 = c[0] - e0, c[1] - e1, c[2] - e2
         distance = math.sqrt(d0 * d0 + d1 * d1 + d2 * d2)
@@ -58,7 +63,7 @@ class HoseRangeModel:
         if along <= 0:
             return None
         if along >= distance * self._cone_cos:
-            return distance - self.hose_radius
+            return distance - r
         s0, s1, s2 = d0 - along * z0, d1 - along * z1, d2 - along * z2
         norm = math.sqrt(s0 * s0 + s1 * s1 + s2 * s2)
         cos_half, sin_half = self._cone_cos, self._cone_sin
@@ -68,12 +73,14 @@ class HoseRangeModel:
             + d2 * (cos_half * z2 + sin_half * s2 / norm)
         )
         h2 = distance * distance - t * t
-        r2 = self.hose_radius**2
+        r2 = r * r
         return None if h2 > r2 else t - math.sqrt(r2 - h2)
 
-    def CylinderRange(self, k: int, c: Vector, axis: Vector) -> float | None:
-        """Range (m) sensor k reads for the cylinder of radius hose_radius, unit axis `axis`
-        through c (T), or None when its cone misses it.
+    def CylinderRange(
+        self, k: int, c: Vector, axis: Vector, radius: float | None = None
+    ) -> float | None:
+        """Range (m) sensor k reads for the cylinder of radius `radius` (hose_radius when
+        None), unit axis `axis` through c (T), or None when its cone misses it.
 
         A hose crossing the detection plane obliquely is nearer to some cones and farther
         from others than the perpendicular one PlaneRange assumes (its section in the
@@ -92,7 +99,7 @@ class HoseRangeModel:
         # From the axis to the emitter, normal to the axis.
         d0, d1, d2 = f0 - a0 * along, f1 - a1 * along, f2 - a2 * along
         distance = math.sqrt(d0 * d0 + d1 * d1 + d2 * d2)
-        r = self.hose_radius
+        r = self.hose_radius if radius is None else radius
         if distance <= r:
             return None
         n0, n1, n2 = -d0 / distance, -d1 / distance, -d2 / distance
@@ -195,6 +202,77 @@ class HoseRangeModel:
                 break
         x = (x0, x1, x2)
         return x if Distance(x, c) <= max_shift else c
+
+
+def RadiusFit(
+    model: HoseRangeModel,
+    c: Vector,
+    ranges: list[float],
+    sensors: list[int],
+    axis: np.ndarray | None,
+    max_shift: float,
+) -> tuple[Vector, float] | None:
+    """Gauss-Newton fit of the hose's centre and radius together to the ranges of
+    `sensors` (at least RADIUS_FIT_SENSORS of them with a modelled return), from c and each
+    radius of RADIUS_STARTS times hose_radius (the flank cones miss a hose of the known
+    radius that a thicker one reaches); (centre, radius) of the start that fits best (RMS
+    misfit), in T and m, or None when none keeps enough ranges, its centre within max_shift
+    of c and its radius within [r / 2, 2 r].
+
+    The sensors facing the hose read a thicker hose exactly as a hose moved toward them; the
+    flank sensors, which see it with their cones' edge rays, read the radius differently
+    from a shift, and with five or six ranges the three unknowns part."""
+    if len(sensors) < RADIUS_FIT_SENSORS:
+        return None
+    fits = [_RadiusFitFrom(model, c, factor * model.hose_radius, ranges, sensors, axis)
+            for factor in RADIUS_STARTS]  # fmt: skip
+    fits = [f for f in fits if f is not None and Distance(f[0], c) <= max_shift]
+    if not fits:
+        return None
+    centre, radius, _ = min(fits, key=lambda f: f[2])
+    return centre, radius
+
+
+def _RadiusFitFrom(
+    model: HoseRangeModel,
+    c: Vector,
+    radius: float,
+    ranges: list[float],
+    sensors: list[int],
+    axis: np.ndarray | None,
+) -> tuple[Vector, float, float] | None:
+    """RadiusFit from one start radius: (centre, radius, RMS misfit) or None."""
+    axis_floats = None if axis is None else tuple(axis.tolist())
+
+    def Model(k: int, p: Vector, r: float) -> float | None:
+        if axis_floats is None:
+            return model.PlaneRange(k, p, r)
+        return model.CylinderRange(k, p, axis_floats, r)
+
+    u, v = np.array(model.axes[0]), np.array(model.axes[3])
+    x, h = np.array(c, float), 1e-5
+    for _ in range(10):
+        p, pu, pv = tuple(x.tolist()), tuple((x + h * u).tolist()), tuple((x + h * v).tolist())
+        rows, residuals = [], []
+        for k in sensors:
+            values = (Model(k, p, radius), Model(k, pu, radius), Model(k, pv, radius))
+            grown = Model(k, p, radius + h)
+            if None in values or grown is None:
+                continue
+            at = values[0]
+            rows.append([(values[1] - at) / h, (values[2] - at) / h, (grown - at) / h])
+            residuals.append(ranges[k] - at)
+        if len(rows) < RADIUS_FIT_SENSORS:
+            return None
+        step = np.linalg.lstsq(np.array(rows), np.array(residuals), rcond=None)[0]
+        x = x + step[0] * u + step[1] * v
+        radius += float(step[2])
+        if not model.hose_radius / 2 <= radius <= 2 * model.hose_radius:
+            return None
+        if math.sqrt(float(step @ step)) < 1e-6:
+            break
+    misfit = math.sqrt(float(np.mean(np.square(residuals))))
+    return tuple(x.tolist()), radius, misfit
 
 
 def _LeastSquares2(rows: list[tuple[float, float]], residuals: list[float]) -> tuple[float, float]:

@@ -1,0 +1,53 @@
+"""Telling the hose from what is fitted on it (a bracket's collar, a clamp's band): the
+hose's radius measured along the way (continuous following).
+
+Units: m.
+
+A section of hose thicker by e brings its surface e nearer to every sensor facing it, which
+the ranging estimator, fitting a hose of the known radius r, reads as the hose moved e
+toward both sensor arms (4.2 mm for a collar 3 mm thicker): the sensors facing the hose
+cannot tell the two apart. The flank sensors can: they see the hose with their cones' edge
+rays, where a larger radius and a shift change the ranges differently, and a collar, wider
+than the hose, comes into all four flank cones at once. Whenever five or six sensors see the
+hose, DetectionGrid.RadiusEstimate fits its radius with its centre (on a plain hose the
+excess over r scatters by 0.3-1.3 mm, on a 3 mm collar it reads 2-3 mm).
+
+Thickness keeps the radius excesses measured over the last `thickening_hold` of the tool's
+travel; when their mean passes `thickening_min`, the readings are on a thicker section and
+the follower estimates the hose centre with the radius r + that mean (rounded to
+QUANTUM), which puts the collar's centre, the hose's, where it is. The readings between two
+radius measurements (fewer than five sensors see the hose) keep the excess of the last
+ones until they are thickening_hold behind.
+"""
+
+from __future__ import annotations
+
+import statistics
+from dataclasses import dataclass
+
+from guidedarm.systems.path_following.continuous_follower_config import ContinuousConfig
+
+# The excess applied is a multiple of this (m): the follower keeps one detection grid per
+# radius it meets.
+QUANTUM = 2.5e-4
+
+
+@dataclass(frozen=True)
+class Thickness:
+    """The radius excesses measured (path coordinate s, excess; m) over the last
+    thickening_hold of travel, and the excess the estimator applies (m, >= 0)."""
+
+    samples: tuple[tuple[float, float], ...] = ()
+    excess: float = 0.0
+
+    def With(self, s: float, measured: float | None, config: ContinuousConfig) -> Thickness:
+        """The thickness after a reading at path coordinate s whose radius excess (m) was
+        measured, or None when too few sensors saw the hose to measure it."""
+        samples = tuple((a, e) for a, e in self.samples if abs(s - a) <= config.thickening_hold)
+        if measured is not None:
+            samples += ((s, measured),)
+        if config.thickening_min <= 0 or not samples:
+            return Thickness(samples, 0.0)
+        median = statistics.median(e for _, e in samples)
+        excess = QUANTUM * round(median / QUANTUM) if median > config.thickening_min else 0.0
+        return Thickness(samples, excess)
