@@ -494,22 +494,24 @@ def test_a_reading_within_min_range_of_a_sensor_ends_the_run(closest, failure):
 
 def test_thickness_holds_the_median_excess_of_the_last_radius_measurements():
     """hose_thickness.Thickness: measured excesses (m) within thickening_hold of travel make
-    the applied excess (their median, rounded to QUANTUM) once it passes thickening_min; a
-    reading too few sensors saw leaves them, and they drop out thickening_hold behind."""
-    from guidedarm.systems.path_following.hose_thickness import QUANTUM, Thickness
+    the applied excess (their median, rounded to QUANTUM) once at least MIN_SAMPLES of them
+    pass thickening_min; a reading too few sensors saw leaves them, and they drop out
+    thickening_hold behind."""
+    from guidedarm.systems.path_following.hose_thickness import MIN_SAMPLES, QUANTUM, Thickness
 
-    config = ContinuousConfig()  # thickening_min 1.5 mm, thickening_hold 10 mm
-    t = Thickness()
-    t = t.With(0.000, 0.0004, config)
-    assert t.excess == 0.0
-    t = t.With(0.002, 0.0031, config)
+    config = dataclasses.replace(ContinuousConfig(), thickening_hold=0.01)  # min 1.5 mm
+    assert MIN_SAMPLES == 2
+    t = Thickness().With(0.000, 0.0031, config)
+    assert t.excess == 0.0  # one measurement is not a section
+    t = t.With(0.002, 0.0004, config)
+    assert t.excess == pytest.approx(7 * QUANTUM)  # the median of 3.1 and 0.4 mm, rounded
     t = t.With(0.004, 0.0028, config)
     assert t.excess == pytest.approx(11 * QUANTUM)  # the median 2.8 mm, rounded
     t = t.With(0.006, None, config)  # five or more sensors saw it, the fit did not hold
     assert t.excess == pytest.approx(11 * QUANTUM)
-    t = t.With(0.013, None, config)  # the measurements at s = 0 and 2 mm are left behind
-    assert [s for s, _ in t.samples] == [0.004] and t.excess == pytest.approx(11 * QUANTUM)
-    t = t.With(0.0141, 0.0, config)  # fewer than five sensors see it: a plain hose
-    assert t.excess == 0.0
+    t = t.With(0.0121, None, config)  # the measurements at s = 0 and 2 mm are left behind
+    assert [s for s, _ in t.samples] == [0.004] and t.excess == 0.0
+    t = Thickness().With(0.0, 0.001, config).With(0.001, 0.0012, config)
+    assert t.excess == 0.0  # below thickening_min
     off = dataclasses.replace(config, thickening_min=0.0)
-    assert Thickness().With(0.0, 0.003, off).excess == 0.0
+    assert Thickness().With(0.0, 0.003, off).With(0.001, 0.003, off).excess == 0.0

@@ -220,12 +220,16 @@ class ContinuousFollower(LeafSystem):
         axis_T = run.estimate.AxisInTool(X_WT, self._config)
         thickness = self._Thickness(run, X_WT, ranges, valid, axis_T)
         grid = self._GridFor(thickness.excess)
-        S_T, _ = EstimateHose(grid, self._estimator, ranges, valid)
-        S_W = S_W_plain = None if S_T is None else X_WT @ np.asarray(S_T, float)
-        if S_T is not None and axis_T is not None:
-            S_T, _ = EstimateHose(grid, self._estimator, ranges, valid, axis_T)
-            S_W = None if S_T is None else X_WT @ np.asarray(S_T, float)
+        S_W, S_W_plain = self._HosePoint(grid, ranges, valid, X_WT, axis_T)
         estimate = run.estimate
+        if thickness.excess and S_W is not None:
+            # A reading the fit would reject with the thicker radius and take with the
+            # hose's own: the section ended, or began before the fit could follow it.
+            s = estimate.ToolCoordinate(X_WT)
+            if estimate.IsOutlier(s, S_W, self._config):
+                plain = self._HosePoint(self._grid, ranges, valid, X_WT, axis_T)
+                if plain[0] is not None and not estimate.IsOutlier(s, plain[0], self._config):
+                    S_W, S_W_plain = plain
         # Backing up retraces the estimated trail: readings taken backwards would run the
         # fit's path coordinate backwards and drag the trail's end (the target) with it.
         if run.reference.mode != BACK:
@@ -288,6 +292,24 @@ class ContinuousFollower(LeafSystem):
                 f"(t = {context.get_time():.2f} s): joint limits or a singularity",
             )
         return run
+
+    def _HosePoint(
+        self,
+        grid: DetectionGrid,
+        ranges: np.ndarray,
+        valid: np.ndarray,
+        X_WT: RigidTransform,
+        axis_T: np.ndarray | None,
+    ) -> tuple[np.ndarray | None, np.ndarray | None]:
+        """(S_W, S_W_plain): the hose centre (W) the estimator finds with `grid`'s radius,
+        modelling the hose along axis_T when known, and the same for a hose perpendicular
+        to the detection plane (which feeds the axis fit); None when it sees no hose."""
+        S_T, _ = EstimateHose(grid, self._estimator, ranges, valid)
+        S_W = S_W_plain = None if S_T is None else X_WT @ np.asarray(S_T, float)
+        if S_T is not None and axis_T is not None:
+            S_T, _ = EstimateHose(grid, self._estimator, ranges, valid, axis_T)
+            S_W = None if S_T is None else X_WT @ np.asarray(S_T, float)
+        return S_W, S_W_plain
 
     def _Thickness(
         self,

@@ -74,7 +74,7 @@ class ContinuousConfig:
         sensor (4 mm noise included); 0 turns the check off.
     thickening_min, thickening_hold: a section thicker than the hose (a bracket's collar,
         a clamp; hose_thickness): the hose's radius is measured whenever five or six
-        sensors see it, and when the mean excess over the known radius of the
+        sensors see it, and when the median excess over the known radius of two or more
         measurements within the last thickening_hold of travel (m) passes thickening_min
         (m), the hose centre is estimated with that larger radius; thickening_min 0 turns
         the test off.
@@ -107,7 +107,7 @@ class ContinuousConfig:
     search_turns_deg: list[float] = InRange(-90.0, 90.0, factory=list)
     min_range: float = InRange(0.0, 0.05, 0.015)
     thickening_min: float = InRange(0.0, 0.01, 0.0015)
-    thickening_hold: float = Positive(0.01)
+    thickening_hold: float = Positive(0.005)
 
     def ServoWeights(self) -> list[float]:
         """The DifferentialIkServo's six weights (roll, pitch, yaw about T; x, y, z)."""

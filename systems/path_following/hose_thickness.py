@@ -12,12 +12,14 @@ than the hose, comes into all four flank cones at once. Whenever five or six sen
 hose, DetectionGrid.RadiusEstimate fits its radius with its centre (on a plain hose the
 excess over r scatters by 0.3-1.3 mm, on a 3 mm collar it reads 2-3 mm).
 
-Thickness keeps the radius excesses measured over the last `thickening_hold` of the tool's
-travel; when their mean passes `thickening_min`, the readings are on a thicker section and
-the follower estimates the hose centre with the radius r + that mean (rounded to
-QUANTUM), which puts the collar's centre, the hose's, where it is. The readings between two
-radius measurements (fewer than five sensors see the hose) keep the excess of the last
-ones until they are thickening_hold behind.
+Thickness keeps the radius excesses measured over the last `thickening_hold` (5 mm) of the
+tool's travel, a reading that fewer than five sensors see counting as 0 (a thicker section
+would reach the flank cones too); once MIN_SAMPLES of them have a median above
+`thickening_min` (1.5 mm) the readings are on a thicker section, and the follower estimates
+the hose centre with the radius r + that median (rounded to QUANTUM), which puts the
+collar's centre, the hose's, where it is. A reading the hose fit would reject as an
+outlier with that radius and take with the hose's own keeps the hose's (the section ended,
+or the fit followed its first readings before the radius was measured).
 """
 
 from __future__ import annotations
@@ -30,6 +32,8 @@ from guidedarm.systems.path_following.continuous_follower_config import Continuo
 # The excess applied is a multiple of this (m): the follower keeps one detection grid per
 # radius it meets.
 QUANTUM = 2.5e-4
+# The measurements a thicker section needs within thickening_hold (one may be a misfit).
+MIN_SAMPLES = 2
 
 
 @dataclass(frozen=True)
@@ -46,7 +50,7 @@ class Thickness:
         samples = tuple((a, e) for a, e in self.samples if abs(s - a) <= config.thickening_hold)
         if measured is not None:
             samples += ((s, measured),)
-        if config.thickening_min <= 0 or not samples:
+        if config.thickening_min <= 0 or len(samples) < MIN_SAMPLES:
             return Thickness(samples, 0.0)
         median = statistics.median(e for _, e in samples)
         excess = QUANTUM * round(median / QUANTUM) if median > config.thickening_min else 0.0
