@@ -276,11 +276,11 @@ CLUTTER = (
 )
 
 
-# Tracking goals (mean, max; mm). A hose bracket's collar reads as a thicker hose and pulls
-# the ranging fit up to 8 mm off (random_11 at its start and middle brackets): with
-# collars, 12.6 mm at most so far; the goals hold without them.
+# Tracking goals (mean, max; mm). In the cluttered scene (three collars, two clamps) the
+# readings on them are taken with the radius measured there (hose_thickness): random_11
+# 3.11 / 9.23 mm (3.84 / 12.56 without the test).
 GOALS = (3.0, 10.0)
-COLLARS = (4.0, 13.0)
+CLUTTERED = (3.5, 10.0)
 
 
 @pytest.mark.slow
@@ -291,7 +291,7 @@ COLLARS = (4.0, 13.0)
         ("random_9", (), GOALS),
         ("random_34", (), GOALS),
         ("random_11", ("station.hose.brackets=false",), GOALS),
-        ("random_11", CLUTTER, COLLARS),
+        ("random_11", CLUTTER, CLUTTERED),
     ],
 )
 def test_continuous_run_through_the_station(tmp_path, path, scene, tracking):
