@@ -6,11 +6,9 @@ workspace, builds the station's plant once and from it the IK on a controller pl
 the arm and what it carries (MakeMultibodyPlant), solves the start pose, and returns a
 copy of the station scenario with what the task derives filled in: the hose's centerline
 and frame, the ToF noise seed and target radius, the arm's start position, and with
-motion `continuous` the arm's control period (the servo's: a controller sampling the servo's
-8 ms stream every 2 ms reads each new command as a velocity four times the stream's, and
-at 100 mm/s the arm lagged the command by up to 0.08 rad, 12 mm off the hose). A scenario
-value that the task would have to change instead is refused with one line naming both
-keys.
+motion `continuous` the arm's control period (the servo's; docs/path_following.md,
+Settings). A scenario value that the task would have to change instead is refused with one
+line naming both keys.
 """
 
 from __future__ import annotations
@@ -219,15 +217,13 @@ def _Workspace(scenario: PathFollowingScenario) -> WorkspaceConfig:
 
 
 def IsRandomHose(scenario: PathFollowingScenario) -> bool:
-    """Whether the scenario's hose is a seeded random path (path random_<seed>, no
-    path_csv)."""
+    """Whether the hose is a seeded random path (path random_<seed>, no path_csv)."""
     return not scenario.path_csv and scenario.path.startswith("random_")
 
 
 def LoadHoseWorkspace(name_or_file: str) -> WorkspaceConfig | None:
-    """The workspace a hose was laid out for (its sidecar NAME.yaml beside NAME.csv, a
-    WorkspaceConfig, read like a scenario file: read_raw_scenario, load_typed), or None
-    when it has none."""
+    """The workspace a hose was laid out for (its sidecar NAME.yaml beside NAME.csv, read
+    like a scenario file), or None when it has none."""
     sidecar = ResolveCenterlinePath(name_or_file).with_suffix(".yaml")
     if not sidecar.is_file():
         return None
