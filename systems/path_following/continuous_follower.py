@@ -323,11 +323,11 @@ class ContinuousFollower(LeafSystem):
         when enough sensors see it, at the tool's path coordinate."""
         if self._config.thickening_min <= 0:
             return run.thickness
-        radius = self._grid.RadiusEstimate(ranges, valid, axis_T)
-        if radius is not None:
-            excess = radius - self._grid.hose_radius
-        else:  # a section thicker than the hose would reach the flank cones too
-            excess = 0.0 if np.count_nonzero(valid) < RADIUS_FIT_SENSORS else None
+        if np.count_nonzero(valid) < RADIUS_FIT_SENSORS:
+            excess = 0.0  # a section thicker than the hose would reach the flank cones too
+        else:
+            radius = self._grid.RadiusEstimate(ranges, valid, axis_T)
+            excess = None if radius is None else radius - self._grid.hose_radius
         s = run.estimate.ToolCoordinate(X_WT)
         return run.thickness.With(s, excess, self._config)
 

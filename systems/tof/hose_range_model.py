@@ -12,7 +12,7 @@ reading, and numpy's per-call overhead on 3-vectors costs more than the arithmet
 from __future__ import annotations
 
 import math
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -151,6 +151,17 @@ class HoseRangeModel:
                 return best - slope * slope / (2 * curvature)
         return best
 
+    def RangeFunction(
+        self, axis: np.ndarray | None
+    ) -> Callable[[int, Vector, float | None], float | None]:
+        """(k, c, radius=None) -> the range sensor k reads for a hose centred at c (T): along
+        `axis` (unit, T; CylinderRange), or perpendicular to the detection plane when axis
+        is None (PlaneRange)."""
+        if axis is None:
+            return self.PlaneRange
+        axis_floats = tuple(axis.tolist())
+        return lambda k, c, radius=None: self.CylinderRange(k, c, axis_floats, radius)
+
     def Refine(
         self,
         c: Vector,
@@ -171,11 +182,7 @@ class HoseRangeModel:
         needed = 3 if axis is None else 2
         if len(sensors) < needed:
             return c
-        if axis is None:
-            model = self.PlaneRange
-        else:
-            axis_floats = tuple(axis.tolist())
-            model = lambda k, p: self.CylinderRange(k, p, axis_floats)  # noqa: E731
+        model = self.RangeFunction(axis)
         (u0, u1, u2), (v0, v1, v2) = self.axes[0], self.axes[3]
         measured = [ranges[k] for k in sensors]
         x0, x1, x2 = c
@@ -242,21 +249,15 @@ def _RadiusFitFrom(
     axis: np.ndarray | None,
 ) -> tuple[Vector, float, float] | None:
     """RadiusFit from one start radius: (centre, radius, RMS misfit) or None."""
-    axis_floats = None if axis is None else tuple(axis.tolist())
-
-    def Model(k: int, p: Vector, r: float) -> float | None:
-        if axis_floats is None:
-            return model.PlaneRange(k, p, r)
-        return model.CylinderRange(k, p, axis_floats, r)
-
+    range_of = model.RangeFunction(axis)
     u, v = np.array(model.axes[0]), np.array(model.axes[3])
     x, h = np.array(c, float), 1e-5
     for _ in range(10):
         p, pu, pv = tuple(x.tolist()), tuple((x + h * u).tolist()), tuple((x + h * v).tolist())
         rows, residuals = [], []
         for k in sensors:
-            values = (Model(k, p, radius), Model(k, pu, radius), Model(k, pv, radius))
-            grown = Model(k, p, radius + h)
+            values = (range_of(k, p, radius), range_of(k, pu, radius), range_of(k, pv, radius))
+            grown = range_of(k, p, radius + h)
             if None in values or grown is None:
                 continue
             at = values[0]
