@@ -44,6 +44,7 @@ from guidedarm.systems.path_following.path_follower_math import ESTIMATORS, Esti
 from guidedarm.systems.plant_frames import CheckFrame, CheckPlant
 from guidedarm.systems.tof.detection_grid import DetectionGrid
 from guidedarm.systems.tof.hose_range_model import RADIUS_FIT_SENSORS
+from guidedarm.systems.tof.known_surfaces import KnownSurfaces
 
 # The arm this far (m) from the target means it cannot follow (limits, a singularity).
 MAX_LAG = 0.025
@@ -94,8 +95,10 @@ class ContinuousFollower(LeafSystem):
 
     plant, tool: the controller plant (positions = the arm's joints) and T on it;
     grid, estimator: the tool's detection grid and `grid` or `ranging`; q_initial: the
-    start joints (rad), T on the hose's first point along it. Bad arguments raise
-    ConfigurationError naming them.
+    start joints (rad), T on the hose's first point along it; tool_roll: the target's
+    roll about x_T (rad); known_surfaces: readings of these (the table) are not hose
+    (known_surfaces; None: every reading may be). Bad arguments raise ConfigurationError
+    naming them.
     """
 
     def __init__(
@@ -106,6 +109,8 @@ class ContinuousFollower(LeafSystem):
         grid: DetectionGrid,
         estimator: str,
         q_initial: np.ndarray,
+        tool_roll: float = 0.0,
+        known_surfaces: KnownSurfaces | None = None,
     ) -> None:
         super().__init__()
         CheckInstance("config", config, ContinuousConfig)
@@ -130,7 +135,8 @@ class ContinuousFollower(LeafSystem):
         n = len(q_initial)
         X_WT = self._ToolPose(q_initial)
         history = JointHistory(config.history).With(0.0, q_initial)
-        start = _Run(Reference.Start(X_WT), HoseEstimate.Start(X_WT), history)
+        start = _Run(Reference.Start(X_WT, tool_roll), HoseEstimate.Start(X_WT), history)
+        self._known = known_surfaces
         self._ranges = self.DeclareVectorInputPort("ranges", 6)
         self._valid = self.DeclareVectorInputPort("valid", 6)
         self._measured_at = self.DeclareVectorInputPort("measured_at", 6)
@@ -216,6 +222,8 @@ class ContinuousFollower(LeafSystem):
         ranges = self._ranges.Eval(context).copy()
         valid = self._valid.Eval(context) > 0.5
         X_WT = self._ToolPose(run.history.At(stamp))
+        if self._known is not None:  # the table and other known surfaces are not hose
+            valid = self._known.HoseReadings(X_WT, ranges, valid)
         p_WO = X_WT.translation()
         axis_T = run.estimate.AxisInTool(X_WT, self._config)
         thickness = self._Thickness(run, X_WT, ranges, valid, axis_T)

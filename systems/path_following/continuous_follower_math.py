@@ -14,7 +14,8 @@ and brakes so as never to pass the estimate's end by more than look_ahead. The t
 position and direction follow the estimated path through a first-order filter
 (correction_gain) at bounded rates (max_correction_speed, max_turn_rate_deg), so the noise
 of one reading never jerks the arm.
-The detection plane stays perpendicular to the path: the target's x axis is the tangent.
+The detection plane stays perpendicular to the path: the target's x axis is the tangent,
+its roll about it the start's (the scenario's tool_roll_deg; 0: z_T in the vertical plane).
 
 Loss: a reading without the hose leaves the estimate where it was. Once the tool is
 loss_distance past the last estimate, the follower SEARCHES at search_speed along the
@@ -74,7 +75,7 @@ class Reference:
     speed v (m/s), and the search's bookkeeping: the retries used since the last loss (0
     none) and the current one's direction, the recoveries so far, and the estimate's path
     coordinate at the last loss (None once the hose has been followed search_distance
-    past it: a recovery)."""
+    past it: a recovery); roll: the tool's fixed roll about x (rad)."""
 
     mode: int
     r: np.ndarray
@@ -85,16 +86,23 @@ class Reference:
     retry_direction: np.ndarray | None = None
     recoveries: int = 0
     lost_s: float | None = None
+    roll: float = 0.0
 
     @staticmethod
-    def Start(X_WT: RigidTransform) -> "Reference":
+    def Start(X_WT: RigidTransform, roll: float = 0.0) -> "Reference":
+        """At rest at the tool's start pose X_WT, keeping `roll` (rad) about x_T."""
         return Reference(
-            FOLLOW, X_WT.translation().copy(), X_WT.rotation().matrix()[:, 0].copy(), 0.0, 0.0
+            FOLLOW,
+            X_WT.translation().copy(),
+            X_WT.rotation().matrix()[:, 0].copy(),
+            0.0,
+            0.0,
+            roll=roll,
         )
 
     def Pose(self) -> RigidTransform:
-        """X_WT of the target: O at r, x_T along x, roll 0 (OrientationFromVector)."""
-        return RigidTransform(OrientationFromVector(self.x), self.r)
+        """X_WT of the target: O at r, x_T along x, the roll (OrientationFromVector)."""
+        return RigidTransform(OrientationFromVector(self.x, self.roll), self.r)
 
 
 def Replaced(value: Frozen, **changes: Any) -> Frozen:

@@ -48,6 +48,7 @@ from guidedarm.systems.path_following.path_follower_math import (
     ToolMount,
 )
 from guidedarm.systems.tof.detection_grid import DetectionGrid
+from guidedarm.systems.tof.known_surfaces import KnownSurfaces
 from guidedarm.systems.tof.tof_tool_sensor_math import AverageReadings
 
 SENSE, SOLVE, MOVE, DONE, FAILED = range(5)
@@ -115,12 +116,15 @@ class PathFollower(LeafSystem):
         motion: MotionLimits,
         period: float,
         plan_move: MovePlanner | None = None,
+        tool_roll: float = 0.0,
+        known_surfaces: KnownSurfaces | None = None,
     ) -> None:
         """params: the follower's parameters, resolved here for `estimator` (`grid` or
         `ranging`, the hose estimator of every reading). plan_move: how moves are made
         (default: joint_moves.PlanJointMove with `motion`; e.g. planner_moves.PlannerMoves);
-        motion's settle limits apply either way. Bad arguments raise ConfigurationError
-        naming them."""
+        motion's settle limits apply either way. tool_roll: the tool's roll about x_T at
+        every step (rad); known_surfaces: readings of these (the table) are not hose
+        (None: every reading may be). Bad arguments raise ConfigurationError naming them."""
         super().__init__()
         CheckInstance("params", params, FollowerConfig)
         CheckInstance("mount", mount, ToolMount)
@@ -133,7 +137,7 @@ class PathFollower(LeafSystem):
         params = params.Resolved(estimator)
         self._estimator = estimator
         self._params, self._mount, self._grid, self._motion = params, mount, grid, motion
-        self._period = period
+        self._period, self._tool_roll, self._known = period, tool_roll, known_surfaces
         self._plan_move = plan_move or (lambda q, p: PlanJointMove(q, p, motion))
         n = len(q_initial)
         self._ranges = self.DeclareVectorInputPort("ranges", 6)
@@ -206,7 +210,9 @@ class PathFollower(LeafSystem):
         ranges, valid = AverageReadings(loop.samples)
         loop = replace(loop, samples=())
         X_WT = self._mount.ToolPose(self._X_WG.Eval(context))
-        memory = loop.memory or FollowerMemory.Start(X_WT, params)
+        if self._known is not None:
+            valid = self._known.HoseReadings(X_WT, ranges, valid)
+        memory = loop.memory or FollowerMemory.Start(X_WT, params, self._tool_roll)
         S_T, centre_only = EstimateHose(self._grid, self._estimator, ranges, valid)
         result = FollowStep(X_WT, S_T, centre_only, memory, params)
         detected, errors = self._grid.Detect(ranges, valid)

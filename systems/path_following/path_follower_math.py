@@ -8,7 +8,8 @@ One step, from the tool pose X_WT (O, R) and the detected hose point S (or none)
   w = t + m (11); P_n = O + w_hat d (12)-(13), or P_n = O + R x_hat d when S = O (14);
   d = short_step when the hose is seen only at the centre or not at all, else long_step;
   w_a = n a + m b (15)-(17) with a = |t|, b in (0, 1);
-  yaw = atan2(w_a,y, w_a,x) (20), pitch = atan(-w_a,z / |w_a,xy|) (21), roll = 0 (22).
+  yaw = atan2(w_a,y, w_a,x) (20), pitch = atan(-w_a,z / |w_a,xy|) (21), roll = 0 (22)
+  (beyond the paper: a fixed roll, the scenario's tool_roll_deg, for a hose on the table).
 Tool pose from gripper pose: O = O_c + R_c z_hat l_e, R_e = R_c R_ec (23)-(26).
 
 Beyond the paper (its discussion): after lost_limit steps without a detection the tool
@@ -146,16 +147,20 @@ class ToolMount:
         return ToolMount(float(p[2]), rpy.roll_angle(), rpy.pitch_angle(), rpy.yaw_angle())
 
 
-def OrientationFromVector(w_a: np.ndarray) -> RotationMatrix:
-    """Tool orientation with x along w_a and roll 0, equations (20)-(22): Rotation(0,
-    pitch, yaw) written out (the continuous follower needs it every servo period)."""
+def OrientationFromVector(w_a: np.ndarray, roll: float = 0.0) -> RotationMatrix:
+    """Tool orientation with x along w_a, equations (20)-(22): Rotation(roll, pitch, yaw)
+    written out (the continuous follower needs it every servo period). roll (rad) about
+    x_T: the paper's 0 keeps z_T in the vertical plane through x_T; the scenario's
+    tool_roll_deg turns the tool about the hose (a hose on the table)."""
     x, y, z = float(w_a[0]), float(w_a[1]), float(w_a[2])
     yaw = math.atan2(y, x)
     pitch = math.atan2(-z, math.hypot(x, y))
     cp, sp, cy, sy = math.cos(pitch), math.sin(pitch), math.cos(yaw), math.sin(yaw)
-    return RotationMatrix(
-        np.array([[cy * cp, -sy, cy * sp], [sy * cp, cy, sy * sp], [-sp, 0.0, cp]])
-    )
+    R = np.array([[cy * cp, -sy, cy * sp], [sy * cp, cy, sy * sp], [-sp, 0.0, cp]])
+    if roll:
+        cr, sr = math.cos(roll), math.sin(roll)
+        R = R @ np.array([[1.0, 0.0, 0.0], [0.0, cr, -sr], [0.0, sr, cr]])
+    return RotationMatrix(R)
 
 
 @dataclass(frozen=True)
@@ -170,12 +175,14 @@ class FollowerMemory:
     recoveries: int = 0
     retry_origin: np.ndarray | None = None
     last_loss: np.ndarray | None = None
+    roll: float = 0.0
 
     @staticmethod
-    def Start(X_WT: RigidTransform, params: FollowerConfig) -> "FollowerMemory":
-        """Memory at the start pose: O' one short step behind O, as if arriving along x_T."""
+    def Start(X_WT: RigidTransform, params: FollowerConfig, roll: float = 0.0) -> "FollowerMemory":
+        """Memory at the start pose: O' one short step behind O, as if arriving along x_T;
+        roll: the tool's roll about x_T (rad) that every step keeps."""
         n = X_WT.rotation().matrix()[:, 0]
-        return FollowerMemory(X_WT.translation() - n * params.short_step, X_WT)
+        return FollowerMemory(X_WT.translation() - n * params.short_step, X_WT, roll=roll)
 
 
 @dataclass(frozen=True)
@@ -238,9 +245,13 @@ def FollowStep(
         recoveries=memory.recoveries + int(recovered),
         retry_origin=memory.retry_origin if still_retrying else None,
         last_loss=memory.last_loss,
+        roll=memory.roll,
     )
     return StepResult(
-        RigidTransform(OrientationFromVector(w_a), P_n), new_memory, S_W, not centre_only
+        RigidTransform(OrientationFromVector(w_a, memory.roll), P_n),
+        new_memory,
+        S_W,
+        not centre_only,
     )
 
 
@@ -264,7 +275,7 @@ def _StepWithoutDetection(
     n = X_WT.rotation().matrix()[:, 0]
     lost = memory.lost + 1
     if params.lost_limit == 0 or lost <= params.lost_limit:
-        X_next = RigidTransform(OrientationFromVector(n), p_WO + n * params.short_step)
+        X_next = RigidTransform(OrientationFromVector(n, memory.roll), p_WO + n * params.short_step)
         return StepResult(X_next, replace(memory, lost=lost), None, False)
     attempt = memory.recovery + 1
     O_last = memory.last_detection.translation()
@@ -275,7 +286,9 @@ def _StepWithoutDetection(
     last = memory.last_detection
     rpy = RollPitchYaw(last.rotation())
     R_retry = RotationMatrix(
-        Rotation(0.0, rpy.pitch_angle() + turn_pitch * delta, rpy.yaw_angle() + turn_yaw * delta)
+        Rotation(
+            memory.roll, rpy.pitch_angle() + turn_pitch * delta, rpy.yaw_angle() + turn_yaw * delta
+        )
     )
     n_retry = R_retry.matrix()[:, 0]
     retry_memory = replace(

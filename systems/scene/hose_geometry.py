@@ -228,6 +228,8 @@ class RandomPathConfig:
     margin: distance kept from the workspace walls along x and y (m).
     start_azimuth_centre_deg: azimuth about B's z axis around which the path starts (deg).
     start_azimuth_deg: largest deviation of the start azimuth from that centre (deg).
+    on_table: the hose lies on the table: flat, its centre at its radius above B's xy
+        plane (the table top; z_range and max_slope_deg then stay at their defaults).
     """
 
     length: float = InRange(MIN_HOSE_LENGTH, 2 * MAX_HOSE_COORDINATE, 0.6)
@@ -240,6 +242,7 @@ class RandomPathConfig:
     margin: float = InRange(0.0, MAX_HOSE_COORDINATE, 0.10)
     start_azimuth_centre_deg: float = 0.0
     start_azimuth_deg: float = InRange(0.0, 180.0, math.degrees(0.6))
+    on_table: bool = False
 
     def Validate(self) -> None:
         """Raises ConfigurationError naming the first bad field."""
@@ -248,13 +251,24 @@ class RandomPathConfig:
             bounds = getattr(self, key)
             if len(bounds) != 2 or not bounds[0] < bounds[1]:
                 raise ConfigurationError(f"{key} must be [lower, upper] with lower < upper")
+        default = RandomPathConfig()
+        if self.on_table and (
+            self.z_range != default.z_range or self.max_slope_deg != default.max_slope_deg
+        ):
+            raise ConfigurationError(
+                "random_path.on_table lays the hose flat on the table: z_range and "
+                "max_slope_deg have no effect with it; remove them"
+            )
 
 
 def RandomSmoothPath(
-    seed: int, spec: RandomPathConfig | None = None, workspace: WorkspaceConfig | None = None
+    seed: int,
+    spec: RandomPathConfig | None = None,
+    workspace: WorkspaceConfig | None = None,
+    hose_radius: float = 0.0,
 ) -> np.ndarray:
     """A seeded random hose centerline (5 mm spacing) inside spec's region of the workspace
-    (default the paper's cell).
+    (default the paper's cell); with spec.on_table flat at z = hose_radius (m, > 0).
 
     The tangent turns at a random, smoothly varying rate (kappa <= 0.8 / min_bend_radius)
     and is steered back when the path nears the region's border; attempts that still leave
@@ -262,7 +276,7 @@ def RandomSmoothPath(
     """
     spec = spec or RandomPathConfig()
     spec.Validate()
-    box = _RandomPathBox(spec, workspace or WorkspaceConfig())
+    box = _RandomPathBox(spec, workspace or WorkspaceConfig(), hose_radius)
     rng = np.random.default_rng(seed)
     for _ in range(200):
         path = _TryRandomPath(rng, spec, box)
@@ -271,16 +285,22 @@ def RandomSmoothPath(
     raise ConfigurationError(f"no random path found for seed {seed} within the region")
 
 
-def _RandomPathBox(spec: RandomPathConfig, workspace: WorkspaceConfig) -> np.ndarray:
+def _RandomPathBox(
+    spec: RandomPathConfig, workspace: WorkspaceConfig, hose_radius: float
+) -> np.ndarray:
     """(2, 3) lower and upper corners of the box the random path stays in: the workspace
-    drawn in by the margin along x and y, its z range cut to spec.z_range."""
+    drawn in by the margin along x and y, its z range cut to spec.z_range (on the table:
+    z = hose_radius, inside the workspace's z range)."""
     lower = workspace.Lower() + [spec.margin, spec.margin, 0.0]
     upper = workspace.Upper() - [spec.margin, spec.margin, 0.0]
-    lower[2], upper[2] = max(lower[2], spec.z_range[0]), min(upper[2], spec.z_range[1])
-    if np.any(lower >= upper):
+    z_range = [hose_radius, hose_radius] if spec.on_table else spec.z_range
+    lower[2], upper[2] = max(lower[2], z_range[0]), min(upper[2], z_range[1])
+    flat = upper[2] == lower[2] and spec.on_table  # on the table: z fixed
+    if np.any(lower[:2] >= upper[:2]) or not (upper[2] > lower[2] or flat):
         raise ConfigurationError(
             f"random_path: no room inside the workspace ({workspace.Describe()}) with a "
-            f"margin of {spec.margin} m and z_range {spec.z_range}"
+            f"margin of {spec.margin} m and z_range {z_range}"
+            + (" (on_table: the hose's radius)" if spec.on_table else "")
         )
     return np.array([lower, upper])
 
@@ -298,7 +318,7 @@ def _TryRandomPath(
     slope = 0.0
     points = [p.copy()]
     k_heading, k_slope = 0.0, 0.0
-    max_slope = math.radians(spec.max_slope_deg)
+    max_slope = 0.0 if spec.on_table else math.radians(spec.max_slope_deg)
     for _ in range(int(spec.length / ds)):
         # Smooth random curvature (first-order filtered noise) plus a pull back inside.
         k_heading = 0.9 * k_heading + 0.1 * rng.normal(0.0, kappa_max)
@@ -314,6 +334,8 @@ def _TryRandomPath(
             k_slope = -kappa_max
         if p[2] < box[0, 2] + 0.03:
             k_slope = kappa_max
+        if spec.on_table:
+            k_slope = 0.0
         k_heading = float(np.clip(k_heading, -kappa_max, kappa_max))
         k_slope = float(np.clip(k_slope, -kappa_max, kappa_max))
         # Keep the total curvature (heading turns scaled by cos(slope)) under kappa_max.

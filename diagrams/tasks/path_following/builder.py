@@ -106,6 +106,8 @@ def AddPathFollowing(
             setup.limits,
             setup.period,
             plan_move,
+            setup.tool_roll,
+            setup.known_surfaces,
         ),
     )
     q_measured = station.GetOutputPort(f"{arm}.position_measured")
@@ -159,7 +161,16 @@ def AddContinuousFollowing(
     config = setup.continuous
     follower = builder.AddNamedSystem(
         "path_follower",
-        ContinuousFollower(config, plant, tool, setup.grid, setup.estimator, setup.q_start),
+        ContinuousFollower(
+            config,
+            plant,
+            tool,
+            setup.grid,
+            setup.estimator,
+            setup.q_start,
+            setup.tool_roll,
+            setup.known_surfaces,
+        ),
     )
     servo = builder.AddNamedSystem(
         "differential_ik",

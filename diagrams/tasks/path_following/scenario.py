@@ -50,7 +50,13 @@ class PathFollowingScenario:
     ik: IK tolerances; arm, gripper_frame, tof: names in the station; base_frame: the arm's
     base frame B (scoped name; empty: `<arm>::base`).
     tool_speed: the tool's speed in joint moves (m/s); max_joint_speed: joint speed limit
-    (rad/s); max_joint_acceleration: joint acceleration limit (rad/s^2)."""
+    (rad/s); max_joint_acceleration: joint acceleration limit (rad/s^2).
+    tool_roll_deg: the tool's roll about the hose's tangent x_T (deg), held by the start
+    pose and both followers' targets; 0: the paper's (z_T in the vertical plane through
+    x_T, the row sensors looking down); -45 lifts both arms above the hose's centre, for
+    a hose on the table (a roll putting the tool below the workspace floor along the
+    hose is refused). ignore_table: readings at the range of the table top (world z = 0,
+    known_surfaces) are not hose; false: every reading may be."""
 
     task: str = "path_following"
     path: str = "paper_path_1"
@@ -70,6 +76,8 @@ class PathFollowingScenario:
     period: float = Positive(0.01)
     max_time: float = Positive(400.0)
     min_coverage: float = InRange(0.0, 1.0, 0.95)
+    tool_roll_deg: float = InRange(-180.0, 180.0, 0.0)
+    ignore_table: bool = True
     follower: FollowerConfig = field(default_factory=FollowerConfig)
     ik: ToolPoseIkConfig = field(default_factory=ToolPoseIkConfig)
     arm: str = "mz04d"

@@ -14,7 +14,6 @@ line naming both keys.
 from __future__ import annotations
 
 import copy
-import dataclasses
 import hashlib
 import os
 import tempfile
@@ -37,21 +36,18 @@ from guidedarm.diagrams.station.station_plant import (
     MakeMultibodyPlant,
 )
 from guidedarm.diagrams.tasks.path_following.scenario import Motion, PathFollowingScenario
+from guidedarm.diagrams.tasks.path_following.start_pose import ReachableRandomPath, StartPosition
 from guidedarm.systems.config_checks import CheckConfig, CheckInstance
-from guidedarm.systems.errors import ConfigurationError, GuidedArmError
+from guidedarm.systems.errors import ConfigurationError
 from guidedarm.systems.path_following.continuous_follower_config import ContinuousConfig
 from guidedarm.systems.path_following.hose_reach import (
     CalcArmReach,
     CheckHoseReachable,
     ToolClearance,
+    ToolPoints,
 )
 from guidedarm.systems.path_following.joint_moves import MotionLimits
-from guidedarm.systems.path_following.path_follower_math import (
-    Estimator,
-    FollowerConfig,
-    OrientationFromVector,
-    ToolMount,
-)
+from guidedarm.systems.path_following.path_follower_math import Estimator, FollowerConfig, ToolMount
 from guidedarm.systems.path_following.tool_pose_ik_math import ToolPoseIkConfig, ToolPoseSolver
 from guidedarm.systems.path_following.workspace import WorkspaceConfig
 from guidedarm.systems.planning.acceleration_planner_math import PlannerConfig
@@ -59,12 +55,12 @@ from guidedarm.systems.plant_frames import GetScopedFrame
 from guidedarm.systems.scene.hose_geometry import (
     CheckSelfClearance,
     HoseConfig,
-    RandomSmoothPath,
     ReadCenterline,
     ResolveCenterlinePath,
     WriteCenterline,
 )
 from guidedarm.systems.tof.detection_grid import DetectionGrid
+from guidedarm.systems.tof.known_surfaces import KnownSurfaces
 from guidedarm.systems.tof.tof_tool_sensor import MakeDetectionGrid
 
 
@@ -86,6 +82,8 @@ class Setup:
         the CSV or named path it came from.
     solver: the IK (on the controller plant); mount: X_GT as the paper's l_e and angles;
         grid: the tool's detection grid; q_start: the arm's start joints (rad).
+    tool_roll: the tool's roll about the hose (rad, the scenario's tool_roll_deg);
+        known_surfaces: what the followers know is not hose (the table), or None.
     """
 
     station: StationScenario
@@ -110,6 +108,8 @@ class Setup:
     mount: ToolMount
     grid: DetectionGrid
     q_start: np.ndarray
+    tool_roll: float = 0.0
+    known_surfaces: KnownSurfaces | None = None
 
 
 def MakeSetup(scenario: PathFollowingScenario, out_dir: Path | None = None) -> Setup:
@@ -140,8 +140,12 @@ def MakeSetup(scenario: PathFollowingScenario, out_dir: Path | None = None) -> S
     )
     mount = ToolMount.FromTransform(_ToolInGripper(solver.plant, scenario.gripper_frame, tof))
     q_home = ArmInitialPosition(solver.plant, scenario.arm, station.arms[scenario.arm])
-    centerline_B, source = _LoadHose(scenario, workspace, solver, mount, q_home, out_dir)
     tool_frame = GetScopedFrame(solver.plant, tof.tool_frame, "tof tool_frame")
+    tool_points = ToolPoints(solver.plant, solver.context, tool_frame)
+    roll = float(np.radians(scenario.tool_roll_deg))
+    centerline_B, source = _LoadHose(
+        scenario, workspace, solver, mount, q_home, out_dir, tool_points
+    )
     CheckHoseReachable(
         centerline_B,
         X_WB,
@@ -151,10 +155,14 @@ def MakeSetup(scenario: PathFollowingScenario, out_dir: Path | None = None) -> S
         ),
         ToolClearance(solver.plant, tool_frame),
         scenario.arm,
+        tool_points,
+        roll,
     )
     _ResolveHose(scenario, station, source, base_frame)
     centerline = X_WB.multiply(centerline_B.T).T
-    q_start = StartPosition(solver, mount, centerline, q_home)
+    q_start = StartPosition(solver, mount, centerline, q_home, roll)
+    grid = MakeDetectionGrid(solver.plant, tof)
+    known = KnownSurfaces.Table(grid.X_TS, grid.cone_angle, tof.noise_std, tof.quantization)
     station.arms[scenario.arm].initial_position = q_start.tolist()
     return Setup(
         station=station,
@@ -181,8 +189,10 @@ def MakeSetup(scenario: PathFollowingScenario, out_dir: Path | None = None) -> S
         hose_source=source,
         solver=solver,
         mount=mount,
-        grid=MakeDetectionGrid(solver.plant, tof),
+        grid=grid,
         q_start=q_start,
+        tool_roll=roll,
+        known_surfaces=known if scenario.ignore_table else None,
     )
 
 
@@ -230,7 +240,9 @@ def LoadHoseWorkspace(name_or_file: str) -> WorkspaceConfig | None:
     return load_typed(WorkspaceConfig, read_raw_scenario(sidecar), str(sidecar))
 
 
-def _LoadHose(scenario, workspace, solver, mount, q_home, out_dir) -> tuple[np.ndarray, str]:
+def _LoadHose(
+    scenario, workspace, solver, mount, q_home, out_dir, tool_points
+) -> tuple[np.ndarray, str]:
     """(centerline in B, the CSV or named path it came from); refuses a hose that passes
     through itself or leaves the workspace."""
     if not IsRandomHose(scenario):
@@ -245,7 +257,9 @@ def _LoadHose(scenario, workspace, solver, mount, q_home, out_dir) -> tuple[np.n
                 f"path '{scenario.path}': expected random_<seed>, a seed of digits 0-9"
             )
         seed = int(digits)
-        centerline_B = ReachableRandomPath(scenario, seed, workspace, solver, mount, q_home)
+        centerline_B = ReachableRandomPath(
+            scenario, seed, workspace, solver, mount, q_home, tool_points
+        )
         source = str(_RandomHoseFile(centerline_B, out_dir).resolve())
     CheckSelfClearance(centerline_B, scenario.station.hose.diameter, source)
     row = workspace.FirstOutside(centerline_B)
@@ -334,67 +348,3 @@ def _ToolInGripper(plant: MultibodyPlant, gripper_frame: str, tof) -> RigidTrans
     T = GetScopedFrame(plant, tof.tool_frame, "tof tool_frame")
     G = GetScopedFrame(plant, gripper_frame, "gripper_frame")
     return T.CalcPose(plant.CreateDefaultContext(), G)
-
-
-def StartPosition(
-    solver: ToolPoseSolver, mount: ToolMount, centerline: np.ndarray, q_home: np.ndarray
-) -> np.ndarray:
-    """Joints (rad) with the tool centre on the hose's first point (world frame), its x axis
-    toward the point 4 rows on: q_home itself when it holds the tool there already (e.g. a
-    start pose in the scenario's initial_position), else solved from q_home (any rotation,
-    any swing)."""
-    ahead = centerline[min(4, len(centerline) - 1)]
-    X_WT = RigidTransform(OrientationFromVector(ahead - centerline[0]), centerline[0])
-    if solver.Reaches(mount.GripperPose(X_WT), q_home):
-        return np.asarray(q_home, float)
-    limits = solver.limits
-    solver.limits = dataclasses.replace(
-        limits, max_step_rotation_deg=180.0, max_swing=np.inf, shortfall_tolerance_deg=0.0
-    )
-    try:
-        result = solver.Solve(mount.GripperPose(X_WT), q_home)
-    finally:
-        solver.limits = limits
-    if not result.success:
-        raise GuidedArmError(
-            f"start pose out of reach: tool at {np.round(centerline[0], 3).tolist()} (m, world) "
-            f"along the hose ({result.reason})"
-        )
-    return result.q
-
-
-def ReachableRandomPath(
-    scenario: PathFollowingScenario,
-    seed: int,
-    workspace: WorkspaceConfig,
-    solver: ToolPoseSolver,
-    mount: ToolMount,
-    q_home: np.ndarray,
-) -> np.ndarray:
-    """The first random path (frame B) of the paper's sequence that the arm can trace with
-    the tool on the centerline and along it (IK every 15 mm, no reconfiguration, no
-    orientation shortfall): the generator's region is only an annulus in the workspace, the
-    arm's reachable set with a downward tool is smaller."""
-    limits = solver.limits
-    solver.limits = dataclasses.replace(limits, shortfall_tolerance_deg=0.0)
-    try:
-        for attempt in range(20):
-            path_B = RandomSmoothPath(seed * 1000 + attempt, scenario.random_path, workspace)
-            if _Traceable(solver, mount, solver.X_WB.multiply(path_B.T).T, q_home):
-                return path_B
-    finally:
-        solver.limits = limits
-    raise ConfigurationError(f"no reachable random path for seed {seed}")
-
-
-def _Traceable(solver, mount, path: np.ndarray, q_home: np.ndarray) -> bool:
-    try:
-        q = StartPosition(solver, mount, path, q_home)
-    except GuidedArmError:
-        return False
-    for a, b in zip(path[:-3:3], path[3::3], strict=True):
-        result = solver.Solve(mount.GripperPose(RigidTransform(OrientationFromVector(b - a), a)), q)
-        if not result.success:
-            return False
-        q = result.q
-    return True
