@@ -109,6 +109,21 @@ def test_random_paths_follow_the_workspace():
         RandomSmoothPath(0, spec, WorkspaceConfig(x=[-0.08, 0.08]))
 
 
+def test_random_paths_on_the_table_lie_flat_at_their_radius():
+    spec = RandomPathConfig(on_table=True, radius_range=[0.22, 0.3])
+    for seed in range(5):
+        points = RandomSmoothPath(seed, spec, None, 0.01)
+        np.testing.assert_array_equal(points[:, 2], 0.01)
+        r = np.hypot(points[:, 0], points[:, 1])
+        assert r.min() >= 0.22 and r.max() <= 0.3
+        assert MinBendRadius(points) >= spec.min_bend_radius
+    # The paper's floor wall (5 mm) is above a 6 mm hose's centre: no room on the table.
+    with pytest.raises(ConfigurationError, match=r"no room .* \(on_table: the hose's radius\)"):
+        RandomSmoothPath(0, spec, None, 0.003)
+    with pytest.raises(ConfigurationError, match="z_range and max_slope_deg have no effect"):
+        RandomSmoothPath(0, RandomPathConfig(on_table=True, max_slope_deg=5.0), None, 0.01)
+
+
 def test_hose_geometry_is_registered_with_roles():
     plant = MultibodyPlant(0.0)
     from pydrake.geometry import SceneGraph

@@ -10,7 +10,12 @@ import pytest
 from guidedarm.diagrams.station.station_plant import GetArmInstance
 from guidedarm.diagrams.tasks.path_following.setup import MakeSetup
 from guidedarm.diagrams.tasks.registry import LoadScenario
-from guidedarm.systems.path_following.hose_reach import CalcArmReach, ToolClearance
+from guidedarm.systems.path_following.hose_reach import (
+    CalcArmReach,
+    LowestToolPoint,
+    ToolClearance,
+    ToolPoints,
+)
 from guidedarm.systems.plant_frames import GetScopedFrame
 
 
@@ -85,3 +90,19 @@ def test_a_hose_the_arm_cannot_follow_is_refused_before_any_motion(
     assert code == 2
     assert message in err and len(err.strip().splitlines()) == 1
     assert not (tmp_path / "run" / "summary.json").exists()
+
+
+def test_the_rolled_tool_lifts_both_arms_above_the_hose(mz04d_setup):
+    """ToolPoints: the tool's bodies and the corners of its collision boxes. Unrolled, the
+    side arm's end hangs 34 mm below the hose's centre; rolled -45 deg, the lowest parts
+    are sensor 3's and sensor 4's boards, (0.055 - 0.032) / sqrt(2) = 16.3 mm above it."""
+    solver = mz04d_setup.solver
+    tool = GetScopedFrame(solver.plant, "tof_tool::tof_tool", "tool")
+    points = ToolPoints(solver.plant, solver.context, tool)
+    bodies = points[np.linalg.norm(points, axis=1) > 1e-9]  # O itself holds no body
+    flat = np.array([[0.3, y, 0.1] for y in np.linspace(-0.05, 0.05, 11)])
+    for roll_deg, lowest in ((0.0, -0.034), (-45.0, 0.023 / np.sqrt(2))):
+        _, z = LowestToolPoint(flat, bodies, np.radians(roll_deg))
+        assert z - 0.1 == pytest.approx(lowest, abs=1e-9)
+    # Rolled the other way the side arm swings down instead.
+    assert LowestToolPoint(flat, bodies, np.radians(45.0))[1] - 0.1 < -0.07
