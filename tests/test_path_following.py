@@ -58,6 +58,30 @@ def test_orientation_from_vector_eq_20_22():
     assert rpy.roll_angle() == pytest.approx(0.0, abs=1e-12)
 
 
+def test_a_rolled_tool_keeps_its_roll_in_every_step_and_retry():
+    """tool_roll_deg: x_T along the step direction as at roll 0, turned by the roll about
+    it; the stop-and-go steps, lost steps and retries keep it."""
+    roll = math.radians(-45.0)
+    w_a = np.array([1.0, 0.5, -0.2])
+    plain, rolled = OrientationFromVector(w_a), OrientationFromVector(w_a, roll)
+    np.testing.assert_allclose(rolled.matrix()[:, 0], plain.matrix()[:, 0], atol=1e-12)
+    rpy, rpy0 = RollPitchYaw(rolled), RollPitchYaw(plain)
+    assert rpy.roll_angle() == pytest.approx(roll)
+    assert (rpy.pitch_angle(), rpy.yaw_angle()) == pytest.approx(
+        (rpy0.pitch_angle(), rpy0.yaw_angle())
+    )
+    X = RigidTransform(RollPitchYaw(roll, 0.0, 0.3), [0.3, 0.0, 0.01])
+    memory = FollowerMemory.Start(X, PARAMS, roll)
+    rolls, retries = [], []
+    for S_T in [np.array([0.0, 0.01, -0.005]), None, None, None, None]:
+        result = FollowStep(X, S_T, False, memory, PARAMS)
+        X, memory = result.X_WT_next, result.memory
+        rolls.append(RollPitchYaw(X.rotation()).roll_angle())
+        retries.append(result.info.get("recovery"))
+    assert retries == [None, None, None, 1, None]  # lost past lost_limit: the first retry
+    np.testing.assert_allclose(rolls, roll, atol=1e-12)
+
+
 def _tool(yaw=0.0, p=(0.3, 0.0, 0.1)):
     return RigidTransform(RollPitchYaw(0.0, 0.0, yaw), list(p))
 
