@@ -295,6 +295,7 @@ PAST_A_COLLAR = (3.0, 13.0)
         ("random_34", (), PAST_A_COLLAR),
         ("random_11", ("station.hose.brackets=false",), GOALS),
         ("random_11", CLUTTER, CLUTTERED),
+        ("paper_path_4", ("station.hose.crossing_clearance=0.04",), GOALS),
     ],
 )
 def test_continuous_run_through_the_station(tmp_path, path, scene, tracking):
@@ -304,7 +305,9 @@ def test_continuous_run_through_the_station(tmp_path, path, scene, tracking):
     set: tests/benchmarks/bench_continuous_following). random_34 ends near the cell's wall:
     the search past its end is stopped by the servo at the workspace, which ends the hose
     there instead of failing the run. random_11 has the random hoses' tightest arcs: without
-    brackets, and with the cluttered scene (CLUTTER)."""
+    brackets, and with the cluttered scene (CLUTTER). paper_path_4 over a hose crossing 40 mm
+    under it: a tool free to roll about the hose (continuous.roll_weight 0.1) lowered its
+    side arm onto the crossing hose."""
     import json
 
     from guidedarm.diagrams.cli.main import main
