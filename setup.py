@@ -16,6 +16,12 @@ setup(
             extra_compile_args=FLAGS,
         ),
         Extension(
+            "guidedarm.systems.tof._hose_range",
+            ["csrc/hose_range.c"],
+            depends=["csrc/buffers.h"],
+            extra_compile_args=FLAGS,
+        ),
+        Extension(
             "guidedarm.systems.tof._cone_casting",
             ["csrc/cone_casting.c"],
             depends=["csrc/buffers.h"],
