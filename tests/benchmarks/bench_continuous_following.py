@@ -144,7 +144,6 @@ def Breakdown(path: str) -> None:
         (servo, "_Update", "DifferentialIkServo"),
         (servo, "_BodyAtWall", "  wall check"),
         (differential_ik_servo, "ServoStep", "  ServoStep"),
-        (follower, "_CalcTarget", "  target pose (in the servo's update)"),
         (follower, "_Update", "ContinuousFollower"),
         (follower, "_Read", "  readings"),
         (continuous_follower, "Advance", "  Advance"),
