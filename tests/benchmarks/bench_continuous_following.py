@@ -143,7 +143,7 @@ def Breakdown(path: str) -> None:
     timed = (
         (servo, "_Update", "DifferentialIkServo"),
         (servo, "_BodyAtWall", "  wall check"),
-        (differential_ik_servo, "ServoStep", "  ServoStep"),
+        (differential_ik_servo, "ServoPeriod", "  ServoPeriod (its kernel)"),
         (follower, "_Update", "ContinuousFollower"),
         (follower, "_Read", "  readings"),
         (continuous_follower, "Advance", "  Advance"),
