@@ -17,8 +17,8 @@ setup(
         ),
         Extension(
             "guidedarm.systems.tof._hose_range",
-            ["csrc/hose_range.c"],
-            depends=["csrc/buffers.h"],
+            ["csrc/hose_range.c", "csrc/hose_range_model.c"],
+            depends=["csrc/buffers.h", "csrc/hose_range.h"],
             extra_compile_args=FLAGS,
         ),
         Extension(
