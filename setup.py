@@ -22,6 +22,11 @@ setup(
             extra_compile_args=FLAGS,
         ),
         Extension(
+            "guidedarm.systems.tof._seed_sequence",
+            ["csrc/seed_sequence.c"],
+            extra_compile_args=FLAGS,
+        ),
+        Extension(
             "guidedarm.systems.tof._cone_casting",
             ["csrc/cone_casting.c"],
             depends=["csrc/buffers.h"],
