@@ -16,6 +16,17 @@ setup(
             extra_compile_args=FLAGS,
         ),
         Extension(
+            "guidedarm.systems.tof._hose_range",
+            ["csrc/hose_range.c", "csrc/hose_range_model.c"],
+            depends=["csrc/buffers.h", "csrc/hose_range.h"],
+            extra_compile_args=FLAGS,
+        ),
+        Extension(
+            "guidedarm.systems.tof._seed_sequence",
+            ["csrc/seed_sequence.c"],
+            extra_compile_args=FLAGS,
+        ),
+        Extension(
             "guidedarm.systems.tof._cone_casting",
             ["csrc/cone_casting.c"],
             depends=["csrc/buffers.h"],

@@ -12,6 +12,13 @@
  *   J (6 x n, row-major), error (6), twist (6, or empty: none), q, v (n), period (s), the
  *   limits (n each), R_WT (3 x 3 row-major), weights (6), damping, gain; q_next and v_next
  *   (n) written.
+ * ServoPeriod(J, M_WT, M_WD, previous, feedforward, q, v, period, lower, upper, speed,
+ *             acceleration, weights, damping, gain, q_next, v_next) -> (limited, stop)
+ *   the DifferentialIkServo's period in one call: ServoStep with error = PoseError(M_WT,
+ *   M_WD), twist = PoseError(previous, M_WD) * feedforward (none when feedforward is 0 or
+ *   previous[0] is NaN) and R_WT = M_WT's rotation; M_WT, M_WD, previous 3 x 4 row-major
+ *   (12); stop (a list): where each joint comes to rest braking from v_next at its
+ *   acceleration limit, q_next + v_next |v_next| / (2 acceleration).
  * All float64 buffers, C-contiguous. */
 
 #include "buffers.h"  /* Python.h first, as Python's C API asks */
@@ -134,35 +141,14 @@ static PyObject *PoseError(PyObject *self, PyObject *args) {
     return result;
 }
 
-static PyObject *ServoStep(PyObject *self, PyObject *args) {
-    (void)self;
-    Py_buffer Jb, errorb, twistb, qb, vb, lowerb, upperb, speedb, accelerationb, Rb, weightsb,
-        q_nextb, v_nextb;
-    double period, damping, gain;
-    if (!PyArg_ParseTuple(args, "y*y*y*y*y*dy*y*y*y*y*y*ddw*w*", &Jb, &errorb, &twistb, &qb,
-                          &vb, &period, &lowerb, &upperb, &speedb, &accelerationb, &Rb,
-                          &weightsb, &damping, &gain, &q_nextb, &v_nextb))
-        return NULL;
-    Py_buffer *all[] = {&Jb, &errorb, &twistb, &qb, &vb, &lowerb, &upperb,
-                        &speedb, &accelerationb, &Rb, &weightsb, &q_nextb, &v_nextb};
-    PyObject *result = NULL;
-    Py_ssize_t n = qb.len / (Py_ssize_t)sizeof(double);
-    int with_twist = twistb.len > 0;
-    if (n < 1 || n > MAX_JOINTS) {
-        PyErr_Format(PyExc_ValueError, "q: 1 to %d joints, got %zd", MAX_JOINTS, n);
-        goto done;
-    }
-    if (!Doubles(&Jb, 6 * n, "J") || !Doubles(&errorb, 6, "error") ||
-        (with_twist && !Doubles(&twistb, 6, "twist")) || !Doubles(&vb, n, "v") ||
-        !Doubles(&lowerb, n, "lower") || !Doubles(&upperb, n, "upper") ||
-        !Doubles(&speedb, n, "speed") || !Doubles(&accelerationb, n, "acceleration") ||
-        !Doubles(&Rb, 9, "R_WT") || !Doubles(&weightsb, 6, "weights") ||
-        !Doubles(&q_nextb, n, "q_next") || !Doubles(&v_nextb, n, "v_next"))
-        goto done;
-    const double *J = Jb.buf, *error = errorb.buf, *twist = twistb.buf, *q = qb.buf;
-    const double *v = vb.buf, *lower = lowerb.buf, *upper = upperb.buf, *speed = speedb.buf;
-    const double *acceleration = accelerationb.buf, *R = Rb.buf, *weights = weightsb.buf;
-    double *q_next = q_nextb.buf, *v_next = v_nextb.buf;
+/* One period (ServoStep): q_next and v_next written; 1 when a limit bound v_next, else 0;
+ * -1 when J or the error is not finite. twist NULL: none; R_WT's rows r_stride apart. */
+static int Step(Py_ssize_t n, const double *J, const double *error, const double *twist,
+                const double *q, const double *v, double period, const double *lower,
+                const double *upper, const double *speed, const double *acceleration,
+                const double *R, int r_stride, const double *weights, double damping,
+                double gain, double *q_next, double *v_next) {
+    int with_twist = twist != NULL;
     int m = (int)n + 1 + with_twist;
     /* [J error twist] expressed in T (each 3-row half rotated by R_WT'), rows weighted. */
     double A[6][MAX_JOINTS + 2];
@@ -174,7 +160,8 @@ static PyObject *ServoStep(PyObject *self, PyObject *args) {
                     int row = 3 * half + k;
                     column[k] = c < n ? J[row * n + c] : (c == n ? error[row] : twist[row]);
                 }
-                double a = R[i] * column[0] + R[3 + i] * column[1] + R[6 + i] * column[2];
+                double a = R[i] * column[0] + R[r_stride + i] * column[1] +
+                           R[2 * r_stride + i] * column[2];
                 A[3 * half + i][c] = a * weights[3 * half + i];
             }
         }
@@ -192,10 +179,7 @@ static PyObject *ServoStep(PyObject *self, PyObject *args) {
         }
     }
     double e[MAX_JOINTS], V[MAX_JOINTS * MAX_JOINTS];
-    if (!SymmetricEigen((int)n, N, e, V)) {
-        PyErr_SetString(PyExc_ValueError, "ServoStep: the Jacobian or the error is not finite");
-        goto done;
-    }
+    if (!SymmetricEigen((int)n, N, e, V)) return -1;
     double e_min = e[0];
     for (int i = 1; i < n; ++i) e_min = e[i] < e_min ? e[i] : e_min;
     double lam2 = damping * damping - (e_min > 0 ? e_min : 0.0);
@@ -265,7 +249,98 @@ static PyObject *ServoStep(PyObject *self, PyObject *args) {
         v_next[i] = vi;
         q_next[i] = q[i] + vi * period;
     }
-    result = PyBool_FromLong(excess > 1.0 || speed_ratio < 1.0);
+    return excess > 1.0 || speed_ratio < 1.0;
+}
+
+static PyObject *ServoStep(PyObject *self, PyObject *args) {
+    (void)self;
+    Py_buffer Jb, errorb, twistb, qb, vb, lowerb, upperb, speedb, accelerationb, Rb, weightsb,
+        q_nextb, v_nextb;
+    double period, damping, gain;
+    if (!PyArg_ParseTuple(args, "y*y*y*y*y*dy*y*y*y*y*y*ddw*w*", &Jb, &errorb, &twistb, &qb,
+                          &vb, &period, &lowerb, &upperb, &speedb, &accelerationb, &Rb,
+                          &weightsb, &damping, &gain, &q_nextb, &v_nextb))
+        return NULL;
+    Py_buffer *all[] = {&Jb, &errorb, &twistb, &qb, &vb, &lowerb, &upperb,
+                        &speedb, &accelerationb, &Rb, &weightsb, &q_nextb, &v_nextb};
+    PyObject *result = NULL;
+    Py_ssize_t n = qb.len / (Py_ssize_t)sizeof(double);
+    int with_twist = twistb.len > 0;
+    if (n < 1 || n > MAX_JOINTS) {
+        PyErr_Format(PyExc_ValueError, "q: 1 to %d joints, got %zd", MAX_JOINTS, n);
+        goto done;
+    }
+    if (!Doubles(&Jb, 6 * n, "J") || !Doubles(&errorb, 6, "error") ||
+        (with_twist && !Doubles(&twistb, 6, "twist")) || !Doubles(&vb, n, "v") ||
+        !Doubles(&lowerb, n, "lower") || !Doubles(&upperb, n, "upper") ||
+        !Doubles(&speedb, n, "speed") || !Doubles(&accelerationb, n, "acceleration") ||
+        !Doubles(&Rb, 9, "R_WT") || !Doubles(&weightsb, 6, "weights") ||
+        !Doubles(&q_nextb, n, "q_next") || !Doubles(&v_nextb, n, "v_next"))
+        goto done;
+    int limited = Step(n, Jb.buf, errorb.buf, with_twist ? twistb.buf : NULL, qb.buf, vb.buf,
+                       period, lowerb.buf, upperb.buf, speedb.buf, accelerationb.buf, Rb.buf, 3,
+                       weightsb.buf, damping, gain, q_nextb.buf, v_nextb.buf);
+    if (limited < 0)
+        PyErr_SetString(PyExc_ValueError, "ServoStep: the Jacobian or the error is not finite");
+    else
+        result = PyBool_FromLong(limited);
+done:
+    for (size_t k = 0; k < sizeof(all) / sizeof(all[0]); ++k) PyBuffer_Release(all[k]);
+    return result;
+}
+
+static PyObject *ServoPeriod(PyObject *self, PyObject *args) {
+    (void)self;
+    Py_buffer Jb, Cb, Db, previousb, qb, vb, lowerb, upperb, speedb, accelerationb, weightsb,
+        q_nextb, v_nextb;
+    double feedforward, period, damping, gain;
+    if (!PyArg_ParseTuple(args, "y*y*y*y*dy*y*dy*y*y*y*y*ddw*w*", &Jb, &Cb, &Db, &previousb,
+                          &feedforward, &qb, &vb, &period, &lowerb, &upperb, &speedb,
+                          &accelerationb, &weightsb, &damping, &gain, &q_nextb, &v_nextb))
+        return NULL;
+    Py_buffer *all[] = {&Jb, &Cb, &Db, &previousb, &qb, &vb, &lowerb,
+                        &upperb, &speedb, &accelerationb, &weightsb, &q_nextb, &v_nextb};
+    PyObject *result = NULL;
+    Py_ssize_t n = qb.len / (Py_ssize_t)sizeof(double);
+    if (n < 1 || n > MAX_JOINTS) {
+        PyErr_Format(PyExc_ValueError, "q: 1 to %d joints, got %zd", MAX_JOINTS, n);
+        goto done;
+    }
+    if (!Doubles(&Jb, 6 * n, "J") || !Doubles(&Cb, 12, "M_WT") || !Doubles(&Db, 12, "M_WD") ||
+        !Doubles(&previousb, 12, "previous") || !Doubles(&vb, n, "v") ||
+        !Doubles(&lowerb, n, "lower") || !Doubles(&upperb, n, "upper") ||
+        !Doubles(&speedb, n, "speed") || !Doubles(&accelerationb, n, "acceleration") ||
+        !Doubles(&weightsb, 6, "weights") || !Doubles(&q_nextb, n, "q_next") ||
+        !Doubles(&v_nextb, n, "v_next"))
+        goto done;
+    const double *previous = previousb.buf, *acceleration = accelerationb.buf;
+    double error[6], twist[6];
+    PoseErrorOf(Cb.buf, Db.buf, error);
+    int with_twist = feedforward != 0 && !isnan(previous[0]);
+    if (with_twist) {
+        PoseErrorOf(previous, Db.buf, twist);
+        for (int i = 0; i < 6; ++i) twist[i] *= feedforward;
+    }
+    double *q_next = q_nextb.buf, *v_next = v_nextb.buf;
+    int limited = Step(n, Jb.buf, error, with_twist ? twist : NULL, qb.buf, vb.buf, period,
+                       lowerb.buf, upperb.buf, speedb.buf, acceleration, Cb.buf, 4,
+                       weightsb.buf, damping, gain, q_next, v_next);
+    if (limited < 0) {
+        PyErr_SetString(PyExc_ValueError, "ServoPeriod: the Jacobian or the error is not finite");
+        goto done;
+    }
+    PyObject *stop = PyList_New(n);
+    if (!stop) goto done;
+    for (Py_ssize_t i = 0; i < n; ++i) {
+        PyObject *at = PyFloat_FromDouble(q_next[i] +
+                                          v_next[i] * fabs(v_next[i]) / (2 * acceleration[i]));
+        if (!at) {
+            Py_DECREF(stop);
+            goto done;
+        }
+        PyList_SET_ITEM(stop, i, at);
+    }
+    result = Py_BuildValue("(NN)", PyBool_FromLong(limited), stop);
 done:
     for (size_t k = 0; k < sizeof(all) / sizeof(all[0]); ++k) PyBuffer_Release(all[k]);
     return result;
@@ -274,6 +349,8 @@ done:
 static PyMethodDef kMethods[] = {
     {"PoseError", PoseError, METH_VARARGS, "The pose error (see the module source)."},
     {"ServoStep", ServoStep, METH_VARARGS, "One servo period (see the module source)."},
+    {"ServoPeriod", ServoPeriod, METH_VARARGS,
+     "The DifferentialIkServo's period in one call (see the module source)."},
     {NULL, NULL, 0, NULL},
 };
 

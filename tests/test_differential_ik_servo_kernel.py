@@ -9,7 +9,11 @@ from pydrake.math import RigidTransform, RollPitchYaw, RotationMatrix
 from guidedarm.systems.path_following.differential_ik_servo_math import (
     JointLimits,
     PoseError,
+    PoseErrorOfRows,
+    Rows,
+    ServoPeriod,
     ServoStep,
+    StoppingPositions,
 )
 
 
@@ -82,3 +86,39 @@ def test_servo_step_refuses_a_non_finite_jacobian():
             0.01,
             20.0,
         )
+
+
+def test_the_servo_period_is_its_parts_in_one_call():
+    """ServoPeriod (the servo's period in one kernel call) gives exactly what its parts give
+    called one by one: ServoStep on PoseErrorOfRows with the feedforward twist from the
+    previous target (none for a NaN previous or feedforward 0), then StoppingPositions."""
+    rng = np.random.default_rng(9)
+    for k in range(300):
+        n = 6
+        J = rng.normal(size=(6, n))
+        lower, upper = -rng.uniform(1.0, 3.0, n), rng.uniform(1.0, 3.0, n)
+        limits = JointLimits(lower, upper, rng.uniform(0.5, 2.0, n), rng.uniform(2.0, 10.0, n))
+        q, v = rng.uniform(lower, upper), rng.uniform(-1, 1, n) * limits.speed
+        poses = [
+            RigidTransform(RollPitchYaw(*rng.uniform(-np.pi, np.pi, 3)), rng.normal(size=3))
+            for _ in range(3)
+        ]
+        M_WT, M_WD, previous = (Rows(X) for X in poses)
+        previous = previous.ravel() if k % 3 else np.full(12, np.nan)
+        feedforward = 0.0 if k % 5 == 0 else rng.uniform(10.0, 200.0)
+        weights = rng.uniform(0.05, 1.0, 6)
+        damping = rng.uniform(1e-3, 0.05)
+        q_next, v_next = np.empty(n), np.empty(n)
+        limited, stop = ServoPeriod(
+            J, M_WT, M_WD, previous, feedforward, q, v, 0.008, limits, weights, damping, 20.0,
+            q_next, v_next,
+        )  # fmt: skip
+        twist = None
+        if feedforward and not np.isnan(previous[0]):
+            twist = PoseErrorOfRows(previous, M_WD) * feedforward
+        error = PoseErrorOfRows(M_WT, M_WD)
+        args = (J, error, q, v, 0.008, limits, M_WT[:, :3], weights, damping, 20.0, twist)
+        q_ref, v_ref, limited_ref = ServoStep(*args)
+        assert limited == limited_ref
+        assert q_next.tolist() == q_ref.tolist() and v_next.tolist() == v_ref.tolist()
+        assert stop == StoppingPositions(q_ref, v_ref, limits)

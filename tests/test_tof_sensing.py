@@ -15,7 +15,6 @@ from guidedarm.diagrams.station.scenario import ArmConfig, StationScenario
 from guidedarm.diagrams.station.station_plant import MakeMultibodyPlant
 from guidedarm.systems.scene.hose_geometry import HoseConfig
 from guidedarm.systems.tof.detection_grid import DetectionGrid
-from guidedarm.systems.tof.hose_range_model import _LeastSquares2
 from guidedarm.systems.tof.tof_tool_sensor import ToFToolConfig
 from guidedarm.systems.tof.tof_tool_sensor_math import AverageReadings, ConeRays, Measure
 
@@ -306,23 +305,6 @@ def test_the_cylinder_model_of_a_perpendicular_hose_is_the_plane_model(cell):
                 assert cylinder is None
             else:
                 assert cylinder == pytest.approx(plane, abs=2e-5)
-
-
-def test_the_refinement_least_squares_is_lstsq():
-    """The Gauss-Newton's direct 2 x 2 normal equations give lstsq's solution, and a
-    rank-deficient Jacobian (parallel columns) falls back to lstsq's minimum-norm one."""
-    rng = np.random.default_rng(5)
-    for n in (2, 3, 6):
-        for _ in range(50):
-            J, r = rng.normal(size=(n, 2)), rng.normal(size=n)
-            expected = np.linalg.lstsq(J, r, rcond=None)[0]
-            got = _LeastSquares2([tuple(row) for row in J.tolist()], r.tolist())
-            assert np.allclose(got, expected, rtol=1e-9, atol=1e-12)
-    J = np.array([[1.0, 2.0], [2.0, 4.0], [-1.0, -2.0]])
-    r = np.array([1.0, 0.5, -2.0])
-    got = _LeastSquares2([tuple(row) for row in J.tolist()], r.tolist())
-    assert np.all(np.isfinite(got))
-    assert np.allclose(got, np.linalg.lstsq(J, r, rcond=None)[0], atol=1e-12)
 
 
 def test_the_radius_fit_tells_a_thicker_section_from_a_moved_hose(cell):

@@ -39,8 +39,12 @@ from guidedarm.systems.path_following.continuous_follower_math import (
     Replaced,
 )
 from guidedarm.systems.path_following.hose_thickness import Thickness
-from guidedarm.systems.path_following.path_follower import DeclareStepOutputs, StoppedStatus
-from guidedarm.systems.path_following.path_follower_math import ESTIMATORS, EstimateHose
+from guidedarm.systems.path_following.path_follower import StoppedStatus
+from guidedarm.systems.path_following.path_follower_math import (
+    ESTIMATORS,
+    RECORD_FIELDS,
+    EstimateHose,
+)
 from guidedarm.systems.plant_frames import CheckFrame, CheckPlant
 from guidedarm.systems.tof.detection_grid import DetectionGrid
 from guidedarm.systems.tof.hose_range_model import RADIUS_FIT_SENSORS
@@ -143,15 +147,20 @@ class ContinuousFollower(LeafSystem):
         self._position = self.DeclareVectorInputPort("position_measured", n)
         self._servo_failure = self.DeclareAbstractInputPort("servo_failure", AbstractValue.Make(""))
         self._run = self.DeclareAbstractState(AbstractValue.Make(start))
+        # The target pose, kept beside the run (its Pose()) so that the servo reads it every
+        # period from the state, without a call into Python.
+        self._target = self.DeclareAbstractState(AbstractValue.Make(start.reference.Pose()))
+        # The latest reading's record and grid (the run's record and grid, -1 and 0 before
+        # the first), kept as vectors for the loggers to read from the state.
+        self._record = self.DeclareDiscreteState(np.full(len(RECORD_FIELDS), -1.0))
+        self._detections = self.DeclareDiscreteState(9)
+        self._detection_errors = self.DeclareDiscreteState(9)
         self.DeclarePeriodicUnrestrictedUpdateEvent(config.servo_period, 0.0, self._Update)
         state_only = {self.xa_ticket()}
-        self.DeclareAbstractOutputPort(
-            "X_WT_desired",
-            lambda: AbstractValue.Make(RigidTransform()),
-            self._CalcTarget,
-            prerequisites_of_calc=state_only,
-        )
-        DeclareStepOutputs(self, self.Loop)
+        self.DeclareStateOutputPort("X_WT_desired", self._target)
+        self.DeclareStateOutputPort("step_record", self._record)
+        self.DeclareStateOutputPort("detections", self._detections)
+        self.DeclareStateOutputPort("detection_errors", self._detection_errors)
         self.DeclareVectorOutputPort("mode", 2, self._CalcMode, prerequisites_of_calc=state_only)
         self.DeclareAbstractOutputPort(
             "failure",
@@ -173,7 +182,7 @@ class ContinuousFollower(LeafSystem):
         return self._tool.CalcPoseInWorld(self._plant_context)
 
     def _Update(self, context: Context, state: State) -> EventStatus:
-        run = self.Loop(context)
+        run = previous = self.Loop(context)
         if run.stopped:
             return EventStatus.DidNothing()
         t = context.get_time()
@@ -196,6 +205,12 @@ class ContinuousFollower(LeafSystem):
             )
             run = Replaced(run, reference=reference)
         state.get_mutable_abstract_state(self._run).set_value(run)
+        state.get_mutable_abstract_state(self._target).set_value(run.reference.Pose())
+        if run.record is not previous.record:  # a reading
+            discrete = state.get_mutable_discrete_state()
+            discrete.set_value(self._record, run.record)
+            discrete.set_value(self._detections, run.grid[:9])
+            discrete.set_value(self._detection_errors, run.grid[9:])
         return StoppedStatus(self, run.stopped)
 
     def _Stall(self, run: _Run, history: JointHistory, q: np.ndarray, t: float) -> _Run:
@@ -346,9 +361,6 @@ class ContinuousFollower(LeafSystem):
             grid = replace(self._grid, hose_radius=self._grid.hose_radius + excess)
             self._thicker_grids[excess] = grid
         return grid
-
-    def _CalcTarget(self, context: Context, output: AbstractValue) -> None:
-        output.set_value(self.Loop(context).reference.Pose())
 
     def _CalcMode(self, context: Context, output: BasicVector) -> None:
         run = self.Loop(context)

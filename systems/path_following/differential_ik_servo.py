@@ -29,11 +29,9 @@ from guidedarm.systems.path_following.differential_ik_servo_math import (
     MIN_DAMPING,
     BrakeStep,
     JointLimits,
-    PoseErrorOfRows,
     ReachBound,
     Rows,
-    ServoStep,
-    StoppingPositions,
+    ServoPeriod,
 )
 from guidedarm.systems.path_following.workspace import WorkspaceConfig
 from guidedarm.systems.plant_frames import CheckFrame, CheckPlant
@@ -97,7 +95,7 @@ class DifferentialIkServo(LeafSystem):
         self._plant, self._frame, self._n = plant, frame, n
         self._plant_context = plant.CreateDefaultContext()
         self._period, self._gain = period, gain
-        self._weights, self._damping = weights, damping
+        self._weights, self._damping = np.ascontiguousarray(weights, float), damping
         self._feedforward = feedforward / period
         self._limits = JointLimits(
             plant.GetPositionLowerLimits(),
@@ -122,14 +120,14 @@ class DifferentialIkServo(LeafSystem):
         self._target = self.DeclareAbstractInputPort(
             "X_WT_desired", AbstractValue.Make(RigidTransform())
         )
-        # q, v, [status], [1 + the index in _bodies of the body at a wall (0: none)]
+        # q, v, [status], and the memory: [1 + the index in _bodies of the body at a wall
+        # (0: none); the previous period's target for the feedforward (X_WD as a 3 x 4
+        # matrix, row-major; all NaN before the first)], one group: one read and one
+        # write a period.
         self._q = self.DeclareDiscreteState(q_initial)
         self._v = self.DeclareDiscreteState(n)
         self._status = self.DeclareDiscreteState(1)
-        self._wall = self.DeclareDiscreteState(1)
-        # The previous period's target (X_WD as a 3 x 4 matrix, row-major) for the
-        # feedforward, all NaN before the first.
-        self._previous = self.DeclareDiscreteState(np.full(12, np.nan))
+        self._memory = self.DeclareDiscreteState(np.r_[0.0, np.full(12, np.nan)])
         self.DeclarePeriodicDiscreteUpdateEvent(period, 0.0, self._Update)
         # Outputs copied from the state by Drake, without a Python call.
         self.DeclareStateOutputPort("position_commanded", self._q)
@@ -145,7 +143,8 @@ class DifferentialIkServo(LeafSystem):
     def _Update(self, context: Context, discrete: DiscreteValues) -> None:
         q = context.get_discrete_state(self._q).get_value()
         v = context.get_discrete_state(self._v).get_value()
-        if context.get_discrete_state(self._wall)[0] > 0:  # at a wall: brake to a stop, stay
+        memory = context.get_discrete_state(self._memory).get_value()
+        if memory[0] > 0:  # at a wall: brake to a stop, stay
             q_next, v_next = BrakeStep(q, v, self._period, self._limits)
             discrete.set_value(self._q, q_next)
             discrete.set_value(self._v, v_next)
@@ -156,33 +155,34 @@ class DifferentialIkServo(LeafSystem):
         J = plant.CalcJacobianSpatialVelocity(
             plant_context, JacobianWrtVariable.kV, self._frame, _ORIGIN, self._world, self._world
         )
-        M_WT, M_WD = Rows(X_WT), Rows(self._target.Eval(context))
-        twist = None
-        if self._feedforward:
-            previous = context.get_discrete_state(self._previous).get_value()
-            discrete.set_value(self._previous, M_WD.ravel())
-            if not np.isnan(previous[0]):
-                twist = PoseErrorOfRows(previous, M_WD) * self._feedforward
-        q_next, v_next, limited = ServoStep(
+        M_WD = Rows(self._target.Eval(context))
+        # The kernel writes the next q and v into the update's state.
+        q_next = discrete.get_mutable_vector(self._q).get_mutable_value()
+        v_next = discrete.get_mutable_vector(self._v).get_mutable_value()
+        limited, stop = ServoPeriod(
             J,
-            PoseErrorOfRows(M_WT, M_WD),
+            Rows(X_WT),
+            M_WD,
+            memory[1:],
+            self._feedforward,
             q,
             v,
             self._period,
             self._limits,
-            M_WT[:, :3],
             self._weights,
             self._damping,
             self._gain,
-            twist,
+            q_next,
+            v_next,
         )
-        wall = self._BodyAtWall(StoppingPositions(q_next, v_next, self._limits))
+        wall = self._BodyAtWall(stop)
         if wall:
-            q_next, v_next = BrakeStep(q, v, self._period, self._limits)
-        discrete.set_value(self._q, q_next)
-        discrete.set_value(self._v, v_next)
+            q_next[:], v_next[:] = BrakeStep(q, v, self._period, self._limits)
         discrete.set_value(self._status, [float(limited)])
-        discrete.set_value(self._wall, [float(wall)])
+        memory_next = discrete.get_mutable_vector(self._memory).get_mutable_value()
+        memory_next[0] = wall
+        if self._feedforward:
+            memory_next[1:] = M_WD.ravel()
 
     def _BodyAtWall(self, q: list[float]) -> int:
         """1 + the index of the first body whose origin at q (rad) lies outside the walls,
@@ -204,7 +204,7 @@ class DifferentialIkServo(LeafSystem):
         return 0
 
     def _CalcFailure(self, context: Context, output: AbstractValue) -> None:
-        k = int(context.get_discrete_state(self._wall)[0])
+        k = int(context.get_discrete_state(self._memory)[0])
         output.set_value(
             ""
             if k == 0

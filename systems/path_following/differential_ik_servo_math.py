@@ -142,6 +142,51 @@ def ServoStep(
     return q_next, v_next, limited
 
 
+def ServoPeriod(
+    J: np.ndarray,
+    M_WT: np.ndarray,
+    M_WD: np.ndarray,
+    previous: np.ndarray,
+    feedforward: float,
+    q: np.ndarray,
+    v: np.ndarray,
+    period: float,
+    limits: JointLimits,
+    weights: np.ndarray,
+    damping: float,
+    gain: float,
+    q_next: np.ndarray,
+    v_next: np.ndarray,
+) -> tuple[bool, list[float]]:
+    """One DifferentialIkServo period in one call of the kernel: ServoStep on the pose
+    error PoseErrorOfRows(M_WT, M_WD) (T at M_WT, the target at M_WD, both as Rows gives
+    them), R_WT from M_WT, and the twist PoseErrorOfRows(previous, M_WD) * feedforward
+    (1/s; none when feedforward is 0 or previous, the last period's M_WD, is NaN); writes
+    q_next and v_next (n, contiguous float64, e.g. the update's state) and returns
+    (limited, StoppingPositions(q_next, v_next, limits)): the same values as those calls
+    (tests/test_differential_ik_servo_kernel.py), without their per-call overhead at the
+    servo rate."""
+    return _servo_step.ServoPeriod(
+        np.ascontiguousarray(J, float),
+        M_WT,
+        M_WD,
+        previous,
+        feedforward,
+        q,
+        v,
+        period,
+        limits.lower,
+        limits.upper,
+        limits.speed,
+        limits.acceleration,
+        weights,
+        damping,
+        gain,
+        q_next,
+        v_next,
+    )
+
+
 def ReachBound(plant: MultibodyPlant, bodies: list[RigidBody]) -> float:
     """R (m) such that no origin of `bodies` moves farther than R sum_j |dq_j| when the
     plant's joints change by dq: the longest chain of fixed distances from a moving body's

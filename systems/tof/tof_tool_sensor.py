@@ -36,6 +36,7 @@ from guidedarm.systems.tof.tof_tool_sensor_math import (
     ConeRays,
     DriftStep,
     Measure,
+    SeededGenerator,
 )
 
 NUM_SENSORS = 6
@@ -155,6 +156,8 @@ class ToFToolSensor(LeafSystem):
         errors.Validate()
         self._config = config
         self._errors = errors
+        # The noise and drift generator, set to each reading's seed (SeededGenerator).
+        self._generator = np.random.Generator(np.random.PCG64())
         self._calibration = CheckVector(
             "calibration_offset",
             np.zeros(NUM_SENSORS) if calibration_offset is None else calibration_offset,
@@ -210,7 +213,7 @@ class ToFToolSensor(LeafSystem):
         """Range k from the geometry at the context's time, as a state reading."""
         c = self._config
         t = context.get_time()
-        rng = np.random.default_rng((c.seed or 0, k))
+        rng = SeededGenerator(self._generator, (c.seed or 0, k))
         readings = ErrorReadings(self.TrueRanges(context), self._errors, drift)
         ranges, valid = Measure(readings, rng, c.noise_std, c.quantization, c.max_range)
         ranges = CalibratedRanges(ranges, valid, self._calibration)
@@ -227,7 +230,7 @@ class ToFToolSensor(LeafSystem):
         k = round((context.get_time() + c.ranging_time / 2) / c.period)
         drift = context.get_discrete_state(self._drift).value()
         if e.drift_rate > 0:
-            rng = np.random.default_rng((c.seed or 0, k, 1))
+            rng = SeededGenerator(self._generator, (c.seed or 0, k, 1))
             drift = DriftStep(drift, rng, e.drift_rate, c.period, e.drift_max)
             state.set_value(self._drift, drift)
         state.set_value(self._published, context.get_discrete_state(self._pending).value())

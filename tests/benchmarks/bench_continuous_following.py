@@ -143,8 +143,7 @@ def Breakdown(path: str) -> None:
     timed = (
         (servo, "_Update", "DifferentialIkServo"),
         (servo, "_BodyAtWall", "  wall check"),
-        (differential_ik_servo, "ServoStep", "  ServoStep"),
-        (follower, "_CalcTarget", "  target pose (in the servo's update)"),
+        (differential_ik_servo, "ServoPeriod", "  ServoPeriod (its kernel)"),
         (follower, "_Update", "ContinuousFollower"),
         (follower, "_Read", "  readings"),
         (continuous_follower, "Advance", "  Advance"),
