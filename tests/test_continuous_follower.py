@@ -278,12 +278,9 @@ CLUTTER = (
 
 # Tracking goals (mean, max; mm). In the cluttered scene (three collars, two clamps) the
 # readings on them are taken with the radius measured there (hose_thickness): random_11
-# 3.11 / 9.23 mm (3.84 / 12.56 without the test).
-# random_34, past its end bracket, is one of the held-out hoses over the goal's 10 mm
-# (2.89 / 12.89 mm; docs/results.md): its run shows the search ended at the wall.
+# 3.05 / 9.29 mm (3.71 / 12.07 without the test).
 GOALS = (3.0, 10.0)
 CLUTTERED = (3.5, 10.0)
-PAST_A_COLLAR = (3.0, 13.0)
 
 
 @pytest.mark.slow
@@ -292,7 +289,7 @@ PAST_A_COLLAR = (3.0, 13.0)
     [
         ("paper_path_3", (), GOALS),
         ("random_9", (), GOALS),
-        ("random_34", (), PAST_A_COLLAR),
+        ("random_34", (), GOALS),
         ("random_11", ("station.hose.brackets=false",), GOALS),
         ("random_11", CLUTTER, CLUTTERED),
         ("paper_path_4", ("station.hose.crossing_clearance=0.04",), GOALS),
