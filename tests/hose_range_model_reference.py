@@ -11,29 +11,20 @@ sensors.
 from __future__ import annotations
 
 import math
-from collections.abc import Callable, Sequence
-from dataclasses import dataclass
 
 import numpy as np
 
 from guidedarm.systems.small_vectors import Distance, Vector
+from guidedarm.systems.tof import hose_range_model
 from guidedarm.systems.tof.hose_range_model import _RIM_PHI, RADIUS_FIT_SENSORS, RADIUS_STARTS
 
 
-@dataclass(frozen=True)
-class HoseRangeModel:
-    """The range model of a tool's sensors for a hose of radius hose_radius (m).
-
-    emitters, axes: each sensor's origin and unit line of sight (+z) in T (floats).
-    cone_angle: the sensors' full cone angle (rad).
-    """
-
-    emitters: Sequence[Vector]
-    axes: Sequence[Vector]
-    hose_radius: float
-    cone_angle: float
+class HoseRangeModel(hose_range_model.HoseRangeModel):
+    """hose_range_model.HoseRangeModel with its range model and centre fit in Python (its
+    RangeFunction, inherited, picks these)."""
 
     def __post_init__(self) -> None:
+        super().__post_init__()
         half = self.cone_angle / 2
         object.__setattr__(self, "_cone_cos", math.cos(half))
         object.__setattr__(self, "_cone_sin", math.sin(half))
@@ -44,9 +35,7 @@ class HoseRangeModel:
         object.__setattr__(self, "_rim", rim)
 
     def PlaneRange(self, k: int, c: Vector, radius: float | None = None) -> float | None:
-        """Range (m) sensor k reads for a hose perpendicular to the detection plane centred
-        at c (T), or None when its cone misses the hose: the nearest in-plane ray of the
-        cone. radius: the hose's (m), hose_radius when None."""
+        """hose_range_model.HoseRangeModel.PlaneRange."""
         r = self.hose_radius if radius is None else radius
         (e0, e1, e2), (z0, z1, z2) = self.emitters[k], self.axes[k]
         d0, d1, d2 = c[0] - e0, c[1] - e1, c[2] - e2
@@ -71,17 +60,7 @@ class HoseRangeModel:
     def CylinderRange(
         self, k: int, c: Vector, axis: Vector, radius: float | None = None
     ) -> float | None:
-        """Range (m) sensor k reads for the cylinder of radius `radius` (hose_radius when
-        None), unit axis `axis` through c (T), or None when its cone misses it.
-
-        A hose crossing the detection plane obliquely is nearer to some cones and farther
-        from others than the perpendicular one PlaneRange assumes (its section in the
-        plane is an ellipse of semi-axis r / cos(tilt)): 3 mm of estimate at 20 deg. The
-        nearest point of the cylinder is at distance - r toward the foot of the emitter's
-        perpendicular on the axis; when that direction leaves the cone the nearest return
-        is on the cone's rim, minimised over BOUNDARY_SAMPLES rim rays on the side facing
-        the axis and a parabola through the least three (smooth in c, which the
-        Gauss-Newton's finite differences need)."""
+        """hose_range_model.HoseRangeModel.CylinderRange."""
         (e0, e1, e2), (z0, z1, z2) = self.emitters[k], self.axes[k]
         a0, a1, a2 = axis
         f0, f1, f2 = e0 - c[0], e1 - c[1], e2 - c[2]
@@ -139,17 +118,6 @@ class HoseRangeModel:
                 return best - slope * slope / (2 * curvature)
         return best
 
-    def RangeFunction(
-        self, axis: np.ndarray | None
-    ) -> Callable[[int, Vector, float | None], float | None]:
-        """(k, c, radius=None) -> the range sensor k reads for a hose centred at c (T): along
-        `axis` (unit, T; CylinderRange), or perpendicular to the detection plane when axis
-        is None (PlaneRange)."""
-        if axis is None:
-            return self.PlaneRange
-        axis_floats = tuple(axis.tolist())
-        return lambda k, c, radius=None: self.CylinderRange(k, c, axis_floats, radius)
-
     def Refine(
         self,
         c: Vector,
@@ -158,12 +126,7 @@ class HoseRangeModel:
         axis: np.ndarray | None,
         max_shift: float,
     ) -> Vector:
-        """Gauss-Newton fit of the hose centre to the sensors' ranges, from c (a hose along
-        `axis` when given); c itself when the fit has fewer than three ranges (two with
-        `axis`) to use or moves more than max_shift (m, half the grid spacing: it left the
-        grid cell it started in). The Jacobian is by finite
-        differences, the 2 x 2 normal equations solved directly (lstsq when they are
-        ill-conditioned)."""
+        """hose_range_model.HoseRangeModel.Refine."""
         # Two ranges determine the centre exactly; the perpendicular model asks for a third
         # to average, while an oblique hose moves even the two sensors trilateration uses.
         needed = 3 if axis is None else 2
@@ -206,16 +169,7 @@ def RadiusFit(
     axis: np.ndarray | None,
     max_shift: float,
 ) -> tuple[Vector, float] | None:
-    """Gauss-Newton fit of the hose's centre and radius together to the ranges of
-    `sensors` (at least RADIUS_FIT_SENSORS of them with a modelled return), from c and each
-    radius of RADIUS_STARTS times hose_radius (the flank cones miss a hose of the known
-    radius that a thicker one reaches); (centre, radius) of the start that fits best (RMS
-    misfit), in T and m, or None when none keeps enough ranges, its centre within max_shift
-    of c and its radius within [r / 2, 2 r].
-
-    The sensors facing the hose read a thicker hose exactly as a hose moved toward them; the
-    flank sensors, which see it with their cones' edge rays, read the radius differently
-    from a shift, and with five or six ranges the three unknowns part."""
+    """hose_range_model.RadiusFit."""
     if len(sensors) < RADIUS_FIT_SENSORS:
         return None
     fits = [_RadiusFitFrom(model, c, factor * model.hose_radius, ranges, sensors, axis)
