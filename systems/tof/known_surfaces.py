@@ -40,9 +40,15 @@ def PlaneRange(p_WS: np.ndarray, axis_W: np.ndarray, cone_angle: float, plane: K
     never meets the plane (it looks away, or the emitter is behind it)."""
     n = np.asarray(plane.normal_W, float)
     height = float(n @ np.asarray(p_WS, float)) - plane.offset
+    return _ConeRange(height, -float(n @ np.asarray(axis_W, float)), cone_angle)
+
+
+def _ConeRange(height: float, facing: float, cone_angle: float) -> float:
+    """PlaneRange from the emitter's height over the plane (m) and the cosine between the
+    line of sight and the plane's inward normal (facing)."""
     if height <= 0:
         return math.inf
-    beta = math.acos(max(-1.0, min(1.0, -float(n @ np.asarray(axis_W, float)))))
+    beta = math.acos(max(-1.0, min(1.0, facing)))
     off = max(beta - cone_angle / 2, 0.0)
     return height / math.cos(off) if off < math.pi / 2 - 1e-9 else math.inf
 
@@ -57,6 +63,18 @@ class KnownSurfaces:
     X_TS: tuple[RigidTransform, ...]
     cone_angle: float
     tolerance: float
+
+    def __post_init__(self) -> None:
+        # The emitters and their lines of sight in T (rows), and the planes' normals
+        # (columns) and offsets: Ranges takes every height and facing cosine in two
+        # products per reading (it runs on every reading of a run).
+        p_TS = np.array([X.translation() for X in self.X_TS])
+        z_TS = np.array([X.rotation().matrix()[:, 2] for X in self.X_TS])
+        normals = np.array([q.normal_W for q in self.planes], float).T
+        object.__setattr__(self, "_p_TS", p_TS)
+        object.__setattr__(self, "_z_TS", z_TS)
+        object.__setattr__(self, "_normals", normals)
+        object.__setattr__(self, "_offsets", np.array([q.offset for q in self.planes]))
 
     @staticmethod
     def Table(
@@ -77,12 +95,15 @@ class KnownSurfaces:
     def Ranges(self, X_WT: RigidTransform) -> np.ndarray:
         """(6,) the range (m) each sensor would read off the nearest known plane with the
         tool at X_WT (math.inf where none is in its cone)."""
-        ranges = []
-        for X_TS in self.X_TS:
-            X_WS = X_WT @ X_TS
-            p, axis = X_WS.translation(), X_WS.rotation().matrix()[:, 2]
-            ranges.append(min(PlaneRange(p, axis, self.cone_angle, q) for q in self.planes))
-        return np.array(ranges)
+        R_WT = X_WT.rotation().matrix()
+        heights = (self._p_TS @ R_WT.T + X_WT.translation()) @ self._normals - self._offsets
+        facing = -(self._z_TS @ R_WT.T) @ self._normals
+        return np.array(
+            [
+                min(_ConeRange(h, f, self.cone_angle) for h, f in zip(hs, fs, strict=True))
+                for hs, fs in zip(heights.tolist(), facing.tolist(), strict=True)
+            ]
+        )
 
     def HoseReadings(
         self, X_WT: RigidTransform, ranges: np.ndarray, valid: np.ndarray
