@@ -12,7 +12,8 @@
  * PlaneRange(model, k, c, radius) -> float or None
  * CylinderRange(model, k, c, axis, radius) -> float or None
  * Refine(model, c, ranges, sensors, axis, max_shift) -> (x, y, z)
- * RadiusFit(model, c, ranges, sensors, axis, max_shift, min_sensors, starts)
+ * RadiusFit(model, c, ranges, sensors, axis, max_shift, min_sensors, starts, miss_slope,
+ *           max_miss)
  *   -> ((x, y, z), radius) or None
  * LeastSquares(J, r) -> the fits' least-squares solution (a list) of J x = r, J given as
  *   its rows (at most 6, of 2 or 3 floats): the centre fit's for 2 columns, the radius
@@ -46,6 +47,7 @@ static int ModelFrom(Py_buffer *b, Model *m) {
     m->sin_half = d[6 * SENSORS + 2];
     m->rim = d + fixed;
     m->rim_count = (int)((count - fixed) / 2);
+    m->miss_slope = 0, m->max_miss = -1; /* no ranges past the rim: RadiusFit sets them */
     return 1;
 }
 
@@ -175,10 +177,10 @@ static PyObject *RadiusFit(PyObject *self, PyObject *args) {
     (void)self;
     Py_buffer b;
     PyObject *c, *ranges, *sensors, *axis, *starts_object;
-    double max_shift;
+    double max_shift, miss_slope, max_miss;
     int min_sensors;
-    if (!PyArg_ParseTuple(args, "y*OOOOdiO", &b, &c, &ranges, &sensors, &axis, &max_shift,
-                          &min_sensors, &starts_object))
+    if (!PyArg_ParseTuple(args, "y*OOOOdiOdd", &b, &c, &ranges, &sensors, &axis, &max_shift,
+                          &min_sensors, &starts_object, &miss_slope, &max_miss))
         return NULL;
     Fit fit;
     PyObject *result = NULL;
@@ -193,6 +195,7 @@ static PyObject *RadiusFit(PyObject *self, PyObject *args) {
          * within max_shift of c. */
         double best_x[3], best_radius = 0, best_misfit = 0;
         int found = 0;
+        fit.m.miss_slope = miss_slope, fit.m.max_miss = max_miss;
         if (fit.count >= min_sensors) {
             for (Py_ssize_t s = 0; s < n_starts; ++s) {
                 double x[3], radius, misfit;

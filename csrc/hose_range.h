@@ -11,11 +11,15 @@
 #define RADIUS_ITERATIONS 10
 #define MAX_STARTS 8
 
+
 typedef struct {
     const double *e, *z; /* emitters, axes (SENSORS x 3) */
     double radius, cos_half, sin_half;
     const double *rim; /* rim_count (cos phi, sin phi) pairs */
     int rim_count;
+    /* The radius fit's ranges past a cone's rim (hose_range_model.RadiusFit): the range
+     * grows by miss_slope per m the hose misses the cone, up to max_miss (m). */
+    double miss_slope, max_miss;
 } Model;
 
 int PlaneRangeOf(const Model *m, int k, const double *c, double r, double *out);

@@ -16,7 +16,13 @@ import numpy as np
 
 from guidedarm.systems.small_vectors import Distance, Vector
 from guidedarm.systems.tof import hose_range_model
-from guidedarm.systems.tof.hose_range_model import _RIM_PHI, RADIUS_FIT_SENSORS, RADIUS_STARTS
+from guidedarm.systems.tof.hose_range_model import (
+    _RIM_PHI,
+    MAX_MISS,
+    MISS_SLOPE,
+    RADIUS_FIT_SENSORS,
+    RADIUS_STARTS,
+)
 
 
 class HoseRangeModel(hose_range_model.HoseRangeModel):
@@ -34,17 +40,19 @@ class HoseRangeModel(hose_range_model.HoseRangeModel):
         ]
         object.__setattr__(self, "_rim", rim)
 
-    def PlaneRange(self, k: int, c: Vector, radius: float | None = None) -> float | None:
-        """hose_range_model.HoseRangeModel.PlaneRange."""
-        r = self.hose_radius if radius is None else radius
+    def _PlaneView(self, k: int, c: Vector) -> tuple[int, float, float, float]:
+        """Sensor k's view of a hose perpendicular to the detection plane centred at c:
+        (0, ...) when c is behind the emitter; (1, distance, ...) when c is inside the cone;
+        (2, distance, t, h2): t along the rim ray nearest c to c's foot on it, h2 c's squared
+        distance from that ray."""
         (e0, e1, e2), (z0, z1, z2) = self.emitters[k], self.axes[k]
         d0, d1, d2 = c[0] - e0, c[1] - e1, c[2] - e2
         distance = math.sqrt(d0 * d0 + d1 * d1 + d2 * d2)
         along = d0 * z0 + d1 * z1 + d2 * z2
         if along <= 0:
-            return None
+            return 0, distance, 0.0, 0.0
         if along >= distance * self._cone_cos:
-            return distance - r
+            return 1, distance, 0.0, 0.0
         s0, s1, s2 = d0 - along * z0, d1 - along * z1, d2 - along * z2
         norm = math.sqrt(s0 * s0 + s1 * s1 + s2 * s2)
         cos_half, sin_half = self._cone_cos, self._cone_sin
@@ -53,14 +61,25 @@ class HoseRangeModel(hose_range_model.HoseRangeModel):
             + d1 * (cos_half * z1 + sin_half * s1 / norm)
             + d2 * (cos_half * z2 + sin_half * s2 / norm)
         )
-        h2 = distance * distance - t * t
+        return 2, distance, t, distance * distance - t * t
+
+    def PlaneRange(self, k: int, c: Vector, radius: float | None = None) -> float | None:
+        """hose_range_model.HoseRangeModel.PlaneRange."""
+        r = self.hose_radius if radius is None else radius
+        view, distance, t, h2 = self._PlaneView(k, c)
+        if view == 0:
+            return None
+        if view == 1:
+            return distance - r
         r2 = r * r
         return None if h2 > r2 else t - math.sqrt(r2 - h2)
 
-    def CylinderRange(
-        self, k: int, c: Vector, axis: Vector, radius: float | None = None
-    ) -> float | None:
-        """hose_range_model.HoseRangeModel.CylinderRange."""
+    def _CylinderView(self, k: int, c: Vector, axis: Vector, r: float) -> tuple[int, tuple]:
+        """Sensor k's view of the cylinder of radius r, unit axis `axis` through c:
+        (0, ...) when the emitter is inside it or the axis lies behind; (1, (distance,))
+        when the axis's nearest point is inside the cone; (2, (distance, za, xa, ya, zd, xd,
+        yd, ad)): the axis and the emitter's offset d from it projected on the rim frame (z
+        the line of sight, x toward the axis, y = z x x) and d on the axis."""
         (e0, e1, e2), (z0, z1, z2) = self.emitters[k], self.axes[k]
         a0, a1, a2 = axis
         f0, f1, f2 = e0 - c[0], e1 - c[1], e2 - c[2]
@@ -68,35 +87,43 @@ class HoseRangeModel(hose_range_model.HoseRangeModel):
         # From the axis to the emitter, normal to the axis.
         d0, d1, d2 = f0 - a0 * along, f1 - a1 * along, f2 - a2 * along
         distance = math.sqrt(d0 * d0 + d1 * d1 + d2 * d2)
-        r = self.hose_radius if radius is None else radius
         if distance <= r:
-            return None
+            return 0, ()
         n0, n1, n2 = -d0 / distance, -d1 / distance, -d2 / distance
         nz = n0 * z0 + n1 * z1 + n2 * z2
-        cos_half = self._cone_cos
-        if nz >= cos_half:
-            return distance - r
+        if nz >= self._cone_cos:
+            return 1, (distance,)
         s0, s1, s2 = n0 - nz * z0, n1 - nz * z1, n2 - nz * z2
         norm = math.sqrt(s0 * s0 + s1 * s1 + s2 * s2)
         if norm < 1e-12 or nz <= 0:
-            return None
+            return 0, ()
         x0, x1, x2 = s0 / norm, s1 / norm, s2 / norm
         y0, y1, y2 = z1 * x2 - z2 * x1, z2 * x0 - z0 * x2, z0 * x1 - z1 * x0
+        return 2, (
+            distance,
+            z0 * a0 + z1 * a1 + z2 * a2,
+            x0 * a0 + x1 * a1 + x2 * a2,
+            y0 * a0 + y1 * a1 + y2 * a2,
+            z0 * d0 + z1 * d1 + z2 * d2,
+            x0 * d0 + x1 * d1 + x2 * d2,
+            y0 * d0 + y1 * d1 + y2 * d2,
+            a0 * d0 + a1 * d1 + a2 * d2,
+        )
+
+    def CylinderRange(
+        self, k: int, c: Vector, axis: Vector, radius: float | None = None
+    ) -> float | None:
+        """hose_range_model.HoseRangeModel.CylinderRange."""
+        r = self.hose_radius if radius is None else radius
+        view, geometry = self._CylinderView(k, c, axis, r)
+        if view < 2:
+            return geometry[0] - r if view == 1 else None
+        distance, za, xa, ya, zd, xd, yd, ad = geometry
+        cos_half = self._cone_cos
         # A rim ray w = cos_half z + sin_half (cos(phi) x + sin(phi) y) (unit) meets the
         # cylinder where |d + t w_perp| = r, w_perp its part normal to the axis:
         # a t^2 + 2 b t + distance^2 - r^2 = 0 with a = |w_perp|^2 = 1 - (w . axis)^2 and
         # b = w_perp . d = w . d - (w . axis)(axis . d); the nearer root when b < 0.
-        za, xa, ya = (
-            z0 * a0 + z1 * a1 + z2 * a2,
-            x0 * a0 + x1 * a1 + x2 * a2,
-            y0 * a0 + y1 * a1 + y2 * a2,
-        )
-        zd, xd, yd = (
-            z0 * d0 + z1 * d1 + z2 * d2,
-            x0 * d0 + x1 * d1 + x2 * d2,
-            y0 * d0 + y1 * d1 + y2 * d2,
-        )
-        ad = a0 * d0 + a1 * d1 + a2 * d2
         wa0, wd0 = cos_half * za, cos_half * zd
         gap = distance * distance - r * r
         t = []
@@ -117,6 +144,34 @@ class HoseRangeModel(hose_range_model.HoseRangeModel):
                 slope = (t[i + 1] - t[i - 1]) / 2
                 return best - slope * slope / (2 * curvature)
         return best
+
+    def MissRange(
+        self, k: int, c: Vector, axis: Vector | None, radius: float
+    ) -> tuple[float, float] | None:
+        """(range, gap) the radius fit models for sensor k where its cone misses the hose
+        by a gap of at most MAX_MISS (hose_range_model.RadiusFit): the range along the rim
+        ray of the hose's closest approach plus MISS_SLOPE times the gap; None otherwise."""
+        if axis is None:
+            view, _, t, h2 = self._PlaneView(k, c)
+            gap = math.sqrt(max(h2, 0.0)) - radius
+            return None if view != 2 or gap > MAX_MISS else (t + MISS_SLOPE * gap, gap)
+        view, geometry = self._CylinderView(k, c, axis, radius)
+        if view != 2:
+            return None
+        distance, za, xa, ya, zd, xd, yd, ad = geometry
+        cos_half = self._cone_cos
+        best, best_gap = math.inf, 0.0
+        for cos_phi, sin_phi in self._rim:
+            wa = cos_half * za + cos_phi * xa + sin_phi * ya
+            b = cos_half * zd + cos_phi * xd + sin_phi * yd - wa * ad
+            aa = 1.0 - wa * wa
+            # The rim ray's closest approach to the axis, not behind the emitter.
+            t = -b / aa if b < 0 and aa > 1e-12 else 0.0
+            gap = math.sqrt(max(distance * distance + 2 * b * t + aa * t * t, 0.0)) - radius
+            value = t + MISS_SLOPE * gap
+            if gap <= MAX_MISS and value < best:
+                best, best_gap = value, gap
+        return None if best == math.inf else (best, best_gap)
 
     def Refine(
         self,
@@ -190,20 +245,30 @@ def _RadiusFitFrom(
     axis: np.ndarray | None,
 ) -> tuple[Vector, float, float] | None:
     """RadiusFit from one start radius: (centre, radius, RMS misfit) or None."""
-    range_of = model.RangeFunction(axis)
+    modelled = model.RangeFunction(axis)
+    axis_floats = None if axis is None else tuple(axis.tolist())
+
+    def range_of(k: int, c: Vector, r: float) -> tuple[float, float] | None:
+        """(range, gap): the cone's range, 0; or past its rim (MissRange)."""
+        value = modelled(k, c, r)
+        return model.MissRange(k, c, axis_floats, r) if value is None else (value, 0.0)
+
     u, v = np.array(model.axes[0]), np.array(model.axes[3])
-    x, h = np.array(c, float), 1e-5
+    # A hose thicker by e reads as one e nearer along both facing sensors' lines of sight.
+    e = radius - model.hose_radius
+    x, h = np.array([c[i] + e * u[i] + e * v[i] for i in range(3)]), 1e-5
     for _ in range(10):
         p, pu, pv = tuple(x.tolist()), tuple((x + h * u).tolist()), tuple((x + h * v).tolist())
-        rows, residuals = [], []
+        rows, residuals, gaps = [], [], []
         for k in sensors:
             values = (range_of(k, p, radius), range_of(k, pu, radius), range_of(k, pv, radius))
             grown = range_of(k, p, radius + h)
             if None in values or grown is None:
                 continue
-            at = values[0]
-            rows.append([(values[1] - at) / h, (values[2] - at) / h, (grown - at) / h])
+            (at, gap), at_u, at_v = values[0], values[1][0], values[2][0]
+            rows.append([(at_u - at) / h, (at_v - at) / h, (grown[0] - at) / h])
             residuals.append(ranges[k] - at)
+            gaps.append(gap)
         if len(rows) < RADIUS_FIT_SENSORS:
             return None
         step = np.linalg.lstsq(np.array(rows), np.array(residuals), rcond=None)[0]
@@ -213,7 +278,8 @@ def _RadiusFitFrom(
             return None
         if math.sqrt(float(step @ step)) < 1e-6:
             break
-    misfit = math.sqrt(float(np.mean(np.square(residuals))))
+    # A row its cone still misses counts its gap too (the sensor saw the hose there).
+    misfit = math.sqrt(float(np.mean(np.square(residuals) + np.square(gaps))))
     return tuple(x.tolist()), radius, misfit
 
 

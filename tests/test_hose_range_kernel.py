@@ -105,8 +105,10 @@ def test_the_centre_fit_equals_the_reference():
 
 
 def test_the_radius_fit_equals_the_reference():
-    """The same readings with five or six sensors: the same centre and radius to 1e-12,
-    and None where the reference finds none."""
+    """The same readings with five or six sensors: the same centre and radius to 1e-10
+    (the reference's least squares is LAPACK's SVD, the kernel's a Jacobi SVD: they round
+    differently, and a fit with rows past a cone's rim is conditioned worse), and None
+    where the reference finds none."""
     kernel, python = _Models()
     rng = np.random.default_rng(3)
     fitted = 0
@@ -118,8 +120,8 @@ def test_the_radius_fit_equals_the_reference():
         assert (got is None) == (expected is None)
         if got is not None:
             fitted += 1
-            np.testing.assert_allclose(got[0], expected[0], rtol=0, atol=1e-12)
-            assert got[1] == pytest.approx(expected[1], rel=0, abs=1e-12)
+            np.testing.assert_allclose(got[0], expected[0], rtol=0, atol=1e-10)
+            assert got[1] == pytest.approx(expected[1], rel=0, abs=1e-10)
     assert fitted > 300
 
 

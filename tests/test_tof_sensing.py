@@ -311,9 +311,11 @@ def test_the_radius_fit_tells_a_thicker_section_from_a_moved_hose(cell):
     """The tool's own 19 rays (no noise) on a plain hose and on a section 3 mm thicker (a
     bracket's collar), centred anywhere within 3 mm of the centre: the ranging estimate,
     which assumes the plain radius, moves 3-5 mm toward both arms on the collar. Where five
-    or six sensors see it (10 of 40 plain positions, 21 of 40 on the collar), the radius
+    or six sensors see it (11 of 40 plain positions, 40 of 40 on the collar), the radius
     fitted with the centre reads the plain hose within 0.1 mm of its radius and the collar
-    2.9-3.05 mm thicker, and with that radius the estimate is back within 1.5 mm."""
+    2.9-3.05 mm thicker, and with that radius the estimate is back within 1.5 mm. (A fit
+    that dropped the rows of the cones its modelled hose misses kept 21 of the 40 collar
+    readings: started at the known radius, the far flank cones miss the hose there.)"""
     grid = DetectionGrid(_grid(cell[0]).X_TS, R, np.radians(25.0))
     rays = ConeRays(np.radians(25.0), 2)
     rng = np.random.default_rng(7)
@@ -338,6 +340,6 @@ def test_the_radius_fit_tells_a_thicker_section_from_a_moved_hose(cell):
     print(f"radius excess: plain {1000 * plain.min():.2f}..{1000 * plain.max():.2f} mm "
           f"({len(plain)} fits), collar {1000 * collar.min():.2f}..{1000 * collar.max():.2f} "
           f"({len(collar)})")  # fmt: skip
-    assert len(plain) >= 8 and len(collar) >= 16
+    assert len(plain) >= 8 and len(collar) >= 36
     assert np.abs(plain).max() <= 1e-4
     assert collar.min() >= 2.9e-3 and collar.max() <= 3.05e-3
