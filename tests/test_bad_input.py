@@ -392,6 +392,16 @@ BAD_INPUTS = [
     ("continuous-turns", Run(PF, "continuous.search_turns_deg=[120]"), "search_turns_deg"),
     ("continuous-speeds", Run(PF, "continuous.min_speed=0.5"), "min_speed <= speed"),
     (
+        "continuous-fixture-speed",
+        Run(PF, "continuous.fixture_speed=0.001"),
+        "min_speed <= fixture_speed",
+    ),
+    (
+        "continuous-thickening-max",
+        Run(PF, "continuous.thickening_max=0.001"),
+        "thickening_min < thickening_max",
+    ),
+    (
         "continuous-speed-beyond-readings",
         Run(PF, "motion=continuous", "continuous.speed=0.15", "continuous.min_fit_points=20"),
         "continuous.speed (0.15 m/s) is faster than the hose fit can follow",

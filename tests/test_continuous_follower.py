@@ -48,10 +48,13 @@ def _Circle(radius: float):
     return point, tangent
 
 
-def _Follow(point, tangent, seconds, noise=0.0, seen=lambda s: True, config=None, seed=0):
+def _Follow(
+    point, tangent, seconds, noise=0.0, seen=lambda s: True, config=None, seed=0, speed_cap=math.inf
+):
     """Runs the reference with an ideal arm (the tool is where the target was one reading
-    ago) and readings every 10 ms: the hose point under the tool, plus noise. Returns the
-    reference, the estimate and the tool's distance to the hose at each reading."""
+    ago) and readings every 10 ms: the hose point under the tool, plus noise; the target
+    no faster than speed_cap (m/s). Returns the reference, the estimate and the tool's
+    distance to the hose at each reading."""
     config = config or ContinuousConfig()
     rng = np.random.default_rng(seed)
     X_WT = RigidTransform(OrientationFromVector(tangent(0.0)), point(0.0))
@@ -68,7 +71,8 @@ def _Follow(point, tangent, seconds, noise=0.0, seen=lambda s: True, config=None
             errors.append(np.linalg.norm(point(s_true) - p_WO))
             estimate = estimate.WithReading(X_WT, S, config)
             ref = OnReading(ref, estimate, X_WT, config)
-        ref = Advance(ref, estimate, DT, config)
+        ref = Advance(ref, estimate, DT, config, speed_cap=speed_cap)
+        assert ref.v <= speed_cap + 1e-12
     return ref, estimate, np.array(errors)
 
 
@@ -261,6 +265,8 @@ def test_an_arm_lagging_the_target_slows_it():
         ("look_ahead", 0.007, "loss_distance < look_ahead"),
         ("history", 0.01, "history >= 10 servo_period"),
         ("look_ahead", 0.015, "speed <= sqrt"),  # stops within 15 mm from 110 mm/s at most
+        ("fixture_speed", 0.01, "min_speed <= fixture_speed"),
+        ("thickening_max", 0.001, "thickening_min < thickening_max"),
     ],
 )
 def test_config_rules_between_fields(field, value, message):
@@ -276,11 +282,10 @@ CLUTTER = (
 )
 
 
-# Tracking goals (mean, max; mm). In the cluttered scene (three collars, two clamps) the
-# readings on them are taken with the radius measured there (hose_thickness): random_11
-# 3.05 / 9.29 mm (3.71 / 12.07 without the test).
+# Tracking goals (mean, max; mm), also in the cluttered scene (three collars, two clamps),
+# whose readings are taken with the radius measured there and which slow the target
+# (hose_thickness): random_11 2.79 / 8.0 mm (3.71 / 12.07 without the test).
 GOALS = (3.0, 10.0)
-CLUTTERED = (3.5, 10.0)
 
 
 @pytest.mark.slow
@@ -291,8 +296,9 @@ CLUTTERED = (3.5, 10.0)
         ("random_9", (), GOALS),
         ("random_34", (), GOALS),
         ("random_11", ("station.hose.brackets=false",), GOALS),
-        ("random_11", CLUTTER, CLUTTERED),
+        ("random_11", CLUTTER, GOALS),
         ("paper_path_4", ("station.hose.crossing_clearance=0.04",), GOALS),
+        ("random_12", ("station.hose.brackets=3",), GOALS),
     ],
 )
 def test_continuous_run_through_the_station(tmp_path, path, scene, tracking):
@@ -304,7 +310,9 @@ def test_continuous_run_through_the_station(tmp_path, path, scene, tracking):
     there instead of failing the run. random_11 has the random hoses' tightest arcs: without
     brackets, and with the cluttered scene (CLUTTER). paper_path_4 over a hose crossing 40 mm
     under it: a tool free to roll about the hose (continuous.roll_weight 0.1) lowered its
-    side arm onto the crossing hose."""
+    side arm onto the crossing hose. random_12 with three brackets: the radius fit that
+    dropped the rows of the cones its hose missed measured its end collar too late, and
+    the tool left the hose by 12.7 mm past it."""
     import json
 
     from guidedarm.diagrams.cli.main import main
@@ -518,3 +526,35 @@ def test_thickness_holds_the_median_excess_of_the_last_radius_measurements():
     assert t.excess == 0.0  # below thickening_min
     off = dataclasses.replace(config, thickening_min=0.0)
     assert Thickness().With(0.0, 0.003, off).With(0.001, 0.003, off).excess == 0.0
+
+
+def test_a_thicker_section_slows_the_target_until_the_fit_has_passed_it():
+    """Thickness.SpeedCap: fixture_speed from the first reading on a thicker section to
+    half of fit_length past its last one (the fit still holds those readings), the cruise
+    elsewhere; an excess above thickening_max is not a hose section (a bracket's post in a
+    cone lets the radius fit grow the hose to reach it) and counts for nothing."""
+    from guidedarm.systems.path_following.hose_thickness import Thickness
+
+    config = ContinuousConfig()
+    assert config.fixture_speed == 0.08 and config.thickening_max == 0.005
+    t = Thickness().With(0.100, 0.003, config)
+    assert t.SpeedCap(0.100, config) == config.speed  # one measurement is not a section
+    t = t.With(0.102, 0.003, config)
+    assert t.excess > 0 and t.SpeedCap(0.102, config) == config.fixture_speed
+    t = t.With(0.108, 0.0, config).With(0.109, 0.0, config)
+    assert t.excess == 0.0
+    assert t.SpeedCap(0.102 + config.fit_length / 2 - 1e-6, config) == config.fixture_speed
+    assert t.SpeedCap(0.102 + config.fit_length / 2 + 1e-6, config) == config.speed
+    post = Thickness().With(0.0, 0.007, config).With(0.001, 0.008, config)
+    assert post.samples == () and post.excess == 0.0
+
+
+def test_the_speed_cap_holds_the_target_to_it():
+    """Advance with a speed cap (a thicker section): on a straight hose the target runs at
+    the cap, not the cruise, and no faster at any servo period."""
+    point, tangent = _Circle(1e6)
+    config = ContinuousConfig()
+    assert config.speed > 0.05
+    ref, _, errors = _Follow(point, tangent, 3.0, speed_cap=0.05)
+    assert ref.v == pytest.approx(0.05, abs=1e-9)
+    assert ref.r[0] <= 0.05 * 3.0 and np.max(errors[50:]) < 1e-4

@@ -200,8 +200,9 @@ class ContinuousFollower(LeafSystem):
         if servo_failure:
             run = _CannotFollow(run, f"the servo stopped the arm at t = {t:.2f} s: {servo_failure}")
         if not run.failure:
+            cap = run.thickness.SpeedCap(run.reference.s, self._config)
             reference = Advance(
-                run.reference, run.estimate, self._config.servo_period, self._config, run.lag
+                run.reference, run.estimate, self._config.servo_period, self._config, run.lag, cap
             )
             run = Replaced(run, reference=reference)
         state.get_mutable_abstract_state(self._run).set_value(run)

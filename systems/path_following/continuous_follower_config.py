@@ -80,7 +80,13 @@ class ContinuousConfig:
         sensors see it, and when the median excess over the known radius of two or more
         measurements within the last thickening_hold of travel (m) passes thickening_min
         (m), the hose centre is estimated with that larger radius; thickening_min 0 turns
-        the test off.
+        the test off (and the slowing below with it).
+    thickening_max: a larger excess (m) is not a section of hose (a bracket's post in a
+        flank cone) and counts as no measurement; above thickening_min.
+    fixture_speed: the fastest the target runs (m/s) from the first reading on a thicker
+        section to half of fit_length past its last one, while the hose fit still holds
+        the readings its facing sensors took of the section's ends (hose_thickness); at
+        least min_speed, at or above `speed` no slowing.
     """
 
     speed: float = Positive(0.11)
@@ -111,6 +117,8 @@ class ContinuousConfig:
     min_range: float = InRange(0.0, 0.05, 0.015)
     thickening_min: float = InRange(0.0, 0.01, 0.0015)
     thickening_hold: float = Positive(0.005)
+    thickening_max: float = InRange(1e-4, 0.05, 0.005)
+    fixture_speed: float = Positive(0.08)
 
     def ServoWeights(self) -> list[float]:
         """The DifferentialIkServo's six weights (roll, pitch, yaw about T; x, y, z)."""
@@ -122,6 +130,10 @@ class ContinuousConfig:
         CheckFields(self)
         if not self.min_speed <= self.speed:
             raise ConfigurationError("continuous: need min_speed <= speed")
+        if not self.min_speed <= self.fixture_speed:
+            raise ConfigurationError("continuous: need min_speed <= fixture_speed")
+        if not self.thickening_min < self.thickening_max:
+            raise ConfigurationError("continuous: need thickening_min < thickening_max")
         if not self.search_speed <= self.speed:
             raise ConfigurationError("continuous: need search_speed <= speed")
         if not self.loss_distance < self.search_distance:

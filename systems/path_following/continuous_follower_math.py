@@ -151,15 +151,17 @@ def Advance(
     dt: float,
     config: ContinuousConfig,
     lag: float = 0.0,
+    speed_cap: float = math.inf,
 ) -> Reference:
     """The target one servo period later (module docstring); lag: how far (m) the arm's
-    tool was from the target at the latest reading. Its 3-vectors in floats: numpy's
+    tool was from the target at the latest reading; speed_cap: the fastest it may follow
+    the hose (m/s; hose_thickness.Thickness.SpeedCap). Its 3-vectors in floats: numpy's
     per-call overhead on them costs more than the arithmetic, every servo period."""
     if ref.mode == DONE:
         return Replaced(ref, v=0.0)
     fit = estimate.fit
     if ref.mode == FOLLOW:
-        v_goal, s_stop = TargetSpeed(fit, config), fit.s + config.look_ahead
+        v_goal, s_stop = min(TargetSpeed(fit, config), speed_cap), fit.s + config.look_ahead
     elif ref.mode in (SEARCH, RETRY):
         v_goal, s_stop = config.search_speed, fit.s + config.search_distance
     else:  # BACK: to the latest estimate, backwards
