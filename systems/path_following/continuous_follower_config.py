@@ -84,9 +84,9 @@ class ContinuousConfig:
     thickening_max: a larger excess (m) is not a section of hose (a bracket's post in a
         flank cone) and counts as no measurement; above thickening_min.
     fixture_speed: the fastest the target runs (m/s) from the first reading on a thicker
-        section to half of fit_length past its last one, while the hose fit still holds
-        the readings its facing sensors took of the section's ends (hose_thickness); at
-        least min_speed, at or above `speed` no slowing.
+        section until it is half of fit_length past its last one, while the hose fit still
+        holds the readings its facing sensors took of the section's ends (hose_thickness);
+        at least min_speed, at or above `speed` no slowing.
     """
 
     speed: float = Positive(0.11)

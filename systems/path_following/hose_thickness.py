@@ -28,8 +28,8 @@ The section also slows the target (SpeedCap): the facing cones, 25 deg wide, see
 up to 9 mm before and after the detection plane reaches it, where no radius tells it from
 the hose, and those readings stay in the hose fit for `fit_length` of travel; at the cruise
 the target extrapolates the bent fit up to `look_ahead` past them. So from the first
-reading on a thicker section to half of fit_length past its last one the target runs at
-most `fixture_speed` (80 mm/s; at a 70 mm/s cruise random_7, 10, 12 and 16 kept their
+reading on a thicker section until the target is half of fit_length past its last one the
+target runs at most `fixture_speed` (80 mm/s; at a 70 mm/s cruise random_7, 10, 12 and 16 kept their
 maxima at 6.0-6.5 mm, at the 110 mm/s cruise they reach 7-12).
 """
 
@@ -69,9 +69,9 @@ class Thickness:
         return Thickness(samples, excess, s if excess else self.found_at)
 
     def SpeedCap(self, s: float, config: ContinuousConfig) -> float:
-        """The fastest the target may run at path coordinate s (m/s): fixture_speed up to
-        half of fit_length past the last reading on a thicker section (module docstring),
-        the cruise `speed` elsewhere."""
+        """The fastest the target may run at its path coordinate s (m/s): fixture_speed up
+        to half of fit_length past the last reading on a thicker section (module
+        docstring), the cruise `speed` elsewhere."""
         if s - self.found_at <= config.fit_length / 2:
             return config.fixture_speed
         return config.speed

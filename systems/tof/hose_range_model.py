@@ -149,8 +149,8 @@ def RadiusFit(
     range where the rim ray grazes the hose), which moves the hose back into the cone, and
     the gap left at the end counts in the misfit. Dropping those rows left 63 % of the
     readings of plain hose with five or six sensors without a radius (6 % keeping them; eight
-    test hoses with three brackets); a bracket's post in a cone is farther off than
-    MAX_MISS.
+    test hoses with three brackets). A bracket's post in a flank cone can be reached by
+    growing the radius: hose_thickness rejects such excesses (thickening_max).
 
     The sensors facing the hose read a thicker hose exactly as a hose moved toward them; the
     flank sensors, which see it with their cones' edge rays, read the radius differently
