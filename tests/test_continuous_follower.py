@@ -15,7 +15,11 @@ from pydrake.systems.primitives import LogVectorOutput
 
 from guidedarm.systems.errors import ConfigurationError
 from guidedarm.systems.path_following.continuous_follower_config import ContinuousConfig
-from guidedarm.systems.path_following.continuous_follower_estimate import HoseEstimate, JointHistory
+from guidedarm.systems.path_following.continuous_follower_estimate import (
+    RECOVERY_READINGS,
+    HoseEstimate,
+    JointHistory,
+)
 from guidedarm.systems.path_following.continuous_follower_math import (
     BACK,
     DONE,
@@ -432,6 +436,61 @@ def test_axis_in_tool_is_the_hose_direction_from_the_perpendicular_points():
     expected_T = X_WT.rotation().inverse() @ hose
     assert math.degrees(math.acos(float(expected_T[0]))) == pytest.approx(20.0 - 5.73, abs=0.01)
     assert plain_only.AxisInTool(X_WT, config) is None
+
+
+def _ReadAlongX(hose_point, count: int, noise: float = 0.0, seed: int = 0) -> tuple:
+    """An estimate fed `count` readings every 2 mm of travel along the world x axis, the
+    hose point hose_point(s) (or None) plus noise; returns it and whether each reading
+    counted as the hose."""
+    rng = np.random.default_rng(seed)
+    config = ContinuousConfig()
+    estimate, seen = HoseEstimate.Start(RigidTransform()), []
+    for k in range(count):
+        s = 0.002 * k
+        S = hose_point(s)
+        S = None if S is None else S + [0.0, *rng.normal(0.0, noise, 2)]  # in the plane
+        estimate = estimate.WithReading(RigidTransform([s, 0.0, 0.0]), S, config)
+        seen.append(estimate.IsDetected())
+    return estimate, np.array(seen)
+
+
+@pytest.mark.parametrize("noise, seed", [(0.0, 0), (0.002, 0), (0.002, 1), (0.002, 2)])
+def test_a_fit_bent_off_the_hose_recovers_the_hose_it_rejected(noise, seed):
+    """A straight hose along x whose readings at 60-75 mm of travel lie up to 15 mm to its
+    side (the facing cones on a collar, read as the hose moved): the fit follows them, and
+    the hose beyond is off its extrapolation by more than the gate. RECOVERY_READINGS
+    outliers in a row that most of the earlier readings agree with become the hose."""
+
+    def bent(s: float) -> np.ndarray:
+        side = 0.015 * (s - 0.060) / 0.015 if 0.060 <= s < 0.075 else 0.0
+        return np.array([s, side, 0.0])
+
+    estimate, seen = _ReadAlongX(bent, 60, noise, seed)
+    rejected = np.flatnonzero(~seen)
+    assert len(rejected) >= RECOVERY_READINGS - 1 and rejected[0] >= 30  # past the bend
+    # without the recovery the hose would stay rejected to the end
+    assert seen[-15:].all()
+    assert np.linalg.norm(estimate.fit.p - [0.118, 0.0, 0.0]) < 0.003
+    assert estimate.fit.heading[0] > math.cos(math.radians(5.0))
+
+
+@pytest.mark.parametrize(
+    "beyond",
+    [
+        lambda s: np.array([0.08, 0.012, 0.0]),  # a fixed point to the side (a post)
+        # a line crossing the path at 60 deg from 15 mm aside (a crossing hose)
+        lambda s: np.array([s, 0.015 + (s - 0.08) * math.tan(math.radians(60.0)), 0.0]),
+    ],
+)
+def test_readings_off_the_hose_course_stay_outliers(beyond):
+    """Past 80 mm of a straight hose the readings jump to something off its course, over
+    twelve noise seeds: a fixed object's points do not move along with the tool, and few
+    of the readings behind agree with a crossing one, so neither becomes the hose."""
+    hose = lambda s: np.array([s, 0.0, 0.0]) if s < 0.08 else beyond(s)  # noqa: E731
+    for seed in range(12):
+        estimate, seen = _ReadAlongX(hose, 50, noise=0.002, seed=seed)
+        assert seen[:40].all() and not seen[40:].any()
+        assert abs(estimate.fit.p[1]) < 0.003
 
 
 def _FollowerOnAHeldArm(ranges: list[float] | None = None):

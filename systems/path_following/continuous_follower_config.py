@@ -36,7 +36,9 @@ class ContinuousConfig:
         min_fit_points) is an outlier, counted as a reading without the hose (m): past the
         hose's end the cones still see its end cap behind the detection plane, each
         reading a little farther off. 0.5 mm (below the estimates' own scatter, every
-        reading would be an outlier) to 0.1 m.
+        reading would be an outlier) to 0.1 m. Four outliers in a row that move along with
+        the tool and that a refit with most of the window's earlier readings holds within
+        the gate are the hose instead (the fit had left it; continuous_follower_estimate).
     correction_gain: the target moves toward the estimated path at this rate times the
         distance, and its x axis turns toward the path's heading at this rate times the
         angle (1/s; a first-order filter of the fit's noise).

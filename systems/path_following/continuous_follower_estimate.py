@@ -12,7 +12,9 @@ quadratic p(s) by least squares to the last fit_length of them (FitHose): the fi
 the estimated hose point at the latest reading, its derivative the tangent, its second
 derivative the curvature, its residual the noise. Beyond the last reading the path is
 extrapolated along the fit (at most look_ahead), behind it the trail of past fit ends
-is the path. continuous_follower_math moves the target along it.
+is the path. continuous_follower_math moves the target along it. A point beyond the gate
+is an outlier; a run of them that moves along with the tool and that most of the window's
+earlier points agree with is the hose the fit had left (_Recovered).
 """
 
 import bisect
@@ -25,6 +27,11 @@ from pydrake.math import RigidTransform
 
 from guidedarm.systems.path_following.continuous_follower_config import ContinuousConfig
 from guidedarm.systems.small_vectors import Dot, Norm, Vector
+
+# HoseEstimate's row flag for a hose point the gate rejected (1: the hose, 0: none seen).
+OUTLIER = -1.0
+# Consecutive outliers _Recovered tests as the hose the fit left (8 mm at the cruise).
+RECOVERY_READINGS = 4
 
 
 @dataclass(frozen=True)
@@ -125,8 +132,9 @@ class LocalFit:
 
 @dataclass(frozen=True)
 class HoseEstimate:
-    """Readings along the path: rows (s, detected, p_x, p_y, p_z) with p the hose point (or
-    the tool centre when undetected), the current fit, the trail of past fit ends (rows
+    """Readings along the path: rows (s, flag, p_x, p_y, p_z), flag 1 with p the hose
+    point, OUTLIER with p a point the gate rejected, 0 with p the tool centre (no hose
+    seen); the current fit, the trail of past fit ends (rows
     s, p, u), and the tool centre and its s at the latest reading; axis_fit and its rows:
     the same fit of the hose points estimated for a perpendicular hose (AxisInTool).
     Immutable: WithReading returns a new estimate."""
@@ -185,19 +193,22 @@ class HoseEstimate:
     ) -> "HoseEstimate":
         """The estimate after a reading with the tool at X_WT (the measurement instant's)
         that saw the hose centre at S_W (or nothing); an outlier (IsOutlier) counts as
-        nothing. S_W_plain: the same reading's hose centre estimated for a hose
-        perpendicular to the detection plane, which feeds axis_fit (AxisInTool); None
-        leaves axis_fit as it is."""
+        nothing unless it ends a run _Recovered takes as the hose. S_W_plain: the same
+        reading's hose centre for a hose perpendicular to the detection plane, which feeds
+        axis_fit (AxisInTool); None leaves axis_fit as it is."""
         s = self.ToolCoordinate(X_WT)
         p_WO = X_WT.translation().copy()
+        seen = float(S_W is not None)
         if S_W is not None and self.IsOutlier(s, S_W, config):
-            S_W = None
-        axis_fit, axis_rows = self.axis_fit, self.axis_rows
-        if S_W is not None and S_W_plain is not None:
-            axis_fit, axis_rows = self._AxisFit(s, S_W_plain, config)
+            seen = OUTLIER
         point = S_W if S_W is not None else p_WO
-        rows = np.concatenate((self.rows, [[s, float(S_W is not None), *point.tolist()]]))
-        if S_W is None:
+        rows = np.concatenate((self.rows, [[s, seen, *point.tolist()]]))
+        if seen == OUTLIER:
+            rows = _Recovered(rows, s, self.fit, config)
+        axis_fit, axis_rows = self.axis_fit, self.axis_rows
+        if rows[-1, 1] > 0.5 and S_W_plain is not None:
+            axis_fit, axis_rows = self._AxisFit(s, S_W_plain, config)
+        if rows[-1, 1] <= 0.5:
             keep = rows[:, 0] >= self.fit.s - config.fit_length
             rows = rows[keep] if np.count_nonzero(keep) >= 2 else rows[-2:]
             return HoseEstimate(self.fit, rows, self.trail, p_WO, s, axis_fit, axis_rows)
@@ -233,6 +244,48 @@ class HoseEstimate:
 
 # The powers of the fit's polynomial (np.vander's columns, without its overhead).
 _POWERS = np.arange(3)
+
+
+def _Recovered(
+    rows: np.ndarray, s_end: float, previous: LocalFit, config: ContinuousConfig
+) -> np.ndarray:
+    """rows (the window, its last a rejected point) with its trailing run of outliers taken
+    as the hose, when the run holds RECOVERY_READINGS or more, its points move along with
+    the tool (a fixed object's do not), and a fit of it with the window's earlier points,
+    the farthest dropped one by one, holds every point within the gate having dropped at
+    most a third of them: those that bent the fit (the facing cones' first view of a collar)
+    become the outliers. Otherwise rows unchanged: something off the hose's course (a
+    post, a crossing hose) agrees with few of the points behind."""
+    window = rows[:, 0] >= s_end - config.fit_length
+    trial = rows[window].copy()
+    hose = np.flatnonzero(trial[:, 1] != OUTLIER)
+    run = len(trial) - 1 - (int(hose[-1]) if len(hose) else -1)
+    if run < RECOVERY_READINGS or not _MovesAlong(trial[-run:], previous.heading):
+        return rows
+    trial[-run:, 1] = 1.0
+    most, dropped = np.count_nonzero(trial[:-run, 1] > 0.5) // 3, 0
+    while True:  # each point's distance (m) from the fit's quadratic
+        fit = FitHose(trial, s_end, previous, config)
+        d = (trial[:, 0] - fit.s)[:, None]
+        misfit = np.linalg.norm(trial[:, 2:5] - (fit.p + fit.u * d + 0.5 * fit.c * d * d), axis=1)
+        misfit[trial[:, 1] <= 0.5] = 0.0
+        worst = int(np.argmax(misfit))
+        if misfit[worst] <= config.gate:
+            return trial
+        if worst >= len(trial) - run or dropped == most:
+            return rows
+        trial[worst, 1] = OUTLIER
+        dropped += 1
+
+
+def _MovesAlong(run: np.ndarray, heading: np.ndarray) -> bool:
+    """Whether the points of a run of readings (rows) advanced along `heading` at least half
+    as far as the tool did, between the means of its first and last halves."""
+    half = len(run) // 2
+    first, last = run[:half], run[-half:]
+    travel = float(last[:, 0].mean() - first[:, 0].mean())
+    advance = float((last[:, 2:5].mean(axis=0) - first[:, 2:5].mean(axis=0)) @ heading)
+    return advance >= 0.5 * travel
 
 
 def FitHose(
