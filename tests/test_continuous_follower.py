@@ -588,14 +588,15 @@ def test_thickness_holds_the_median_excess_of_the_last_radius_measurements():
 
 
 def test_a_thicker_section_slows_the_target_until_the_fit_has_passed_it():
-    """Thickness.SpeedCap: fixture_speed from the first reading on a thicker section to
-    half of fit_length past its last one (the fit still holds those readings), the cruise
+    """Thickness.SpeedCap with a fixture_speed under the cruise (by default they are
+    equal): fixture_speed from the first reading on a thicker section to half of
+    fit_length past its last one (the fit still holds those readings), the cruise
     elsewhere; an excess above thickening_max is not a hose section (a bracket's post in a
     cone lets the radius fit grow the hose to reach it) and counts for nothing."""
     from guidedarm.systems.path_following.hose_thickness import Thickness
 
-    config = ContinuousConfig()
-    assert config.fixture_speed == 0.08 and config.thickening_max == 0.005
+    config = ContinuousConfig(fixture_speed=0.08)
+    assert config.fixture_speed < config.speed and config.thickening_max == 0.005
     t = Thickness().With(0.100, 0.003, config)
     assert t.SpeedCap(0.100, config) == config.speed  # one measurement is not a section
     t = t.With(0.102, 0.003, config)

@@ -24,13 +24,15 @@ or the fit followed its first readings before the radius was measured). An exces
 `thickening_max` (5 mm) is no section of hose: a bracket's post in a flank cone lets the
 radius fit grow the hose until it reaches the post (5.7-9 mm by random_34's end bracket).
 
-The section also slows the target (SpeedCap): the facing cones, 25 deg wide, see a collar
-up to 9 mm before and after the detection plane reaches it, where no radius tells it from
-the hose, and those readings stay in the hose fit for `fit_length` of travel; at the cruise
-the target extrapolates the bent fit up to `look_ahead` past them. So from the first
-reading on a thicker section until the target is half of fit_length past its last one the
-target runs at most `fixture_speed` (80 mm/s; at a 70 mm/s cruise random_7, 10, 12 and 16 kept their
-maxima at 6.0-6.5 mm, at the 110 mm/s cruise they reach 7-12).
+The section can also slow the target (SpeedCap): the facing cones, 25 deg wide, see a
+collar up to 9 mm before and after the detection plane reaches it, where no radius tells
+it from the hose, and those readings stay in the hose fit for `fit_length` of travel; at
+the cruise the target extrapolates the bent fit up to `look_ahead` past them. From the
+first reading on a thicker section until the target is half of fit_length past its last
+one the target runs at most `fixture_speed`. By default that is the cruise, no slowing:
+where the bent fit rejected the hose itself, the estimate's recovery of a run of outliers
+(continuous_follower_estimate) takes the hose back, and the test hoses meet the goals
+without slowing (docs/path_following.md, What is not hose).
 """
 
 from __future__ import annotations
