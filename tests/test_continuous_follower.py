@@ -287,8 +287,8 @@ CLUTTER = (
 
 
 # Tracking goals (mean, max; mm), also in the cluttered scene (three collars, two clamps),
-# whose readings are taken with the radius measured there and which slow the target
-# (hose_thickness): random_11 2.79 / 8.0 mm (3.71 / 12.07 without the test).
+# whose readings are taken with the radius measured there (hose_thickness): random_11
+# 2.94 / 7.22 mm (3.71 / 12.07 without the test).
 GOALS = (3.0, 10.0)
 
 
@@ -303,6 +303,7 @@ GOALS = (3.0, 10.0)
         ("random_11", CLUTTER, GOALS),
         ("paper_path_4", ("station.hose.crossing_clearance=0.04",), GOALS),
         ("random_12", ("station.hose.brackets=3",), GOALS),
+        ("paper_path_4", ("station.hose.brackets=3",), GOALS),
     ],
 )
 def test_continuous_run_through_the_station(tmp_path, path, scene, tracking):
@@ -316,7 +317,10 @@ def test_continuous_run_through_the_station(tmp_path, path, scene, tracking):
     under it: a tool free to roll about the hose (continuous.roll_weight 0.1) lowered its
     side arm onto the crossing hose. random_12 with three brackets: the radius fit that
     dropped the rows of the cones its hose missed measured its end collar too late, and
-    the tool left the hose by 12.7 mm past it."""
+    the tool left the hose by 12.7 mm past it. paper_path_4 with three brackets, the
+    shortest hose: its middle collar bends the fit, which then gates out the hose (lost at
+    coverage 0.66 without the estimate's recovery, 78.9 mm/s when slowed to 80 at collars
+    instead)."""
     import json
 
     from guidedarm.diagrams.cli.main import main
