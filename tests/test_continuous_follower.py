@@ -592,8 +592,7 @@ def test_thickness_holds_the_median_excess_of_the_last_radius_measurements():
 
 
 def test_a_thicker_section_slows_the_target_until_the_fit_has_passed_it():
-    """Thickness.SpeedCap with a fixture_speed under the cruise (by default they are
-    equal): fixture_speed from the first reading on a thicker section to half of
+    """Thickness.SpeedCap: fixture_speed from the first reading on a thicker section to half of
     fit_length past its last one (the fit still holds those readings), the cruise
     elsewhere; an excess above thickening_max is not a hose section (a bracket's post in a
     cone lets the radius fit grow the hose to reach it) and counts for nothing."""

@@ -29,10 +29,10 @@ collar up to 9 mm before and after the detection plane reaches it, where no radi
 it from the hose, and those readings stay in the hose fit for `fit_length` of travel; at
 the cruise the target extrapolates the bent fit up to `look_ahead` past them. From the
 first reading on a thicker section until the target is half of fit_length past its last
-one the target runs at most `fixture_speed`. By default that is the cruise, no slowing:
-where the bent fit rejected the hose itself, the estimate's recovery of a run of outliers
-(continuous_follower_estimate) takes the hose back, and the test hoses meet the goals
-without slowing (docs/path_following.md, What is not hose).
+one the target runs at most `fixture_speed` (90 mm/s). Where the bent fit rejected the
+hose itself, the estimate's recovery of a run of outliers (continuous_follower_estimate)
+takes the hose back; the slowing keeps the maxima past a collar lower
+(docs/path_following.md, What is not hose).
 """
 
 from __future__ import annotations
