@@ -100,7 +100,7 @@ else:
 # the full station and records a replay. Each run is what `guidedarm run
 # ur10e_path_following --path-csv my_hose.csv --set ...` does. This hose bends at 51 mm
 # radius, half the random hoses' smallest, for which the default continuous cruise (110
-# mm/s) is chosen: at that cruise the tool strays up to 15.5 mm from this hose (3.6 mm
+# mm/s) is chosen: at that cruise the tool strays up to 13.6 mm from this hose (3.9 mm
 # on average), so the continuous run cruises at 50 mm/s.
 
 # %%
