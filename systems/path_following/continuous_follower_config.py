@@ -90,8 +90,8 @@ class ContinuousConfig:
         holds the readings its facing sensors took of the section's ends (hose_thickness);
         at least min_speed, at or above `speed` no slowing. 0.09: with the gate's recovery
         of a fit bent off the hose (continuous_follower_estimate) 127 of 128 test runs meet
-        the goals, paper_path_4 with three brackets at 83 mm/s; 0.08 and the cruise each
-        left a run over a goal (docs/path_following.md, What is not hose).
+        the goals, paper_path_4 with three brackets at 83 mm/s; 0.08 left one run over a
+        goal, the cruise three (docs/path_following.md, What is not hose).
     """
 
     speed: float = Positive(0.11)
