@@ -264,10 +264,10 @@ def _Recovered(
         return rows
     trial[-run:, 1] = 1.0
     most, dropped = np.count_nonzero(trial[:-run, 1] > 0.5) // 3, 0
-    while True:  # each point's distance (m) from the fit's quadratic
+    while True:
         fit = FitHose(trial, s_end, previous, config)
-        d = (trial[:, 0] - fit.s)[:, None]
-        misfit = np.linalg.norm(trial[:, 2:5] - (fit.p + fit.u * d + 0.5 * fit.c * d * d), axis=1)
+        on_fit = np.array([fit.Point(s) for s in trial[:, 0].tolist()])
+        misfit = np.linalg.norm(trial[:, 2:5] - on_fit, axis=1)
         misfit[trial[:, 1] <= 0.5] = 0.0
         worst = int(np.argmax(misfit))
         if misfit[worst] <= config.gate:
