@@ -84,8 +84,14 @@ def InterruptsAllowed() -> Iterator[None]:
 
 def RaiseIfInterrupted() -> None:
     """Raises the pending interrupt, if any (a safe point of a long loop)."""
-    if _PENDING:
-        raise _Interrupt(_PENDING[-1])
+    pending = PendingInterrupt()
+    if pending is not None:
+        raise pending
+
+
+def PendingInterrupt() -> KeyboardInterrupt | None:
+    """The interrupt received and not yet reported (TakeInterrupt), or None."""
+    return _Interrupt(_PENDING[-1]) if _PENDING else None
 
 
 def TakeInterrupt() -> None:

@@ -10,7 +10,7 @@ from typing import Any
 
 from pydrake.common.yaml import yaml_dump_typed
 
-from guidedarm.diagrams.interrupts import RaiseIfInterrupted, TakeInterrupt
+from guidedarm.diagrams.interrupts import PendingInterrupt, RaiseIfInterrupted, TakeInterrupt
 from guidedarm.diagrams.run_context import (
     RESOLVED_SCENARIO_FILE,
     SUMMARY_FILE,
@@ -62,12 +62,7 @@ def RunPrepared(run: PreparedRun, context: RunContext) -> dict[str, Any]:
     except GuidedArmError:
         raise
     except (Exception, SystemExit) as e:
-        # A bug, or a failed Drake check (pydrake raises it as SystemExit): its traceback
-        # beside the summary, not on screen. Nothing in a task exits on purpose.
-        context.write_text(TRACEBACK_FILE, traceback.format_exc())
-        first = str(e).strip().splitlines()[0] if str(e).strip() else ""
-        cause = DrakeCheckFailure(e) or f"{type(e).__name__}: {first}"
-        metrics = {"success": False, "failure": f"internal error {cause} (see {TRACEBACK_FILE})"}
+        metrics = {"success": False, "failure": _ErrorFailure(e, context)}
     bad = NonFiniteKeys(metrics)
     if bad:
         metrics = _WithoutNonFinite(metrics)
@@ -92,6 +87,21 @@ def DrawnErrors(scenario: Any) -> dict[str, Any]:
     if isinstance(camera_errors, CameraErrors) and not IsZeroError(camera_errors):
         return {"camera": ErrorsAsData(camera_errors)}
     return {}
+
+
+def _ErrorFailure(error: BaseException, context: RunContext) -> str:
+    """The `failure` of a run that raised `error`: the interrupt it came from, when one is
+    pending (an extension that caught the KeyboardInterrupt raised its own error instead:
+    matplotlib's Agg drawing a figure, "Invalid affine transformation matrix"); else a bug
+    or a failed Drake check (pydrake raises it as SystemExit), its traceback beside the
+    summary, not on screen. Nothing in a task exits on purpose."""
+    interrupt = PendingInterrupt()
+    if interrupt is not None:
+        return InterruptedFailure(interrupt)
+    context.write_text(TRACEBACK_FILE, traceback.format_exc())
+    first = str(error).strip().splitlines()[0] if str(error).strip() else ""
+    cause = DrakeCheckFailure(error) or f"{type(error).__name__}: {first}"
+    return f"internal error {cause} (see {TRACEBACK_FILE})"
 
 
 def InterruptedFailure(interrupt: KeyboardInterrupt) -> str:

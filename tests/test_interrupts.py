@@ -75,3 +75,36 @@ def test_a_signal_while_interrupts_are_deferred_is_kept_for_later(handlers):
         for _ in range(1000):
             pass
     TakeInterrupt()
+
+
+def test_an_error_raised_in_place_of_a_pending_interrupt_reports_the_interrupt(handlers, tmp_path):
+    """A SIGTERM whose KeyboardInterrupt an extension turned into its own error (matplotlib's
+    Agg, interrupted while drawing a figure, raises "Invalid affine transformation
+    matrix") ends the run as interrupted, not as an internal error."""
+    import dataclasses
+
+    from guidedarm.diagrams.interrupts import DeferredInterrupts
+    from guidedarm.diagrams.run_preparation import PreparedRun
+    from guidedarm.diagrams.task_run import TRACEBACK_FILE, RunPrepared
+    from guidedarm.diagrams.tasks.registry import LoadScenario
+
+    def run(scenario, context, *prepared):
+        with DeferredInterrupts():  # the interrupt is pending, as the extension caught it
+            os.kill(os.getpid(), signal.SIGTERM)
+            for _ in range(1000):
+                pass
+        raise ValueError("Invalid affine transformation matrix")
+
+    task, scenario, _ = LoadScenario("ur10e_waypoints", [])
+    task = dataclasses.replace(task, run=run, prepare=None)
+    summary = RunPrepared(PreparedRun(task, scenario, None), RunContext(out_dir=tmp_path))
+    assert summary["success"] is False
+    assert summary["failure"] == "interrupted by SIGTERM"
+    assert not (tmp_path / TRACEBACK_FILE).exists()
+
+    def buggy(scenario, context, *prepared):
+        raise ValueError("a bug")
+
+    task = dataclasses.replace(task, run=buggy)
+    summary = RunPrepared(PreparedRun(task, scenario, None), RunContext(out_dir=tmp_path))
+    assert summary["failure"] == f"internal error ValueError: a bug (see {TRACEBACK_FILE})"
